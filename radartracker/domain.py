@@ -1,0 +1,209 @@
+"""Domain objects: radars, aircraft, plots, ADS-B reports, tracks and bias states.
+
+Internally SI (metres, seconds, radians). Construction validates every field and raises
+``ValueError`` naming the field, so a bad number never turns into a silent NaN later.
+Degrees, feet and knots appear only at the I/O edges (see :mod:`radartracker.formats`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Hashable
+from typing import Any
+
+import attrs
+import numpy as np
+
+TWO_PI = 2.0 * math.pi
+
+
+def _finite(inst: Any, attr: attrs.Attribute, value: Any) -> None:
+    if value is None:
+        return
+    if not isinstance(value, (int, float, np.integer, np.floating)) or not math.isfinite(value):
+        raise ValueError(f"{attr.name}: expected a finite number, got {value!r}")
+
+
+def _positive(inst: Any, attr: attrs.Attribute, value: float) -> None:
+    _finite(inst, attr, value)
+    if value <= 0:
+        raise ValueError(f"{attr.name}: must be > 0, got {value!r}")
+
+
+def _non_negative(inst: Any, attr: attrs.Attribute, value: float) -> None:
+    _finite(inst, attr, value)
+    if value < 0:
+        raise ValueError(f"{attr.name}: must be >= 0, got {value!r}")
+
+
+def _latitude(inst: Any, attr: attrs.Attribute, value: float) -> None:
+    _finite(inst, attr, value)
+    if not -90.0 <= value <= 90.0:
+        raise ValueError(f"{attr.name}: latitude must be in [-90, 90] degrees, got {value!r}")
+
+
+def _longitude(inst: Any, attr: attrs.Attribute, value: float) -> None:
+    _finite(inst, attr, value)
+    if not -180.0 <= value <= 180.0:
+        raise ValueError(f"{attr.name}: longitude must be in [-180, 180] degrees, got {value!r}")
+
+
+def _azimuth(inst: Any, attr: attrs.Attribute, value: float) -> None:
+    _finite(inst, attr, value)
+    if not 0.0 <= value < TWO_PI:
+        raise ValueError(
+            f"{attr.name}: azimuth must be in [0, 360) degrees, got {math.degrees(value)!r} deg"
+        )
+
+
+def _mode_s(inst: Any, attr: attrs.Attribute, value: str | None) -> None:
+    if value is None:
+        return
+    if not isinstance(value, str) or len(value) != 6 or any(c not in "0123456789abcdef" for c in value):
+        raise ValueError(f"{attr.name}: Mode S address must be 6 lower-case hex digits, got {value!r}")
+
+
+def _mode_3a(inst: Any, attr: attrs.Attribute, value: str | None) -> None:
+    if value is None:
+        return
+    if not isinstance(value, str) or len(value) != 4 or any(c not in "01234567" for c in value):
+        raise ValueError(f"{attr.name}: Mode 3/A code must be 4 octal digits, got {value!r}")
+
+
+def _nonempty(inst: Any, attr: attrs.Attribute, value: str) -> None:
+    if not isinstance(value, str) or not value.strip():
+        raise ValueError(f"{attr.name}: must be a non-empty string, got {value!r}")
+
+
+def _lower(value: str | None) -> str | None:
+    return value.lower() if isinstance(value, str) else value
+
+
+@attrs.frozen
+class Radar:
+    """A rotating surveillance radar: site (WGS84, height above the ellipsoid), noise, period, coverage.
+
+    ``sigma_range_m`` and ``sigma_azimuth_rad`` are the random-error standard deviations of
+    W_j = diag(σ_r², σ_θ²) (seed 000 eq. 1.11); the antenna turns clockwise once per ``period_s``.
+    """
+
+    id: str = attrs.field(validator=_nonempty)
+    lat: float = attrs.field(validator=_latitude)
+    lon: float = attrs.field(validator=_longitude)
+    height_m: float = attrs.field(validator=_finite)
+    sigma_range_m: float = attrs.field(validator=_non_negative)
+    sigma_azimuth_rad: float = attrs.field(validator=_non_negative)
+    period_s: float = attrs.field(validator=_positive)
+    max_range_m: float = attrs.field(validator=_positive)
+
+    @property
+    def W(self) -> np.ndarray:
+        """Measurement noise covariance diag(σ_r², σ_θ²) in polar coordinates."""
+        return np.diag([self.sigma_range_m**2, self.sigma_azimuth_rad**2])
+
+
+@attrs.frozen
+class Aircraft:
+    """An aircraft's identity: Mode S address, optional Mode 3/A code and callsign, ADS-B quality."""
+
+    icao24: str = attrs.field(converter=_lower, validator=_mode_s)
+    callsign: str = ""
+    mode_3a: str | None = attrs.field(default=None, validator=_mode_3a)
+    adsb: bool = False
+    nacp: int = attrs.field(default=8, validator=attrs.validators.in_(range(0, 12)))
+
+
+@attrs.frozen(slots=True)
+class Plot:
+    """One radar plot: time (s, UTC), slant range (m) and azimuth (rad, clockwise from north).
+
+    ``altitude_m`` is the reported (barometric) altitude, ``None`` for primary-only plots.
+    ``target`` is the true aircraft, present only in simulated data for evaluation.
+    """
+
+    time: float = attrs.field(validator=_finite)
+    radar: str = attrs.field(validator=_nonempty)
+    range_m: float = attrs.field(validator=_non_negative)
+    azimuth_rad: float = attrs.field(validator=_azimuth)
+    altitude_m: float | None = attrs.field(default=None, validator=_finite)
+    mode_s: str | None = attrs.field(default=None, converter=_lower, validator=_mode_s)
+    mode_3a: str | None = attrs.field(default=None, validator=_mode_3a)
+    target: str | None = None
+
+
+@attrs.frozen(slots=True)
+class AdsbReport:
+    """One ADS-B position report; NACp gives its 95 % horizontal accuracy bound (DO-260)."""
+
+    time: float = attrs.field(validator=_finite)
+    icao24: str = attrs.field(converter=_lower, validator=_mode_s)
+    lat: float = attrs.field(validator=_latitude)
+    lon: float = attrs.field(validator=_longitude)
+    altitude_m: float | None = attrs.field(default=None, validator=_finite)
+    nacp: int = attrs.field(default=8, validator=attrs.validators.in_(range(1, 12)))
+
+
+# NACp → 95 % horizontal position bound EPU (m), DO-260B table; σ per axis = EPU / 2.448
+# (the radius holding 95 % of a circular 2-D Gaussian).
+NACP_EPU_M = {1: 18520.0, 2: 7408.0, 3: 3704.0, 4: 1852.0, 5: 926.0, 6: 555.6,
+              7: 185.2, 8: 92.6, 9: 30.0, 10: 10.0, 11: 3.0}
+
+
+def nacp_sigma_m(nacp: int) -> float:
+    """Per-axis standard deviation (m) of an ADS-B position with this NACp."""
+    if nacp not in NACP_EPU_M:
+        raise ValueError(f"nacp: must be 1..11 (0 means unknown accuracy, unusable), got {nacp!r}")
+    return NACP_EPU_M[nacp] / 2.448
+
+
+@attrs.frozen
+class BiasState:
+    """One radar's bias estimate ς = [Δr (m), Δθ (rad)] and its 2×2 covariance at ``time``."""
+
+    radar: str
+    time: float
+    bias: np.ndarray = attrs.field(converter=np.asarray)
+    cov: np.ndarray = attrs.field(converter=np.asarray)
+
+    @property
+    def range_m(self) -> float:
+        return float(self.bias[0])
+
+    @property
+    def azimuth_rad(self) -> float:
+        return float(self.bias[1])
+
+    @property
+    def sd_range_m(self) -> float:
+        return float(math.sqrt(max(self.cov[0, 0], 0.0)))
+
+    @property
+    def sd_azimuth_rad(self) -> float:
+        return float(math.sqrt(max(self.cov[1, 1], 0.0)))
+
+
+TRACK_STATUSES = ("tentative", "confirmed", "coasting", "deleted")
+
+
+@attrs.define
+class Track:
+    """An aircraft's estimated state history and status.
+
+    ``times`` and ``states`` (χ = [x, y, vx, vy] in the plane) grow with each update; ``sd`` keeps
+    the position standard deviations (σx, σy) at each of those times.
+    """
+
+    key: Hashable
+    status: str = attrs.field(default="tentative", validator=attrs.validators.in_(TRACK_STATUSES))
+    times: list[float] = attrs.field(factory=list)
+    states: list[np.ndarray] = attrs.field(factory=list)
+    sd: list[tuple[float, float]] = attrs.field(factory=list)
+
+    def record(self, time: float, state: np.ndarray, cov: np.ndarray) -> None:
+        self.times.append(time)
+        self.states.append(np.array(state, dtype=float))
+        self.sd.append((math.sqrt(max(cov[0, 0], 0.0)), math.sqrt(max(cov[1, 1], 0.0))))
+
+    @property
+    def last_time(self) -> float | None:
+        return self.times[-1] if self.times else None

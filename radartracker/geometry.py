@@ -1,0 +1,141 @@
+"""Geodesy with pyproj: the system plane and each radar's exact polar geometry (DESIGN §3–§4).
+
+* :class:`SystemPlane` — conformal stereographic projection of WGS84 centred on the system
+  reference point; x east, y north, metres.
+* :class:`RadarFrame` — one radar's local east-north-up frame (pyproj ``cart`` + ``topocentric``).
+  Slant range ρ and azimuth θ (clockwise from *true* north at the site) relate to an aircraft
+  position through exact 3-D geometry using the aircraft altitude and the radar height; no
+  flat-earth approximation. Altitudes are treated as heights above the ellipsoid.
+* :meth:`RadarFrame.bias_jacobian` — C_s = D = ∂p/∂(ρ, θ) of the plane position (DESIGN §4,
+  seed 000 eq. 1.11): the azimuth column is Ω(p − p_R) with Ω = [[0, 1], [−1, 0]] (x east,
+  y north, θ clockwise), the range column is u·∂d/∂ρ where u is the plane line of sight and
+  ∂d/∂ρ the change of plane distance with slant range at constant altitude (spherical earth,
+  scaled by the local projection scale). Tests hold it to finite differences of the exact model.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pyproj import CRS, Transformer
+
+_EARTH_RADIUS_M = 6_371_008.8  # mean earth radius, only for ∂d/∂ρ and the elevation start value
+_OMEGA = np.array([[0.0, 1.0], [-1.0, 0.0]])
+
+
+class SystemPlane:
+    """Stereographic system plane centred on (lat0, lon0): x east, y north (metres)."""
+
+    def __init__(self, lat0: float, lon0: float) -> None:
+        self.lat0, self.lon0 = float(lat0), float(lon0)
+        self.crs = CRS.from_proj4(
+            f"+proj=stere +lat_0={self.lat0} +lon_0={self.lon0} +k_0=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m"
+        )
+        self._fwd = Transformer.from_crs("EPSG:4326", self.crs, always_xy=True)
+
+    def to_plane(self, lat, lon) -> tuple[np.ndarray, np.ndarray]:
+        """Plane (x, y) in metres of WGS84 (lat, lon) in degrees."""
+        x, y = self._fwd.transform(np.asarray(lon, float), np.asarray(lat, float), errcheck=True)
+        return np.asarray(x), np.asarray(y)
+
+    def to_geodetic(self, x, y) -> tuple[np.ndarray, np.ndarray]:
+        """WGS84 (lat, lon) in degrees of plane (x, y) in metres."""
+        lon, lat = self._fwd.transform(
+            np.asarray(x, float), np.asarray(y, float), direction="INVERSE", errcheck=True
+        )
+        return np.asarray(lat), np.asarray(lon)
+
+    def __repr__(self) -> str:
+        return f"SystemPlane(lat0={self.lat0}, lon0={self.lon0})"
+
+
+class RadarFrame:
+    """Exact polar geometry of one radar site (lat, lon in degrees, height in metres)."""
+
+    def __init__(self, lat: float, lon: float, height_m: float, plane: SystemPlane) -> None:
+        self.lat, self.lon, self.height_m = float(lat), float(lon), float(height_m)
+        self.plane = plane
+        self._enu = Transformer.from_pipeline(
+            "+proj=pipeline +step +proj=unitconvert +xy_in=deg +xy_out=rad "
+            "+step +proj=cart +ellps=WGS84 "
+            f"+step +proj=topocentric +ellps=WGS84 +lat_0={self.lat} +lon_0={self.lon} +h_0={self.height_m}"
+        )
+        px, py = plane.to_plane(self.lat, self.lon)
+        self.xy = np.array([float(px), float(py)])
+
+    # --- geodetic <-> local east-north-up --------------------------------------------------------
+    def enu(self, lat, lon, alt) -> np.ndarray:
+        """East-north-up coordinates (…, 3) of WGS84 points relative to the radar."""
+        e, n, u = self._enu.transform(
+            np.asarray(lon, float), np.asarray(lat, float), np.asarray(alt, float), errcheck=True
+        )
+        return np.stack([e, n, u], axis=-1)
+
+    def geodetic(self, enu: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """WGS84 (lat, lon, height) of local east-north-up points."""
+        lon, lat, h = self._enu.transform(enu[..., 0], enu[..., 1], enu[..., 2], direction="INVERSE")
+        return np.asarray(lat), np.asarray(lon), np.asarray(h)
+
+    # --- exact polar model ---------------------------------------------------------------------
+    def polar(self, lat, lon, alt) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Slant range ρ (m), azimuth θ ∈ [0, 2π) and elevation ε (rad) of WGS84 points."""
+        enu = self.enu(lat, lon, alt)
+        rho = np.linalg.norm(enu, axis=-1)
+        theta = np.mod(np.arctan2(enu[..., 0], enu[..., 1]), 2 * np.pi)
+        elev = np.arcsin(np.clip(enu[..., 2] / np.maximum(rho, 1e-9), -1.0, 1.0))
+        return rho, theta, elev
+
+    def locate(self, rho, theta, alt, iterations: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """WGS84 (lat, lon) of a plot (ρ, θ) at altitude ``alt``, and a validity mask.
+
+        The elevation ε that puts the point at the given altitude is found by Newton's method on
+        the exact ellipsoidal height (start: spherical law of cosines). Invalid where no point at
+        that slant range can have that altitude (ρ shorter than the height difference).
+        """
+        rho, theta, alt = np.broadcast_arrays(*(np.asarray(a, float) for a in (rho, theta, alt)))
+        a = _EARTH_RADIUS_M + self.height_m
+        b = _EARTH_RADIUS_M + alt
+        sin_e = (b * b - a * a - rho * rho) / (2 * a * np.maximum(rho, 1e-9))
+        valid = np.abs(sin_e) < 1.0
+        elev = np.arcsin(np.clip(sin_e, -1.0, 1.0))
+        for _ in range(iterations):
+            _, _, h = self.geodetic(self._enu_from_polar(rho, theta, elev))
+            elev = elev - (h - alt) / np.maximum(rho * np.cos(elev), 1.0)
+        lat, lon, h = self.geodetic(self._enu_from_polar(rho, theta, elev))
+        valid &= np.abs(h - alt) < 0.01
+        return lat, lon, valid
+
+    @staticmethod
+    def _enu_from_polar(rho, theta, elev) -> np.ndarray:
+        ce = np.cos(elev)
+        return np.stack([rho * ce * np.sin(theta), rho * ce * np.cos(theta), rho * np.sin(elev)], axis=-1)
+
+    def to_plane(self, rho, theta, alt) -> tuple[np.ndarray, np.ndarray]:
+        """Plane positions (…, 2) of plots (ρ, θ, altitude) and a validity mask."""
+        lat, lon, valid = self.locate(rho, theta, alt)
+        x, y = self.plane.to_plane(lat, lon)
+        return np.stack([x, y], axis=-1), valid
+
+    # --- linearised bias and noise model -------------------------------------------------------
+    def bias_jacobian(self, p: np.ndarray, rho, alt) -> np.ndarray:
+        """C_s = D = ∂p/∂(ρ, θ) (…, 2, 2) at plane positions ``p`` (…, 2) with slant range ρ.
+
+        Azimuth column Ω(p − p_R); range column u·∂d/∂ρ, where on a sphere
+        cos c = (a² + b² − ρ²)/(2ab) gives ∂c/∂ρ = ρ/(ab sin c) and ∂d/∂ρ = (d/c)·∂c/∂ρ
+        (d the plane distance, c the central angle, a and b the geocentric radii of radar and
+        aircraft).
+        """
+        p = np.asarray(p, float)
+        rho = np.asarray(rho, float)
+        dp = p - self.xy
+        d = np.linalg.norm(dp, axis=-1)
+        a = _EARTH_RADIUS_M + self.height_m
+        b = _EARTH_RADIUS_M + np.asarray(alt, float)
+        cos_c = np.clip((a * a + b * b - rho * rho) / (2 * a * b), -1.0, 1.0)
+        c = np.arccos(cos_c)
+        safe_c = np.maximum(c, 1e-12)
+        dd_drho = np.where(c > 1e-9, (d / safe_c) * rho / (a * b * np.sin(safe_c)), 1.0)
+        u = dp / np.maximum(d, 1e-9)[..., None]
+        J = np.empty(p.shape[:-1] + (2, 2))
+        J[..., :, 0] = u * dd_drho[..., None]
+        J[..., :, 1] = dp @ _OMEGA.T
+        return J

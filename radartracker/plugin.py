@@ -1,0 +1,192 @@
+"""The public plugin API: what an estimator implements and how plugins are found.
+
+An *estimator* receives associated measurements already converted to the system plane
+(:class:`PlaneMeasurement`) and keeps the aircraft states and the radar biases. The observation
+model it must honour is seed 000 eq. 1.5/1.11 (DESIGN §4)::
+
+    z = C_x χ_i + C_s ς_j + D w,   C_x = [I 0],   R = D W Dᵀ
+
+where ``C_s`` and ``R`` come with the measurement (``C_s = 0`` for unbiased sources such as ADS-B).
+Aircraft states are χ = [x, y, vx, vy] (metres, m/s, x east, y north); a bias is ς = [Δr, Δθ]
+(metres, radians). Each aircraft has its own epoch: an estimator predicts an aircraft only when a
+measurement of it arrives.
+
+Plugins are discovered through ``importlib.metadata`` entry points in the groups
+``radartracker.estimators`` and ``radartracker.reconstructors``; the built-in plugins register
+themselves the same way a third party would.
+"""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Hashable, Iterable
+from importlib.metadata import entry_points
+from typing import Any, ClassVar, NamedTuple
+
+import attrs
+import numpy as np
+
+from radartracker.domain import BiasState
+from radartracker.motion import MotionModel
+
+ESTIMATOR_GROUP = "radartracker.estimators"
+RECONSTRUCTOR_GROUP = "radartracker.reconstructors"
+
+
+@attrs.frozen
+class EstimatorConfig:
+    """Settings shared by every estimator.
+
+    ``motion`` is the aircraft motion model (constant velocity with optional white-acceleration
+    noise, seed 000 eq. 1.4). Bias priors are zero-mean with the given standard deviations
+    (seed eq. 1.7: constant biases); ``bias_drift_*`` are random-walk spectral densities
+    (m²/s and rad²/s) for slowly drifting biases — zero by default, as in the seed.
+    """
+
+    motion: MotionModel = attrs.field(factory=MotionModel)
+    bias_sd_range_m: float = 500.0
+    bias_sd_azimuth_rad: float = float(np.radians(0.5))
+    bias_drift_range: float = 0.0
+    bias_drift_azimuth: float = 0.0
+
+    def bias_prior(self) -> np.ndarray:
+        """Prior covariance of one radar's bias [Δr, Δθ]."""
+        return np.diag([self.bias_sd_range_m**2, self.bias_sd_azimuth_rad**2])
+
+    def bias_drift(self, dt: float) -> np.ndarray:
+        """Random-walk covariance added to one radar's bias over ``dt`` seconds."""
+        return np.diag([self.bias_drift_range, self.bias_drift_azimuth]) * max(dt, 0.0)
+
+    @property
+    def bias_drifts(self) -> bool:
+        return self.bias_drift_range > 0.0 or self.bias_drift_azimuth > 0.0
+
+
+@attrs.frozen(slots=True)
+class PlaneMeasurement:
+    """One associated measurement in the system plane.
+
+    ``radar`` is the radar id, or ``None`` for an unbiased position (ADS-B, triangulation);
+    ``C`` is the bias Jacobian C_s (2×2, ∂z/∂[Δr, Δθ]) and ``R`` the noise covariance D W Dᵀ.
+    """
+
+    time: float
+    aircraft: Hashable
+    radar: str | None
+    z: np.ndarray
+    C: np.ndarray
+    R: np.ndarray
+
+
+class Innovation(NamedTuple):
+    """What an update saw: ν = z − h(ξ̄), its covariance Λ, and ν'Λ⁻¹ν (NIS)."""
+
+    nu: np.ndarray
+    S: np.ndarray
+    nis: float
+
+
+@attrs.frozen
+class AircraftEstimate:
+    """An aircraft's state estimate χ̂ = [x, y, vx, vy] and covariance at ``time``."""
+
+    time: float
+    state: np.ndarray
+    cov: np.ndarray
+
+
+class Estimator(abc.ABC):
+    """Interface of every bias/motion estimator plugin.
+
+    Lifecycle: ``add_radar`` for each radar, ``add_aircraft`` when a track starts (the prior is
+    the caller's), ``update`` for each associated measurement in time order, ``remove_aircraft``
+    when a track ends. Reads never modify the state.
+    """
+
+    name: ClassVar[str] = "?"
+
+    def __init__(self, config: EstimatorConfig | None = None) -> None:
+        self.config = config if config is not None else EstimatorConfig()
+
+    @abc.abstractmethod
+    def add_radar(self, radar: str) -> None:
+        """Start estimating the bias of ``radar`` from the configured prior."""
+
+    @abc.abstractmethod
+    def add_aircraft(self, key: Hashable, time: float, state: np.ndarray, cov: np.ndarray) -> None:
+        """Start estimating aircraft ``key`` with prior N(state, cov) at ``time``."""
+
+    @abc.abstractmethod
+    def remove_aircraft(self, key: Hashable) -> None:
+        """Stop estimating aircraft ``key`` (its information on the biases is kept)."""
+
+    @abc.abstractmethod
+    def update(self, m: PlaneMeasurement) -> Innovation:
+        """Predict the measured aircraft (and drifting biases) to ``m.time`` and correct."""
+
+    @abc.abstractmethod
+    def aircraft(self, key: Hashable) -> AircraftEstimate:
+        """The current estimate of aircraft ``key`` at its own epoch."""
+
+    @abc.abstractmethod
+    def bias(self, radar: str) -> BiasState:
+        """The current bias estimate of ``radar``."""
+
+    @property
+    @abc.abstractmethod
+    def aircraft_keys(self) -> list[Hashable]:
+        """Keys of the aircraft being estimated."""
+
+    @property
+    @abc.abstractmethod
+    def radars(self) -> list[str]:
+        """Ids of the radars whose biases are estimated."""
+
+    def predict(self, key: Hashable, time: float) -> AircraftEstimate:
+        """The estimate of aircraft ``key`` predicted to ``time``, without changing the state."""
+        est = self.aircraft(key)
+        A, Q = self.config.motion.transition(time - est.time)
+        return AircraftEstimate(time, A @ est.state, A @ est.cov @ A.T + Q)
+
+
+def _group(group: str) -> dict[str, Any]:
+    return {ep.name: ep for ep in entry_points(group=group)}
+
+
+def available_estimators() -> list[str]:
+    """Names of the installed estimator plugins."""
+    return sorted(_group(ESTIMATOR_GROUP))
+
+
+def load_estimator(name: str) -> type[Estimator]:
+    """The estimator class registered under ``name``; a clear error lists what is installed."""
+    eps = _group(ESTIMATOR_GROUP)
+    if name not in eps:
+        known = ", ".join(sorted(eps)) or "none"
+        raise ValueError(f"unknown estimator {name!r}; installed: {known}")
+    cls = eps[name].load()
+    if not (isinstance(cls, type) and issubclass(cls, Estimator)):
+        raise TypeError(f"entry point {name!r} does not name an Estimator subclass: {cls!r}")
+    return cls
+
+
+def available_reconstructors() -> list[str]:
+    """Names of the installed reconstructor plugins."""
+    return sorted(_group(RECONSTRUCTOR_GROUP))
+
+
+def load_reconstructor(name: str) -> Any:
+    """The reconstructor registered under ``name``."""
+    eps = _group(RECONSTRUCTOR_GROUP)
+    if name not in eps:
+        known = ", ".join(sorted(eps)) or "none"
+        raise ValueError(f"unknown reconstructor {name!r}; installed: {known}")
+    return eps[name].load()
+
+
+def make_estimator(name: str, config: EstimatorConfig | None, radars: Iterable[str]) -> Estimator:
+    """Instantiate estimator ``name`` and register ``radars`` with it."""
+    est = load_estimator(name)(config)
+    for r in radars:
+        est.add_radar(r)
+    return est
