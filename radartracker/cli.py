@@ -29,7 +29,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for ep in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
-        ep.load()(sub)
+        try:
+            register = ep.load()
+        except Exception as exc:  # a broken plugin must not take the whole CLI down
+            print(f"radartracker: warning: command {ep.name!r} ({ep.value}) not loaded: {exc}", file=sys.stderr)
+            continue
+        register(sub)
     return parser
 
 
@@ -138,10 +143,10 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         root = args.out or Path(tmp)
         scen_dir = root / "scenario"
-        data = build_scenario("seed", seed=args.seed).run()
+        data = build_scenario("demo", seed=args.seed).run()
         write_scenario(scen_dir, data)
         data = read_scenario(scen_dir)  # through the public file format, as a user would
-        print(f"demo: scenario 'seed' ({len(data.radars)} radars, {len(data.plots)} plots, "
+        print(f"demo: scenario 'demo' ({len(data.radars)} radars, {len(data.plots)} plots, "
               f"{len(data.adsb)} ADS-B reports), estimator '{name}'")
         result = replay(data, name, ReplayOptions.for_scenario(data))
         write_outputs(result, root / "replay", figures=args.out is not None)

@@ -1,0 +1,427 @@
+"""The scenario folder format (public contract, documented in docs/formats.md).
+
+A scenario folder holds ``radars.csv``, ``plots.csv`` and optionally ``adsb.csv``, ``truth.csv``,
+``truth_biases.csv`` and ``scenario.json`` (reference point, name). Degrees at the edge, SI inside.
+
+Reading validates every row. A malformed row raises :class:`FormatError` naming file, line and
+field; with ``skip_bad=True`` it is skipped instead and counted under its reason in
+``ScenarioData.skipped`` (the replay reports those counts in ``summary.json``).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import logging
+import math
+from collections import Counter
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any
+
+import attrs
+import numpy as np
+
+from radartracker.domain import Aircraft, Radar
+
+log = logging.getLogger(__name__)
+
+RADAR_COLUMNS = ("radar", "lat", "lon", "height_m", "sigma_range_m", "sigma_azimuth_deg", "period_s", "max_range_m")
+PLOT_COLUMNS = ("time", "radar", "range_m", "azimuth_deg", "altitude_m", "mode_s", "mode_3a")
+ADSB_COLUMNS = ("time", "icao24", "lat", "lon", "altitude_m", "nacp")
+TRUTH_COLUMNS = ("time", "target", "lat", "lon", "altitude_m")
+BIAS_COLUMNS = ("radar", "range_bias_m", "azimuth_bias_deg")
+
+
+class FormatError(ValueError):
+    """A row of an input file that cannot be used: says file, line, field and why."""
+
+    def __init__(self, file: str, line: int, field: str | None, message: str, reason: str = "malformed"):
+        where = f"{file} line {line}" + (f", field '{field}'" if field else "")
+        super().__init__(f"{where}: {message}")
+        self.file, self.line, self.field, self.reason = file, line, field, reason
+
+
+def _obj(values: Iterable[Any]) -> np.ndarray:
+    arr = np.empty(len(values := list(values)), dtype=object)
+    arr[:] = values
+    return arr
+
+
+@attrs.define
+class PlotTable:
+    """Radar plots as columns (SI units; ``altitude_m`` NaN and codes ``None`` where absent)."""
+
+    time: np.ndarray
+    radar: np.ndarray
+    range_m: np.ndarray
+    azimuth_rad: np.ndarray
+    altitude_m: np.ndarray
+    mode_s: np.ndarray
+    mode_3a: np.ndarray
+    target: np.ndarray
+
+    @classmethod
+    def from_columns(cls, **cols: Iterable[Any]) -> PlotTable:
+        return cls(
+            time=np.asarray(cols["time"], float), radar=_obj(cols["radar"]),
+            range_m=np.asarray(cols["range_m"], float), azimuth_rad=np.asarray(cols["azimuth_rad"], float),
+            altitude_m=np.asarray(cols["altitude_m"], float), mode_s=_obj(cols["mode_s"]),
+            mode_3a=_obj(cols["mode_3a"]), target=_obj(cols["target"]),
+        )
+
+    def __len__(self) -> int:
+        return len(self.time)
+
+    def take(self, idx: np.ndarray) -> PlotTable:
+        return PlotTable(**{f.name: getattr(self, f.name)[idx] for f in attrs.fields(PlotTable)})
+
+    @property
+    def has_truth_labels(self) -> bool:
+        return len(self) > 0 and all(t is not None for t in self.target)
+
+
+@attrs.define
+class AdsbTable:
+    """ADS-B reports as columns (degrees for lat/lon as in the file, metres for altitude)."""
+
+    time: np.ndarray
+    icao24: np.ndarray
+    lat: np.ndarray
+    lon: np.ndarray
+    altitude_m: np.ndarray
+    nacp: np.ndarray
+
+    @classmethod
+    def from_columns(cls, **cols: Iterable[Any]) -> AdsbTable:
+        return cls(
+            time=np.asarray(cols["time"], float), icao24=_obj(cols["icao24"]),
+            lat=np.asarray(cols["lat"], float), lon=np.asarray(cols["lon"], float),
+            altitude_m=np.asarray(cols["altitude_m"], float), nacp=np.asarray(cols["nacp"], int),
+        )
+
+    def __len__(self) -> int:
+        return len(self.time)
+
+
+@attrs.define
+class TruthTable:
+    """True aircraft positions as columns (degrees, metres)."""
+
+    time: np.ndarray
+    target: np.ndarray
+    lat: np.ndarray
+    lon: np.ndarray
+    altitude_m: np.ndarray
+
+    @classmethod
+    def from_columns(cls, **cols: Iterable[Any]) -> TruthTable:
+        return cls(
+            time=np.asarray(cols["time"], float), target=_obj(cols["target"]),
+            lat=np.asarray(cols["lat"], float), lon=np.asarray(cols["lon"], float),
+            altitude_m=np.asarray(cols["altitude_m"], float),
+        )
+
+    def __len__(self) -> int:
+        return len(self.time)
+
+
+@attrs.define
+class ScenarioData:
+    """Everything a scenario folder holds, validated.
+
+    ``reference`` is the system plane's centre (lat, lon in degrees); ``truth_biases`` maps a
+    radar id to its true (Δr m, Δθ rad); ``skipped`` counts rows skipped by reason.
+    """
+
+    reference: tuple[float, float]
+    radars: list[Radar]
+    plots: PlotTable
+    adsb: AdsbTable
+    truth: TruthTable | None = None
+    truth_biases: dict[str, tuple[float, float]] | None = None
+    aircraft: list[Aircraft] = attrs.field(factory=list)
+    name: str = ""
+    skipped: dict[str, int] = attrs.field(factory=dict)
+
+    @property
+    def radar_by_id(self) -> dict[str, Radar]:
+        return {r.id: r for r in self.radars}
+
+
+# --- reading ----------------------------------------------------------------------------------
+
+
+class _Rows:
+    """Iterate a CSV file's rows with line numbers; parse fields with errors naming the place."""
+
+    def __init__(self, path: Path, required: tuple[str, ...]):
+        self.path, self.name = path, path.name
+        self._f = path.open(newline="", encoding="utf-8")
+        self._reader = csv.DictReader(self._f)
+        header = self._reader.fieldnames
+        if header is None:
+            self._f.close()
+            raise FormatError(self.name, 1, None, "empty file: expected a header line")
+        missing = [c for c in required if c not in header]
+        if missing:
+            self._f.close()
+            raise FormatError(self.name, 1, None, f"missing column(s) {', '.join(missing)}; header is {header}")
+        self.optional = set(header)
+
+    def __iter__(self):
+        try:
+            for row in self._reader:
+                line = self._reader.line_num
+                if None in row:
+                    raise FormatError(self.name, line, None, f"{len(row) - 1 + len(row[None])} fields, header has {len(row) - 1}")
+                if any(v is None for v in row.values()):
+                    raise FormatError(self.name, line, None, "too few fields")
+                yield line, row
+        finally:
+            self._f.close()
+
+    def number(self, row: dict, line: int, field: str, *, optional: bool = False,
+               check: Callable[[float], str | None] | None = None) -> float:
+        text = (row.get(field) or "").strip()
+        if not text:
+            if optional:
+                return math.nan
+            raise FormatError(self.name, line, field, "empty")
+        try:
+            value = float(text)
+        except ValueError:
+            raise FormatError(self.name, line, field, f"{text!r} is not a number") from None
+        if not math.isfinite(value):
+            raise FormatError(self.name, line, field, f"{text!r} is not finite")
+        if check is not None and (why := check(value)) is not None:
+            raise FormatError(self.name, line, field, f"{value!r} {why}")
+        return value
+
+    @staticmethod
+    def text(row: dict, field: str) -> str | None:
+        text = (row.get(field) or "").strip()
+        return text or None
+
+
+def _range(lo: float, hi: float, *, hi_open: bool = False) -> Callable[[float], str | None]:
+    def check(v: float) -> str | None:
+        ok = lo <= v < hi if hi_open else lo <= v <= hi
+        return None if ok else f"outside [{lo}, {hi}{')' if hi_open else ']'}"
+    return check
+
+
+def _nonneg(v: float) -> str | None:
+    return None if v >= 0 else "is negative"
+
+
+def _positive(v: float) -> str | None:
+    return None if v > 0 else "must be > 0"
+
+
+def _code(rows: _Rows, row: dict, line: int, field: str, digits: str, n: int) -> str | None:
+    value = rows.text(row, field)
+    if value is None:
+        return None
+    value = value.lower()
+    if len(value) != n or any(c not in digits for c in value):
+        raise FormatError(rows.name, line, field, f"{value!r} is not {n} characters of {digits!r}")
+    return value
+
+
+_HEX, _OCT = "0123456789abcdef", "01234567"
+
+
+def read_radars(path: Path) -> list[Radar]:
+    rows = _Rows(path, RADAR_COLUMNS)
+    radars: list[Radar] = []
+    for line, row in rows:
+        rid = rows.text(row, "radar")
+        if rid is None:
+            raise FormatError(rows.name, line, "radar", "empty")
+        if any(r.id == rid for r in radars):
+            raise FormatError(rows.name, line, "radar", f"duplicate radar id {rid!r}")
+        radars.append(Radar(
+            id=rid,
+            lat=rows.number(row, line, "lat", check=_range(-90, 90)),
+            lon=rows.number(row, line, "lon", check=_range(-180, 180)),
+            height_m=rows.number(row, line, "height_m"),
+            sigma_range_m=rows.number(row, line, "sigma_range_m", check=_nonneg),
+            sigma_azimuth_rad=math.radians(rows.number(row, line, "sigma_azimuth_deg", check=_nonneg)),
+            period_s=rows.number(row, line, "period_s", check=_positive),
+            max_range_m=rows.number(row, line, "max_range_m", check=_positive),
+        ))
+    if not radars:
+        raise FormatError(rows.name, 2, None, "no radars")
+    return radars
+
+
+class _Skipper:
+    """Raise, or count and log, bad rows."""
+
+    def __init__(self, skip_bad: bool):
+        self.skip_bad = skip_bad
+        self.counts: Counter[str] = Counter()
+
+    def __call__(self, err: FormatError) -> None:
+        if not self.skip_bad:
+            raise err
+        key = f"{err.file}:{err.reason}"
+        if self.counts[key] < 5:
+            log.warning("skipped %s", err)
+        self.counts[key] += 1
+
+
+def read_plots(path: Path, radar_ids: set[str], skip: _Skipper) -> PlotTable:
+    rows = _Rows(path, PLOT_COLUMNS)
+    has_target = "target" in rows.optional
+    cols: dict[str, list] = {k: [] for k in ("time", "radar", "range_m", "azimuth_rad", "altitude_m", "mode_s", "mode_3a", "target")}
+    last_time: dict[str, tuple[float, int]] = {}
+    for line, row in rows:
+        try:
+            t = rows.number(row, line, "time")
+            rid = rows.text(row, "radar")
+            if rid not in radar_ids:
+                raise FormatError(rows.name, line, "radar", f"unknown radar {rid!r} (radars.csv has {sorted(radar_ids)})", "unknown_radar")
+            if rid in last_time and t < last_time[rid][0]:
+                raise FormatError(rows.name, line, "time",
+                                  f"{t} is earlier than {last_time[rid][0]} on line {last_time[rid][1]} of the same radar",
+                                  "time_backwards")
+            rng = rows.number(row, line, "range_m", check=_nonneg)
+            az = rows.number(row, line, "azimuth_deg", check=_range(0, 360, hi_open=True))
+            alt = rows.number(row, line, "altitude_m", optional=True)
+            ms = _code(rows, row, line, "mode_s", _HEX, 6)
+            m3a = _code(rows, row, line, "mode_3a", _OCT, 4)
+        except FormatError as err:
+            skip(err)
+            continue
+        last_time[rid] = (t, line)
+        for k, v in (("time", t), ("radar", rid), ("range_m", rng), ("azimuth_rad", math.radians(az)),
+                     ("altitude_m", alt), ("mode_s", ms), ("mode_3a", m3a),
+                     ("target", rows.text(row, "target") if has_target else None)):
+            cols[k].append(v)
+    return PlotTable.from_columns(**cols)
+
+
+def read_adsb(path: Path, skip: _Skipper) -> AdsbTable:
+    rows = _Rows(path, ADSB_COLUMNS)
+    cols: dict[str, list] = {k: [] for k in ADSB_COLUMNS}
+    for line, row in rows:
+        try:
+            rec = {
+                "time": rows.number(row, line, "time"),
+                "icao24": _code(rows, row, line, "icao24", _HEX, 6),
+                "lat": rows.number(row, line, "lat", check=_range(-90, 90)),
+                "lon": rows.number(row, line, "lon", check=_range(-180, 180)),
+                "altitude_m": rows.number(row, line, "altitude_m", optional=True),
+                "nacp": rows.number(row, line, "nacp", check=_range(1, 11)),
+            }
+            if rec["icao24"] is None:
+                raise FormatError(rows.name, line, "icao24", "empty")
+            if rec["nacp"] != int(rec["nacp"]):
+                raise FormatError(rows.name, line, "nacp", f"{rec['nacp']!r} is not an integer")
+        except FormatError as err:
+            skip(err)
+            continue
+        for k, v in rec.items():
+            cols[k].append(v)
+    return AdsbTable.from_columns(**cols)
+
+
+def read_truth(path: Path) -> TruthTable:
+    rows = _Rows(path, TRUTH_COLUMNS)
+    cols: dict[str, list] = {k: [] for k in TRUTH_COLUMNS}
+    for line, row in rows:
+        cols["time"].append(rows.number(row, line, "time"))
+        cols["target"].append(rows.text(row, "target"))
+        cols["lat"].append(rows.number(row, line, "lat", check=_range(-90, 90)))
+        cols["lon"].append(rows.number(row, line, "lon", check=_range(-180, 180)))
+        cols["altitude_m"].append(rows.number(row, line, "altitude_m"))
+    return TruthTable.from_columns(**cols)
+
+
+def read_truth_biases(path: Path, radar_ids: set[str]) -> dict[str, tuple[float, float]]:
+    rows = _Rows(path, BIAS_COLUMNS)
+    out = {}
+    for line, row in rows:
+        rid = rows.text(row, "radar")
+        if rid not in radar_ids:
+            raise FormatError(rows.name, line, "radar", f"unknown radar {rid!r}")
+        out[rid] = (rows.number(row, line, "range_bias_m"),
+                    math.radians(rows.number(row, line, "azimuth_bias_deg")))
+    return out
+
+
+def read_scenario(folder: Path | str, *, skip_bad: bool = False) -> ScenarioData:
+    """Read and validate a scenario folder (see docs/formats.md)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"scenario folder {folder} does not exist")
+    radars = read_radars(folder / "radars.csv")
+    ids = {r.id for r in radars}
+    skip = _Skipper(skip_bad)
+    plots = read_plots(folder / "plots.csv", ids, skip)
+    adsb = read_adsb(folder / "adsb.csv", skip) if (folder / "adsb.csv").exists() else AdsbTable.from_columns(
+        **{k: [] for k in ADSB_COLUMNS})
+    truth = read_truth(folder / "truth.csv") if (folder / "truth.csv").exists() else None
+    tb = read_truth_biases(folder / "truth_biases.csv", ids) if (folder / "truth_biases.csv").exists() else None
+    meta = json.loads((folder / "scenario.json").read_text()) if (folder / "scenario.json").exists() else {}
+    if "reference" in meta:
+        reference = (float(meta["reference"]["lat"]), float(meta["reference"]["lon"]))
+    else:  # documented default: the centroid of the radar sites
+        reference = (float(np.mean([r.lat for r in radars])), float(np.mean([r.lon for r in radars])))
+    aircraft = [Aircraft(**a) for a in meta.get("aircraft", [])]
+    return ScenarioData(reference=reference, radars=radars, plots=plots, adsb=adsb, truth=truth,
+                        truth_biases=tb, aircraft=aircraft, name=meta.get("name", folder.name),
+                        skipped=dict(skip.counts))
+
+
+# --- writing ----------------------------------------------------------------------------------
+
+
+def _fmt(v: Any, spec: str) -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return ""
+    return format(v, spec) if spec else str(v)
+
+
+def _azimuth_deg(rad: float) -> str:
+    deg = round(math.degrees(rad) % 360.0, 7)
+    return f"{0.0 if deg >= 360.0 else deg:.7f}"
+
+
+def _write(path: Path, header: tuple[str, ...], rows: Iterable[Iterable[str]]) -> None:
+    with path.open("w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(header)
+        w.writerows(rows)
+
+
+def write_scenario(folder: Path | str, data: ScenarioData) -> None:
+    """Write ``data`` as a scenario folder (the folder must not exist)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=False)
+    _write(folder / "radars.csv", RADAR_COLUMNS, (
+        (r.id, f"{r.lat:.8f}", f"{r.lon:.8f}", f"{r.height_m:.2f}", f"{r.sigma_range_m:g}",
+         f"{math.degrees(r.sigma_azimuth_rad):.6g}", f"{r.period_s:g}", f"{r.max_range_m:g}") for r in data.radars))
+    p = data.plots
+    labelled = any(t is not None for t in p.target)
+    _write(folder / "plots.csv", PLOT_COLUMNS + (("target",) if labelled else ()), (
+        (f"{p.time[i]:.4f}", p.radar[i], f"{p.range_m[i]:.3f}", _azimuth_deg(p.azimuth_rad[i]),
+         _fmt(p.altitude_m[i], ".2f"), _fmt(p.mode_s[i], ""), _fmt(p.mode_3a[i], ""))
+        + ((_fmt(p.target[i], ""),) if labelled else ()) for i in range(len(p))))
+    a = data.adsb
+    _write(folder / "adsb.csv", ADSB_COLUMNS, (
+        (f"{a.time[i]:.3f}", a.icao24[i], f"{a.lat[i]:.8f}", f"{a.lon[i]:.8f}", _fmt(a.altitude_m[i], ".2f"),
+         str(int(a.nacp[i]))) for i in range(len(a))))
+    if data.truth is not None:
+        tr = data.truth
+        _write(folder / "truth.csv", TRUTH_COLUMNS, (
+            (f"{tr.time[i]:.3f}", tr.target[i], f"{tr.lat[i]:.8f}", f"{tr.lon[i]:.8f}", f"{tr.altitude_m[i]:.2f}")
+            for i in range(len(tr))))
+    if data.truth_biases is not None:
+        _write(folder / "truth_biases.csv", BIAS_COLUMNS, (
+            (rid, f"{b[0]:.4f}", f"{math.degrees(b[1]):.8f}") for rid, b in data.truth_biases.items()))
+    meta = {"name": data.name, "reference": {"lat": data.reference[0], "lon": data.reference[1]},
+            "aircraft": [attrs.asdict(ac) for ac in data.aircraft]}
+    (folder / "scenario.json").write_text(json.dumps(meta, indent=1))
