@@ -1,0 +1,171 @@
+"""The estimation engine shared by the static and the dynamic case (seed 001 §2–3).
+
+The target position at bearing n is linear in the parameters: r_n = Θ q_n, with Θ = [A B C]ᵀ
+(3×K) and q_n = q(t_n) the basis (K = 1, q = 1 for a static target). Two steps:
+
+1. **Start** — least-squares intersection of the lines of sight (linear in Θ). With d_n the unit
+   line of sight of bearing n from station position p_n and P_n = I − d_n d_nᵀ the projector
+   across it, minimise Σ w_n ‖P_n (Θ q_n − p_n)‖²; the normal equations are
+   Σ w_n (P_n ⊗ q_n q_nᵀ) vec Θ = Σ w_n (P_n p_n) ⊗ q_n. First w_n = 1/σ̄_n², then once more with
+   w_n = 1/(σ̄_n ρ_n)² using the ranges ρ_n of the first pass (the perpendicular miss of a line of
+   sight grows as ρ σ).
+2. **Refine** — Gaussian ML = weighted nonlinear LS (seed 001 eq. 2.3/3.1 with W = K⁻¹):
+   min Σ_n Δγ_nᵀ K_n⁻¹ Δγ_n, Δγ_n = γ̃_n − h(r_n), by Levenberg–Marquardt
+   (``scipy.optimize.least_squares``) on whitened residuals with the analytic Jacobian
+   J_n = H_n (I₃ ⊗ q_nᵀ). The covariance is the inverse Fisher information (J̃ᵀJ̃)⁻¹.
+
+Geometry is refused (:class:`GeometryError`) when J̃ has no non-singular 3K×3K minor (seed 001
+§3: numerical rank < 3K), or when the GDOP exceeds ``max_gdop``.
+GDOP = √(mean_n tr cov r_n) / (σ_rms ρ_rms): the RMS position error in units of the angular
+noise times the range (≈ 1 for two orthogonal lines of sight, → ∞ as they become parallel).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .frame import TriangulationFrame, wrap_angle
+from .sensors import Bearing
+
+log = logging.getLogger("radartracker.triangulation")
+
+RANK_RTOL = 1e-9  # singular values below this fraction of the largest count as zero
+
+
+class GeometryError(ValueError):
+    """The bearings do not determine the target: degenerate or too poor geometry (GDOP given)."""
+
+    def __init__(self, message: str, gdop: float) -> None:
+        super().__init__(message)
+        self.gdop = gdop
+
+
+class BearingSet:
+    """Bearings stacked as arrays, grouped per station for the vectorised model."""
+
+    def __init__(self, frame: TriangulationFrame, bearings: Sequence[Bearing]) -> None:
+        if not bearings:
+            raise ValueError("bearings: none given")
+        unknown = sorted({b.station for b in bearings} - set(frame.stations))
+        if unknown:
+            raise ValueError(f"station: unknown station id(s) {unknown}; known: {sorted(frame.stations)}")
+        self.frame = frame
+        self.time = np.array([b.time for b in bearings])
+        self.station = np.array([b.station for b in bearings])
+        self.gamma = np.array([[b.azimuth_rad, b.elevation_rad] for b in bearings])
+        self.groups = [(s, np.flatnonzero(self.station == s)) for s in np.unique(self.station)]
+        self.sigma = np.empty_like(self.gamma)
+        self.site = np.empty((len(bearings), 3))
+        self.los = np.empty((len(bearings), 3))
+        for s, idx in self.groups:
+            self.sigma[idx] = frame.sigmas(s)
+            self.site[idx] = frame.position[s]
+            self.los[idx] = frame.line_of_sight(s, self.gamma[idx, 0], self.gamma[idx, 1])
+
+    def __len__(self) -> int:
+        return len(self.time)
+
+    def predict(self, r: np.ndarray) -> np.ndarray:
+        out = np.empty((len(self), 2))
+        for s, idx in self.groups:
+            out[idx] = self.frame.bearings(s, r[idx])
+        return out
+
+    def jacobian(self, r: np.ndarray) -> np.ndarray:
+        out = np.empty((len(self), 2, 3))
+        for s, idx in self.groups:
+            out[idx] = self.frame.jacobian(s, r[idx])
+        return out
+
+    def residual(self, r: np.ndarray) -> np.ndarray:
+        """Whitened residuals (γ̃ − h(r)) / σ, azimuth wrapped, shape (N, 2)."""
+        d = self.gamma - self.predict(r)
+        d[:, 0] = wrap_angle(d[:, 0])
+        return d / self.sigma
+
+
+class Solution:
+    """Θ (3×K), its covariance (3K×3K, inverse Fisher), the start, GDOP and the fit χ²."""
+
+    def __init__(self, theta, cov, start, gdop, chi2, dof, poor):
+        self.theta, self.cov, self.start = theta, cov, start
+        self.gdop, self.chi2, self.dof, self.poor = gdop, chi2, dof, poor
+
+
+def design(Q: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """J_n = H_n (I₃ ⊗ q_nᵀ): (N, 2, 3K) from H (N, 2, 3) and the basis rows Q (N, K)."""
+    N, K = Q.shape
+    return (H[:, :, :, None] * Q[:, None, None, :]).reshape(N, 2, 3 * K)
+
+
+def position_cov(Q: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """cov r_n = (I₃ ⊗ q_nᵀ) Σ (I₃ ⊗ q_n): (N, 3, 3)."""
+    N, K = Q.shape
+    C = cov.reshape(3, K, 3, K)
+    return np.einsum("nk,ikjl,nl->nij", Q, C, Q)
+
+
+def intersect(bs: BearingSet, Q: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Weighted LS intersection of the lines of sight; Θ (3×K). Refuses a singular system."""
+    K = Q.shape[1]
+    P = np.eye(3) - bs.los[:, :, None] * bs.los[:, None, :]
+    M = np.einsum("n,nij,nk,nl->ikjl", w, P, Q, Q).reshape(3 * K, 3 * K)
+    b = np.einsum("n,ni,nk->ik", w, np.einsum("nij,nj->ni", P, bs.site), Q).reshape(3 * K)
+    lam, V = np.linalg.eigh(M)
+    if lam[0] <= lam[-1] * RANK_RTOL**2:
+        rank = int(np.sum(lam > lam[-1] * RANK_RTOL**2))
+        raise GeometryError(
+            f"degenerate geometry: the lines of sight do not intersect in a point (normal matrix of "
+            f"rank {rank} < {3 * K}); the bearing Jacobian has no non-singular {3 * K}×{3 * K} minor, "
+            "GDOP = inf (a single station, or stations and target collinear)", math.inf)
+    return (V @ ((V.T @ b) / lam)).reshape(3, K)
+
+
+def solve(bs: BearingSet, Q: np.ndarray, *, warn_gdop: float, max_gdop: float | None) -> Solution:
+    """Start by intersection, refine by ML, and report covariance, GDOP and χ² (module docstring)."""
+    N, K = Q.shape
+    s2 = np.mean(bs.sigma**2, axis=1)
+    theta = intersect(bs, Q, 1.0 / s2)
+    rho = np.linalg.norm(Q @ theta.T - bs.site, axis=1)
+    start = intersect(bs, Q, 1.0 / (s2 * np.maximum(rho, 1.0) ** 2))
+
+    def fun(x):
+        return bs.residual(Q @ x.reshape(3, K).T).ravel()
+
+    def jac(x):
+        H = bs.jacobian(Q @ x.reshape(3, K).T) / bs.sigma[:, :, None]
+        return -design(Q, H).reshape(2 * N, 3 * K)
+
+    fit = least_squares(fun, start.ravel(), jac=jac, method="lm", x_scale="jac",
+                        xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    theta = fit.x.reshape(3, K)
+    _, s, Vt = np.linalg.svd(fit.jac, full_matrices=False)
+    if s.size < 3 * K or s[-1] <= s[0] * RANK_RTOL:
+        rank = int(np.sum(s > s[0] * RANK_RTOL))
+        raise GeometryError(
+            f"degenerate geometry: the bearing Jacobian has rank {rank} < {3 * K}, so no non-singular "
+            f"{3 * K}×{3 * K} minor; GDOP = inf (a single station, or stations and target collinear)",
+            math.inf)
+    cov = (Vt.T / s**2) @ Vt
+    r = Q @ theta.T
+    rho = np.linalg.norm(r - bs.site, axis=1)
+    rms_err = math.sqrt(float(np.mean(np.trace(position_cov(Q, cov), axis1=1, axis2=2))))
+    sigma_rms = math.sqrt(float(np.mean(bs.sigma**2)))
+    gdop = rms_err / (sigma_rms * math.sqrt(float(np.mean(rho**2))))
+    limit = max_gdop if max_gdop is not None else 0.5 / sigma_rms
+    if gdop > limit:
+        raise GeometryError(
+            f"geometry too poor: GDOP = {gdop:.3g} > {limit:.3g} (RMS position error {rms_err:.4g} m at "
+            f"RMS range {float(np.sqrt(np.mean(rho**2))):.4g} m); the lines of sight are nearly parallel",
+            gdop)
+    poor = gdop > warn_gdop
+    if poor:
+        log.warning("poor triangulation geometry: GDOP = %.3g > %.3g (RMS position error %.4g m)",
+                    gdop, warn_gdop, rms_err)
+    chi2 = float(np.sum(fit.fun**2))
+    return Solution(theta, cov, start, gdop, chi2, 2 * N - 3 * K, poor)

@@ -1,0 +1,124 @@
+"""Triangulation files: stations and bearings in (degrees at the edge), fixes and tracks out.
+
+Formats are specified in ``docs/formats.md`` ("Triangulation files"). Readers raise
+``ValueError`` naming the file, the line and the field, or — with ``skip_bad`` — skip and count
+malformed rows.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
+
+import numpy as np
+
+from .dynamic import TrackFix
+from .frame import TriangulationFrame
+from .sensors import Bearing, DirectionFinder
+from .static import Fix
+
+STATION_COLUMNS = ("id", "lat_deg", "lon_deg", "height_m", "sigma_azimuth_deg", "sigma_elevation_deg")
+BEARING_COLUMNS = ("time_s", "station", "azimuth_deg", "elevation_deg")
+COV_COLUMNS = ("cov_ee_m2", "cov_en_m2", "cov_eu_m2", "cov_nn_m2", "cov_nu_m2", "cov_uu_m2")
+FIX_COLUMNS = ("target", "time_s", "n_bearings", "stations", "lat_deg", "lon_deg", "height_m",
+               "east_m", "north_m", "up_m", *COV_COLUMNS, "gdop", "chi2", "dof", "status")
+TRACK_COLUMNS = ("target", "time_s", "lat_deg", "lon_deg", "height_m", "east_m", "north_m", "up_m",
+                 *COV_COLUMNS, "gdop", "status")
+_UPPER = np.triu_indices(3)
+
+
+def _rows(path: Path, required: tuple[str, ...]) -> Iterator[tuple[int, dict[str, str]]]:
+    with open(path, newline="") as fh:
+        lines = ((i, line) for i, line in enumerate(fh, 1) if line.strip() and not line.startswith("#"))
+        try:
+            lineno, header = next(lines)
+        except StopIteration:
+            raise ValueError(f"{path}: empty file, expected a header {','.join(required)}") from None
+        names = [h.strip() for h in next(csv.reader([header]))]
+        missing = [c for c in required if c not in names]
+        if missing:
+            raise ValueError(f"{path}:{lineno}: header lacks column(s) {', '.join(missing)}")
+        for lineno, line in lines:
+            values = next(csv.reader([line]))
+            if len(values) != len(names):
+                raise ValueError(f"{path}:{lineno}: expected {len(names)} fields, got {len(values)}")
+            yield lineno, {k: v.strip() for k, v in zip(names, values)}
+
+
+def _number(row: dict[str, str], field: str) -> float:
+    try:
+        value = float(row[field])
+    except ValueError:
+        raise ValueError(f"{field}: expected a number, got {row[field]!r}") from None
+    if not math.isfinite(value):
+        raise ValueError(f"{field}: expected a finite number, got {row[field]!r}")
+    return value
+
+
+def _read(path: Path, required: tuple[str, ...], make: Callable[[dict[str, str]], object],
+          skip_bad: bool) -> tuple[list, int]:
+    out, skipped = [], 0
+    for lineno, row in _rows(path, required):
+        try:
+            out.append(make(row))
+        except ValueError as exc:
+            if not skip_bad:
+                raise ValueError(f"{path}:{lineno}: {exc}") from None
+            skipped += 1
+    return out, skipped
+
+
+def read_stations(path: str | Path) -> list[DirectionFinder]:
+    """Direction finders from a stations CSV (σ in degrees); every row must be valid."""
+    def make(row):
+        return DirectionFinder(
+            row["id"], _number(row, "lat_deg"), _number(row, "lon_deg"), _number(row, "height_m"),
+            math.radians(_number(row, "sigma_azimuth_deg")), math.radians(_number(row, "sigma_elevation_deg")))
+    stations, _ = _read(Path(path), STATION_COLUMNS, make, skip_bad=False)
+    if not stations:
+        raise ValueError(f"{path}: no stations")
+    return stations
+
+
+def read_bearings(path: str | Path, skip_bad: bool = False) -> tuple[list[Bearing], int]:
+    """Bearings from a bearings CSV (degrees) and the number of malformed rows skipped."""
+    def make(row):
+        return Bearing(_number(row, "time_s"), row["station"],
+                       math.radians(_number(row, "azimuth_deg")), math.radians(_number(row, "elevation_deg")),
+                       row.get("target") or "1")
+    return _read(Path(path), BEARING_COLUMNS, make, skip_bad)
+
+
+def _geo_cols(frame: TriangulationFrame, r: np.ndarray, cov: np.ndarray) -> list:
+    lat, lon, h = frame.geodetic(r)
+    return [f"{float(lat):.8f}", f"{float(lon):.8f}", f"{float(h):.3f}", *(f"{v:.3f}" for v in r),
+            *(f"{v:.6g}" for v in cov[_UPPER])]
+
+
+def _status(poor: bool, gdop: float) -> str:
+    return f"poor geometry (GDOP {gdop:.3g})" if poor else "ok"
+
+
+def write_fixes(path: str | Path, frame: TriangulationFrame, fixes: Iterable[tuple[str, Fix]]) -> None:
+    """One row per static fix."""
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(FIX_COLUMNS)
+        for target, f in fixes:
+            w.writerow([target, f"{f.time:.6f}", f.n_bearings, " ".join(f.stations),
+                        *_geo_cols(frame, f.position, f.cov), f"{f.gdop:.4g}", f"{f.chi2:.4g}", f.dof,
+                        _status(f.poor_geometry, f.gdop)])
+
+
+def write_tracks(path: str | Path, frame: TriangulationFrame,
+                 tracks: Iterable[tuple[str, TrackFix, np.ndarray]]) -> None:
+    """One row per (target, output time) of each dynamic track."""
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(TRACK_COLUMNS)
+        for target, tr, times in tracks:
+            for t, r, c in zip(times, tr.position(times), tr.covariance(times)):
+                w.writerow([target, f"{t:.6f}", *_geo_cols(frame, r, c), f"{tr.gdop:.4g}",
+                            _status(tr.poor_geometry, tr.gdop)])
