@@ -1,0 +1,160 @@
+"""Coupled estimator: one joint Kalman filter over all aircraft and radar biases (seed 000 §1.2.1).
+
+The joint state ξ = [χ_1..χ_n, ς_1..ς_m] (χ = [x, y, vx, vy], ς = [Δr, Δθ]) has one dense
+covariance P with every cross-covariance kept. A plot z of aircraft i by radar j observes
+h(ξ) = C ξ with C = [0 .. C_x .. 0 .. C_s .. 0] (seed eq. 1.10), so with K = P̄ Cᵀ
+(DESIGN §5, the seed's Λ read as Λ⁻¹ and DDᵀ as R = D W Dᵀ)::
+
+    predict (aircraft i only, to its own epoch):  χ̄_i = A χ̂_i,  P̄ = Φ P̂ Φᵀ + diag(.., Q, ..)
+    innovate:  ν = z − C_x χ̄_i − C_s ς̄_j,        Λ = C P̄ Cᵀ + R
+    correct:   ξ̂ = ξ̄ + K Λ⁻¹ ν,                   P̂ = P̄ − K Λ⁻¹ Kᵀ
+
+Λ⁻¹ is applied through its Cholesky factor L (P̂ = P̄ − U Uᵀ with U = K L⁻ᵀ), which keeps P̂
+exactly symmetric. An unbiased measurement (ADS-B, radar ``None``) has C_s = 0 and still
+corrects the biases through the cross-covariances: that is how ADS-B anchors them.
+
+Adding an aircraft augments ξ with its prior (zero cross-covariance); removing it marginalises
+it (drops its rows and columns), which keeps exactly what it taught about the biases. With a bias
+random walk, all biases are predicted together to a global bias epoch. Cost O((4n + 2m)²) per plot.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable
+
+import numpy as np
+from scipy.linalg import solve_triangular
+
+from radartracker.domain import BiasState
+from radartracker.kalman import SingularInnovation
+from radartracker.plugin import AircraftEstimate, Estimator, Innovation, PlaneMeasurement
+
+
+class CoupledEstimator(Estimator):
+    """Dense joint filter over all aircraft states and radar biases (seed 000 §1.2.1)."""
+
+    name = "coupled"
+
+    def __init__(self, config=None) -> None:
+        super().__init__(config)
+        self._x = np.zeros(0)  # joint state, capacity-sized; free slots hold zeros
+        self._P = np.zeros((0, 0))
+        self._size = 0  # high-water mark of used entries
+        self._free: list[int] = []  # start indices of free aircraft slots (4 entries each)
+        self._ac: dict[Hashable, list] = {}  # key -> [start index, epoch]
+        self._rad: dict[str, int] = {}  # radar -> start index (2 entries)
+        self._bias_time: float | None = None
+
+    # --- state layout ----------------------------------------------------------------------------
+    def _alloc(self, n: int) -> int:
+        start = self._size
+        if start + n > self._x.size:
+            cap = max(2 * self._x.size, start + n, 16)
+            x, P = np.zeros(cap), np.zeros((cap, cap))
+            x[:start], P[:start, :start] = self._x[:start], self._P[:start, :start]
+            self._x, self._P = x, P
+        self._size += n
+        return start
+
+    def add_radar(self, radar: str) -> None:
+        if radar in self._rad:
+            raise ValueError(f"radar {radar!r} already added")
+        k = self._alloc(2)
+        self._P[k:k + 2, k:k + 2] = self.config.bias_prior()
+        self._rad[radar] = k
+
+    def add_aircraft(self, key: Hashable, time: float, state: np.ndarray, cov: np.ndarray) -> None:
+        if key in self._ac:
+            raise ValueError(f"aircraft {key!r} already estimated")
+        state, cov = np.asarray(state, float), np.asarray(cov, float)
+        if state.shape != (4,) or cov.shape != (4, 4) or not (np.isfinite(state).all() and np.isfinite(cov).all()):
+            raise ValueError(f"aircraft {key!r}: prior must be a finite 4-vector and 4×4 covariance")
+        k = self._free.pop() if self._free else self._alloc(4)
+        self._x[k:k + 4] = state
+        self._P[k:k + 4, :] = 0.0
+        self._P[:, k:k + 4] = 0.0
+        self._P[k:k + 4, k:k + 4] = 0.5 * (cov + cov.T)
+        self._ac[key] = [k, float(time)]
+
+    def remove_aircraft(self, key: Hashable) -> None:
+        """Marginalise aircraft ``key``: zero its rows and columns and free its slot."""
+        k, _ = self._ac.pop(key)
+        self._x[k:k + 4] = 0.0
+        self._P[k:k + 4, :] = 0.0
+        self._P[:, k:k + 4] = 0.0
+        self._free.append(k)
+
+    # --- filter ----------------------------------------------------------------------------------
+    def _predict_aircraft(self, k: int, dt: float) -> None:
+        if dt == 0.0:
+            return
+        n = self._size
+        A, Q = self.config.motion.transition(dt)
+        x, P = self._x, self._P[:n, :n]
+        x[k:k + 4] = A @ x[k:k + 4]
+        P[k:k + 4, :] = A @ P[k:k + 4, :]
+        P[:, k:k + 4] = P[:, k:k + 4] @ A.T
+        P[k:k + 4, k:k + 4] += Q
+
+    def _predict_biases(self, time: float) -> None:
+        """Random-walk biases: add the drift since the global bias epoch to every radar."""
+        if self._bias_time is not None and self.config.bias_drifts:
+            D = self.config.bias_drift(time - self._bias_time)
+            for k in self._rad.values():
+                self._P[k:k + 2, k:k + 2] += D
+        self._bias_time = time if self._bias_time is None else max(self._bias_time, time)
+
+    def update(self, m: PlaneMeasurement) -> Innovation:
+        ac = self._ac[m.aircraft]
+        k = ac[0]
+        self._predict_aircraft(k, m.time - ac[1])
+        ac[1] = float(m.time)
+        self._predict_biases(m.time)
+        n = self._size
+        x, P = self._x, self._P[:n, :n]
+        # K = P̄ Cᵀ (n×2) and the predicted measurement C ξ̄
+        K = P[:, k:k + 2].copy()
+        zhat = x[k:k + 2].copy()
+        if m.radar is not None:
+            b = self._rad[m.radar]
+            K += P[:, b:b + 2] @ m.C.T
+            zhat += m.C @ x[b:b + 2]
+        nu = m.z - zhat
+        S = K[k:k + 2] + m.R
+        if m.radar is not None:
+            S += m.C @ K[b:b + 2]
+        S = 0.5 * (S + S.T)
+        try:
+            L = np.linalg.cholesky(S)
+        except np.linalg.LinAlgError as exc:
+            raise SingularInnovation(f"innovation covariance not positive definite: {S.tolist()}") from exc
+        U = solve_triangular(L, K.T, lower=True).T  # U = K L⁻ᵀ, so K Λ⁻¹ Kᵀ = U Uᵀ
+        w = solve_triangular(L, nu, lower=True)  # L⁻¹ ν
+        x[:n] += U @ w
+        P -= U @ U.T
+        return Innovation(nu, S, float(w @ w))
+
+    # --- reads -----------------------------------------------------------------------------------
+    def aircraft(self, key: Hashable) -> AircraftEstimate:
+        k, t = self._ac[key]
+        return AircraftEstimate(t, self._x[k:k + 4].copy(), self._P[k:k + 4, k:k + 4].copy())
+
+    def bias(self, radar: str) -> BiasState:
+        b = self._rad[radar]
+        t = float("nan") if self._bias_time is None else self._bias_time
+        return BiasState(radar, t, self._x[b:b + 2].copy(), self._P[b:b + 2, b:b + 2].copy())
+
+    def joint(self, keys: list[Hashable] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(ξ̂, P̂) over ``keys`` (default: all aircraft, in insertion order) then all radars."""
+        keys = list(self._ac) if keys is None else keys
+        idx = [self._ac[a][0] + i for a in keys for i in range(4)]
+        idx += [b + i for b in self._rad.values() for i in range(2)]
+        return self._x[idx].copy(), self._P[np.ix_(idx, idx)].copy()
+
+    @property
+    def aircraft_keys(self) -> list[Hashable]:
+        return list(self._ac)
+
+    @property
+    def radars(self) -> list[str]:
+        return list(self._rad)
