@@ -1,0 +1,89 @@
+"""CLI commands ``convert`` (seed 000 §2.6 ``tracks_plots_00``), ``asterix-import`` and
+``asterix-export`` — registered through the ``radartracker.commands`` entry points."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from radartracker.cli import CliError
+
+
+def register_convert(sub: argparse._SubParsersAction) -> None:
+    from radartracker.convert import ConvertOptions
+
+    d = ConvertOptions()
+    p = sub.add_parser("convert", help="convert a text recording (tracks.txt, plots.txt, plots_ads.txt) "
+                                       "into per-aircraft .new4/.plt files")
+    p.add_argument("recording", type=Path, help="folder with tracks.txt, plots.txt, plots_ads.txt")
+    p.add_argument("--out", type=Path, required=True, help="output folder (must not exist), e.g. new")
+    p.add_argument("--AZN_TRACKS_MAX", type=int, default=d.AZN_TRACKS_MAX,
+                   help=f"at most this many aircraft (most ADS-B reports first; default {d.AZN_TRACKS_MAX})")
+    p.add_argument("--AZN_TRACKS_MIN_MEASUR", type=int, default=d.AZN_TRACKS_MIN_MEASUR,
+                   help=f"minimum ADS-B reports of a selected aircraft (default {d.AZN_TRACKS_MIN_MEASUR})")
+    p.add_argument("--TRACKS_MIN_MEASUR", type=int, default=d.TRACKS_MIN_MEASUR,
+                   help=f"tracks with fewer points are not written (default {d.TRACKS_MIN_MEASUR})")
+    p.add_argument("--RADAR_SENSOR_ONLY", default=None,
+                   help="keep only radar and monoradar records with this sensor value (default: all)")
+    p.add_argument("--bucket-mb", type=float, default=d.bucket_bytes / 2**20,
+                   help="size of one external-sort bucket in MiB (bounds the memory; default %(default)s)")
+    p.set_defaults(func=_cmd_convert)
+
+
+def _cmd_convert(args: argparse.Namespace) -> int:
+    from radartracker.convert import ConvertOptions, convert
+
+    try:
+        opts = ConvertOptions(args.AZN_TRACKS_MAX, args.AZN_TRACKS_MIN_MEASUR, args.TRACKS_MIN_MEASUR,
+                              args.RADAR_SENSOR_ONLY, int(args.bucket_mb * 2**20))
+    except ValueError as exc:
+        raise CliError(f"bad option: {exc}") from None
+    if not args.recording.is_dir():
+        raise CliError(f"{args.recording}: not a recording folder")
+    report = convert(args.recording, args.out, opts)
+    print(f"wrote {args.out}: {len(report['selected_aircraft'])} aircraft in {report['seconds']} s")
+    for name, f in report["files"].items():
+        bad = f.get("malformed", 0) + f.get("truncated_last_line", 0)
+        print(f"  {name}: {f['lines']} lines, {f.get('written', 0)} written, {bad} malformed, "
+              f"{f['output_files']} files")
+    print(f"accounting: {args.out / 'report.json'}")
+    return 0
+
+
+def register_asterix_import(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("asterix-import", help="read an ASTERIX CAT048/CAT021 recording (.ast or .pcap) "
+                                              "into a scenario folder")
+    p.add_argument("recording", type=Path, help="raw ASTERIX blocks (.ast), FINAL format or pcap")
+    p.add_argument("--out", type=Path, required=True, help="scenario folder to write (must not exist)")
+    p.set_defaults(func=_cmd_asterix_import)
+
+
+def _cmd_asterix_import(args: argparse.Namespace) -> int:
+    from radartracker.asterix import read_asterix
+    from radartracker.formats import write_scenario
+
+    if args.out.exists():
+        raise CliError(f"{args.out} already exists; choose a new folder")
+    data = read_asterix(args.recording)
+    write_scenario(args.out, data)
+    print(f"wrote {args.out}: {len(data.radars)} radars, {len(data.plots)} plots, "
+          f"{len(data.adsb)} ADS-B reports")
+    return 0
+
+
+def register_asterix_export(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("asterix-export", help="write a scenario folder as ASTERIX CAT048 + CAT021 (.ast)")
+    p.add_argument("scenario", type=Path, help="scenario folder (see docs/formats.md)")
+    p.add_argument("--out", type=Path, required=True, help=".ast file to write (must not exist)")
+    p.set_defaults(func=_cmd_asterix_export)
+
+
+def _cmd_asterix_export(args: argparse.Namespace) -> int:
+    from radartracker.asterix import write_asterix
+    from radartracker.formats import read_scenario
+
+    if args.out.exists():
+        raise CliError(f"{args.out} already exists; choose a new file")
+    n = write_asterix(args.out, read_scenario(args.scenario))
+    print(f"wrote {args.out}: {n} ASTERIX records")
+    return 0
