@@ -1,0 +1,49 @@
+"""The command line end to end: simulate, replay (with figures), estimators, demo, bad input."""
+
+import csv
+import json
+
+import pytest
+
+from radartracker.cli import main
+
+
+def test_simulate_then_replay(tmp_path, capsys):
+    scen, out = tmp_path / "scen", tmp_path / "out"
+    assert main(["simulate", str(scen), "--scenario", "demo", "--duration", "300"]) == 0
+    assert {p.name for p in scen.iterdir()} >= {"radars.csv", "plots.csv", "adsb.csv", "truth.csv", "truth_biases.csv"}
+    assert main(["replay", str(scen), "--estimator", "decoupled", "--out", str(out), "--plots"]) == 0
+    with (out / "biases.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0]) == ["time", "radar", "range_bias_m", "azimuth_bias_deg", "sd_range_m", "sd_azimuth_deg"]
+    with (out / "tracks.csv").open() as f:
+        header = next(csv.reader(f))
+    assert header == ["time", "track", "lat", "lon", "x_m", "y_m", "vx_mps", "vy_mps", "sd_x_m", "sd_y_m"]
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary["biases"]) == {"R1", "R2", "R3"} and "truth" in summary
+    assert (out / "biases.png").stat().st_size > 10_000
+    assert main(["simulate", str(scen)]) == 2  # existing folder: an error, no traceback
+    assert "already exists" in capsys.readouterr().err
+
+
+def test_replay_bad_input_message_and_skip(tmp_path, capsys):
+    scen = tmp_path / "scen"
+    main(["simulate", str(scen), "--scenario", "seed", "--duration", "200"])
+    lines = (scen / "plots.csv").read_text().splitlines()
+    fields = lines[3].split(",")
+    fields[2] = "NaN"
+    lines[3] = ",".join(fields)
+    (scen / "plots.csv").write_text("\n".join(lines) + "\n")
+    assert main(["replay", str(scen), "--out", str(tmp_path / "o")]) == 2
+    assert "plots.csv line 4, field 'range_m': 'NaN' is not finite" in capsys.readouterr().err
+    assert main(["replay", str(scen), "--out", str(tmp_path / "o"), "--skip-bad"]) == 0
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["skipped_input_rows"] == {"plots.csv:malformed": 1}
+
+
+def test_estimators_and_demo(capsys):
+    assert main(["estimators"]) == 0
+    assert "decoupled" in capsys.readouterr().out
+    assert main(["demo", "--estimator", "decoupled"]) == 0
+    out = capsys.readouterr().out
+    assert "R1" in out and "position RMSE" in out
