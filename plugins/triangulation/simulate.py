@@ -11,10 +11,20 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from pyproj import Geod
+
 from radartracker.geometry import RadarFrame, SystemPlane
 
 from .frame import TriangulationFrame
 from .sensors import Bearing
+
+
+def sites_around(lat: float, lon: float, distance_m: float, azimuths_deg: Sequence[float]
+                 ) -> list[tuple[float, float]]:
+    """WGS84 (lat, lon) of points ``distance_m`` away from (lat, lon) along the geodesic azimuths."""
+    n = len(azimuths_deg)
+    lons, lats, _ = Geod(ellps="WGS84").fwd([lon] * n, [lat] * n, list(azimuths_deg), [distance_m] * n)
+    return list(zip(map(float, lats), map(float, lons)))
 
 
 def schedule(frame: TriangulationFrame) -> tuple[np.ndarray, np.ndarray]:
