@@ -1,0 +1,129 @@
+"""The coupling graph: which radars and aircraft are tied together through measurements (DESIGN §2).
+
+Nodes: one per aircraft (``kind="aircraft"``), one per radar (``kind="radar"``) and one reference
+node :data:`ADSB` (``kind="reference"``) standing for every unbiased source. An edge joins a radar
+(or the reference) to each aircraft it has measured, with the number of measurements ``count``
+and the time of the last one ``last_time``. This is the sparsity pattern of the joint information
+matrix of the coupled filter (seed 000 §1.2.1), with the reference node as the absolute frame.
+
+Removing an aircraft (its track ends) marginalises it, exactly as the coupled filter does: its
+node goes, and every pair of sources it linked becomes joined directly (``kind="marginalised"``,
+``count`` = number of removed aircraft they shared) — the fill-in of the information matrix. So a
+radar that once shared aircraft with another stays coupled to it, and one whose aircraft once
+reported ADS-B stays tied to the reference.
+
+The observability report per radar says whether it shares aircraft with other radars and whether
+it is tied (directly or through a chain of shared aircraft) to the ADS-B reference. A radar in a
+component without the reference has only relative observability: some combinations of biases are
+fixed only by geometry, weakly (DESIGN §5).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable
+from itertools import combinations
+from pathlib import Path
+
+import networkx as nx
+
+ADSB = "adsb"
+
+
+def _aircraft_node(key: Hashable) -> str:
+    return f"aircraft:{key}"
+
+
+def _radar_node(radar: str | None) -> str:
+    return ADSB if radar is None else f"radar:{radar}"
+
+
+class CouplingGraph:
+    """Radar–aircraft coupling graph, kept current as tracks are created and deleted."""
+
+    def __init__(self, radars: list[str] | tuple[str, ...] = ()) -> None:
+        self.graph = nx.Graph()
+        self.graph.add_node(ADSB, kind="reference", label=ADSB, measurements=0)
+        for r in radars:
+            self.add_radar(r)
+
+    def add_radar(self, radar: str) -> None:
+        self.graph.add_node(_radar_node(radar), kind="radar", label=str(radar), measurements=0)
+
+    def add_aircraft(self, key: Hashable) -> None:
+        self.graph.add_node(_aircraft_node(key), kind="aircraft", label=str(key))
+
+    def observe(self, aircraft: Hashable, radar: str | None, time: float) -> None:
+        """Record one measurement of ``aircraft`` by ``radar`` (``None``: ADS-B) at ``time``."""
+        a, r = _aircraft_node(aircraft), _radar_node(radar)
+        if a not in self.graph:
+            self.add_aircraft(aircraft)
+        if r not in self.graph:
+            self.add_radar(radar)
+        self.graph.nodes[r]["measurements"] += 1
+        data = self.graph.get_edge_data(a, r)
+        if data is None:
+            self.graph.add_edge(a, r, kind="observation", count=1, last_time=float(time))
+        else:
+            data["count"] += 1
+            data["last_time"] = max(data["last_time"], float(time))
+
+    def remove_aircraft(self, key: Hashable) -> None:
+        """Marginalise aircraft ``key``: join the sources it linked, then drop its node."""
+        a = _aircraft_node(key)
+        edges = self.graph.edges(a, data=True)
+        last = {src: d["last_time"] for _, src, d in edges}
+        for u, v in combinations(sorted(last), 2):
+            t = max(last[u], last[v])
+            data = self.graph.get_edge_data(u, v)
+            if data is None:
+                self.graph.add_edge(u, v, kind="marginalised", count=1, last_time=t)
+            else:
+                data["count"] += 1
+                data["last_time"] = max(data["last_time"], t)
+        self.graph.remove_node(a)
+
+    # --- diagnostics -------------------------------------------------------------------------------
+    def components(self) -> list[set[str]]:
+        """Connected components (node names), largest first; independent blocks of the joint filter."""
+        return sorted(nx.connected_components(self.graph), key=len, reverse=True)
+
+    def report(self) -> dict:
+        """Per-radar observability: partners, ADS-B tie, component; plus component sizes."""
+        comps = self.components()
+        comp_of = {n: i for i, c in enumerate(comps) for n in c}
+        radars = {}
+        for node, d in self.graph.nodes(data=True):
+            if d["kind"] != "radar":
+                continue
+            partners = set()
+            for nb in self.graph[node]:
+                kind = self.graph.nodes[nb]["kind"]
+                if kind == "aircraft":
+                    partners |= {s for s in self.graph[nb] if s != node}
+                else:
+                    partners.add(nb)
+            shares = sorted(self.graph.nodes[p]["label"] for p in partners if p != ADSB)
+            direct_adsb = ADSB in partners
+            anchored = comp_of[node] == comp_of[ADSB]
+            status = "anchored" if anchored else ("relative" if shares else "isolated")
+            radars[d["label"]] = {
+                "status": status,
+                "shares_aircraft_with": shares,
+                "adsb_direct": direct_adsb,
+                "adsb_reference": anchored,
+                "aircraft_now": sum(1 for nb in self.graph[node] if self.graph.nodes[nb]["kind"] == "aircraft"),
+                "measurements": d["measurements"],
+                "component": comp_of[node],
+            }
+        return {
+            "radars": radars,
+            "components": [
+                {"radars": sorted(self.graph.nodes[n]["label"] for n in c if self.graph.nodes[n]["kind"] == "radar"),
+                 "aircraft": sum(1 for n in c if self.graph.nodes[n]["kind"] == "aircraft"),
+                 "adsb_reference": ADSB in c}
+                for c in comps
+            ],
+        }
+
+    def write_graphml(self, path: Path | str) -> None:
+        nx.write_graphml(self.graph, str(path))

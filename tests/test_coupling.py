@@ -1,0 +1,87 @@
+"""Coupling graph: edges, marginalisation fill-in, components, observability report, GraphML."""
+
+from __future__ import annotations
+
+import networkx as nx
+import numpy as np
+
+from radartracker.coupling import ADSB, CouplingGraph
+from radartracker.linsim import make_linear_scenario
+from radartracker.plugin import EstimatorConfig, make_estimator
+
+
+def test_edges_count_observations_and_last_time():
+    g = CouplingGraph(["R1", "R2"])
+    for t in (1.0, 5.0, 3.0):
+        g.observe("A", "R1", t)
+    g.observe("A", None, 2.0)
+    e = g.graph.edges["aircraft:A", "radar:R1"]
+    assert (e["count"], e["last_time"]) == (3, 5.0)
+    assert g.graph.has_edge("aircraft:A", ADSB)
+    assert not g.graph.has_edge("aircraft:A", "radar:R2")
+
+
+def test_report_statuses_and_marginalisation_keeps_ties():
+    g = CouplingGraph(["R1", "R2", "R3", "R4"])
+    g.observe("A", "R1", 0.0), g.observe("A", "R2", 1.0)  # R1–R2 share A
+    g.observe("B", "R3", 0.0), g.observe("B", None, 1.0)  # R3 sees an ADS-B aircraft
+    rep = g.report()["radars"]
+    assert rep["R1"]["status"] == "relative" and rep["R1"]["shares_aircraft_with"] == ["R2"]
+    assert rep["R3"]["status"] == "anchored" and rep["R3"]["adsb_direct"]
+    assert rep["R4"]["status"] == "isolated" and rep["R4"]["shares_aircraft_with"] == []
+    g.remove_aircraft("A"), g.remove_aircraft("B")
+    assert "aircraft:A" not in g.graph
+    rep2 = g.report()
+    assert rep2["radars"]["R1"]["shares_aircraft_with"] == ["R2"]  # fill-in edge
+    assert rep2["radars"]["R3"]["adsb_reference"] and rep2["radars"]["R1"]["measurements"] == 1
+    assert g.graph.edges["radar:R1", "radar:R2"]["kind"] == "marginalised"
+    # an aircraft seen by R2 and R3 chains R1 to the ADS-B reference
+    g.observe("C", "R2", 2.0), g.observe("C", "R3", 2.5)
+    assert g.report()["radars"]["R1"]["status"] == "anchored"
+    assert not g.report()["radars"]["R1"]["adsb_direct"]
+
+
+def test_graph_is_the_sparsity_of_the_coupled_information_matrix():
+    """Oracle: nonzero blocks of Y = P⁻¹ of the coupled filter are exactly the graph's edges.
+
+    A radar–radar block of Y is nonzero only through marginalised aircraft, an aircraft–radar
+    block only where that radar measured it; ADS-B touches only aircraft blocks.
+    """
+    sc = make_linear_scenario(n_aircraft=6, n_radars=4, duration=60.0, rng=4)
+    keep = {"R00": {"A0000", "A0001"}, "R01": {"A0001", "A0002"}, "R02": {"A0003"}, "R03": {"A0004"}}
+    g = CouplingGraph(sc.radar_ids)
+    est = make_estimator("coupled", EstimatorConfig(), sc.radar_ids)
+    for k, x in sc.initial.items():
+        est.add_aircraft(k, 0.0, x, np.diag([1e4, 1e4, 100.0, 100.0]))
+        g.add_aircraft(k)
+    for m in sc.measurements:
+        if m.aircraft in keep[m.radar]:
+            est.update(m), g.observe(m.aircraft, m.radar, m.time)
+    est.remove_aircraft("A0001"), g.remove_aircraft("A0001")
+    keys = est.aircraft_keys
+    _, P = est.joint(keys)
+    Y = np.linalg.inv(P)
+    blocks = [(f"aircraft:{k}", 4) for k in keys] + [(f"radar:{r}", 2) for r in sc.radar_ids]
+    starts = np.cumsum([0] + [n for _, n in blocks])
+    for (u, nu_), su in zip(blocks, starts):
+        for (v, nv), sv in zip(blocks, starts):
+            if u >= v:
+                continue
+            nz = np.abs(Y[su:su + nu_, sv:sv + nv]).max() > 1e-9 * np.sqrt(
+                np.abs(np.diag(Y)[su:su + nu_]).max() * np.abs(np.diag(Y)[sv:sv + nv]).max())
+            assert nz == g.graph.has_edge(u, v), (u, v)
+    comps = g.report()["components"]
+    assert {"R00", "R01"} in [set(c["radars"]) for c in comps]
+
+
+def test_graphml_round_trip(tmp_path):
+    g = CouplingGraph(["R1"])
+    g.observe(17, "R1", 3.0), g.observe(17, None, 4.0)
+    g.remove_aircraft(17)
+    g.observe("X", "R1", 5.0)
+    path = tmp_path / "coupling.graphml"
+    g.write_graphml(path)
+    h = nx.read_graphml(path)
+    assert set(h.nodes) == set(g.graph.nodes)
+    assert h.edges["radar:R1", ADSB]["kind"] == "marginalised"
+    assert h.edges["aircraft:X", "radar:R1"]["count"] == 1
