@@ -9,8 +9,8 @@ h(ξ) = C ξ with C = [0 .. C_x .. 0 .. C_s .. 0] (seed eq. 1.10), so with K = P
     innovate:  ν = z − C_x χ̄_i − C_s ς̄_j,        Λ = C P̄ Cᵀ + R
     correct:   ξ̂ = ξ̄ + K Λ⁻¹ ν,                   P̂ = P̄ − K Λ⁻¹ Kᵀ
 
-Λ⁻¹ is applied through its Cholesky factor L (P̂ = P̄ − U Uᵀ with U = K L⁻ᵀ), which keeps P̂
-exactly symmetric. An unbiased measurement (ADS-B, radar ``None``) has C_s = 0 and still
+Λ⁻¹ is applied through its 2×2 Cholesky factor L (P̂ = P̄ − U Uᵀ with U = K L⁻ᵀ), which keeps
+P̂ exactly symmetric. An unbiased measurement (ADS-B, radar ``None``) has C_s = 0 and still
 corrects the biases through the cross-covariances: that is how ADS-B anchors them.
 
 Adding an aircraft augments ξ with its prior (zero cross-covariance); removing it marginalises
@@ -23,7 +23,6 @@ from __future__ import annotations
 from collections.abc import Hashable
 
 import numpy as np
-from scipy.linalg import solve_triangular
 
 from radartracker.domain import BiasState
 from radartracker.kalman import SingularInnovation
@@ -124,12 +123,9 @@ class CoupledEstimator(Estimator):
         if m.radar is not None:
             S += m.C @ K[b:b + 2]
         S = 0.5 * (S + S.T)
-        try:
-            L = np.linalg.cholesky(S)
-        except np.linalg.LinAlgError as exc:
-            raise SingularInnovation(f"innovation covariance not positive definite: {S.tolist()}") from exc
-        U = solve_triangular(L, K.T, lower=True).T  # U = K L⁻ᵀ, so K Λ⁻¹ Kᵀ = U Uᵀ
-        w = solve_triangular(L, nu, lower=True)  # L⁻¹ ν
+        Linv = _inverse_cholesky_2x2(S)
+        U = K @ Linv.T  # U = K L⁻ᵀ, so K Λ⁻¹ Kᵀ = U Uᵀ
+        w = Linv @ nu  # L⁻¹ ν
         x[:n] += U @ w
         P -= U @ U.T
         return Innovation(nu, S, float(w @ w))
@@ -158,3 +154,15 @@ class CoupledEstimator(Estimator):
     @property
     def radars(self) -> list[str]:
         return list(self._rad)
+
+
+def _inverse_cholesky_2x2(S: np.ndarray) -> np.ndarray:
+    """L⁻¹ for the Cholesky factor L Lᵀ = S of a 2×2 Λ (closed form: LAPACK overhead dominates at 2×2)."""
+    a, b, d = float(S[0, 0]), float(S[1, 0]), float(S[1, 1])
+    l11 = np.sqrt(a) if a > 0.0 else 0.0
+    l21 = b / l11 if l11 > 0.0 else 0.0
+    r = d - l21 * l21
+    if not (l11 > 0.0 and r > 0.0 and np.isfinite(r)):
+        raise SingularInnovation(f"innovation covariance not positive definite: {S.tolist()}")
+    l22 = np.sqrt(r)
+    return np.array([[1.0 / l11, 0.0], [-l21 / (l11 * l22), 1.0 / l22]])
