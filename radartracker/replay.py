@@ -21,6 +21,7 @@ import attrs
 import numpy as np
 from tqdm import tqdm
 
+from radartracker.coupling import CouplingGraph
 from radartracker.evaluate import TruthPaths, nees, state_errors
 from radartracker.formats import ScenarioData
 from radartracker.geometry import SystemPlane
@@ -75,6 +76,7 @@ class ReplayResult:
     counts: dict[str, int]
     seconds: float
     nis: np.ndarray
+    coupling: CouplingGraph | None = None
 
     def summary(self) -> dict:
         """The contents of summary.json (see docs/formats.md)."""
@@ -90,6 +92,8 @@ class ReplayResult:
             "mean_nis": float(np.mean(self.nis)) if len(self.nis) else None,
             "biases": {},
         }
+        if self.coupling is not None:
+            out["observability"] = self.coupling.report()
         truth_b = self.data.truth_biases or {}
         for rid, (b, P) in self.final_biases.items():
             entry = {"range_bias_m": float(b[0]), "azimuth_bias_deg": math.degrees(b[1]),
@@ -157,6 +161,7 @@ def replay(data: ScenarioData, estimator: str | Estimator, options: ReplayOption
     name = estimator if isinstance(estimator, str) else type(estimator).name
 
     last_seen: dict[Hashable, float] = {}
+    coupling = CouplingGraph(est.radars)
     rec_t, rec_k, rec_x, rec_P, nis_list = [], [], [], [], []
     b_t, b_r, b_v, b_P = [], [], [], []
     next_sweep = -math.inf
@@ -173,6 +178,7 @@ def replay(data: ScenarioData, estimator: str | Estimator, options: ReplayOption
         if t >= next_sweep:  # remove aircraft unseen for drop_after_s
             for k in [k for k, ts in last_seen.items() if t - ts > options.drop_after_s]:
                 est.remove_aircraft(k)
+                coupling.remove_aircraft(k)
                 del last_seen[k]
             next_sweep = t + 1.0
         m = PlaneMeasurement(t, key, radar, meas.z[i], meas.C[i], meas.R[i])
@@ -185,6 +191,7 @@ def replay(data: ScenarioData, estimator: str | Estimator, options: ReplayOption
             log.warning("measurement at t=%s of %s not used: %s", t, key, exc)
             continue
         last_seen[key] = t
+        coupling.observe(key, radar, t)
         counts[f"{kind}_used"] += 1
         nis_list.append(innov.nis)
         a = est.aircraft(key)
@@ -201,7 +208,7 @@ def replay(data: ScenarioData, estimator: str | Estimator, options: ReplayOption
         track_time=np.array(rec_t), track_key=obj, track_state=np.array(rec_x).reshape(-1, 4),
         track_cov=np.array(rec_P).reshape(-1, 4, 4), bias_time=np.array(b_t), bias_radar=np.array(b_r, object),
         bias_value=np.array(b_v).reshape(-1, 2), bias_cov=np.array(b_P).reshape(-1, 2, 2),
-        final_biases=final, counts=dict(counts), seconds=seconds, nis=np.array(nis_list),
+        final_biases=final, counts=dict(counts), seconds=seconds, nis=np.array(nis_list), coupling=coupling,
     )
 
 
@@ -223,6 +230,8 @@ def write_outputs(result: ReplayResult, out: Path | str, *, figures: bool = Fals
             f.write(f"{result.track_time[i]:.3f},{result.track_key[i]},{lat[i]:.8f},{lon[i]:.8f},{x[0]:.2f},"
                     f"{x[1]:.2f},{x[2]:.3f},{x[3]:.3f},{math.sqrt(P[0, 0]):.2f},{math.sqrt(P[1, 1]):.2f}\n")
     (out / "summary.json").write_text(json.dumps(result.summary(), indent=1))
+    if result.coupling is not None:
+        result.coupling.write_graphml(out / "coupling.graphml")
     if figures:
         from radartracker.figures import plot_biases
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import networkx as nx
 import numpy as np
 
@@ -85,3 +87,19 @@ def test_graphml_round_trip(tmp_path):
     assert set(h.nodes) == set(g.graph.nodes)
     assert h.edges["radar:R1", ADSB]["kind"] == "marginalised"
     assert h.edges["aircraft:X", "radar:R1"]["count"] == 1
+
+
+def test_replay_writes_graphml_and_observability(tmp_path):
+    """seed scenario (no ADS-B): radars share aircraft but are not anchored; demo: ADS-B anchors all."""
+    from radartracker.replay import replay, write_outputs
+    from radartracker.scenarios import build_scenario
+
+    for name, status in (("seed", "relative"), ("demo", "anchored")):
+        result = replay(build_scenario(name, seed=3, duration=120.0).run(), "coupled")
+        write_outputs(result, tmp_path / name)
+        h = nx.read_graphml(tmp_path / name / "coupling.graphml")
+        radars = {d["label"] for _, d in h.nodes(data=True) if d["kind"] == "radar"}
+        assert radars == {"R1", "R2", "R3"}
+        obs = json.loads((tmp_path / name / "summary.json").read_text())["observability"]
+        assert {r["status"] for r in obs["radars"].values()} == {status}
+        assert sum(r["measurements"] for r in obs["radars"].values()) == result.counts["plots_used"]
