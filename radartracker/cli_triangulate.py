@@ -61,10 +61,14 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
     if args.step is not None and args.step <= 0:
         raise CliError(f"--step: must be > 0, got {args.step}")
     frame = TriangulationFrame(io.read_stations(args.stations), _reference(args.reference))
-    bearings, skipped = io.read_bearings(args.bearings, skip_bad=args.skip_bad)
+    bearings, malformed = io.read_bearings(args.bearings, skip_bad=args.skip_bad)
     unknown = sorted({b.station for b in bearings} - set(frame.stations))
-    if unknown:
-        raise CliError(f"{args.bearings}: station ids {unknown} are not in {args.stations}")
+    if unknown and not args.skip_bad:
+        raise CliError(f"{args.bearings.name}, field 'station': station id(s) {unknown} are not in "
+                       f"{args.stations.name} (use --skip-bad to skip and count them)")
+    known = [b for b in bearings if b.station in frame.stations]
+    skipped = {"malformed": malformed, "unknown_station": len(bearings) - len(known)}
+    bearings = known
     by_target = defaultdict(list)
     for b in bearings:
         by_target[b.target].append(b)
@@ -93,6 +97,6 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
     }
     (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(f"triangulated {len(done)} of {len(by_target)} targets from {len(bearings)} bearings "
-          f"({skipped} rows skipped, {len(refused)} refused, {len(summary['poor_geometry'])} in poor "
-          f"geometry); wrote {args.out / name}")
+          f"({sum(skipped.values())} rows skipped, {len(refused)} refused, "
+          f"{len(summary['poor_geometry'])} in poor geometry); wrote {args.out / name}")
     return 0

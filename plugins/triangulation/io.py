@@ -29,31 +29,43 @@ TRACK_COLUMNS = ("target", "time_s", "lat_deg", "lon_deg", "height_m", "east_m",
 _UPPER = np.triu_indices(3)
 
 
-def _rows(path: Path, required: tuple[str, ...]) -> Iterator[tuple[int, dict[str, str]]]:
+def _rows(path: Path, required: tuple[str, ...]) -> Iterator[tuple[int, dict[str, str] | None]]:
+    """(line number, row) of each data line; row is None when the field count is wrong."""
     with open(path, newline="") as fh:
         lines = ((i, line) for i, line in enumerate(fh, 1) if line.strip() and not line.startswith("#"))
         try:
             lineno, header = next(lines)
         except StopIteration:
-            raise ValueError(f"{path}: empty file, expected a header {','.join(required)}") from None
+            raise ValueError(f"{path.name}: empty file, expected a header {','.join(required)}") from None
         names = [h.strip() for h in next(csv.reader([header]))]
         missing = [c for c in required if c not in names]
         if missing:
-            raise ValueError(f"{path}:{lineno}: header lacks column(s) {', '.join(missing)}")
+            raise ValueError(f"{path.name} line {lineno}: header lacks column(s) {', '.join(missing)}")
         for lineno, line in lines:
             values = next(csv.reader([line]))
-            if len(values) != len(names):
-                raise ValueError(f"{path}:{lineno}: expected {len(names)} fields, got {len(values)}")
-            yield lineno, {k: v.strip() for k, v in zip(names, values)}
+            yield lineno, (None if len(values) != len(names)
+                           else {k: v.strip() for k, v in zip(names, values)})
+
+
+class _FieldError(ValueError):
+    def __init__(self, field: str, problem: str) -> None:
+        super().__init__(problem)
+        self.field, self.problem = field, problem
+
+
+# domain attribute -> file column, to name the column the user wrote
+_COLUMN_OF = {"time": "time_s", "azimuth_rad": "azimuth_deg", "elevation_rad": "elevation_deg",
+              "lat": "lat_deg", "lon": "lon_deg", "sigma_azimuth_rad": "sigma_azimuth_deg",
+              "sigma_elevation_rad": "sigma_elevation_deg"}
 
 
 def _number(row: dict[str, str], field: str) -> float:
     try:
         value = float(row[field])
     except ValueError:
-        raise ValueError(f"{field}: expected a number, got {row[field]!r}") from None
+        raise _FieldError(field, f"{row[field]!r} is not a number") from None
     if not math.isfinite(value):
-        raise ValueError(f"{field}: expected a finite number, got {row[field]!r}")
+        raise _FieldError(field, f"{row[field]!r} is not finite")
     return value
 
 
@@ -62,11 +74,21 @@ def _read(path: Path, required: tuple[str, ...], make: Callable[[dict[str, str]]
     out, skipped = [], 0
     for lineno, row in _rows(path, required):
         try:
+            if row is None:
+                raise ValueError("wrong number of fields for the header")
             out.append(make(row))
         except ValueError as exc:
-            if not skip_bad:
-                raise ValueError(f"{path}:{lineno}: {exc}") from None
-            skipped += 1
+            if skip_bad:
+                skipped += 1
+                continue
+            if row is None:
+                raise ValueError(f"{path.name} line {lineno}: {exc}") from None
+            if isinstance(exc, _FieldError):
+                field, problem = exc.field, exc.problem
+            else:  # a domain validator: "attribute: problem"
+                attr, _, problem = str(exc).partition(": ")
+                field = _COLUMN_OF.get(attr, attr)
+            raise ValueError(f"{path.name} line {lineno}, field {field!r}: {problem}") from None
     return out, skipped
 
 
@@ -76,9 +98,14 @@ def read_stations(path: str | Path) -> list[DirectionFinder]:
         return DirectionFinder(
             row["id"], _number(row, "lat_deg"), _number(row, "lon_deg"), _number(row, "height_m"),
             math.radians(_number(row, "sigma_azimuth_deg")), math.radians(_number(row, "sigma_elevation_deg")))
-    stations, _ = _read(Path(path), STATION_COLUMNS, make, skip_bad=False)
+    path = Path(path)
+    stations, _ = _read(path, STATION_COLUMNS, make, skip_bad=False)
     if not stations:
-        raise ValueError(f"{path}: no stations")
+        raise ValueError(f"{path.name}: no stations")
+    ids = [s.id for s in stations]
+    twice = sorted({i for i in ids if ids.count(i) > 1})
+    if twice:
+        raise ValueError(f"{path.name}, field 'id': station id(s) {twice} appear more than once")
     return stations
 
 
