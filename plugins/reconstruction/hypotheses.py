@@ -1,0 +1,175 @@
+"""Multi-hypothesis reconstruction of one flight (seed 000 §2, DESIGN §7).
+
+1. **Change detection.** A tuned RTS smoother (:mod:`.smoother`) gives velocities; on a uniform
+   grid the controls follow from the model: u = v φ̇, w = v̇ (seed eq. 2.1), moving-averaged over
+   dt_min.
+2. **Segmentations.** For every segment count K the least-squares piecewise-constant fit of
+   (u, w) with segments ≥ dt_min is found exactly by dynamic programming (Bellman 1961; Jackson
+   et al. 2005). The count K₀ minimising the signal's own BIC, N·ln(SSE_K/N) + 3K·ln N, is the
+   centre; ``hypotheses`` counts around it are kept. Each gives switch times and starting (u, w).
+3. **Optimisation** of each hypothesis by Hooke–Jeeves (:mod:`.fit`).
+4. **Selection** by the Bayesian information criterion on the plots:
+   score = 2·weight + complexity · p · ln n, with p = 3K + 3 parameters (initial x, y, φ, v;
+   K pairs (u, w); K − 1 switch times) and n plots. All hypotheses are kept, ranked by score.
+"""
+
+from __future__ import annotations
+
+import attrs
+import numpy as np
+
+from radartracker_plugins.reconstruction.config import ReconstructionConfig
+from radartracker_plugins.reconstruction.fit import ControlObjective, fit_hypothesis
+from radartracker_plugins.reconstruction.integrate import geo_track, sample
+from radartracker_plugins.reconstruction.objects import (
+    ControlSegment, ControlTrack, GeoPoint, GeoTrack, PlotTrack)
+from radartracker_plugins.reconstruction.smoother import tuned_rts
+from radartracker_plugins.reconstruction.weight import TrackWeight
+
+_MAX_GRID = 1000  # grid points for change detection (the DP is O(K N²))
+
+
+@attrs.frozen
+class Hypothesis:
+    """One optimised hypothesis: its control track, weight (NLL), score (BIC) and cost."""
+
+    control: ControlTrack
+    weight: float
+    score: float
+    n_params: int
+    nfev: int
+
+
+@attrs.frozen(eq=False)
+class Reconstruction:
+    """A flight's reconstruction: the selected hypothesis, all hypotheses ranked by score,
+    the geometric track of the best one, and the tuned smoother's q (m²/s³)."""
+
+    key: str
+    plots: PlotTrack
+    hypotheses: tuple[Hypothesis, ...]
+    geo: GeoTrack
+    smoother_q: float
+
+    @property
+    def best(self) -> Hypothesis:
+        return self.hypotheses[0]
+
+    @property
+    def control(self) -> ControlTrack:
+        return self.geo.control
+
+
+def control_signals(t: np.ndarray, xs: np.ndarray, grid_dt: float, window: float) -> tuple[np.ndarray, np.ndarray]:
+    """Grid times and (u, w) (N, 2) from smoothed states ``xs`` = [x, y, vx, vy] at times ``t``."""
+    tg = np.arange(t[0], t[-1] + 1e-9, grid_dt)
+    vx, vy = np.interp(tg, t, xs[:, 2]), np.interp(tg, t, xs[:, 3])
+    v = np.maximum(np.hypot(vx, vy), 1.0)
+    phi = np.unwrap(np.arctan2(vx, vy))
+    sig = np.column_stack([v * np.gradient(phi, grid_dt), np.gradient(v, grid_dt)])
+    m = max(1, int(round(window / grid_dt)))
+    if m > 1 and len(tg) > m:
+        kernel = np.ones(m) / m
+        pad = np.pad(sig, ((m // 2, m - 1 - m // 2), (0, 0)), mode="edge")
+        sig = np.column_stack([np.convolve(pad[:, j], kernel, mode="valid") for j in range(2)])
+    return tg, sig
+
+
+def segmentations(sig: np.ndarray, min_len: int, k_max: int) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Least-squares optimal split of ``sig`` (N, d) into K = 1…k_max pieces of ≥ ``min_len`` samples.
+
+    Returns the residual sums of squares SSE_K and, per K, the start indices of pieces 2…K.
+    """
+    N = len(sig)
+    k_max = max(1, min(k_max, N // min_len))
+    S1 = np.vstack([np.zeros(sig.shape[1]), np.cumsum(sig, axis=0)])
+    S2 = np.concatenate([[0.0], np.cumsum((sig * sig).sum(axis=1))])
+    i, j = np.arange(N + 1)[:, None], np.arange(N + 1)[None, :]
+    length = np.maximum(j - i, 1)
+    d1 = S1[None, :, :] - S1[:, None, :]
+    cost = S2[None, :] - S2[:, None] - (d1 * d1).sum(axis=2) / length
+    cost[(j - i) < min_len] = np.inf
+    D = cost[0].copy()
+    back, sse = [], [D[N]]
+    for _ in range(1, k_max):
+        tot = D[:, None] + cost
+        arg = np.argmin(tot, axis=0)
+        D = tot[arg, np.arange(N + 1)]
+        back.append(arg)
+        sse.append(D[N])
+    starts = [np.array([], int)]
+    for K in range(2, k_max + 1):
+        idx, end = [], N
+        for k in range(K - 1, 0, -1):
+            end = back[k - 1][end]
+            idx.append(end)
+        starts.append(np.array(idx[::-1], int))
+    return np.array(sse), starts
+
+
+def initial_hypotheses(plots: PlotTrack, cfg: ReconstructionConfig) -> tuple[list[ControlTrack], float, np.ndarray]:
+    """Starting control tracks for the candidate segment counts, the smoother's q, and its states."""
+    t = plots.t
+    xs, q = tuned_rts(t, plots.z, plots.R)
+    dur = t[-1] - t[0]
+    g = max(cfg.dt_min / 2, dur / _MAX_GRID)
+    tg, sig = control_signals(t, xs, g, cfg.dt_min)
+    k_fit = max(1, min(cfg.max_segments, int(dur // cfg.dt_min)))
+    sse, starts = segmentations(sig, max(1, int(np.ceil(cfg.dt_min / g))), k_fit)
+    N = len(sig)
+    K_all = np.arange(1, len(sse) + 1)
+    bic = N * np.log(np.maximum(sse, 1e-12) / N) + 3 * K_all * np.log(N)
+    k0 = int(K_all[np.argmin(bic)])
+    half = (cfg.hypotheses - 1) // 2
+    lo = max(1, min(k0 - half, len(sse) - cfg.hypotheses + 1))
+    counts = range(lo, min(len(sse), lo + cfg.hypotheses - 1) + 1)
+    start = GeoPoint(t[0], xs[0, 0], xs[0, 1], np.arctan2(xs[0, 2], xs[0, 3]),
+                     max(np.hypot(xs[0, 2], xs[0, 3]), cfg.v_min))
+    tracks = []
+    for K in counts:
+        cuts = np.concatenate([[0], starts[K - 1], [N]])
+        times = np.concatenate([[t[0]], tg[starts[K - 1]] - g / 2, [t[-1]]])
+        times[1:-1] = np.clip(times[1:-1], t[0] + cfg.dt_min * np.arange(1, K),
+                              t[-1] - cfg.dt_min * np.arange(K - 1, 0, -1))
+        segs = [ControlSegment(np.clip(sig[a:b, 0].mean(), -cfg.max_u, cfg.max_u),
+                               np.clip(sig[a:b, 1].mean(), -cfg.max_w, cfg.max_w), times[k], times[k + 1])
+                for k, (a, b) in enumerate(zip(cuts[:-1], cuts[1:]))]
+        tracks.append(ControlTrack(start, segs))
+    return tracks, q, xs
+
+
+def height_profile(plots: PlotTrack):
+    """Heights along the flight: running median (5 plots) of the known plot heights, interpolated."""
+    ok = np.isfinite(plots.h)
+    if not ok.any():
+        return lambda tt: np.zeros_like(np.asarray(tt, float))
+    t, h = plots.t[ok], plots.h[ok]
+    if len(h) >= 5:
+        pad = np.pad(h, 2, mode="edge")
+        h = np.median(np.lib.stride_tricks.sliding_window_view(pad, 5), axis=1)
+    return lambda tt: np.interp(tt, t, h)
+
+
+def reconstruct(plots: PlotTrack, cfg: ReconstructionConfig | None = None, biases=None) -> Reconstruction:
+    """Reconstruct one flight from its plots (see the module docstring)."""
+    cfg = cfg or ReconstructionConfig()
+    if plots.duration < cfg.dt_min:
+        raise ValueError(f"{plots.key}: flight of {plots.duration:.1f} s is shorter than dt_min")
+    weight = TrackWeight(plots, cfg.loss, cfg.loss_c, biases)
+    t0 = float(plots.t[0])  # fit in time since the first plot: epoch seconds would swamp the steps
+    rel = attrs.evolve(plots, t=plots.t - t0)
+    starts, q, _ = initial_hypotheses(rel, cfg)
+    hyps = []
+    for ct in starts:
+        best, _, nfev = fit_hypothesis(ct, rel.t, weight, cfg)
+        wgt = weight(sample(best, rel.t)[:, :2])
+        n_par = 3 * len(best) + 3
+        hyps.append(Hypothesis(best.shifted(t0), wgt, 2 * wgt + cfg.complexity * n_par * np.log(len(plots)),
+                               n_par, nfev))
+    hyps.sort(key=lambda hy: hy.score)
+    geo = geo_track(hyps[0].control, cfg.grid_dt, height_profile(plots))
+    return Reconstruction(plots.key, plots, tuple(hyps), geo, q)
+
+
+__all__ = ["ControlObjective", "Hypothesis", "Reconstruction", "reconstruct", "initial_hypotheses",
+           "segmentations", "control_signals", "height_profile"]

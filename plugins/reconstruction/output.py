@@ -1,0 +1,89 @@
+"""Per-aircraft output of a reconstruction: track CSV and OziExplorer ``.plt``, segments, hypotheses, figure.
+
+Folder ``<out>/<key>/``:
+
+* ``track.csv`` — the geometric track: time (s UTC), x, y (m, system plane), lat, lon (deg),
+  altitude (m), heading (deg clockwise from north), speed (m/s), segment index;
+* ``track.plt`` — the same track for OziExplorer (:func:`radartracker.recording.write_plt`);
+* ``segments.csv`` — the control track: segment, t_start, t_end, u, w (m/s²), first/last grid point;
+* ``hypotheses.csv`` — every hypothesis ranked: rank, segments, weight (NLL), score (BIC), parameters;
+* ``figure.png`` — plots, reconstruction and truth (when known) in the plane; u and w over time.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from radartracker.geometry import SystemPlane
+from radartracker.recording import TrackPoints, write_plt
+from radartracker_plugins.reconstruction.hypotheses import Reconstruction
+
+
+def _safe(key: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in key) or "aircraft"
+
+
+def write_reconstruction(rec: Reconstruction, plane: SystemPlane, out: Path, truth=None,
+                         figure: bool = True) -> Path:
+    """Write ``rec`` into ``out/<key>/`` and return that folder."""
+    folder = Path(out) / _safe(rec.key)
+    folder.mkdir(parents=True, exist_ok=False)
+    g = rec.geo
+    lat, lon = plane.to_geodetic(g.x, g.y)
+    with open(folder / "track.csv", "w", newline="") as f:
+        wr = csv.writer(f)
+        wr.writerow(["time", "x_m", "y_m", "lat", "lon", "altitude_m", "heading_deg", "speed_mps", "segment"])
+        for row in zip(g.time, g.x, g.y, lat, lon, g.h, np.degrees(np.mod(g.phi, 2 * np.pi)), g.v, g.segment):
+            wr.writerow([f"{row[0]:.3f}", f"{row[1]:.2f}", f"{row[2]:.2f}", f"{row[3]:.7f}", f"{row[4]:.7f}",
+                         f"{row[5]:.1f}", f"{row[6]:.3f}", f"{row[7]:.3f}", int(row[8])])
+    write_plt(folder / "track.plt", TrackPoints(g.time, lat, lon, g.h), name=rec.key)
+    with open(folder / "segments.csv", "w", newline="") as f:
+        wr = csv.writer(f)
+        wr.writerow(["segment", "t_start", "t_end", "u_mps2", "w_mps2", "first_point", "last_point"])
+        for k, s in enumerate(g.control):
+            wr.writerow([k, f"{s.t_start:.3f}", f"{s.t_end:.3f}", f"{s.u:.5f}", f"{s.w:.5f}",
+                         s.geo_span.start, s.geo_span.stop - 1])
+    with open(folder / "hypotheses.csv", "w", newline="") as f:
+        wr = csv.writer(f)
+        wr.writerow(["rank", "segments", "weight", "score", "parameters", "evaluations"])
+        for r, h in enumerate(rec.hypotheses, 1):
+            wr.writerow([r, len(h.control), f"{h.weight:.3f}", f"{h.score:.3f}", h.n_params, h.nfev])
+    if figure:
+        plot_reconstruction(rec, folder / "figure.png", truth)
+    return folder
+
+
+def plot_reconstruction(rec: Reconstruction, path: Path, truth=None) -> None:
+    """Figure: plane view (plots, reconstruction, truth) and the controls u, w over time."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    g, pt = rec.geo, rec.plots
+    fig, (ax, au) = plt.subplots(1, 2, figsize=(13, 5.5), gridspec_kw={"width_ratios": [1.2, 1]})
+    ax.plot(pt.z[:, 0] / 1e3, pt.z[:, 1] / 1e3, ".", ms=2.5, color="0.6", label="plots")
+    if truth is not None:
+        ax.plot(truth[1][:, 0] / 1e3, truth[1][:, 1] / 1e3, "-", lw=2.5, color="tab:green", alpha=0.5, label="truth")
+    ax.plot(g.x / 1e3, g.y / 1e3, "-", lw=1.0, color="tab:blue", label="reconstruction")
+    sw = np.array([s.geo_span.start for s in g.control])
+    ax.plot(g.x[sw] / 1e3, g.y[sw] / 1e3, "k|", ms=8, label="switches")
+    ax.set_xlabel("x east (km)")
+    ax.set_ylabel("y north (km)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title(f"{rec.key}: {len(g.control)} segments")
+    t0 = g.control.t_start
+    ts = np.array([[s.t_start, s.t_end] for s in g.control]).ravel() - t0
+    au.step(ts, np.repeat(g.control.u, 2), where="post", label="u (lateral)")
+    au.step(ts, np.repeat(g.control.w, 2), where="post", label="w (longitudinal)")
+    au.set_xlabel("time since start (s)")
+    au.set_ylabel("control (m/s²)")
+    au.grid(alpha=0.3)
+    au.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
