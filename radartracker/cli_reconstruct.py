@@ -35,13 +35,15 @@ def register_reconstruct(sub: argparse._SubParsersAction) -> None:
                    help="track weight: Gaussian NLL or a robust loss (default gauss)")
     p.add_argument("--hypotheses", type=int, default=5, help="segment counts tried per flight (default 5)")
     p.add_argument("--grid", type=float, default=1.0, help="geometric track spacing in seconds (default 1)")
+    p.add_argument("--truth-biases", action="store_true",
+                   help="scenario input: remove the radar biases of truth_biases.csv from the plots")
     p.add_argument("--no-figures", action="store_true", help="skip the per-aircraft figures")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_reconstruct)
 
 
 def _load(inputs: list[Path], sigma: float, min_plots: int):
-    """(tracks, plane per key, truth per key, skipped counts)."""
+    """(tracks, plane per key, truth per key, skipped counts, truth biases or None)."""
     from radartracker.formats import read_scenario
     from radartracker_plugins.reconstruction.tracks import new4_track, scenario_tracks, scenario_truth
 
@@ -51,7 +53,7 @@ def _load(inputs: list[Path], sigma: float, min_plots: int):
     if len(inputs) == 1 and inputs[0].is_dir():
         data = read_scenario(inputs[0])
         tracks, plane, skipped = scenario_tracks(data, min_plots)
-        return tracks, {t.key: plane for t in tracks}, scenario_truth(data, plane), dict(skipped)
+        return tracks, {t.key: plane for t in tracks}, scenario_truth(data, plane), dict(skipped), data.truth_biases
     if any(p.is_dir() or p.suffix != ".new4" for p in inputs):
         raise CliError("give either one scenario folder or .new4 files")
     tracks, planes, skipped = [], {}, {}
@@ -64,7 +66,7 @@ def _load(inputs: list[Path], sigma: float, min_plots: int):
             raise CliError(f"{p}: two inputs map to the same aircraft key {pt.key!r}")
         tracks.append(pt)
         planes[pt.key] = plane
-    return tracks, planes, {}, skipped
+    return tracks, planes, {}, skipped, None
 
 
 def _cmd_reconstruct(args: argparse.Namespace) -> int:
@@ -81,14 +83,17 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
                                    hypotheses=args.hypotheses, grid_dt=args.grid)
     except (ValueError, TypeError) as exc:
         raise CliError(str(exc)) from None
-    tracks, planes, truth, skipped = _load(args.inputs, args.sigma, args.min_plots)
+    tracks, planes, truth, skipped, truth_biases = _load(args.inputs, args.sigma, args.min_plots)
+    if args.truth_biases and not truth_biases:
+        raise CliError("--truth-biases: the input has no truth biases")
+    biases = truth_biases if args.truth_biases else None
     if not tracks:
         raise CliError("no aircraft with enough plots to reconstruct")
     engine = "dask" if args.scheduler else args.engine
     args.out.mkdir(parents=True, exist_ok=True)
     summary = {"flights": len(tracks), "skipped_plots": skipped, "reconstructed": [], "failed": {}}
     with executor(engine, args.workers, args.scheduler) as ex:
-        for res in run_many(tracks, cfg, ex, args.batch_plots, progress=not args.quiet):
+        for res in run_many(tracks, cfg, ex, args.batch_plots, not args.quiet, biases):
             if isinstance(res, Failure):
                 summary["failed"][res.key] = res.reason
                 print(f"reconstruct: {res.key}: {res.reason}", file=sys.stderr)

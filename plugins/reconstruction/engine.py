@@ -35,12 +35,12 @@ class Failure:
     reason: str
 
 
-def reconstruct_batch(tracks: list[PlotTrack], cfg: ReconstructionConfig) -> list[Reconstruction | Failure]:
-    """Reconstruct a batch of flights (one executor task)."""
+def reconstruct_batch(tracks: list[PlotTrack], cfg: ReconstructionConfig, biases=None) -> list[Reconstruction | Failure]:
+    """Reconstruct a batch of flights (one executor task); ``biases``: known radar biases."""
     out: list[Reconstruction | Failure] = []
     for pt in tracks:
         try:
-            out.append(reconstruct(pt, cfg))
+            out.append(reconstruct(pt, cfg, biases))
         except ValueError as exc:
             out.append(Failure(pt.key, str(exc)))
     return out
@@ -82,18 +82,18 @@ def executor(engine: str = "process", workers: int | None = None, scheduler: str
 
 
 def run_many(tracks: list[PlotTrack], cfg: ReconstructionConfig, ex: Executor | None,
-             batch_plots: int = 2000, progress: bool = True) -> Iterator[Reconstruction | Failure]:
+             batch_plots: int = 2000, progress: bool = True, biases=None) -> Iterator[Reconstruction | Failure]:
     """Reconstruct every track on ``ex`` (in this process when None), yielding results as they finish."""
     work = batches(tracks, batch_plots)
     bar = tqdm(total=len(tracks), unit="flight", disable=not progress, desc="reconstruct")
     try:
         if ex is None:
             for batch in work:
-                for res in reconstruct_batch(batch, cfg):
+                for res in reconstruct_batch(batch, cfg, biases):
                     bar.update(1)
                     yield res
             return
-        futures = [ex.submit(reconstruct_batch, batch, cfg) for batch in work]
+        futures = [ex.submit(reconstruct_batch, batch, cfg, biases) for batch in work]
         for fut in as_completed(futures):
             for res in fut.result():
                 bar.update(1)

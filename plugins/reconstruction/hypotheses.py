@@ -1,6 +1,6 @@
 """Multi-hypothesis reconstruction of one flight (seed 000 §2, DESIGN §7).
 
-1. **Change detection.** A tuned RTS smoother (:mod:`.smoother`) gives velocities; on a uniform
+1. **Change detection.** A tuned RTS smoother with an outlier gate (:mod:`.smoother`) gives velocities; on a uniform
    grid the controls follow from the model: u = v φ̇, w = v̇ (seed eq. 2.1), moving-averaged over
    dt_min.
 2. **Segmentations.** For every segment count K the least-squares piecewise-constant fit of
@@ -23,7 +23,7 @@ from radartracker_plugins.reconstruction.fit import ControlObjective, fit_hypoth
 from radartracker_plugins.reconstruction.integrate import geo_track, sample
 from radartracker_plugins.reconstruction.objects import (
     ControlSegment, ControlTrack, GeoPoint, GeoTrack, PlotTrack)
-from radartracker_plugins.reconstruction.smoother import tuned_rts
+from radartracker_plugins.reconstruction.smoother import gated_rts
 from radartracker_plugins.reconstruction.weight import TrackWeight
 
 _MAX_GRID = 1000  # grid points for change detection (the DP is O(K N²))
@@ -109,8 +109,8 @@ def segmentations(sig: np.ndarray, min_len: int, k_max: int) -> tuple[np.ndarray
 
 def initial_hypotheses(plots: PlotTrack, cfg: ReconstructionConfig) -> tuple[list[ControlTrack], float, np.ndarray]:
     """Starting control tracks for the candidate segment counts, the smoother's q, and its states."""
-    t = plots.t
-    xs, q = tuned_rts(t, plots.z, plots.R)
+    xs, q, keep = gated_rts(plots.t, plots.z, plots.R)
+    t = plots.t[keep]
     dur = t[-1] - t[0]
     g = max(cfg.dt_min / 2, dur / _MAX_GRID)
     tg, sig = control_signals(t, xs, g, cfg.dt_min)
@@ -123,8 +123,10 @@ def initial_hypotheses(plots: PlotTrack, cfg: ReconstructionConfig) -> tuple[lis
     half = (cfg.hypotheses - 1) // 2
     lo = max(1, min(k0 - half, len(sse) - cfg.hypotheses + 1))
     counts = range(lo, min(len(sse), lo + cfg.hypotheses - 1) + 1)
-    start = GeoPoint(t[0], xs[0, 0], xs[0, 1], np.arctan2(xs[0, 2], xs[0, 3]),
-                     max(np.hypot(xs[0, 2], xs[0, 3]), cfg.v_min))
+    back = t[0] - plots.t[0]  # the first plot may have been gated out
+    start = GeoPoint(plots.t[0], xs[0, 0] - back * xs[0, 2], xs[0, 1] - back * xs[0, 3],
+                     np.arctan2(xs[0, 2], xs[0, 3]), max(np.hypot(xs[0, 2], xs[0, 3]), cfg.v_min))
+    t = plots.t
     tracks = []
     for K in counts:
         cuts = np.concatenate([[0], starts[K - 1], [N]])

@@ -1,0 +1,114 @@
+"""Hypotheses, constrained fitting and end-to-end recovery of known controls.
+
+Oracles: brute-force enumeration of segmentations; the weight of the true trajectory (the optimiser
+must do at least as well); the true controls and switch times of simulated flights; the tuned RTS
+smoother on the same plots.
+"""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from radartracker.geometry import SystemPlane
+from radartracker.simulate import KinematicTrajectory, Leg
+from radartracker_plugins.reconstruction import MultiHypothesisReconstructor, ReconstructionConfig
+from radartracker_plugins.reconstruction.fit import ControlObjective, fit_hypothesis
+from radartracker_plugins.reconstruction.hypotheses import segmentations
+from radartracker_plugins.reconstruction.integrate import sample
+from radartracker_plugins.reconstruction.objects import ControlSegment, ControlTrack, GeoPoint
+from radartracker_plugins.reconstruction.sim import REFERENCE, radars_around, simulate_flight
+from radartracker_plugins.reconstruction.smoother import tuned_rts
+from radartracker_plugins.reconstruction.weight import TrackWeight
+
+
+def _brute(sig, K, m):
+    N = len(sig)
+    best = (np.inf, None)
+    for cuts in itertools.combinations(range(1, N), K - 1):
+        b = (0, *cuts, N)
+        if any(b[i + 1] - b[i] < m for i in range(K)):
+            continue
+        sse = sum(((sig[b[i]:b[i + 1]] - sig[b[i]:b[i + 1]].mean(0)) ** 2).sum() for i in range(K))
+        if sse < best[0]:
+            best = (sse, cuts)
+    return best
+
+
+def test_segmentation_dp_equals_brute_force():
+    rng = np.random.default_rng(4)
+    sig = np.repeat(rng.normal(0, 2, (4, 2)), [5, 3, 6, 4], axis=0) + rng.normal(0, 0.5, (18, 2))
+    sse, starts = segmentations(sig, 2, 5)
+    for K in range(1, 6):
+        ref_sse, ref_cuts = _brute(sig, K, 2)
+        assert sse[K - 1] == pytest.approx(ref_sse, rel=1e-9)
+        assert tuple(starts[K - 1]) == (ref_cuts or ())
+
+
+LEGS = [Leg(150.0), Leg(60.0, u=3.0), Leg(120.0, w=0.6), Leg(90.0, u=-2.0, w=-0.3), Leg(180.0)]
+SWITCHES = np.cumsum([leg.duration for leg in LEGS])[:-1]
+
+
+@pytest.fixture(scope="module")
+def flight():
+    plane = SystemPlane(*REFERENCE)
+    traj = KinematicTrajectory(0.0, -20e3, 10e3, 6000.0, 1.2, 170.0, LEGS)
+    radars = radars_around(plane, [(-60, -40), (50, 60)], [4.0, 6.0])
+    return simulate_flight(traj, radars, seed=7)
+
+
+@pytest.fixture(scope="module")
+def rec(flight):
+    return MultiHypothesisReconstructor().reconstruct(flight[0])
+
+
+def test_recovers_known_controls_and_switch_times(rec):
+    ct = rec.control
+    assert len(ct) == len(LEGS)
+    np.testing.assert_allclose(ct.switch_times, SWITCHES, atol=6.0)
+    np.testing.assert_allclose(ct.u, [leg.u for leg in LEGS], atol=0.2)
+    np.testing.assert_allclose(ct.w, [leg.w for leg in LEGS], atol=0.05)
+    # ranked alternatives are kept with their weights and scores
+    assert len(rec.hypotheses) == 5 and all(a.score <= b.score for a, b in zip(rec.hypotheses, rec.hypotheses[1:]))
+
+
+def test_beats_truth_weight_and_the_smoother(flight, rec):
+    pt, truth = flight
+    w = TrackWeight(pt)
+    est = sample(rec.control, pt.t)[:, :2]
+    assert rec.best.weight <= w(truth) + 1e-6  # the optimum explains the plots at least as well as the truth
+    rmse = np.sqrt(np.mean(np.sum((est - truth) ** 2, axis=1)))
+    xs, _ = tuned_rts(pt.t, pt.z, pt.R)
+    rts = np.sqrt(np.mean(np.sum((xs[:, :2] - truth) ** 2, axis=1)))
+    raw = np.sqrt(np.mean(np.sum((pt.z - truth) ** 2, axis=1)))
+    assert rmse < 0.6 * rts < raw
+
+
+def test_infeasible_start_slides_back_into_the_constraints(flight):
+    pt, _ = flight
+    cfg = ReconstructionConfig()
+    t = pt.t - pt.t[0]
+    start = GeoPoint(0.0, *pt.z[0], 1.2, 170.0)
+    bad = ControlTrack(start, [ControlSegment(7.0, 3.0, 0, 300), ControlSegment(-9.0, -3.5, 300, t[-1])])
+    obj = ControlObjective(TrackWeight(pt), t, 0.0, t[-1], 2, cfg)
+    theta = obj.pack((start.x, start.y, start.phi, start.v), bad.u, bad.w, np.array([0, 300, t[-1]]))
+    assert obj(theta) > obj(np.clip(theta, *obj.bounds())) + cfg.penalty
+    fitted, _, _ = fit_hypothesis(bad, t, TrackWeight(pt), cfg)
+    assert np.all(np.abs(fitted.u) <= cfg.max_u) and np.all(np.abs(fitted.w) <= cfg.max_w)
+    assert np.all(np.diff([s.t_start for s in fitted] + [fitted.t_end]) >= cfg.dt_min - 1e-9)
+
+
+def test_robust_loss_resists_outliers(flight):
+    pt, truth = flight
+    rng = np.random.default_rng(1)
+    z = pt.z.copy()
+    bad = rng.choice(len(z), len(z) // 20, replace=False)
+    z[bad] += rng.choice([-1, 1], (len(bad), 2)) * 3000.0
+    import attrs
+
+    dirty = attrs.evolve(pt, z=z)
+    err = {}
+    for loss in ("gauss", "huber"):
+        r = MultiHypothesisReconstructor(ReconstructionConfig(loss=loss, hypotheses=1)).reconstruct(dirty)
+        err[loss] = np.sqrt(np.mean(np.sum((sample(r.control, pt.t)[:, :2] - truth) ** 2, axis=1)))
+    assert err["huber"] < 0.5 * err["gauss"]
