@@ -48,7 +48,7 @@ class CoupledEstimator(Estimator):
     def _alloc(self, n: int) -> int:
         start = self._size
         if start + n > self._x.size:
-            cap = max(2 * self._x.size, start + n, 16)
+            cap = max(self._x.size * 3 // 2, start + n, 16)
             x, P = np.zeros(cap), np.zeros((cap, cap))
             x[:start], P[:start, :start] = self._x[:start], self._P[:start, :start]
             self._x, self._P = x, P
