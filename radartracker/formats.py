@@ -353,8 +353,12 @@ def read_truth_biases(path: Path, radar_ids: set[str]) -> dict[str, tuple[float,
 
 
 def read_scenario(folder: Path | str, *, skip_bad: bool = False) -> ScenarioData:
-    """Read and validate a scenario folder (see docs/formats.md)."""
+    """Read and validate a scenario folder (see docs/formats.md), or an ASTERIX recording file."""
     folder = Path(folder)
+    if folder.suffix.lower() in (".ast", ".pcap", ".ff", ".final"):
+        from radartracker.asterix import read_asterix
+
+        return read_asterix(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"scenario folder {folder} does not exist")
     radars = read_radars(folder / "radars.csv")

@@ -1,0 +1,474 @@
+"""EUROCONTROL ASTERIX in and out: CAT048 (monoradar target reports) and CAT021 (ADS-B) read into
+and written from :class:`~radartracker.formats.ScenarioData`, CAT062 (system tracks) written from a
+replay. Encoding and decoding use ``libasterix`` (MIT, pure Python, generated from the
+asterix-specs definitions); this module only maps our fields to the items:
+
+* CAT048 ed. 1.32: I010 SAC/SIC, I140 time of day (1/128 s), I020 TYP, I040 ρ (1/256 NM) and
+  θ (360°/2¹⁶), I070 Mode 3/A, I090 flight level (1/4 FL), I220 Mode S address.
+* CAT021 ed. 2.6: I010, I040 (ATP 24-bit address), I071 time of applicability (1/128 s), I131 WGS-84
+  position (180°/2³⁰), I080 address, I145 flight level (1/4 FL), I090 NACp.
+* CAT062 ed. 1.21: I010, I015, I070 time (1/128 s), I105 WGS-84 position (180°/2²⁵), I100 plane
+  x, y (0.5 m), I185 velocity (0.25 m/s), I040 track number, I080 track status, I136 flight level.
+
+Altitudes: our ``altitude_m`` is the barometric (pressure) altitude; 1 FL = 100 ft. ASTERIX times
+are seconds of the UTC day: reading adds ``day_start`` (seconds since 1970 of the first day's
+midnight; from the packet time stamps for pcap) and a day each time the time of day wraps back.
+CAT048 carries no radar site: the sites come from a sidecar ``<file>.radars.csv`` (the scenario
+``radars.csv`` columns plus ``sac`` and ``sic``), which :func:`write_asterix` writes.
+
+Containers: raw concatenated data blocks (``.ast``), the FINAL record format (8-byte header: byte
+count, board, line, day, time in 10 ms; 4 bytes of 0xA5 padding) and classic pcap (Ethernet/SLL/raw
+IPv4, UDP); pcapng is refused with a clear message.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import struct
+from collections import Counter
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+import numpy as np
+from asterix.base import Bits, RawDatablock
+import asterix.generated as gen
+
+from radartracker.domain import Aircraft, Radar
+from radartracker.formats import RADAR_COLUMNS, AdsbTable, PlotTable, ScenarioData
+
+CAT048, CAT021, CAT062 = gen.Cat_048_1_32, gen.Cat_021_2_6, gen.Cat_062_1_21
+NM, FT = 1852.0, 0.3048
+FL_M = 100 * FT
+DAY = 86400.0
+MAX_BLOCK = 60_000  # bytes of records per data block (the length field allows 65535)
+
+
+# --- encoding --------------------------------------------------------------------------------------
+
+def _tod(t: float) -> float:
+    return float(t) % DAY
+
+
+def cat048_record(time: float, sac: int, sic: int, range_m: float, azimuth_rad: float,
+                  altitude_m: float | None = None, mode_s: str | None = None, mode_3a: str | None = None):
+    """One CAT048 target report (TYP: 5 Mode S roll-call, 2 SSR, 1 PSR as the codes present)."""
+    typ = 5 if mode_s else 2 if mode_3a else 1
+    items: dict = {
+        "010": (("SAC", sac), ("SIC", sic)),
+        "140": (_tod(time), "s"),
+        "020": ((typ, 0, 0, 0, 0, None),),
+        "040": (("RHO", (range_m / NM, "NM")), ("THETA", (math.degrees(azimuth_rad) % 360.0, "°"))),
+    }
+    if mode_3a:
+        items["070"] = (0, 0, 0, 0, ("MODE3A", mode_3a))
+    if altitude_m is not None and math.isfinite(altitude_m):
+        items["090"] = (0, 0, ("FL", (altitude_m / FL_M, "FL")))
+    if mode_s:
+        items["220"] = int(mode_s, 16)
+    return CAT048.cv_record.create(items)
+
+
+def cat021_record(time: float, sac: int, sic: int, icao24: str, lat: float, lon: float,
+                  altitude_m: float | None = None, nacp: int | None = None):
+    """One CAT021 ADS-B report (24-bit ICAO address, high-resolution position)."""
+    items: dict = {
+        "010": (("SAC", sac), ("SIC", sic)),
+        "040": ((1, 0, 0, 0, None),),  # ATP = 1: 24-bit ICAO address
+        "071": (_tod(time), "s"),
+        "131": (("LAT", (lat, "°")), ("LON", (lon, "°"))),
+        "080": int(icao24, 16),
+    }
+    if altitude_m is not None and math.isfinite(altitude_m):
+        items["145"] = (altitude_m / FL_M, "FL")
+    if nacp is not None:
+        items["090"] = ((0, 0, None), (0, 0, int(nacp), None))
+    return CAT021.cv_record.create(items)
+
+
+def cat062_record(time: float, sac: int, sic: int, track_number: int, lat: float, lon: float,
+                  x_m: float, y_m: float, vx_mps: float, vy_mps: float, altitude_m: float | None = None):
+    """One CAT062 system track update (position in WGS-84 and in the system plane, velocity)."""
+    items: dict = {
+        "010": (("SAC", sac), ("SIC", sic)),
+        "015": 0,
+        "070": (_tod(time), "s"),
+        "105": (("LAT", (lat, "°")), ("LON", (lon, "°"))),
+        "100": (("X", (x_m, "m")), ("Y", (y_m, "m"))),
+        "185": (("VX", (vx_mps, "m/s")), ("VY", (vy_mps, "m/s"))),
+        "040": int(track_number),
+        "080": (0,),
+    }
+    if altitude_m is not None and math.isfinite(altitude_m):
+        items["136"] = (altitude_m / FL_M, "FL")
+    return CAT062.cv_record.create(items)
+
+
+def datablocks(cat, records: Iterable) -> Iterator[bytes]:
+    """Pack records into data blocks of at most :data:`MAX_BLOCK` bytes."""
+    batch: list = []
+    size = 0
+    for rec in records:
+        n = len(rec.unparse().to_bytes())
+        if batch and size + n > MAX_BLOCK:
+            yield cat.create(batch).unparse().to_bytes()
+            batch, size = [], 0
+        batch.append(rec)
+        size += n
+    if batch:
+        yield cat.create(batch).unparse().to_bytes()
+
+
+def sac_sic_of(data: ScenarioData, sac: int = 0) -> dict[str, tuple[int, int]]:
+    """Our default SAC/SIC for the radars of a scenario: one SAC, SIC = position + 1."""
+    return {r.id: (sac, i + 1) for i, r in enumerate(data.radars)}
+
+
+def write_asterix(path: Path | str, data: ScenarioData, *, sac_sic: dict[str, tuple[int, int]] | None = None,
+                  adsb_sac_sic: tuple[int, int] = (0, 200)) -> int:
+    """Write the plots as CAT048 and the ADS-B reports as CAT021 (raw blocks, in time order) and the
+    radar sites as ``<path>.radars.csv``; returns the number of records."""
+    path = Path(path)
+    if path.exists():
+        raise FileExistsError(f"{path} already exists")
+    sac_sic = sac_sic or sac_sic_of(data)
+    missing = sorted(set(data.plots.radar.tolist()) - set(sac_sic))
+    if missing:
+        raise ValueError(f"no SAC/SIC for radar(s) {', '.join(missing)}")
+    p, a = data.plots, data.adsb
+    events = sorted([(float(p.time[i]), 0, i) for i in range(len(p))] + [(float(a.time[i]), 1, i) for i in range(len(a))])
+    tmp = path.with_name(path.name + ".partial")
+    try:
+        with open(tmp, "wb") as fh:
+            for cat, group in _runs(events):
+                if cat == 0:
+                    recs = (cat048_record(p.time[i], *sac_sic[p.radar[i]], p.range_m[i], p.azimuth_rad[i],
+                                          p.altitude_m[i], p.mode_s[i], p.mode_3a[i]) for i in group)
+                    fh.writelines(datablocks(CAT048, recs))
+                else:
+                    recs = (cat021_record(a.time[i], *adsb_sac_sic, a.icao24[i], a.lat[i], a.lon[i],
+                                          a.altitude_m[i], int(a.nacp[i])) for i in group)
+                    fh.writelines(datablocks(CAT021, recs))
+        _write_sites(Path(str(path) + ".radars.csv"), data.radars, sac_sic)
+        tmp.rename(path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return len(events)
+
+
+def _runs(events: list[tuple[float, int, int]]) -> Iterator[tuple[int, list[int]]]:
+    """Consecutive runs of the same category (0: CAT048, 1: CAT021) in time order."""
+    cat, run = None, []
+    for _, c, i in events:
+        if c != cat and run:
+            yield cat, run
+            run = []
+        cat = c
+        run.append(i)
+    if run:
+        yield cat, run
+
+
+def _write_sites(path: Path, radars: list[Radar], sac_sic: dict[str, tuple[int, int]]) -> None:
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(RADAR_COLUMNS + ("sac", "sic"))
+        for r in radars:
+            if r.id in sac_sic:
+                w.writerow([r.id, f"{r.lat:.8f}", f"{r.lon:.8f}", f"{r.height_m:.2f}", f"{r.sigma_range_m:g}",
+                            f"{math.degrees(r.sigma_azimuth_rad):.6g}", f"{r.period_s:g}", f"{r.max_range_m:g}",
+                            *sac_sic[r.id]])
+
+
+def write_cat062(path: Path | str, result, *, sac: int = 0, sic: int = 100) -> dict:
+    """Write a :class:`~radartracker.replay.ReplayResult`'s track history as CAT062 (raw blocks).
+
+    Track keys become track numbers 1, 2, … in order of first appearance; returns that mapping.
+    """
+    path = Path(path)
+    if path.exists():
+        raise FileExistsError(f"{path} already exists")
+    numbers: dict = {}
+    for k in result.track_key.tolist():
+        numbers.setdefault(k, len(numbers) + 1)
+    s = np.asarray(result.track_state, float)
+    if len(s):
+        lat, lon = result.plane.to_geodetic(s[:, 0], s[:, 1])
+    recs = (cat062_record(result.track_time[i], sac, sic, numbers[result.track_key[i]], lat[i], lon[i],
+                          s[i, 0], s[i, 1], s[i, 2], s[i, 3]) for i in range(len(s)))
+    with open(path, "wb") as fh:
+        fh.writelines(datablocks(CAT062, recs))
+    return numbers
+
+
+# --- containers ------------------------------------------------------------------------------------
+
+def _blocks_in(buf: bytes, where: str) -> Iterator[bytes]:
+    """Split concatenated data blocks, checking every length field."""
+    off = 0
+    while off < len(buf):
+        if len(buf) - off < 3:
+            raise ValueError(f"{where}: byte {off}: truncated data block header ({len(buf) - off} bytes left)")
+        n = int.from_bytes(buf[off + 1: off + 3], "big")
+        if n < 3:
+            raise ValueError(f"{where}: byte {off}: data block length {n} < 3 (not ASTERIX?)")
+        if off + n > len(buf):
+            raise ValueError(f"{where}: byte {off}: truncated data block (length {n}, {len(buf) - off} bytes left)")
+        yield buf[off: off + n]
+        off += n
+
+
+def _is_final(buf: bytes) -> bool:
+    n = int.from_bytes(buf[:2], "big")
+    return 12 < n <= len(buf) and buf[n - 4: n] == b"\xa5" * 4
+
+
+def read_final(buf: bytes, where: str) -> Iterator[tuple[float | None, bytes]]:
+    """(None, data block) of a FINAL-format file (its 10 ms time of day is not needed: I140 has it)."""
+    off = 0
+    while off < len(buf):
+        if len(buf) - off < 12:
+            raise ValueError(f"{where}: byte {off}: truncated FINAL record header")
+        n = int.from_bytes(buf[off: off + 2], "big")
+        if n < 12 or off + n > len(buf):
+            raise ValueError(f"{where}: byte {off}: truncated or bad FINAL record (byte count {n})")
+        if buf[off + n - 4: off + n] != b"\xa5" * 4:
+            raise ValueError(f"{where}: byte {off}: FINAL record without its A5A5A5A5 padding")
+        for block in _blocks_in(buf[off + 8: off + n - 4], f"{where}: FINAL record at byte {off}"):
+            yield None, block
+        off += n
+
+
+_PCAP_MAGIC = {b"\xd4\xc3\xb2\xa1": ("<", 1e-6), b"\xa1\xb2\xc3\xd4": (">", 1e-6),
+               b"\x4d\x3c\xb2\xa1": ("<", 1e-9), b"\xa1\xb2\x3c\x4d": (">", 1e-9)}
+
+
+def read_pcap(buf: bytes, where: str) -> Iterator[tuple[float, bytes]]:
+    """(packet time, data block) of the UDP payloads of a classic pcap file."""
+    endian, unit = _PCAP_MAGIC[buf[:4]]
+    if len(buf) < 24:
+        raise ValueError(f"{where}: truncated pcap header")
+    link = struct.unpack(endian + "I", buf[20:24])[0]
+    off = 24
+    while off < len(buf):
+        if len(buf) - off < 16:
+            raise ValueError(f"{where}: byte {off}: truncated pcap packet header")
+        sec, frac, incl, _ = struct.unpack(endian + "IIII", buf[off: off + 16])
+        pkt = buf[off + 16: off + 16 + incl]
+        if len(pkt) < incl:
+            raise ValueError(f"{where}: byte {off}: truncated pcap packet ({incl} bytes announced)")
+        payload = _udp_payload(pkt, link)
+        if payload:
+            for block in _blocks_in(payload, f"{where}: packet at byte {off}"):
+                yield sec + frac * unit, block
+        off += 16 + incl
+
+
+def _udp_payload(pkt: bytes, link: int) -> bytes | None:
+    if link == 1:  # Ethernet, optionally 802.1Q tagged
+        ethertype, ip = int.from_bytes(pkt[12:14], "big"), 14
+        while ethertype == 0x8100:
+            ethertype, ip = int.from_bytes(pkt[ip + 2: ip + 4], "big"), ip + 4
+    elif link == 113:  # Linux cooked capture
+        ethertype, ip = int.from_bytes(pkt[14:16], "big"), 16
+    elif link in (101, 228):  # raw IPv4
+        ethertype, ip = 0x0800, 0
+    else:
+        raise ValueError(f"pcap link type {link} not supported (Ethernet, Linux SLL or raw IPv4)")
+    if ethertype != 0x0800 or len(pkt) < ip + 20 or pkt[ip + 9] != 17:
+        return None  # not IPv4/UDP: not ASTERIX
+    if int.from_bytes(pkt[ip + 6: ip + 8], "big") & 0x3FFF:
+        return None  # IP fragment
+    udp = ip + (pkt[ip] & 0x0F) * 4
+    return pkt[udp + 8: udp + int.from_bytes(pkt[udp + 4: udp + 6], "big")]
+
+
+def write_pcap(path: Path | str, packets: Iterable[tuple[float, bytes]], *, dst: str = "232.1.1.1",
+               port: int = 8600) -> None:
+    """Write (time, UDP payload) pairs as an Ethernet/IPv4/UDP pcap file (multicast, as ATC feeds are)."""
+    d = bytes(int(x) for x in dst.split("."))
+    with open(path, "wb") as fh:
+        fh.write(struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 65535, 1))
+        for t, payload in packets:
+            udp = struct.pack(">HHHH", port, port, 8 + len(payload), 0) + payload
+            hdr = struct.pack(">BBHHHBBH4s4s", 0x45, 0, 20 + len(udp), 0, 0, 64, 17, 0, bytes([10, 0, 0, 1]), d)
+            csum = sum(struct.unpack(">10H", hdr))
+            csum = ~((csum & 0xFFFF) + (csum >> 16)) & 0xFFFF
+            ip = hdr[:10] + struct.pack(">H", csum) + hdr[12:]
+            eth = bytes([1, 0, 0x5E, d[1] & 0x7F, d[2], d[3]]) + bytes(6) + b"\x08\x00"
+            frame = eth + ip + udp
+            sec = math.floor(t)
+            fh.write(struct.pack("<IIII", sec, round((t - sec) * 1e6) % 1_000_000, len(frame), len(frame)))
+            fh.write(frame)
+
+
+def iter_datablocks(path: Path | str) -> Iterator[tuple[float | None, bytes]]:
+    """(packet time or None, data block) of a raw, FINAL or pcap ASTERIX file."""
+    path = Path(path)
+    buf = path.read_bytes()
+    if not buf:
+        raise ValueError(f"{path}: empty file")
+    if buf[:4] == b"\x0a\x0d\x0d\x0a":
+        raise ValueError(f"{path}: pcapng is not supported; convert it with 'editcap -F pcap'")
+    if buf[:4] in _PCAP_MAGIC:
+        return read_pcap(buf, str(path))
+    if _is_final(buf):
+        return read_final(buf, str(path))
+    return ((None, b) for b in _blocks_in(buf, str(path)))
+
+
+# --- decoding --------------------------------------------------------------------------------------
+
+def _q(rec, item: str, sub: str | None, unit: str) -> float | None:
+    i = rec.get_item(item)
+    if i is None:
+        return None
+    v = i.variation if sub is None else i.variation.get_item(sub).variation
+    return v.content.as_quantity(unit)
+
+
+def decode_block(block: bytes, where: str) -> tuple[int, list]:
+    """(category, decoded records) of one data block; categories other than 021/048/062: no records."""
+    raw = RawDatablock.parse(Bits.from_bytes(block))
+    if isinstance(raw, ValueError):
+        raise ValueError(f"{where}: {raw}")
+    cat = raw[0].get_category()
+    spec = {48: CAT048, 21: CAT021, 62: CAT062}.get(cat)
+    if spec is None:
+        return cat, []
+    recs = spec.cv_uap.parse(raw[0].get_raw_records())
+    if isinstance(recs, ValueError):
+        raise ValueError(f"{where}: CAT{cat:03d} block does not decode: {recs}")
+    return cat, recs
+
+
+def decode_cat048(rec) -> dict:
+    i010 = rec.get_item("010").variation
+    fl = _q(rec, "090", "FL", "FL")
+    i070, i220 = rec.get_item("070"), rec.get_item("220")
+    return {
+        "sac": i010.get_item("SAC").as_uint(), "sic": i010.get_item("SIC").as_uint(),
+        "tod": _q(rec, "140", None, "s"),
+        "range_m": _q(rec, "040", "RHO", "NM") * NM,
+        "azimuth_rad": math.radians(_q(rec, "040", "THETA", "°")),
+        "altitude_m": math.nan if fl is None else fl * FL_M,
+        "mode_3a": None if i070 is None else i070.variation.get_item("MODE3A").variation.content.as_string(),
+        "mode_s": None if i220 is None else f"{i220.variation.as_uint():06x}",
+    }
+
+
+def decode_cat021(rec) -> dict:
+    fl = _q(rec, "145", None, "FL")
+    tod = _q(rec, "071", None, "s")
+    i090 = rec.get_item("090")
+    nacp = i090.variation.get_item("NACP") if i090 is not None else None
+    if _q(rec, "131", "LAT", "°") is not None:
+        lat, lon = _q(rec, "131", "LAT", "°"), _q(rec, "131", "LON", "°")
+    else:
+        lat, lon = _q(rec, "130", "LAT", "°"), _q(rec, "130", "LON", "°")
+    return {
+        "tod": tod if tod is not None else _q(rec, "073", None, "s"),
+        "icao24": f"{rec.get_item('080').variation.as_uint():06x}",
+        "lat": lat, "lon": lon,
+        "altitude_m": math.nan if fl is None else fl * FL_M,
+        "nacp": None if nacp is None else nacp.as_uint(),
+    }
+
+
+def decode_cat062(rec) -> dict:
+    fl = _q(rec, "136", None, "FL")
+    return {
+        "tod": _q(rec, "070", None, "s"), "track_number": rec.get_item("040").variation.as_uint(),
+        "lat": _q(rec, "105", "LAT", "°"), "lon": _q(rec, "105", "LON", "°"),
+        "x_m": _q(rec, "100", "X", "m"), "y_m": _q(rec, "100", "Y", "m"),
+        "vx_mps": _q(rec, "185", "VX", "m/s"), "vy_mps": _q(rec, "185", "VY", "m/s"),
+        "altitude_m": math.nan if fl is None else fl * FL_M,
+    }
+
+
+class _Clock:
+    """Absolute time from time of day: day_start plus a day at each backwards wrap."""
+
+    def __init__(self, day_start: float) -> None:
+        self.base, self.last = day_start, None
+
+    def __call__(self, tod: float) -> float:
+        if self.last is not None and tod < self.last - DAY / 2:
+            self.base += DAY
+        self.last = tod
+        return self.base + tod
+
+
+def read_sites(path: Path) -> tuple[list[Radar], dict[tuple[int, int], str]]:
+    """Radar sites and the SAC/SIC → radar id map of a ``.radars.csv`` sidecar."""
+    from radartracker.formats import read_radars
+
+    radars = read_radars(path)
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    if rows and not {"sac", "sic"} <= set(rows[0]):
+        raise ValueError(f"{path}: line 1: columns sac and sic are needed to match CAT048 plots to radars")
+    ids = {}
+    for n, row in enumerate(rows, 2):
+        try:
+            ids[(int(row["sac"]), int(row["sic"]))] = row["radar"].strip()
+        except ValueError:
+            raise ValueError(f"{path}: line {n}: field sac/sic: not an integer") from None
+    return radars, ids
+
+
+def read_asterix(path: Path | str, *, radars: Path | str | None = None, day_start: float = 0.0) -> ScenarioData:
+    """Read a CAT048/CAT021 recording (raw, FINAL or pcap) as a scenario (see the module notes).
+
+    Records of other categories are counted in ``skipped``; a malformed or truncated block is a
+    ``ValueError`` naming the file and byte offset.
+    """
+    path = Path(path)
+    sites_path = Path(radars) if radars is not None else Path(str(path) + ".radars.csv")
+    plots, adsb, skipped = [], [], Counter()
+    clock = None
+    for k, (stamp, block) in enumerate(iter_datablocks(path)):
+        if clock is None:
+            clock = _Clock(math.floor(stamp / DAY) * DAY if stamp is not None else day_start)
+        cat, recs = decode_block(block, f"{path}: data block {k}")
+        if cat == 48:
+            plots += [decode_cat048(r) for r in recs]
+            for p in plots[len(plots) - len(recs):]:
+                p["time"] = clock(p["tod"])
+        elif cat == 21:
+            adsb += [decode_cat021(r) for r in recs]
+            for a in adsb[len(adsb) - len(recs):]:
+                a["time"] = clock(a["tod"])
+        else:
+            skipped[f"asterix_cat{cat:03d}_blocks"] += 1
+    seen = sorted({(p["sac"], p["sic"]) for p in plots})
+    if seen and not sites_path.exists():
+        raise FileNotFoundError(
+            f"{path}: CAT048 plots from SAC/SIC {', '.join(f'{a}/{b}' for a, b in seen)} but no radar sites: "
+            f"write {sites_path} (columns {', '.join(RADAR_COLUMNS)}, sac, sic)")
+    site_list, ids = read_sites(sites_path) if sites_path.exists() else ([], {})
+    unknown = [f"{a}/{b}" for a, b in seen if (a, b) not in ids]
+    if unknown:
+        raise ValueError(f"{sites_path}: no radar with SAC/SIC {', '.join(unknown)}")
+    icaos = sorted({a["icao24"] for a in adsb} | {p["mode_s"] for p in plots if p["mode_s"]})
+    equipped = {a["icao24"] for a in adsb}
+    return ScenarioData(
+        reference=(float(np.mean([r.lat for r in site_list])), float(np.mean([r.lon for r in site_list])))
+        if site_list else ((float(np.mean([a["lat"] for a in adsb])), float(np.mean([a["lon"] for a in adsb])))
+                           if adsb else (0.0, 0.0)),
+        radars=site_list,
+        plots=PlotTable.from_columns(**{
+            "time": [p["time"] for p in plots], "radar": [ids[(p["sac"], p["sic"])] for p in plots],
+            "range_m": [p["range_m"] for p in plots], "azimuth_rad": [p["azimuth_rad"] for p in plots],
+            "altitude_m": [p["altitude_m"] for p in plots], "mode_s": [p["mode_s"] for p in plots],
+            "mode_3a": [p["mode_3a"] for p in plots], "target": [None] * len(plots)}),
+        adsb=AdsbTable.from_columns(**{
+            "time": [a["time"] for a in adsb], "icao24": [a["icao24"] for a in adsb],
+            "lat": [a["lat"] for a in adsb], "lon": [a["lon"] for a in adsb],
+            "altitude_m": [a["altitude_m"] for a in adsb],
+            "nacp": [8 if a["nacp"] is None else a["nacp"] for a in adsb]}),
+        aircraft=[Aircraft(i, adsb=i in equipped) for i in icaos],
+        name=path.stem, skipped=dict(skipped),
+    )
+
