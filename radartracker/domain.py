@@ -102,15 +102,25 @@ class Radar:
         return np.diag([self.sigma_range_m**2, self.sigma_azimuth_rad**2])
 
 
+# What the radars get from the aircraft: Mode S address, Mode 3/A code and altitude ("mode_s");
+# Mode 3/A code and Mode C altitude only ("mode_a_c"); nothing, a primary-only target ("none").
+TRANSPONDERS = ("mode_s", "mode_a_c", "none")
+
+
 @attrs.frozen
 class Aircraft:
-    """An aircraft's identity: Mode S address, optional Mode 3/A code and callsign, ADS-B quality."""
+    """An aircraft's identity: Mode S address, optional Mode 3/A code and callsign, ADS-B quality.
+
+    ``transponder`` says what its radar plots carry (see ``TRANSPONDERS``); ``icao24`` always
+    identifies it in simulation truth and ADS-B.
+    """
 
     icao24: str = attrs.field(converter=_lower, validator=_mode_s)
     callsign: str = ""
     mode_3a: str | None = attrs.field(default=None, validator=_mode_3a)
     adsb: bool = False
     nacp: int = attrs.field(default=8, validator=attrs.validators.in_(range(0, 12)))
+    transponder: str = attrs.field(default="mode_s", validator=attrs.validators.in_(TRANSPONDERS))
 
 
 @attrs.frozen(slots=True)

@@ -199,7 +199,9 @@ class Simulator:
             _, theta, _ = frame.polar(*self._geo(traj, np.clip(t, ta, tb)))
             antenna = sr.phase_rad + 2 * np.pi * (t - self.t0) / T
             t = t + T * (np.mod(theta - antenna + np.pi, 2 * np.pi) - np.pi) / (2 * np.pi)
-        return np.unique(t[(t >= ta) & (t <= tb)])
+        t = np.sort(t[(t >= ta) & (t <= tb)])
+        # adjacent scans can converge to the same crossing near the antenna's start azimuth
+        return t[np.concatenate([[True], np.diff(t) > 0.5 * T])] if len(t) else t
 
     def _radar_plots(self, j: int, sr: SimRadar) -> tuple[dict[str, np.ndarray], tuple[float, float]]:
         """One radar's plots as columns, and its true bias at t1."""
@@ -223,9 +225,12 @@ class Simulator:
             out["time"].append(t[seen])
             out["range_m"].append(rho[seen] + rng.normal(0.0, radar.sigma_range_m, n))
             out["azimuth_rad"].append(theta[seen] + rng.normal(0.0, radar.sigma_azimuth_rad, n))
-            out["altitude_m"].append(np.round(h[seen] / _MODE_C_STEP_M) * _MODE_C_STEP_M)
             ac = sa.aircraft
-            for key, value in (("mode_s", ac.icao24), ("mode_3a", ac.mode_3a), ("target", ac.icao24)):
+            mode_c = np.round(h[seen] / _MODE_C_STEP_M) * _MODE_C_STEP_M
+            out["altitude_m"].append(mode_c if ac.transponder != "none" else np.full(n, np.nan))
+            mode_s = ac.icao24 if ac.transponder == "mode_s" else None
+            mode_3a = ac.mode_3a if ac.transponder != "none" else None
+            for key, value in (("mode_s", mode_s), ("mode_3a", mode_3a), ("target", ac.icao24)):
                 out[key].append(np.full(n, value, dtype=object))
         self._false_plots(sr, rng, out)
         cols = {k: (np.concatenate(v) if v else np.empty(0, dtype=object if k in ("mode_s", "mode_3a", "target") else float))

@@ -51,6 +51,14 @@ def test_noise_and_bias_statistics():
     assert e_r.std() == pytest.approx(50.0, rel=0.25)
 
 
+def test_one_plot_per_scan_per_aircraft(seed_data):
+    p = seed_data.plots
+    for radar in seed_data.radars:
+        for target in {a.icao24 for a in seed_data.aircraft}:
+            t = np.sort(p.time[(p.radar == radar.id) & (p.target == target)])
+            assert np.all(np.diff(t) > 0.5 * radar.period_s)
+
+
 def test_detection_probability_and_false_plots():
     sim, _, _ = single(pd=0.5, false_per_scan=3.0)
     d = sim.run()

@@ -1,0 +1,65 @@
+"""Plot-to-track association: gating with the full innovation covariance and GNN assignment.
+
+For plot k of radar j and track t predicted to the plot's time (χ̄_t, P̄_t), with the radar's bias
+estimate (ς̂_j, P_ς) from the estimator plugin::
+
+    ν = z_k − (p̄_t + C_k ς̂_j),   S = P̄_pp + C_k P_ς C_kᵀ + R_k,   d² = νᵀ S⁻¹ ν
+
+A pair is admissible when d² ≤ gate (χ²₂ quantile). Global nearest neighbour: the assignment that
+minimises Σ (d² + ln det S) over admissible pairs (``scipy.optimize.linear_sum_assignment``);
+candidates are found first with a k-d tree on the predicted positions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.spatial import cKDTree
+
+_INADMISSIBLE = 1e12
+
+
+def gate_costs(z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray,
+               pos: np.ndarray, pos_cov: np.ndarray, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(d², d² + ln det S) for candidate ``pairs`` (P, 2) of (plot index, track index)."""
+    k, t = pairs[:, 0], pairs[:, 1]
+    Ck = C[k]
+    nu = z[k] - pos[t] - np.einsum("nij,j->ni", Ck, bias)
+    S = pos_cov[t] + Ck @ bias_cov @ np.swapaxes(Ck, 1, 2) + R[k]
+    det = S[:, 0, 0] * S[:, 1, 1] - S[:, 0, 1] * S[:, 1, 0]
+    ok = det > 0
+    det = np.where(ok, det, 1.0)
+    # explicit 2×2 inverse: d² = (S11 ν0² − 2 S01 ν0 ν1 + S00 ν1²) / det
+    d2 = (S[:, 1, 1] * nu[:, 0] ** 2 - (S[:, 0, 1] + S[:, 1, 0]) * nu[:, 0] * nu[:, 1] + S[:, 0, 0] * nu[:, 1] ** 2) / det
+    d2 = np.where(ok, d2, np.inf)
+    return d2, d2 + np.log(det)
+
+
+def candidate_pairs(z: np.ndarray, pos: np.ndarray, radius: float, allowed: np.ndarray | None = None) -> np.ndarray:
+    """(plot, track) index pairs within ``radius`` metres, optionally masked by ``allowed`` (K, T)."""
+    if len(z) == 0 or len(pos) == 0:
+        return np.empty((0, 2), int)
+    tree = cKDTree(pos)
+    hits = tree.query_ball_point(z, radius)
+    pairs = [(k, t) for k, ts in enumerate(hits) for t in ts if allowed is None or allowed[k, t]]
+    return np.array(pairs, int).reshape(-1, 2)
+
+
+def assign(pairs: np.ndarray, d2: np.ndarray, cost: np.ndarray, gate: float) -> list[tuple[int, int]]:
+    """Global-nearest-neighbour assignment among gated pairs: list of (plot, track)."""
+    keep = d2 <= gate
+    pairs, cost = pairs[keep], cost[keep]
+    if len(pairs) == 0:
+        return []
+    plots, p_idx = np.unique(pairs[:, 0], return_inverse=True)
+    tracks, t_idx = np.unique(pairs[:, 1], return_inverse=True)
+    n_p, n_t = len(plots), len(tracks)
+    # one "leave unassigned" column per plot, priced as a pair on the gate boundary, so that a
+    # plot is never forced onto a track just to make the matching larger
+    M = np.full((n_p, n_t + n_p), _INADMISSIBLE)
+    M[p_idx, t_idx] = cost
+    log_det = np.full(n_p, np.inf)
+    np.minimum.at(log_det, p_idx, cost - d2[keep])
+    M[np.arange(n_p), n_t + np.arange(n_p)] = gate + log_det
+    rows, cols = linear_sum_assignment(M)
+    return [(int(plots[r]), int(tracks[c])) for r, c in zip(rows, cols) if c < n_t and M[r, c] < _INADMISSIBLE]

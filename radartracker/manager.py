@@ -1,0 +1,440 @@
+"""TrackManager: plot streams in, tracks, bias estimates and events out (DESIGN §2, §6).
+
+Pipeline for every input (a :class:`Plot` or an :class:`AdsbReport`):
+
+1. **Admission** — unknown radars, non-domain objects, time jumps beyond ``max_time_jump_s``,
+   duplicates and plots older than the reordering horizon are rejected and counted by reason.
+2. **Reordering** — admitted inputs wait in a heap until the newest time is ``reorder_window_s``
+   ahead of them, so moderately out-of-order streams are processed in time order.
+3. **Frames** — released inputs are processed in frames of ``frame_s`` seconds. The plots of one
+   radar within a frame (a sector of one antenna scan) are associated together:
+   Mode S address → the track with that address; otherwise global nearest neighbour with gates on
+   the bias-corrected predicted position and the full innovation covariance
+   (:mod:`radartracker.association`), Mode 3/A codes restricting the candidates.
+   Unassigned plots start tentative tracks. ADS-B reports go to the track with their address.
+4. **Misses** — each radar's antenna phase is estimated from its plots (α(t) = φ + 2πt/T); a track
+   in coverage whose azimuth the antenna swept during the frame without a plot has missed a
+   detection. Tentative tracks are confirmed by M hits out of N opportunities and dropped when that
+   is no longer reachable; a confirmed track that misses is *coasting*; a track without an update
+   for ``delete_after_s`` or outside every radar's coverage is deleted.
+5. **Estimation** — each track has a kinematic filter (a ``radartracker.motion_models`` plugin: CV,
+   IMM, adaptive) fed with bias-corrected positions z − C_s ς̂ (covariance R + C_s P_ς C_sᵀ); the
+   bias estimator plugin receives the raw measurements of confirmed tracks (a track's tentative
+   measurements are handed over when it is confirmed) and is told when tracks end.
+
+Every input is either used or counted under a named reason (:attr:`TrackManager.counts`).
+:meth:`snapshot` / :meth:`restore` save and load the whole state (tracks, estimator, coupling
+graph, queues) with pickle, so a restored manager continues bit for bit.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import logging
+import math
+import pickle
+from collections import Counter, deque
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+import attrs
+import numpy as np
+
+from radartracker.association import assign, candidate_pairs, gate_costs
+from radartracker.coupling import CouplingGraph
+from radartracker.domain import AdsbReport, Plot, Radar, nacp_sigma_m
+from radartracker.geometry import RadarFrame, SystemPlane
+from radartracker.kalman import SingularInnovation
+from radartracker.plugin import (EstimatorConfig, MotionSettings, PlaneMeasurement, TrackFilter, load_motion_model,
+                                 make_estimator)
+
+log = logging.getLogger(__name__)
+EVENT_KINDS = ("created", "confirmed", "updated", "coasting", "deleted")
+
+
+@attrs.frozen
+class ManagerConfig:
+    """Settings of the TrackManager (see the module docstring for what each stage does)."""
+
+    estimator: str = "decoupled"
+    estimator_config: EstimatorConfig = attrs.field(factory=EstimatorConfig)
+    motion_model: str = "cv"
+    motion: MotionSettings = attrs.field(factory=MotionSettings)
+    gate: float = 13.82  # χ²₂ 99.9 % quantile
+    confirm_m: int = 3
+    confirm_n: int = 5
+    delete_after_s: float = 40.0
+    reorder_window_s: float = 2.0
+    frame_s: float = 0.5
+    max_time_jump_s: float = 3600.0
+    primary_altitude_m: float = 6000.0
+    search_radius_m: float = 25_000.0
+
+
+@attrs.frozen
+class TrackEvent:
+    """Something that happened to a track: ``kind`` is one of ``EVENT_KINDS``."""
+
+    time: float
+    track: int
+    kind: str
+    status: str
+    state: tuple[float, float, float, float]
+
+
+@attrs.define
+class ManagedTrack:
+    """A track as the manager keeps it: its filter, identity codes, status and detection history."""
+
+    id: int
+    filter: TrackFilter
+    status: str
+    created: float
+    last_update: float
+    mode_s: str | None = None
+    mode_3a: str | None = None
+    altitude_m: float | None = None
+    history: deque = attrs.field(factory=deque)
+    pending: list[PlaneMeasurement] = attrs.field(factory=list)
+    n_plots: int = 0
+    n_adsb: int = 0
+
+
+class TrackManager:
+    """Association, track life cycle and estimation for a stream of plots and ADS-B reports."""
+
+    def __init__(self, radars: list[Radar], reference: tuple[float, float], config: ManagerConfig | None = None,
+                 on_event: Callable[[TrackEvent], None] | None = None) -> None:
+        self.config = config or ManagerConfig()
+        self.radars = {r.id: r for r in radars}
+        self.plane = SystemPlane(*reference)
+        self.reference = reference
+        self.frames = {r.id: RadarFrame(r.lat, r.lon, r.height_m, self.plane) for r in radars}
+        self._north = {rid: self._grid_north(r) for rid, r in self.radars.items()}
+        self.estimator = make_estimator(self.config.estimator, self.config.estimator_config, list(self.radars))
+        self._filter_cls = load_motion_model(self.config.motion_model)
+        self.coupling = CouplingGraph(list(self.radars))
+        self.tracks: dict[int, ManagedTrack] = {}
+        self.counts: Counter[str] = Counter()
+        self.on_event = on_event
+        self._ids = itertools.count(1)
+        self._seq = itertools.count()
+        self._heap: list = []
+        self._newest: float | None = None
+        self._horizon = -math.inf  # everything at or before this time has been released
+        self._recent: dict[tuple, float] = {}
+        self._frame: int | None = None
+        self._frame_items: list = []
+        self._phase: dict[str, complex] = {}
+        self._events: list[TrackEvent] = []
+
+    # --- public API ------------------------------------------------------------------------------
+    def process(self, item: Plot | AdsbReport) -> list[TrackEvent]:
+        """Admit one plot or ADS-B report; return the events it caused (possibly none yet)."""
+        self._events = []
+        if self._admit(item):
+            heapq.heappush(self._heap, (item.time, next(self._seq), item))
+            self._newest = item.time if self._newest is None else max(self._newest, item.time)
+            self._release(self._newest - self.config.reorder_window_s)
+        return self._events
+
+    def process_many(self, items: Iterable[Plot | AdsbReport]) -> list[TrackEvent]:
+        """Process every item, then flush; all events in order."""
+        events: list[TrackEvent] = []
+        for item in items:
+            events.extend(self.process(item))
+        events.extend(self.flush())
+        return events
+
+    def flush(self) -> list[TrackEvent]:
+        """Release and process everything still waiting (end of a recording)."""
+        self._events = []
+        self._release(math.inf)
+        if self._frame is not None and self._frame_items:
+            self._run_frame(self._frame)
+        self._frame_items = []
+        return self._events
+
+    def snapshot(self, path: Path | str) -> None:
+        """Save the whole state (tracks, estimator, coupling graph, queues) to ``path``."""
+        state = dict(self.__dict__)
+        state["on_event"] = None
+        Path(path).write_bytes(pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL))
+
+    @classmethod
+    def restore(cls, path: Path | str, on_event: Callable[[TrackEvent], None] | None = None) -> TrackManager:
+        """A manager continuing exactly where :meth:`snapshot` left off."""
+        obj = cls.__new__(cls)
+        obj.__dict__.update(pickle.loads(Path(path).read_bytes()))
+        obj.on_event = on_event
+        return obj
+
+    def accounting(self) -> dict[str, int]:
+        """Counts by reason, including measurements still held by tentative tracks."""
+        out = Counter(self.counts)
+        for tr in self.tracks.values():
+            if tr.status == "tentative":
+                out["plots_in_tentative_tracks"] += sum(m.radar is not None for m in tr.pending)
+                out["adsb_in_tentative_tracks"] += sum(m.radar is None for m in tr.pending)
+        out["waiting_in_reorder_window"] = len(self._heap) + len(self._frame_items)
+        return {k: v for k, v in out.items() if v}
+
+    def confirmed_tracks(self) -> list[ManagedTrack]:
+        return [t for t in self.tracks.values() if t.status in ("confirmed", "coasting")]
+
+    # --- admission and reordering ----------------------------------------------------------------
+    def _admit(self, item: object) -> bool:
+        if isinstance(item, Plot):
+            if item.radar not in self.radars:
+                return self._reject("plots_unknown_radar", item)
+            key = ("p", item.radar, item.time, item.range_m, item.azimuth_rad)
+        elif isinstance(item, AdsbReport):
+            key = ("a", item.icao24, item.time, item.lat, item.lon)
+        else:
+            return self._reject("invalid_input", item)
+        kind = "plots" if key[0] == "p" else "adsb"
+        if self._newest is not None and item.time > self._newest + self.config.max_time_jump_s:
+            return self._reject(f"{kind}_time_jump", item)
+        if item.time <= self._horizon:
+            return self._reject(f"{kind}_late", item)
+        if key in self._recent:
+            return self._reject(f"{kind}_duplicate", item)
+        self._recent[key] = item.time
+        return True
+
+    def _reject(self, reason: str, item: object) -> bool:
+        if self.counts[reason] < 5:
+            log.warning("rejected (%s): %r", reason, item)
+        self.counts[reason] += 1
+        return False
+
+    def _release(self, until: float) -> None:
+        while self._heap and self._heap[0][0] <= until:
+            t, _, item = heapq.heappop(self._heap)
+            self._horizon = t
+            frame = math.floor(t / self.config.frame_s)
+            if self._frame is None:
+                self._frame = frame
+            while frame > self._frame:
+                self._run_frame(self._frame)
+                # frames without input still sweep the antennas (misses) — a long gap is one sweep
+                self._frame = self._frame + 1 if frame - self._frame < 240 else frame
+            self._frame_items.append(item)
+        if len(self._recent) > 10_000:  # forget duplicates older than the horizon
+            self._recent = {k: t for k, t in self._recent.items() if t > self._horizon}
+
+    # --- one frame ----------------------------------------------------------------------------
+    def _run_frame(self, frame: int) -> None:
+        fs = self.config.frame_s
+        t_a, t_b = frame * fs, (frame + 1) * fs
+        items, self._frame_items = self._frame_items, []
+        live = list(self.tracks.values())
+        pred = self._predict(live, 0.5 * (t_a + t_b))
+        updates: list[tuple] = []  # (time, seq, track or None, measurement, plot-or-report)
+        assigned: dict[str, set[int]] = {}
+        for rid in self.radars:
+            plots = [p for p in items if isinstance(p, Plot) and p.radar == rid]
+            for p in plots:
+                self._phase[rid] = self._phase.get(rid, 0j) * 0.98 + np.exp(
+                    1j * (p.azimuth_rad - 2 * math.pi * p.time / self.radars[rid].period_s))
+            if plots:
+                assigned[rid] = self._associate(rid, plots, live, pred, updates)
+        for rep in (i for i in items if isinstance(i, AdsbReport)):
+            updates.append(self._adsb_measurement(rep))
+        self._misses(live, pred, assigned, t_a, t_b)
+        for upd in sorted(updates, key=lambda u: (u[0], u[1])):
+            self._apply(*upd[2:])
+        self._sweep(t_b)
+
+    def _predict(self, live: list[ManagedTrack], t: float) -> dict[str, np.ndarray]:
+        n = len(live)
+        pos, vel, cov = np.zeros((n, 2)), np.zeros((n, 2)), np.zeros((n, 2, 2))
+        for i, tr in enumerate(live):
+            x, P = tr.filter.predict(max(t, tr.filter.estimate()[0]))
+            pos[i], vel[i], cov[i] = x[:2], x[2:], P[:2, :2]
+        return {"pos": pos, "vel": vel, "cov": cov, "t": np.full(n, t)}
+
+    def _convert(self, rid: str, plots: list[Plot], live: list[ManagedTrack]) -> tuple[np.ndarray, ...]:
+        by_code = {t.mode_s: t for t in live if t.mode_s}
+        alt = np.array([p.altitude_m if p.altitude_m is not None else
+                        (by_code[p.mode_s].altitude_m if p.mode_s in by_code and by_code[p.mode_s].altitude_m
+                         is not None else self.config.primary_altitude_m) for p in plots])
+        rho = np.array([p.range_m for p in plots])
+        theta = np.array([p.azimuth_rad for p in plots])
+        frame = self.frames[rid]
+        z, ok = frame.to_plane(rho, theta, alt)
+        C = frame.bias_jacobian(z, rho, alt)
+        R = C @ self.radars[rid].W @ np.swapaxes(C, 1, 2)
+        return z, C, R, ok
+
+    def _associate(self, rid: str, plots: list[Plot], live: list[ManagedTrack], pred: dict, updates: list) -> set[int]:
+        z, C, R, ok = self._convert(rid, plots, live)
+        index = {t.mode_s: i for i, t in enumerate(live) if t.mode_s}
+        taken: set[int] = set()
+        rest: list[int] = []
+        for k, p in enumerate(plots):
+            if not ok[k]:
+                self.counts["plots_impossible_geometry"] += 1
+            elif p.mode_s is not None and p.mode_s in index and index[p.mode_s] not in taken:
+                taken.add(index[p.mode_s])
+                updates.append((p.time, next(self._seq), live[index[p.mode_s]], (z[k], C[k], R[k]), p))
+            elif p.mode_s is not None and p.mode_s in index:
+                self.counts["plots_duplicate_in_scan"] += 1
+            elif p.mode_s is not None:
+                updates.append((p.time, next(self._seq), None, (z[k], C[k], R[k]), p))
+            else:
+                rest.append(k)
+        if rest:
+            free = np.array([i not in taken and live[i].mode_s is None for i in range(len(live))], bool)
+            codes = np.array([t.mode_3a for t in live], object)
+            allowed = np.array([free & ((codes == None) | (codes == plots[k].mode_3a) | (plots[k].mode_3a is None))  # noqa: E711
+                                for k in rest]).reshape(len(rest), len(live))
+            zr = z[rest]
+            pairs = candidate_pairs(zr, pred["pos"], self.config.search_radius_m, allowed)
+            b = self.estimator.bias(rid)
+            if len(pairs):
+                dt = np.array([plots[rest[k]].time for k in pairs[:, 0]]) - pred["t"][pairs[:, 1]]
+                pos = pred["pos"][pairs[:, 1]] + pred["vel"][pairs[:, 1]] * dt[:, None]
+                d2, cost = gate_costs(zr[pairs[:, 0]], C[rest][pairs[:, 0]], R[rest][pairs[:, 0]], b.bias, b.cov,
+                                      pos, pred["cov"][pairs[:, 1]])
+                matches = dict(assign(pairs, d2, cost, self.config.gate))
+            else:
+                matches = {}
+            for j, k in enumerate(rest):
+                tr = live[matches[j]] if j in matches else None
+                if tr is not None:
+                    taken.add(matches[j])
+                updates.append((plots[k].time, next(self._seq), tr, (z[k], C[k], R[k]), plots[k]))
+        return {live[i].id for i in taken}
+
+    def _adsb_measurement(self, rep: AdsbReport) -> tuple:
+        x, y = self.plane.to_plane(rep.lat, rep.lon)
+        sd = nacp_sigma_m(rep.nacp)
+        tr = next((t for t in self.tracks.values() if t.mode_s == rep.icao24), None)
+        return (rep.time, next(self._seq), tr, (np.array([float(x), float(y)]), np.zeros((2, 2)), np.eye(2) * sd * sd), rep)
+
+    # --- applying updates -------------------------------------------------------------------------
+    def _apply(self, tr: ManagedTrack | None, meas: tuple, src: Plot | AdsbReport) -> None:
+        z, C, R = meas
+        radar = src.radar if isinstance(src, Plot) else None
+        if radar is not None:
+            b = self.estimator.bias(radar)
+            zc, Rc = z - C @ b.bias, R + C @ b.cov @ C.T
+        else:
+            zc, Rc = z, R
+        code = src.mode_s if isinstance(src, Plot) else src.icao24
+        if tr is None:  # an ADS-B report may find the track a plot of this frame just started
+            tr = next((t for t in self.tracks.values() if code is not None and t.mode_s == code), None)
+        if tr is None:
+            filt = self._filter_cls(self.config.motion)
+            filt.start(src.time, zc, Rc)
+            tr = ManagedTrack(next(self._ids), filt, "tentative", src.time, src.time, mode_s=code,
+                              history=deque(maxlen=self.config.confirm_n))
+            self.tracks[tr.id] = tr
+            self._emit(src.time, tr, "created")
+        else:
+            try:
+                tr.filter.update(src.time, zc, Rc)
+            except SingularInnovation:
+                self.counts["plots_singular" if radar else "adsb_singular"] += 1
+                return
+        tr.last_update = src.time
+        if isinstance(src, Plot):
+            tr.n_plots += 1
+            tr.mode_3a = src.mode_3a or tr.mode_3a
+            tr.altitude_m = src.altitude_m if src.altitude_m is not None else tr.altitude_m
+        else:
+            tr.n_adsb += 1
+            tr.altitude_m = src.altitude_m if src.altitude_m is not None else tr.altitude_m
+        tr.history.append(True)
+        m = PlaneMeasurement(src.time, tr.id, radar, z, C, R)
+        if tr.status == "tentative":
+            tr.pending.append(m)
+            if sum(tr.history) >= self.config.confirm_m:
+                self._confirm(tr)
+        else:
+            self._estimate(m)
+            tr.status = "confirmed"
+            self._emit(src.time, tr, "updated")
+
+    def _confirm(self, tr: ManagedTrack) -> None:
+        first = tr.pending[0]
+        prior = np.diag([1e8, 1e8, self.config.motion.prior_sd_velocity_mps**2, self.config.motion.prior_sd_velocity_mps**2])
+        self.estimator.add_aircraft(tr.id, first.time, np.array([*first.z, 0.0, 0.0]), prior)
+        self.coupling.add_aircraft(tr.id)
+        for m in tr.pending:
+            self._estimate(m)
+        tr.pending = []
+        tr.status = "confirmed"
+        self._emit(tr.last_update, tr, "confirmed")
+
+    def _estimate(self, m: PlaneMeasurement) -> None:
+        kind = "plots" if m.radar is not None else "adsb"
+        try:
+            self.estimator.update(m)
+        except SingularInnovation as exc:
+            self.counts[f"{kind}_singular"] += 1
+            log.warning("estimator refused a measurement of track %s: %s", m.aircraft, exc)
+            return
+        self.coupling.observe(m.aircraft, m.radar, m.time)
+        self.counts[f"{kind}_used"] += 1
+
+    # --- misses, deletion, events ------------------------------------------------------------------
+    def _misses(self, live: list[ManagedTrack], pred: dict, assigned: dict[str, set[int]], t_a: float, t_b: float) -> None:
+        if not live:
+            return
+        for rid, radar in self.radars.items():
+            if rid not in self._phase:
+                continue
+            frame = self.frames[rid]
+            d = pred["pos"] - frame.xy
+            rng = np.hypot(d[:, 0], d[:, 1])
+            az = np.mod(np.arctan2(d[:, 0], d[:, 1]) - self._north[rid], 2 * math.pi)
+            start = np.angle(self._phase[rid]) + 2 * math.pi * t_a / radar.period_s
+            swept = np.mod(az - start, 2 * math.pi) < 2 * math.pi * (t_b - t_a) / radar.period_s
+            hit = assigned.get(rid, set())
+            for i in np.flatnonzero(swept & (rng < 0.98 * radar.max_range_m)):
+                tr = live[i]
+                if tr.id in hit or tr.id not in self.tracks or tr.created >= t_a:
+                    continue
+                tr.history.append(False)
+                if tr.status == "confirmed":
+                    tr.status = "coasting"
+                    self._emit(t_b, tr, "coasting")
+
+    def _sweep(self, now: float) -> None:
+        cfg = self.config
+        for tr in list(self.tracks.values()):
+            misses = len(tr.history) - sum(tr.history)
+            hopeless = tr.status == "tentative" and misses > cfg.confirm_n - cfg.confirm_m
+            if hopeless or now - tr.last_update > cfg.delete_after_s or not self._covered(tr, now):
+                self._delete(tr, now)
+
+    def _covered(self, tr: ManagedTrack, now: float) -> bool:
+        x, _ = tr.filter.predict(max(now, tr.filter.estimate()[0]))
+        return any(np.hypot(*(x[:2] - self.frames[rid].xy)) <= r.max_range_m for rid, r in self.radars.items()) or tr.n_adsb > 0
+
+    def _delete(self, tr: ManagedTrack, now: float) -> None:
+        del self.tracks[tr.id]
+        if tr.status == "tentative":
+            self.counts["plots_in_dropped_tentative_tracks"] += sum(m.radar is not None for m in tr.pending)
+            self.counts["adsb_in_dropped_tentative_tracks"] += sum(m.radar is None for m in tr.pending)
+        else:
+            self.estimator.remove_aircraft(tr.id)
+            self.coupling.remove_aircraft(tr.id)
+        tr.status = "deleted"
+        self._emit(now, tr, "deleted")
+
+    def _emit(self, time: float, tr: ManagedTrack, kind: str) -> None:
+        _, x, _ = tr.filter.estimate()
+        ev = TrackEvent(float(time), tr.id, kind, tr.status, tuple(float(v) for v in x))
+        self._events.append(ev)
+        if self.on_event is not None:
+            self.on_event(ev)
+
+    def _grid_north(self, r: Radar) -> float:
+        """Grid azimuth of true north at the radar (meridian convergence), to compare azimuths."""
+        x0, y0 = self.plane.to_plane(r.lat, r.lon)
+        x1, y1 = self.plane.to_plane(min(r.lat + 0.01, 89.99), r.lon)
+        return math.atan2(float(x1 - x0), float(y1 - y0))
