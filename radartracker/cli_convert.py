@@ -1,5 +1,5 @@
-"""CLI commands ``convert`` (seed 000 §2.6 ``tracks_plots_00``), ``asterix-import`` and
-``asterix-export`` — registered through the ``radartracker.commands`` entry points."""
+"""CLI commands ``convert`` (seed 000 §2.6 ``tracks_plots_00``), ``write-recording``,
+``asterix-import`` and ``asterix-export`` — registered through ``radartracker.commands`` entry points."""
 
 from __future__ import annotations
 
@@ -86,4 +86,32 @@ def _cmd_asterix_export(args: argparse.Namespace) -> int:
         raise CliError(f"{args.out} already exists; choose a new file")
     n = write_asterix(args.out, read_scenario(args.scenario))
     print(f"wrote {args.out}: {n} ASTERIX records")
+    return 0
+
+
+def register_write_recording(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("write-recording", help="write a text recording (tracks.txt, plots.txt, plots_ads.txt) "
+                                               "from a scenario folder or synthetic traffic of any size")
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--scenario", type=Path, help="scenario folder (e.g. written by 'simulate')")
+    src.add_argument("--synthetic-mb", type=float, help="synthetic traffic until the recording has this many MB")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the synthetic traffic")
+    p.add_argument("--out", type=Path, required=True, help="recording folder to write (must not exist)")
+    p.set_defaults(func=_cmd_write_recording)
+
+
+def _cmd_write_recording(args: argparse.Namespace) -> int:
+    from radartracker.recording import write_scenario_recording, write_synthetic_recording
+
+    if args.out.exists():
+        raise CliError(f"{args.out} already exists; choose a new folder")
+    if args.scenario is not None:
+        from radartracker.formats import read_scenario
+
+        write_scenario_recording(args.out, read_scenario(args.scenario))
+    else:
+        write_synthetic_recording(args.out, target_bytes=int(args.synthetic_mb * 1e6), seed=args.seed,
+                                  aircraft_per_batch=20)
+    sizes = {p.name: p.stat().st_size for p in sorted(args.out.iterdir())}
+    print(f"wrote {args.out}: " + ", ".join(f"{n} {s / 1e6:.1f} MB" for n, s in sizes.items()))
     return 0

@@ -260,3 +260,22 @@ def test_simulated_scenario_round_trip(tmp_path):
             np.testing.assert_allclose(dth * rho, 0.0, atol=0.05)
             n_plots += len(pts.time)
     assert n_plots > 0
+
+
+def test_cli_simulate_write_recording_convert(tmp_path):
+    from radartracker.formats import write_scenario
+    from radartracker.scenarios import build_scenario
+
+    data = build_scenario("demo", seed=1, duration=150).run()
+    write_scenario(tmp_path / "scen", data)
+    assert main(["write-recording", "--scenario", str(tmp_path / "scen"), "--out", str(tmp_path / "rec")]) == 0
+    n_lines = {n: _count_lines(tmp_path / "rec" / n) for n in FILES}
+    assert n_lines == {"plots_ads.txt": len(data.adsb) + 1, "tracks.txt": 1, "plots.txt": len(data.plots) + 1}
+    assert main(["convert", str(tmp_path / "rec"), "--out", str(tmp_path / "new"),
+                 "--AZN_TRACKS_MIN_MEASUR", "5", "--TRACKS_MIN_MEASUR", "2"]) == 0
+    report = json.loads((tmp_path / "new" / "report.json").read_text())
+    equipped = sorted(i + 1 for i, a in enumerate(data.aircraft) if a.icao24 in set(data.adsb.icao24.tolist()))
+    assert sorted(report["selected_aircraft"]) == equipped
+    assert report["files"]["plots_ads.txt"]["written"] == len(data.adsb)
+    assert main(["write-recording", "--synthetic-mb", "0.2", "--out", str(tmp_path / "syn")]) == 0
+    assert sum(p.stat().st_size for p in (tmp_path / "syn").iterdir()) >= 0.2e6
