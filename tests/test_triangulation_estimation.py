@@ -95,20 +95,31 @@ def test_static_estimate_is_a_minimum_of_the_pyproj_ml_cost():
     assert cost(fix.start) > cost(fix.position)
 
 
-def test_static_monte_carlo_rmse_and_nees_match_crlb():
+def _static_monte_carlo(runs, seed):
+    """RMSE/CRLB, its efficient-estimator 99.9 % interval, and the total NEES over ``runs``."""
     frame, r, ids = _good_static()
     ids = ids * 2  # two bearings per station
     truth = true_bearings(frame, ids, np.tile(r, (len(ids), 1)))
     bound = crlb.static_crlb(frame, ids, r)
-    rng = np.random.default_rng(2024)
-    runs = 60
+    rng = np.random.default_rng(seed)
     err = np.array([locate(frame, noisy_bearings(frame, ids, np.zeros(len(ids)), truth, rng)).position - r
                     for _ in range(runs)])
     ratio = math.sqrt(np.mean(np.sum(err**2, axis=1)) / np.trace(bound))
-    lo, hi = _rmse_interval(np.linalg.eigvalsh(bound), runs)
-    assert lo < ratio < hi and hi < 1.35
     nees = np.einsum("ni,ij,nj->", err, np.linalg.inv(bound), err)
+    return ratio, _rmse_interval(np.linalg.eigvalsh(bound), runs), nees
+
+
+def test_static_monte_carlo_rmse_and_nees_match_crlb():
+    runs = 60
+    ratio, (lo, hi), nees = _static_monte_carlo(runs, seed=2024)
+    assert lo < ratio < hi and hi < 1.35
     assert stats.chi2.ppf(0.0005, 3 * runs) < nees < stats.chi2.ppf(0.9995, 3 * runs)
+
+
+@pytest.mark.slow
+def test_static_monte_carlo_500_runs_rmse_within_10_percent_of_crlb():
+    ratio, (lo, hi), _ = _static_monte_carlo(500, seed=77)
+    assert abs(ratio - 1.0) < 0.10 and lo < ratio < hi
 
 
 @pytest.mark.parametrize("order", [1, 2])
@@ -121,14 +132,13 @@ def test_dynamic_noiseless_recovers_motion(order):
     assert tr.dof == 2 * len(times) - 3 * (order + 1)
 
 
-def test_dynamic_monte_carlo_rmse_and_nees_match_crlb():
-    frame, ids, times, basis, theta = _good_dynamic(order=1)
+def _dynamic_monte_carlo(runs, seed, order=1):
+    frame, ids, times, basis, theta = _good_dynamic(order)
     Q = basis(times)
     pos = Q @ theta.T
     truth = true_bearings(frame, ids, pos)
     bound = crlb.dynamic_crlb(frame, ids, times, basis, theta)
-    rng = np.random.default_rng(7)
-    runs = 60
+    rng = np.random.default_rng(seed)
     err, nees = [], 0.0
     for _ in range(runs):
         tr = track(frame, noisy_bearings(frame, ids, times, truth, rng), basis=basis)
@@ -139,9 +149,39 @@ def test_dynamic_monte_carlo_rmse_and_nees_match_crlb():
     # the per-run MSE is δθᵀ G δθ with G = mean_n (I₃⊗q_n)ᵀ(I₃⊗q_n): eigenvalues of G·bound
     G = np.mean([np.kron(np.eye(3), q[None]).T @ np.kron(np.eye(3), q[None]) for q in Q], axis=0)
     lam = np.linalg.eigvals(G @ bound).real
-    lo, hi = _rmse_interval(lam, runs)
-    assert lo < math.sqrt(mse / lam.sum()) < hi and hi < 1.35
-    assert stats.chi2.ppf(0.0005, 6 * runs) < nees < stats.chi2.ppf(0.9995, 6 * runs)
+    return math.sqrt(mse / lam.sum()), _rmse_interval(lam, runs), nees, 3 * (order + 1)
+
+
+def test_dynamic_monte_carlo_rmse_and_nees_match_crlb():
+    runs = 60
+    ratio, (lo, hi), nees, p = _dynamic_monte_carlo(runs, seed=7)
+    assert lo < ratio < hi and hi < 1.35
+    assert stats.chi2.ppf(0.0005, p * runs) < nees < stats.chi2.ppf(0.9995, p * runs)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("order", [1, 2])
+def test_dynamic_monte_carlo_500_runs_rmse_within_10_percent_of_crlb(order):
+    ratio, (lo, hi), _, _ = _dynamic_monte_carlo(500, seed=78 + order, order=order)
+    assert abs(ratio - 1.0) < 0.10 and lo < ratio < hi
+
+
+@pytest.mark.slow
+def test_poor_geometry_monte_carlo_is_flagged_and_stays_near_the_bound():
+    """Two stations 20 km apart, target 80 km away 8° off their axis (GDOP ≈ 40)."""
+    sites = sites_around(LAT, LON, 10e3, [90.0, 270.0])
+    frame = TriangulationFrame([DirectionFinder(f"p{i}", la, lo, 200.0, SIG, SIG)
+                                for i, (la, lo) in enumerate(sites)])
+    r = frame.enu(*sites_around(LAT, LON, 80e3, [82.0])[0], 3000.0)
+    ids = list(frame.stations)
+    truth = true_bearings(frame, ids, np.tile(r, (2, 1)))
+    bound = crlb.static_crlb(frame, ids, r)
+    rng = np.random.default_rng(5)
+    fixes = [locate(frame, noisy_bearings(frame, ids, [0, 0], truth, rng)) for _ in range(300)]
+    assert all(f.poor_geometry and f.gdop > 10 for f in fixes)
+    ratio = math.sqrt(np.mean([np.sum((f.position - r) ** 2) for f in fixes]) / np.trace(bound))
+    lo, hi = _rmse_interval(np.linalg.eigvalsh(bound), len(fixes))
+    assert lo < ratio < hi
 
 
 def test_dynamic_basis_hook_gives_the_same_trajectory():
