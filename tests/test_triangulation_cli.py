@@ -96,6 +96,11 @@ def test_dynamic_command_writes_tracks_at_bearing_times(tmp_path):
     for k in (0, 30, 59):
         assert _nees(rows[k], pos[k]) < stats.chi2.ppf(0.9999, 3)
     assert json.loads((out / "summary.json").read_text())["order"] == 1
+    rc = main(["triangulate", str(tmp_path / "bearings.csv"), "--stations", str(tmp_path / "stations.csv"),
+               "--out", str(tmp_path / "grid"), "--mode", "dynamic", "--step", "10",
+               "--reference", ",".join(map(str, REF))])
+    grid = _read_csv(tmp_path / "grid" / "tracks.csv")
+    assert rc == 0 and np.allclose([float(r["time_s"]) for r in grid], np.arange(times[0], times[-1], 10.0))
 
 
 @pytest.mark.parametrize("line,field", [

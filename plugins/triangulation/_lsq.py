@@ -25,6 +25,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -89,12 +90,16 @@ class BearingSet:
         return d / self.sigma
 
 
-class Solution:
+class Solution(NamedTuple):
     """Θ (3×K), its covariance (3K×3K, inverse Fisher), the start, GDOP and the fit χ²."""
 
-    def __init__(self, theta, cov, start, gdop, chi2, dof, poor):
-        self.theta, self.cov, self.start = theta, cov, start
-        self.gdop, self.chi2, self.dof, self.poor = gdop, chi2, dof, poor
+    theta: np.ndarray
+    cov: np.ndarray
+    start: np.ndarray
+    gdop: float
+    chi2: float
+    dof: int
+    poor: bool
 
 
 def design(Q: np.ndarray, H: np.ndarray) -> np.ndarray:
@@ -168,4 +173,4 @@ def solve(bs: BearingSet, Q: np.ndarray, *, warn_gdop: float, max_gdop: float | 
         log.warning("poor triangulation geometry: GDOP = %.3g > %.3g (RMS position error %.4g m)",
                     gdop, warn_gdop, rms_err)
     chi2 = float(np.sum(fit.fun**2))
-    return Solution(theta, cov, start, gdop, chi2, 2 * N - 3 * K, poor)
+    return Solution(theta, cov, start, gdop, chi2, 2 * N - 3 * K, bool(poor))
