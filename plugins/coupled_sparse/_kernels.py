@@ -1,0 +1,501 @@
+"""Numba kernels of the sparse information-form coupled filter (see the package docstring).
+
+Storage, for aircraft slot ``s`` with ``nk[s]`` observing radars ``rk[s, :nk[s]]``:
+``Yxx[s]`` = Y_ii (4×4), ``Yxb[s, :, 2c:2c+2]`` = Y_ib for the c-th of those radars, ``ex[s]`` = η_i.
+Global: ``Ybb``, ``eb`` (bias information, including what removed aircraft taught), the Schur
+complement ``S`` = Y_bb − Σ_i Y_bi Y_ii⁻¹ Y_ib and ``sv`` = η_b − Σ_i Y_bi Y_ii⁻¹ η_i kept
+incrementally, and the bias marginal ``Pb`` = S⁻¹, ``bh`` = S⁻¹ sv kept by rank-2 updates and
+reset from S every ``refresh_every`` updates.
+
+With L Lᵀ = Y_ii, V = L⁻¹ Y_ib and u = L⁻¹ η_i, aircraft i contributes VᵀV to Y_bb − S and Vᵀu
+to η_b − sv (exactly symmetric), and its conditional given the biases is
+χ_i | ς ~ N(m_i − G_i ς_K, Y_ii⁻¹) with G_i = L⁻ᵀV, m_i = L⁻ᵀu.
+
+Every kernel returns a status code (``OK`` or one of the ``ERR_*``) instead of producing NaN.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+OK = 0
+ERR_NONFINITE = 1  # z, C, R or dt not finite
+ERR_R = 2  # R not positive definite (the information form needs R⁻¹)
+ERR_YII = 3  # an aircraft's information block Y_ii not positive definite
+ERR_LAMBDA = 4  # innovation covariance Λ not positive definite
+ERR_S = 5  # bias Schur complement S not positive definite
+
+# ctr: [updates since refresh, refresh_every, updates since rebuild, rebuild_factor, n alive]
+C_SINCE_REFRESH, C_REFRESH_EVERY, C_SINCE_REBUILD, C_REBUILD_FACTOR, C_ALIVE = range(5)
+
+
+@njit(cache=True)
+def chol(A, L, n):
+    """L[:n, :n] = lower Cholesky factor of A[:n, :n]; False (L undefined) unless positive definite."""
+    for i in range(n):
+        for j in range(i + 1):
+            s = A[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            if i == j:
+                if not (0.0 < s < np.inf):
+                    return False
+                L[i, i] = np.sqrt(s)
+            else:
+                L[i, j] = s / L[j, j]
+        for j in range(i + 1, n):
+            L[i, j] = 0.0
+    return True
+
+
+@njit(cache=True)
+def _lsolve(L, B, X, n, nc):
+    """X[:n, :nc] = L⁻¹ B[:n, :nc] (forward substitution)."""
+    for c in range(nc):
+        for i in range(n):
+            s = B[i, c]
+            for k in range(i):
+                s -= L[i, k] * X[k, c]
+            X[i, c] = s / L[i, i]
+
+
+@njit(cache=True)
+def _ltsolve(L, B, X, n, nc):
+    """X[:n, :nc] = L⁻ᵀ B[:n, :nc] (back substitution)."""
+    for c in range(nc):
+        for i in range(n - 1, -1, -1):
+            s = B[i, c]
+            for k in range(i + 1, n):
+                s -= L[k, i] * X[k, c]
+            X[i, c] = s / L[i, i]
+
+
+@njit(cache=True)
+def _bias_index(rk, s, nk, idx):
+    """idx[:2k] = positions in the bias vector of aircraft s's radars, in their storage order."""
+    for c in range(nk):
+        idx[2 * c] = 2 * rk[s, c]
+        idx[2 * c + 1] = 2 * rk[s, c] + 1
+
+
+@njit(cache=True)
+def conditional(Yxx, Yxb, ex, s, nK, L, V, u, G, mx):
+    """Factor Y_ii = L Lᵀ and form V = L⁻¹Y_ib, u = L⁻¹η_i, G = L⁻ᵀV, m = L⁻ᵀu; False if Y_ii ⋡ 0."""
+    if not chol(Yxx[s], L, 4):
+        return False
+    _lsolve(L, Yxb[s], V, 4, nK)
+    _lsolve(L, ex[s].reshape(4, 1), u, 4, 1)
+    _ltsolve(L, V, G, 4, nK)
+    _ltsolve(L, u, mx, 4, 1)
+    return True
+
+
+@njit(cache=True)
+def _add_contribution(M, vec, idx, V, u, nK, sign):
+    """M[idx, idx] += sign·VᵀV and vec[idx] += sign·Vᵀu (aircraft i's Schur term)."""
+    for a in range(nK):
+        va = 0.0
+        for r in range(4):
+            va += V[r, a] * u[r, 0]
+        vec[idx[a]] += sign * va
+        for b in range(a + 1):
+            acc = 0.0
+            for r in range(4):
+                acc += V[r, a] * V[r, b]
+            M[idx[a], idx[b]] += sign * acc
+            if b != a:
+                M[idx[b], idx[a]] += sign * acc
+
+
+@njit(cache=True)
+def _transition(dt, q, A, Q):
+    """Constant-velocity A(dt), Q(dt) exactly as radartracker.motion.MotionModel.transition."""
+    for i in range(4):
+        for j in range(4):
+            A[i, j] = 1.0 if i == j else 0.0
+            Q[i, j] = 0.0
+    A[0, 2] = dt
+    A[1, 3] = dt
+    if q != 0.0 and dt != 0.0:
+        adt = abs(dt)
+        for i in range(2):
+            Q[i, i] = q * adt**3 / 3
+            Q[i, i + 2] = Q[i + 2, i] = q * adt**2 / 2
+            Q[i + 2, i + 2] = q * adt
+
+
+class Work:
+    """Scratch arrays for the kernels (allocated once per estimator, sized for ``m`` radars)."""
+
+    def __init__(self, m: int) -> None:
+        nb = 2 * max(m, 1)
+        self.f4 = np.zeros((13, 4, 4))  # 4×4 scratch: [0:7] predict, [3:13] update_one
+        self.V = np.zeros((4, nb))
+        self.G = np.zeros((4, nb))
+        self.W = np.zeros((4, nb))
+        self.v4 = np.zeros((6, 4, 1))
+        self.idx = np.zeros(nb, np.int64)
+        self.Kb = np.zeros((nb, 2))
+        self.LS = np.zeros((nb, nb))
+        self.LSi = np.zeros((nb, nb))
+
+    def args(self):
+        return self.f4, self.V, self.G, self.W, self.v4, self.idx, self.Kb
+
+
+@njit(cache=True)
+def predict(Yxx, Yxb, ex, Ybb, eb, s, nK, idx, dt, q, f4, V, G, W, v4):
+    """Predict aircraft s by dt in information form, keeping the arrowhead (package docstring)."""
+    L, A, Q, Sg, T, Yn, Ln = f4[0], f4[1], f4[2], f4[3], f4[4], f4[5], f4[6]
+    u, mx = v4[0], v4[1]
+    _transition(dt, q, A, Q)
+    if q == 0.0 or dt == 0.0:
+        # Y' = A⁻ᵀ Y A⁻¹, Y_ib' = A⁻ᵀ Y_ib, η' = A⁻ᵀ η with A⁻¹ = A(−dt): Y_bb, S unchanged
+        Y = Yxx[s]
+        for c in range(4):  # rows: (A⁻ᵀ M)[2+r] = M[2+r] − dt·M[r] for r = 0, 1
+            for r in range(2):
+                Y[2 + r, c] -= dt * Y[r, c]
+        for r in range(4):
+            for c in range(2):
+                Y[r, 2 + c] -= dt * Y[r, c]
+        for c in range(nK):
+            for r in range(2):
+                Yxb[s, 2 + r, c] -= dt * Yxb[s, r, c]
+        for r in range(2):
+            ex[s, 2 + r] -= dt * ex[s, r]
+        for r in range(4):  # the two passes round differently: restore exact symmetry
+            for c in range(r):
+                y = 0.5 * (Y[r, c] + Y[c, r])
+                Y[r, c] = y
+                Y[c, r] = y
+        return OK
+    if not conditional(Yxx, Yxb, ex, s, nK, L, V, u, G, mx):
+        return ERR_YII
+    _add_contribution(Ybb, eb, idx, V, u, nK, -1.0)  # remove the old term from Y_bb, η_b
+    # Σ = L⁻ᵀL⁻¹;  Σ' = A Σ Aᵀ + Q;  conditional mean/gain: m' = A m, G' = A G
+    for i in range(4):
+        for j in range(4):
+            T[i, j] = 1.0 if i == j else 0.0
+    _lsolve(L, T, Yn, 4, 4)  # Yn = L⁻¹
+    for i in range(4):
+        for j in range(4):
+            acc = 0.0
+            for k in range(4):
+                acc += Yn[k, i] * Yn[k, j]
+            Sg[i, j] = acc  # Σ
+    for i in range(4):
+        for j in range(4):
+            acc = 0.0
+            for k in range(4):
+                acc += A[i, k] * Sg[k, j]
+            T[i, j] = acc
+    for i in range(4):
+        for j in range(i + 1):
+            acc = Q[i, j]
+            for k in range(4):
+                acc += T[i, k] * A[j, k]
+            Sg[i, j] = acc
+            Sg[j, i] = acc
+    if not chol(Sg, Ln, 4):
+        return ERR_YII
+    # Y' = Σ'⁻¹ = Ln⁻ᵀLn⁻¹; Y_ib' = Y' A G; η' = Y' A m
+    for i in range(4):
+        for j in range(4):
+            T[i, j] = 1.0 if i == j else 0.0
+    _lsolve(Ln, T, Yn, 4, 4)
+    for i in range(4):
+        for j in range(i + 1):
+            acc = 0.0
+            for k in range(4):
+                acc += Yn[k, i] * Yn[k, j]
+            Yxx[s, i, j] = acc
+            Yxx[s, j, i] = acc
+    for c in range(nK):
+        for i in range(4):
+            acc = 0.0
+            for k in range(4):
+                acc += A[i, k] * G[k, c]
+            W[i, c] = acc
+    for i in range(4):
+        acc = 0.0
+        for k in range(4):
+            acc += A[i, k] * mx[k, 0]
+        u[i, 0] = acc
+    for c in range(nK):
+        for i in range(4):
+            acc = 0.0
+            for k in range(4):
+                acc += Yxx[s, i, k] * W[k, c]
+            Yxb[s, i, c] = acc
+    for i in range(4):
+        acc = 0.0
+        for k in range(4):
+            acc += Yxx[s, i, k] * u[k, 0]
+        ex[s, i] = acc
+    if not conditional(Yxx, Yxb, ex, s, nK, L, V, u, G, mx):
+        return ERR_YII
+    _add_contribution(Ybb, eb, idx, V, u, nK, 1.0)  # add the new term
+    return OK
+
+
+@njit(cache=True)
+def update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
+               s, j, t, z, C, R, q, out_nu, out_lam, f4, V, G, W, v4, idx, Kb, LS, LSi):
+    """Predict aircraft s to t and correct it with plot z of radar j (−1: unbiased). Returns (code, nis)."""
+    dt = t - tx[s]
+    if not (np.isfinite(dt) and np.isfinite(z[0]) and np.isfinite(z[1])):
+        return ERR_NONFINITE, 0.0
+    for a in range(2):
+        for b in range(2):
+            if not (np.isfinite(C[a, b]) and np.isfinite(R[a, b])):
+                return ERR_NONFINITE, 0.0
+    L, Lr, Ri, Lam, Ll = f4[7], f4[8], f4[9], f4[10], f4[11]
+    Rs = f4[12]
+    for a in range(2):
+        for b in range(2):
+            Rs[a, b] = 0.5 * (R[a, b] + R[b, a])
+    if not chol(Rs, Lr, 2):
+        return ERR_R, 0.0
+    # make room for radar j in aircraft s's bias columns
+    k = nk[s]
+    cj = -1
+    if j >= 0:
+        for c in range(k):
+            if rk[s, c] == j:
+                cj = c
+        if cj < 0:
+            cj = k
+            rk[s, k] = j
+            for r in range(4):
+                Yxb[s, r, 2 * k] = 0.0
+                Yxb[s, r, 2 * k + 1] = 0.0
+            k += 1
+            nk[s] = k
+    nK = 2 * k
+    _bias_index(rk, s, k, idx)
+    if dt != 0.0:
+        code = predict(Yxx, Yxb, ex, Ybb, eb, s, nK, idx, dt, q, f4, V, G, W, v4)
+        if code != OK:
+            return code, 0.0
+    tx[s] = t
+    u, mx = v4[2], v4[3]
+    if not conditional(Yxx, Yxb, ex, s, nK, L, V, u, G, mx):
+        return ERR_YII, 0.0
+    nb = Pb.shape[0]
+    # x̄ = m − G ς̂_K; Kb = Cov(ς, h) = −Pb[:, K] G[:2]ᵀ + Pb[:, j] Cᵀ  (h = C_x χ + C ς_j)
+    xb0 = mx[0, 0]
+    xb1 = mx[1, 0]
+    for c in range(nK):
+        xb0 -= G[0, c] * bh[idx[c]]
+        xb1 -= G[1, c] * bh[idx[c]]
+    zh0, zh1 = xb0, xb1
+    if j >= 0:
+        zh0 += C[0, 0] * bh[2 * j] + C[0, 1] * bh[2 * j + 1]
+        zh1 += C[1, 0] * bh[2 * j] + C[1, 1] * bh[2 * j + 1]
+    for p in range(nb):
+        k0 = 0.0
+        k1 = 0.0
+        for c in range(nK):
+            pc = Pb[p, idx[c]]
+            k0 -= pc * G[0, c]
+            k1 -= pc * G[1, c]
+        if j >= 0:
+            p0 = Pb[p, 2 * j]
+            p1 = Pb[p, 2 * j + 1]
+            k0 += p0 * C[0, 0] + p1 * C[0, 1]
+            k1 += p0 * C[1, 0] + p1 * C[1, 1]
+        Kb[p, 0] = k0
+        Kb[p, 1] = k1
+    # Cov(χ[:2], h) = Σ[:2,:2] + G[:2] Cov(ς_K, ·)... computed as Σ[:2,:2] − G[:2] Kb[K]
+    # since Cov(χ, h) = Cov(e) C_xᵀ + Cov(m − Gς_K, h) = Σ[:, :2] − G Kb[K]
+    Sg = f4[3]
+    for a in range(4):
+        for b in range(4):
+            Sg[a, b] = 1.0 if a == b else 0.0
+    _lsolve(L, Sg, f4[5], 4, 4)
+    Li = f4[5]
+    for a in range(2):
+        for b in range(2):
+            acc = 0.0
+            for r in range(4):
+                acc += Li[r, a] * Li[r, b]
+            for c in range(nK):
+                acc -= G[a, c] * Kb[idx[c], b]
+            Lam[a, b] = acc + Rs[a, b]
+    if j >= 0:  # + C Cov(ς_j, h)
+        for a in range(2):
+            for b in range(2):
+                Lam[a, b] += C[a, 0] * Kb[2 * j, b] + C[a, 1] * Kb[2 * j + 1, b]
+    l01 = 0.5 * (Lam[0, 1] + Lam[1, 0])
+    Lam[0, 1] = l01
+    Lam[1, 0] = l01
+    if not chol(Lam, Ll, 2):
+        return ERR_LAMBDA, 0.0
+    nu0 = z[0] - zh0
+    nu1 = z[1] - zh1
+    w0 = nu0 / Ll[0, 0]
+    w1 = (nu1 - Ll[1, 0] * w0) / Ll[1, 1]
+    out_nu[0] = nu0
+    out_nu[1] = nu1
+    for a in range(2):
+        for b in range(2):
+            out_lam[a, b] = Lam[a, b]
+    # --- commit: information update of the blocks, incremental S, rank-2 update of (Pb, bh)
+    _add_contribution(S, sv, idx, V, u, nK, 1.0)  # S += old term (re-subtracted below)
+    # R⁻¹ = Lr⁻ᵀ Lr⁻¹
+    i00 = 1.0 / Lr[0, 0]
+    i11 = 1.0 / Lr[1, 1]
+    i10 = -Lr[1, 0] * i00 * i11
+    Ri[0, 0] = i00 * i00 + i10 * i10
+    Ri[0, 1] = Ri[1, 0] = i10 * i11
+    Ri[1, 1] = i11 * i11
+    rz0 = Ri[0, 0] * z[0] + Ri[0, 1] * z[1]
+    rz1 = Ri[1, 0] * z[0] + Ri[1, 1] * z[1]
+    for a in range(2):
+        for b in range(2):
+            Yxx[s, a, b] += Ri[a, b]
+    ex[s, 0] += rz0
+    ex[s, 1] += rz1
+    if j >= 0:
+        RC = f4[4]  # R⁻¹ C
+        for a in range(2):
+            for b in range(2):
+                RC[a, b] = Ri[a, 0] * C[0, b] + Ri[a, 1] * C[1, b]
+        for a in range(2):
+            for b in range(2):
+                Yxb[s, a, 2 * cj + b] += RC[a, b]
+        for a in range(2):
+            for b in range(a + 1):
+                d = C[0, a] * RC[0, b] + C[1, a] * RC[1, b]  # Cᵀ R⁻¹ C
+                Ybb[2 * j + a, 2 * j + b] += d
+                S[2 * j + a, 2 * j + b] += d
+                if a != b:
+                    Ybb[2 * j + b, 2 * j + a] += d
+                    S[2 * j + b, 2 * j + a] += d
+            d = C[0, a] * rz0 + C[1, a] * rz1  # Cᵀ R⁻¹ z
+            eb[2 * j + a] += d
+            sv[2 * j + a] += d
+    if not conditional(Yxx, Yxb, ex, s, nK, L, V, u, G, mx):
+        return ERR_YII, 0.0
+    _add_contribution(S, sv, idx, V, u, nK, -1.0)  # S −= new term
+    # Pb −= U Uᵀ, ς̂ += U w with U = Kb L_Λ⁻ᵀ
+    for p in range(nb):
+        a0 = Kb[p, 0] / Ll[0, 0]
+        Kb[p, 1] = (Kb[p, 1] - Ll[1, 0] * a0) / Ll[1, 1]
+        Kb[p, 0] = a0
+    for p in range(nb):
+        up0 = Kb[p, 0]
+        up1 = Kb[p, 1]
+        bh[p] += up0 * w0 + up1 * w1
+        for r in range(nb):
+            Pb[p, r] -= up0 * Kb[r, 0] + up1 * Kb[r, 1]
+    nis = w0 * w0 + w1 * w1
+    ctr[C_SINCE_REFRESH] += 1
+    ctr[C_SINCE_REBUILD] += 1
+    if ctr[C_SINCE_REBUILD] >= ctr[C_REBUILD_FACTOR] * (ctr[C_ALIVE] + 1):
+        rebuild(Yxx, Yxb, ex, nk, rk, Ybb, eb, S, sv, ctr, f4, V, G, v4, idx)
+    if ctr[C_SINCE_REFRESH] >= ctr[C_REFRESH_EVERY]:
+        if not refresh(S, sv, Pb, bh, ctr, LS, LSi):
+            return ERR_S, nis
+    return OK, nis
+
+
+@njit(cache=True)
+def rebuild(Yxx, Yxb, ex, nk, rk, Ybb, eb, S, sv, ctr, f4, V, G, v4, idx):
+    """S = Y_bb − Σ_i Y_bi Y_ii⁻¹ Y_ib and sv from the blocks, from scratch (aircraft with nk ≥ 0)."""
+    S[:, :] = Ybb
+    sv[:] = eb
+    for s in range(nk.shape[0]):
+        k = nk[s]
+        if k <= 0:  # free slot (−1) or no radar yet: no term
+            continue
+        _bias_index(rk, s, k, idx)
+        if not conditional(Yxx, Yxb, ex, s, 2 * k, f4[0], V, v4[0], G, v4[1]):
+            return False
+        _add_contribution(S, sv, idx, V, v4[0], 2 * k, -1.0)
+    ctr[C_SINCE_REBUILD] = 0
+    return True
+
+
+@njit(cache=True)
+def refresh(S, sv, Pb, bh, ctr, LS, LSi):
+    """Pb = S⁻¹ and ς̂ = S⁻¹ sv through the Cholesky factor of S; False if S is not positive definite."""
+    n = S.shape[0]
+    if not chol(S, LS, n):
+        return False
+    for i in range(n):
+        for j in range(n):
+            LSi[i, j] = 0.0
+        LSi[i, i] = 1.0
+    for c in range(n):  # LSi = L⁻¹ (lower triangular)
+        for i in range(c, n):
+            acc = LSi[i, c]
+            for k in range(c, i):
+                acc -= LS[i, k] * LSi[k, c]
+            LSi[i, c] = acc / LS[i, i]
+    for i in range(n):
+        for j in range(i + 1):
+            acc = 0.0
+            for k in range(i, n):
+                acc += LSi[k, i] * LSi[k, j]
+            Pb[i, j] = acc
+            Pb[j, i] = acc
+    for i in range(n):
+        acc = 0.0
+        for k in range(n):
+            acc += Pb[i, k] * sv[k]
+        bh[i] = acc
+    ctr[C_SINCE_REFRESH] = 0
+    return True
+
+
+@njit(cache=True)
+def update_batch(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
+                 slots, radars, times, Z, Cs, Rs, q, out_nu, out_lam, out_nis,
+                 f4, V, G, W, v4, idx, Kb, LS, LSi):
+    """update_one over a batch in order; returns (code, index of the failing plot or len)."""
+    for i in range(slots.shape[0]):
+        code, nis = update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
+                               slots[i], radars[i], times[i], Z[i], Cs[i], Rs[i], q, out_nu[i], out_lam[i],
+                               f4, V, G, W, v4, idx, Kb, LS, LSi)
+        out_nis[i] = nis
+        if code != OK:
+            return code, i
+    return OK, slots.shape[0]
+
+
+@njit(cache=True)
+def read_aircraft(Yxx, Yxb, ex, nk, rk, Pb, bh, s, out_x, out_P, f4, V, G, v4, idx):
+    """χ̂_i = m − G ς̂_K and P_i = Y_ii⁻¹ + G Pb[K, K] Gᵀ (no dense matrix formed)."""
+    k = max(nk[s], 0)
+    nK = 2 * k
+    _bias_index(rk, s, k, idx)
+    L, Li, T = f4[0], f4[1], f4[2]
+    if not conditional(Yxx, Yxb, ex, s, nK, L, V, v4[0], G, v4[1]):
+        return False
+    for a in range(4):
+        acc = v4[1][a, 0]
+        for c in range(nK):
+            acc -= G[a, c] * bh[idx[c]]
+        out_x[a] = acc
+    for a in range(4):
+        for b in range(4):
+            T[a, b] = 1.0 if a == b else 0.0
+    _lsolve(L, T, Li, 4, 4)
+    for a in range(4):
+        for c in range(nK):  # W = G Pb[K, K] stored in V (no longer needed)
+            acc = 0.0
+            for d in range(nK):
+                acc += G[a, d] * Pb[idx[d], idx[c]]
+            V[a, c] = acc
+    for a in range(4):
+        for b in range(a + 1):
+            acc = 0.0
+            for r in range(4):
+                acc += Li[r, a] * Li[r, b]
+            for c in range(nK):
+                acc += V[a, c] * G[b, c]
+            out_P[a, b] = acc
+            out_P[b, a] = acc
+    return True
