@@ -19,7 +19,7 @@ themselves the same way a third party would.
 from __future__ import annotations
 
 import abc
-from collections.abc import Hashable, Iterable
+from collections.abc import Hashable, Iterable, Sequence
 from importlib.metadata import entry_points
 from typing import Any, ClassVar, NamedTuple
 
@@ -124,6 +124,26 @@ class Estimator(abc.ABC):
     @abc.abstractmethod
     def update(self, m: PlaneMeasurement) -> Innovation:
         """Predict the measured aircraft (and drifting biases) to ``m.time`` and correct."""
+
+    def update_many(self, time: Sequence[float], aircraft: Sequence[Hashable], radar: Sequence[str | None],
+                    z: np.ndarray, C: np.ndarray, R: np.ndarray) -> Innovation:
+        """``update`` for a time-ordered batch given as columns (the fields of PlaneMeasurement, stacked).
+
+        Returns an Innovation of stacked arrays (ν n×2, Λ n×2×2, NIS n). This default loops over
+        ``update``; an estimator may override it to run the batch in compiled code. If measurement i
+        fails, those before it have been applied and the exception carries ``index = i``.
+        """
+        nu, lam, nis = [], [], []
+        for i in range(len(time)):
+            m = PlaneMeasurement(float(time[i]), aircraft[i], radar[i], np.asarray(z[i], float),
+                                 np.asarray(C[i], float), np.asarray(R[i], float))
+            try:
+                inn = self.update(m)
+            except ValueError as exc:
+                exc.index = i
+                raise
+            nu.append(inn.nu), lam.append(inn.S), nis.append(inn.nis)
+        return Innovation(np.reshape(nu, (-1, 2)), np.reshape(lam, (-1, 2, 2)), np.asarray(nis, float))
 
     @abc.abstractmethod
     def aircraft(self, key: Hashable) -> AircraftEstimate:

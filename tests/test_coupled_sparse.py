@@ -1,0 +1,313 @@
+"""Oracles for coupled-sparse: the dense coupled filter, an independent dense solve of its own
+information blocks, MotionModel, and clear errors instead of NaN on degenerate input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy.linalg import cho_factor, cho_solve
+
+from radartracker.kalman import SingularInnovation
+from radartracker.linsim import bias_jacobian, make_linear_scenario
+from radartracker.motion import MotionModel
+from radartracker.plugin import Estimator, EstimatorConfig, PlaneMeasurement, make_estimator
+from radartracker_plugins.coupled_sparse import CoupledSparseEstimator, SingularInformation
+from radartracker_plugins.coupled_sparse import _kernels as kernels
+
+P0 = np.diag([1e4**2, 1e4**2, 300.0**2, 300.0**2])
+
+
+def assert_same_joint(a: tuple, b: tuple, tol: float) -> None:
+    """States within tol·σ and covariances within tol·σ_i σ_j of the reference ``a``."""
+    (xa, Pa), (xb, Pb) = a, b
+    sd = np.sqrt(np.diag(Pa))
+    assert np.all(np.isfinite(xb)) and np.all(np.isfinite(Pb))
+    assert np.max(np.abs(xa - xb) / sd) < tol
+    assert np.max(np.abs(Pa - Pb) / np.outer(sd, sd)) < tol
+
+
+def assert_same_cov(Pa: np.ndarray, Pb: np.ndarray, tol: float) -> None:
+    sd = np.sqrt(np.diag(Pa))
+    assert np.max(np.abs(Pa - Pb) / np.outer(sd, sd)) < tol
+
+
+def _drive(ests: list[Estimator], sc, rng: np.random.Generator, lifetime: float, batch: int) -> list[tuple]:
+    """Feed every estimator the same plots; an aircraft's track is deleted (marginalised) and restarted
+    under a new key every ``lifetime`` s; keys absent from the joint are compared after each deletion."""
+    gen: dict[str, tuple[str, float]] = {}
+    snapshots = []
+    pending: list[PlaneMeasurement] = []
+
+    def flush():
+        if not pending:
+            return
+        cols = [m.time for m in pending], [m.aircraft for m in pending], [m.radar for m in pending]
+        arrays = [np.array([getattr(m, f) for m in pending]) for f in ("z", "C", "R")]
+        nis = [e.update_many(*cols, *arrays).nis for e in ests]
+        assert np.allclose(nis[0], nis[1], rtol=1e-8, atol=1e-12)
+        pending.clear()
+
+    for m in sc.measurements:
+        key, start = gen.get(m.aircraft, (None, 0.0))
+        if key is None or m.time - start > lifetime:
+            flush()
+            if key is not None:
+                for e in ests:
+                    e.remove_aircraft(key)
+                snapshots.append([e.joint() for e in ests])
+            key = f"{m.aircraft}@{m.time:.1f}"
+            gen[m.aircraft] = (key, m.time)
+            prior = m.z if m.radar is None else m.z + rng.normal(0, 300, 2)
+            for e in ests:
+                e.add_aircraft(key, m.time, np.array([*prior, 0.0, 0.0]), P0)
+        pending.append(PlaneMeasurement(m.time, key, m.radar, m.z, m.C, m.R))
+        if len(pending) >= batch:
+            flush()
+    flush()
+    snapshots.append([e.joint() for e in ests])
+    return snapshots
+
+
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10_000), n=st.integers(1, 6), m=st.integers(1, 4), adsb=st.integers(0, 2),
+       q=st.sampled_from([0.0, 0.5]), lifetime=st.sampled_from([30.0, 70.0, 1e9]), batch=st.sampled_from([1, 7]),
+       refresh=st.sampled_from([1, 5, 256]), rebuild=st.sampled_from([1, 64]))
+def test_sparse_equals_dense_coupled(seed, n, m, adsb, q, lifetime, batch, refresh, rebuild):
+    """Same states, biases and all covariances as the dense filter (to 1e-8 of the σ's), with track
+    creation and deletion, ADS-B, process noise on and off, and any refresh schedule."""
+    sc = make_linear_scenario(n_aircraft=n, n_radars=m, duration=150.0, period=5.0, rng=seed,
+                              adsb_aircraft=adsb, q=q)
+    cfg = EstimatorConfig(motion=MotionModel(q))
+    dense = make_estimator("coupled", cfg, sc.radar_ids)
+    sparse = CoupledSparseEstimator(cfg, refresh_every=refresh, rebuild_factor=rebuild)
+    for r in sc.radar_ids:
+        sparse.add_radar(r)
+    for a, b in _drive([dense, sparse], sc, np.random.default_rng(seed), lifetime, batch):
+        assert_same_joint(a, b, 1e-8)
+    for r in sc.radar_ids:
+        bd, bs = dense.bias(r), sparse.bias(r)
+        assert_same_cov(bd.cov, bs.cov, 1e-8)
+        assert bs.time == bd.time
+    for k in dense.aircraft_keys:
+        ad, as_ = dense.aircraft(k), sparse.aircraft(k)
+        assert ad.time == as_.time
+        assert_same_cov(ad.cov, as_.cov, 1e-8)
+        assert np.all(np.abs(ad.state - as_.state) < 1e-8 * np.sqrt(np.diag(ad.cov)))
+
+
+def _flat_plots(n_plots: int, n_aircraft: int, n_radars: int, seed: int, q: float = 0.0):
+    """Plots of the seed's linear model (as linsim, vectorised): radars on a 100 km ring, aircraft
+    on straight lines, each radar sweeping each aircraft every 4–12 s; one in five aircraft has ADS-B."""
+    rng = np.random.default_rng(seed)
+    ang = rng.uniform(0, 2 * np.pi, n_radars)
+    rxy = 100e3 * np.column_stack([np.sin(ang), np.cos(ang)])
+    bias = rng.normal(size=(n_radars, 2)) * [500.0, np.radians(0.5)]
+    period = rng.uniform(4.0, 12.0, n_radars + 1)
+    period[-1] = 5.0
+    per_s = n_aircraft * (np.sum(1 / period[:-1]) + 0.2 / period[-1])
+    dur = n_plots / per_s
+    t, a, j = [], [], []
+    for src in range(n_radars + 1):
+        ac = np.arange(n_aircraft) if src < n_radars else np.arange(0, n_aircraft, 5)
+        phase = rng.uniform(0, period[src], len(ac))
+        k = np.arange(int(dur / period[src]) + 1)
+        tt = phase[:, None] + period[src] * k[None, :]
+        t.append(tt.ravel()), a.append(np.repeat(ac, len(k))), j.append(np.full(tt.size, src))
+    t, a, j = (np.concatenate(v) for v in (t, a, j))
+    order = np.argsort(t, kind="stable")[:n_plots]
+    t, a, j = t[order], a[order], j[order]
+    p0 = rng.uniform(-50e3, 50e3, (n_aircraft, 2))
+    v = rng.uniform(-200, 200, (n_aircraft, 2))
+    p = p0[a] + v[a] * t[:, None]
+    if q > 0:  # position jitter, so that process noise matters
+        p += np.sqrt(q) * rng.normal(size=p.shape) * np.sqrt(t)[:, None]
+    z, C, R = np.empty((len(t), 2)), np.zeros((len(t), 2, 2)), np.empty((len(t), 2, 2))
+    W = np.diag([50.0**2, np.radians(0.1) ** 2])
+    radar = np.empty(len(t), object)
+    for src in range(n_radars + 1):
+        sel = j == src
+        if src == n_radars:
+            R[sel] = 30.0**2 * np.eye(2)
+            z[sel] = p[sel] + rng.normal(0, 30.0, (sel.sum(), 2))
+            radar[sel] = None
+            continue
+        d = p[sel] - rxy[src]
+        rho = np.linalg.norm(d, axis=1)
+        Cs = np.stack([np.column_stack([d[:, 0] / rho, d[:, 1]]), np.column_stack([d[:, 1] / rho, -d[:, 0]])], 1)
+        C[sel] = Cs
+        R[sel] = Cs @ W @ Cs.transpose(0, 2, 1)
+        w = rng.normal(size=(sel.sum(), 2)) * [50.0, np.radians(0.1)]
+        z[sel] = p[sel] + np.einsum("nij,j->ni", Cs, bias[src]) + np.einsum("nij,nj->ni", Cs, w)
+        radar[sel] = f"R{src:02d}"
+    return t, a, radar, z, C, R, [f"R{s:02d}" for s in range(n_radars)], rxy
+
+
+def test_flat_plots_jacobian_matches_linsim():
+    """The vectorised generator's C_s is linsim's bias_jacobian (seed eq. 1.11)."""
+    t, a, radar, z, C, R, ids, rxy = _flat_plots(300, 4, 3, 1)
+    for i in [k for k in range(len(t)) if radar[k] is not None][:20]:
+        j = ids.index(radar[i])
+        d = C[i][:, 0] * np.linalg.norm(C[i][:, 1])  # C = [u, Ω d] with u = d/ρ and |Ω d| = ρ
+        np.testing.assert_allclose(bias_jacobian(rxy[j] + d, rxy[j]), C[i], rtol=1e-12)
+
+
+def exact_solution(est: CoupledSparseEstimator, keys: list) -> tuple[np.ndarray, np.ndarray]:
+    """Independent oracle: assemble the full information matrix from the stored blocks and solve densely."""
+    info = est.information()
+    radars = info["radars"]
+    nb, N = 2 * len(radars), 4 * len(keys)
+    Y = np.zeros((N + nb, N + nb))
+    eta = np.zeros(N + nb)
+    Y[N:, N:], eta[N:] = info["Ybb"], info["eta_b"]
+    for r, key in enumerate(keys):
+        Yii, blocks, ei, _ = info["aircraft"][key]
+        i = slice(4 * r, 4 * r + 4)
+        Y[i, i], eta[i] = Yii, ei
+        for rad, Yib in blocks.items():
+            b = N + 2 * radars.index(rad)
+            Y[i, b:b + 2] = Yib
+            Y[b:b + 2, i] = Yib.T
+    c = cho_factor(Y)
+    return cho_solve(c, eta), cho_solve(c, np.eye(N + nb))
+
+
+def _long_run(n_plots: int, n_aircraft: int, n_radars: int, seed: int, q: float, lifetime: float) -> None:
+    t, a, radar, z, C, R, ids, _ = _flat_plots(n_plots, n_aircraft, n_radars, seed, q)
+    est = CoupledSparseEstimator(EstimatorConfig(motion=MotionModel(q)))
+    for r in ids:
+        est.add_radar(r)
+    # tracks restart under a new key every ``lifetime`` s: process per chunk of plots between restarts
+    key = np.array([f"A{ai}#{int(ti // lifetime)}" for ai, ti in zip(a, t)], object)
+    epoch = (t // lifetime).astype(int)
+    alive: set = set()
+    for e in np.unique(epoch):
+        sel = np.flatnonzero(epoch == e)
+        for k in alive - set(key[sel]):
+            est.remove_aircraft(k)
+        first = {}
+        for i in sel:
+            first.setdefault(key[i], i)
+        for k, i in first.items():
+            if k not in alive:
+                est.add_aircraft(k, t[i], np.array([*z[i], 0.0, 0.0]), P0)
+        alive = set(first)
+        est.update_many(t[sel], key[sel], radar[sel], z[sel], C[sel], R[sel])
+    keys = est.aircraft_keys
+    assert_same_joint(exact_solution(est, keys), est.joint(keys), 1e-6)
+
+
+def test_long_run_agrees_with_fresh_exact_solution():
+    """3·10⁴ plots with track churn: the incrementally kept estimate equals a from-scratch solve (1e-6)."""
+    _long_run(30_000, 40, 6, seed=5, q=0.0, lifetime=200.0)
+    _long_run(30_000, 40, 6, seed=6, q=0.3, lifetime=150.0)
+
+
+@pytest.mark.slow
+def test_million_plots_agree_with_fresh_exact_solution():
+    _long_run(1_000_000, 200, 12, seed=8, q=0.2, lifetime=600.0)
+
+
+def test_kernel_transition_is_motion_model():
+    A, Q = np.zeros((4, 4)), np.zeros((4, 4))
+    for q, dt in [(0.0, 3.0), (0.7, 4.5), (0.7, -2.0), (2.0, 0.0)]:
+        kernels._transition(dt, q, A, Q)
+        A0, Q0 = MotionModel(q).transition(dt)
+        np.testing.assert_array_equal(A, A0)
+        np.testing.assert_allclose(Q, Q0, rtol=1e-15)
+
+
+def _small():
+    sc = make_linear_scenario(n_aircraft=2, n_radars=2, duration=30.0, rng=1, q=0.1)
+    dense = make_estimator("coupled", EstimatorConfig(motion=MotionModel(0.1)), sc.radar_ids)
+    sparse = make_estimator("coupled-sparse", EstimatorConfig(motion=MotionModel(0.1)), sc.radar_ids)
+    for e in (dense, sparse):
+        for k, x in sc.initial.items():
+            e.add_aircraft(k, 0.0, x, P0)
+    return sc, dense, sparse
+
+
+@pytest.mark.parametrize("bad", ["zero_R", "nan_z", "inf_C", "indefinite_R"])
+def test_degenerate_measurement_raises_clear_error_and_leaves_no_nan(bad):
+    sc, dense, sparse = _small()
+    good = sc.measurements
+    for m in good[:5]:
+        dense.update(m), sparse.update(m)
+    m = good[5]
+    z, C, R = m.z.copy(), m.C.copy(), m.R.copy()
+    if bad == "zero_R":
+        R[:] = 0.0
+    elif bad == "nan_z":
+        z[0] = np.nan
+    elif bad == "inf_C":
+        C[1, 1] = np.inf
+    else:
+        R = np.diag([1.0, -1.0])
+    with pytest.raises(ValueError, match=f"aircraft '{m.aircraft}' by radar '{m.radar}'") as info:
+        sparse.update(PlaneMeasurement(m.time, m.aircraft, m.radar, z, C, R))
+    assert bad in ("nan_z", "inf_C") or isinstance(info.value, SingularInnovation)
+    # nothing was applied: the filters still agree after the remaining good plots
+    for m in good[5:]:
+        dense.update(m), sparse.update(m)
+    assert_same_joint(dense.joint(), sparse.joint(), 1e-8)
+
+
+def test_batch_error_reports_index_and_keeps_earlier_updates():
+    sc, dense, sparse = _small()
+    ms = sc.measurements[:8]
+    R = np.array([m.R for m in ms])
+    R[6] = -1e12 * np.eye(2)  # Λ indefinite for the dense filter, R indefinite for the sparse one
+    args = ([m.time for m in ms], [m.aircraft for m in ms], [m.radar for m in ms],
+            np.array([m.z for m in ms]), np.array([m.C for m in ms]))
+    with pytest.raises(SingularInformation) as info:
+        sparse.update_many(*args, R)
+    assert info.value.index == 6
+    with pytest.raises(SingularInnovation) as info_d:  # the API's default loop reports the same index
+        Estimator.update_many(dense, *args, R)
+    assert info_d.value.index == 6
+    for r in sc.radar_ids:  # the six plots before it were applied alike
+        bd, bs = dense.bias(r), sparse.bias(r)
+        assert np.all(np.abs(bs.bias - bd.bias) < 1e-8 * np.sqrt(np.diag(bd.cov)))
+        assert_same_cov(bd.cov, bs.cov, 1e-8)
+
+
+def test_invalid_configuration_and_prior_are_refused():
+    with pytest.raises(ValueError, match="drifting biases"):
+        CoupledSparseEstimator(EstimatorConfig(bias_drift_range=1.0))
+    est = CoupledSparseEstimator()
+    est.add_radar("R")
+    with pytest.raises(SingularInnovation, match="prior covariance is not positive definite"):
+        est.add_aircraft("A", 0.0, np.zeros(4), np.diag([1.0, 1.0, 0.0, 1.0]))
+    with pytest.raises(KeyError, match="radar 'X' is not known"):
+        est.add_aircraft("A", 0.0, np.zeros(4), np.eye(4))
+        est.update(PlaneMeasurement(1.0, "A", "X", np.zeros(2), np.eye(2), np.eye(2)))
+
+
+def test_radar_added_after_aircraft_and_replay_matches_dense():
+    """Growing the radar set mid-run keeps the blocks; the replay loop gives the dense filter's biases."""
+    from radartracker.replay import replay
+    from radartracker.scenarios import build_scenario
+
+    data = build_scenario("demo", seed=2, duration=240.0).run()
+    res = {name: replay(data, name) for name in ("coupled", "coupled-sparse")}
+    for rid, (b, P) in res["coupled"].final_biases.items():
+        bs, Ps = res["coupled-sparse"].final_biases[rid]
+        sd = np.sqrt(np.diag(P))
+        assert np.all(np.abs(bs - b) < 1e-8 * sd)
+        assert_same_cov(P, Ps, 1e-8)
+    np.testing.assert_allclose(res["coupled-sparse"].track_state, res["coupled"].track_state, rtol=0, atol=1e-4)
+
+    sc = make_linear_scenario(n_aircraft=3, n_radars=3, duration=60.0, rng=4)
+    dense = make_estimator("coupled", None, sc.radar_ids[:1])
+    sparse = make_estimator("coupled-sparse", None, sc.radar_ids[:1])
+    for e in (dense, sparse):
+        for k, x in sc.initial.items():
+            e.add_aircraft(k, 0.0, x, P0)
+    for i, m in enumerate(sc.measurements):
+        if i == 20:
+            for e in (dense, sparse):
+                e.add_radar(sc.radar_ids[1]), e.add_radar(sc.radar_ids[2])
+        if i >= 20 or m.radar == sc.radar_ids[0]:
+            dense.update(m), sparse.update(m)
+    assert_same_joint(dense.joint(), sparse.joint(), 1e-8)
