@@ -88,7 +88,6 @@ class _Tally:
 def _lines(path: Path) -> Iterator[tuple[int, bytes, bool]]:
     """(line number, line without its LF/CRLF, whether it ended with a newline) of a file."""
     with open(path, "rb", buffering=_READ_BYTES) as fh:
-        n = 0
         for n, raw in enumerate(fh, 1):
             ended = raw.endswith(b"\n")
             yield n, raw.rstrip(b"\r\n") if ended else raw.rstrip(b"\r"), ended
