@@ -1,0 +1,75 @@
+"""Shared pieces of the track filters: input checks and the position-measurement Kalman step.
+
+Every model observes the position only, z = H χ + w with H = [I₂ 0] and w ~ N(0, R); the
+correction is :func:`radartracker.kalman.correct` with K = P̄ Hᵀ and Λ = H P̄ Hᵀ + R.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from radartracker.kalman import correct
+
+
+class Step(NamedTuple):
+    """A corrected state and what the update saw: ν, Λ, NIS = νᵀΛ⁻¹ν and log N(ν; 0, Λ)."""
+
+    x: np.ndarray
+    P: np.ndarray
+    nu: np.ndarray
+    S: np.ndarray
+    nis: float
+    loglik: float
+
+
+def check_measurement(time: float, z: np.ndarray, R: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """Validated (time, z (2,), R (2×2)); a clear ``ValueError`` for anything else."""
+    time = float(time)
+    z = np.asarray(z, float)
+    R = np.asarray(R, float)
+    if not math.isfinite(time):
+        raise ValueError(f"time: not finite ({time})")
+    if z.shape != (2,) or not np.all(np.isfinite(z)):
+        raise ValueError(f"z: expected 2 finite numbers, got {z.tolist()}")
+    if R.shape != (2, 2) or not np.all(np.isfinite(R)) or not np.allclose(R, R.T):
+        raise ValueError(f"R: expected a finite symmetric 2×2 matrix, got {R.tolist()}")
+    try:
+        np.linalg.cholesky(R)
+    except np.linalg.LinAlgError:
+        raise ValueError(f"R: not positive definite: {R.tolist()}") from None
+    return time, z, R
+
+
+def check_time(time: float, current: float | None) -> float:
+    """``time`` as a finite float, once the filter has been started (a negative Δt extrapolates back)."""
+    if current is None:
+        raise ValueError("filter not started: call start() first")
+    time = float(time)
+    if not math.isfinite(time):
+        raise ValueError(f"time: not finite ({time})")
+    return time
+
+
+def position_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray) -> Step:
+    """Kalman correction of (x, P) by position z; the first two state components are x, y."""
+    nu = z - x[:2]
+    K = P[:, :2]
+    S = P[:2, :2] + R
+    x_new, P_new = correct(x, P, K, S, nu)
+    L = np.linalg.cholesky(S)
+    w = np.linalg.solve(L, nu)
+    nis = float(w @ w)
+    loglik = -0.5 * nis - float(np.log(np.diag(L)).sum()) - math.log(2 * math.pi)
+    return Step(x_new, P_new, nu, S, nis, loglik)
+
+
+def start_state(z: np.ndarray, R: np.ndarray, sd_velocity: float) -> tuple[np.ndarray, np.ndarray]:
+    """One-point initialisation: χ = [z, 0, 0], P = diag(R, σ_v² I)."""
+    x = np.concatenate([z, np.zeros(2)])
+    P = np.zeros((4, 4))
+    P[:2, :2] = R
+    P[2:, 2:] = sd_velocity**2 * np.eye(2)
+    return x, P
