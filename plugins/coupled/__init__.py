@@ -127,7 +127,9 @@ class CoupledEstimator(Estimator):
         U = K @ Linv.T  # U = K L⁻ᵀ, so K Λ⁻¹ Kᵀ = U Uᵀ
         w = Linv @ nu  # L⁻¹ ν
         x[:n] += U @ w
-        P -= U @ U.T
+        rows = max(16, 2**17 // n)  # in place, by row blocks: no n×n temporary
+        for i in range(0, n, rows):
+            P[i:i + rows] -= U[i:i + rows] @ U.T
         return Innovation(nu, S, float(w @ w))
 
     # --- reads -----------------------------------------------------------------------------------
