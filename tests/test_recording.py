@@ -108,3 +108,27 @@ def test_recording_writer_columns_and_refuses_existing(tmp_path):
         write_recording(rec, [])
     with pytest.raises(ValueError, match="radar"):
         write_recording(tmp_path / "r2", [TrackRecord(1.0, "3", "a b", 1, 1, 0.0, 0.0, 0.0)])
+
+
+def test_synthetic_recording_is_geometrically_consistent(tmp_path):
+    from radartracker.geometry import RadarFrame, SystemPlane
+    from radartracker.recording import synthetic_records, write_synthetic_recording
+
+    size = write_synthetic_recording(tmp_path / "syn", batches=1, aircraft_per_batch=3, flight_s=120.0, seed=5)
+    assert size == sum((tmp_path / "syn" / n).stat().st_size for n in ("plots.txt", "tracks.txt", "plots_ads.txt"))
+    rows = [line.split("\t") for line in (tmp_path / "syn" / "plots.txt").read_text().splitlines()[1:]]
+    times = [float(r[0]) for r in rows]
+    assert times == sorted(times) and len(rows) > 50
+    # the radar sites of the generator, rebuilt here: plot lat/lon must re-measure to its range/azimuth
+    plane = SystemPlane(56.8, 60.6)
+    sites = {"1": (60e3, 0.0), "2": (-60e3, 20e3), "3": (0.0, 70e3), "4": (10e3, -80e3)}
+    for name, (x, y) in sites.items():
+        sel = [r for r in rows if r[2] == name and r[3]]
+        la, lo = plane.to_geodetic(x, y)
+        frame = RadarFrame(float(la), float(lo), 300.0, plane)
+        rho, theta, _ = frame.polar([float(r[5]) for r in sel], [float(r[6]) for r in sel], [float(r[7]) for r in sel])
+        np.testing.assert_allclose(rho, [float(r[8]) for r in sel], atol=0.1)
+        dth = np.angle(np.exp(1j * (theta - np.radians([float(r[9]) for r in sel]))))
+        assert np.all(np.abs(dth * rho) < 0.3)
+    batch = next(synthetic_records(seed=5, batches=1, aircraft_per_batch=3, flight_s=120.0))
+    assert sum(isinstance(r, PlotRecord) for r in batch) == len(rows)
