@@ -20,12 +20,10 @@ _INADMISSIBLE = 1e12
 
 
 def gate_costs(z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray,
-               pos: np.ndarray, pos_cov: np.ndarray, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(d², d² + ln det S) for candidate ``pairs`` (P, 2) of (plot index, track index)."""
-    k, t = pairs[:, 0], pairs[:, 1]
-    Ck = C[k]
-    nu = z[k] - pos[t] - np.einsum("nij,j->ni", Ck, bias)
-    S = pos_cov[t] + Ck @ bias_cov @ np.swapaxes(Ck, 1, 2) + R[k]
+               pos: np.ndarray, pos_cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(d², d² + ln det S) of candidate pairs, given per pair the plot (z, C, R) and the prediction."""
+    nu = z - pos - np.einsum("nij,j->ni", C, bias)
+    S = pos_cov + C @ bias_cov @ np.swapaxes(C, 1, 2) + R
     det = S[:, 0, 0] * S[:, 1, 1] - S[:, 0, 1] * S[:, 1, 0]
     ok = det > 0
     det = np.where(ok, det, 1.0)

@@ -40,3 +40,29 @@ def plot_biases(result: ReplayResult, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def plot_tracks_over_truth(result, path: Path) -> None:
+    """Confirmed tracks (coloured) over the true trajectories (grey) in the system plane (km)."""
+    plane = result.manager.plane
+    fig, ax = plt.subplots(figsize=(8, 8))
+    d = result.data
+    if d.truth is not None:
+        x, y = plane.to_plane(d.truth.lat, d.truth.lon)
+        for tg in np.unique(d.truth.target.astype(str)):
+            m = d.truth.target == tg
+            ax.plot(x[m] / 1e3, y[m] / 1e3, color="0.6", lw=3, alpha=0.6)
+    for tid, h in result.histories().items():
+        ax.plot(h.states[:, 0] / 1e3, h.states[:, 1] / 1e3, lw=1, label=f"track {tid}")
+    for rid, fr in result.manager.frames.items():
+        ax.plot(fr.xy[0] / 1e3, fr.xy[1] / 1e3, "k^")
+        ax.annotate(rid, fr.xy / 1e3)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x east (km)")
+    ax.set_ylabel("y north (km)")
+    ax.set_title(f"{d.name}: confirmed tracks (colour) over truth (grey)")
+    if len(result.histories()) <= 20:
+        ax.legend(fontsize=7, loc="best")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

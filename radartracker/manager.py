@@ -46,6 +46,7 @@ from radartracker.coupling import CouplingGraph
 from radartracker.domain import AdsbReport, Plot, Radar, nacp_sigma_m
 from radartracker.geometry import RadarFrame, SystemPlane
 from radartracker.kalman import SingularInnovation
+from radartracker.motion import MotionModel
 from radartracker.plugin import (EstimatorConfig, MotionSettings, PlaneMeasurement, TrackFilter, load_motion_model,
                                  make_estimator)
 
@@ -58,9 +59,10 @@ class ManagerConfig:
     """Settings of the TrackManager (see the module docstring for what each stage does)."""
 
     estimator: str = "decoupled"
-    estimator_config: EstimatorConfig = attrs.field(factory=EstimatorConfig)
+    # aircraft turn: the estimator's CV model needs process noise, or it explains a turn by biases
+    estimator_config: EstimatorConfig = attrs.field(factory=lambda: EstimatorConfig(motion=MotionModel(5.0)))
     motion_model: str = "cv"
-    motion: MotionSettings = attrs.field(factory=MotionSettings)
+    motion: MotionSettings = attrs.field(factory=lambda: MotionSettings(q=5.0))
     gate: float = 13.82  # χ²₂ 99.9 % quantile
     confirm_m: int = 3
     confirm_n: int = 5
@@ -245,15 +247,29 @@ class TrackManager:
         self._misses(live, pred, assigned, t_a, t_b)
         for upd in sorted(updates, key=lambda u: (u[0], u[1])):
             self._apply(*upd[2:])
-        self._sweep(t_b)
+        self._sweep(live, pred, t_b)
 
-    def _predict(self, live: list[ManagedTrack], t: float) -> dict[str, np.ndarray]:
+    @staticmethod
+    def _predict(live: list[ManagedTrack], t: float) -> dict[str, np.ndarray]:
+        """Straight-line extrapolation of every live track to ``t`` (for search, misses, coverage);
+        the filters' own predictions are computed only for gating candidates."""
         n = len(live)
-        pos, vel, cov = np.zeros((n, 2)), np.zeros((n, 2)), np.zeros((n, 2, 2))
+        pos = np.zeros((n, 2))
         for i, tr in enumerate(live):
-            x, P = tr.filter.predict(max(t, tr.filter.estimate()[0]))
-            pos[i], vel[i], cov[i] = x[:2], x[2:], P[:2, :2]
-        return {"pos": pos, "vel": vel, "cov": cov, "t": np.full(n, t)}
+            t0, x, _ = tr.filter.estimate()
+            pos[i] = x[:2] + x[2:] * max(t - t0, 0.0)
+        return {"pos": pos, "t": t, "exact": {}}
+
+    @staticmethod
+    def _exact(live: list[ManagedTrack], pred: dict, idx: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The filters' predictions (position, velocity, position covariance) of tracks ``idx``."""
+        cache, t = pred["exact"], pred["t"]
+        for i in np.unique(idx):
+            if i not in cache:
+                tr = live[i]
+                x, P = tr.filter.predict(max(t, tr.filter.estimate()[0]))
+                cache[i] = (x[:2], x[2:], P[:2, :2])
+        return tuple(np.array([cache[i][k] for i in idx]) for k in range(3))
 
     def _convert(self, rid: str, plots: list[Plot], live: list[ManagedTrack]) -> tuple[np.ndarray, ...]:
         by_code = {t.mode_s: t for t in live if t.mode_s}
@@ -294,10 +310,10 @@ class TrackManager:
             pairs = candidate_pairs(zr, pred["pos"], self.config.search_radius_m, allowed)
             b = self.estimator.bias(rid)
             if len(pairs):
-                dt = np.array([plots[rest[k]].time for k in pairs[:, 0]]) - pred["t"][pairs[:, 1]]
-                pos = pred["pos"][pairs[:, 1]] + pred["vel"][pairs[:, 1]] * dt[:, None]
+                pos, vel, cov = self._exact(live, pred, pairs[:, 1])
+                dt = np.array([plots[rest[k]].time for k in pairs[:, 0]]) - pred["t"]
                 d2, cost = gate_costs(zr[pairs[:, 0]], C[rest][pairs[:, 0]], R[rest][pairs[:, 0]], b.bias, b.cov,
-                                      pos, pred["cov"][pairs[:, 1]])
+                                      pos + vel * dt[:, None], cov)
                 matches = dict(assign(pairs, d2, cost, self.config.gate))
             else:
                 matches = {}
@@ -403,17 +419,19 @@ class TrackManager:
                     tr.status = "coasting"
                     self._emit(t_b, tr, "coasting")
 
-    def _sweep(self, now: float) -> None:
+    def _sweep(self, live: list[ManagedTrack], pred: dict, now: float) -> None:
+        """Delete tracks that cannot be confirmed any more, are stale or left every radar's coverage."""
         cfg = self.config
-        for tr in list(self.tracks.values()):
+        covered = np.zeros(len(live), bool)
+        for rid, r in self.radars.items():
+            covered |= np.hypot(*(pred["pos"] - self.frames[rid].xy).T) <= r.max_range_m
+        for i, tr in enumerate(live):
+            if tr.id not in self.tracks:
+                continue
             misses = len(tr.history) - sum(tr.history)
             hopeless = tr.status == "tentative" and misses > cfg.confirm_n - cfg.confirm_m
-            if hopeless or now - tr.last_update > cfg.delete_after_s or not self._covered(tr, now):
+            if hopeless or now - tr.last_update > cfg.delete_after_s or not (covered[i] or tr.n_adsb):
                 self._delete(tr, now)
-
-    def _covered(self, tr: ManagedTrack, now: float) -> bool:
-        x, _ = tr.filter.predict(max(now, tr.filter.estimate()[0]))
-        return any(np.hypot(*(x[:2] - self.frames[rid].xy)) <= r.max_range_m for rid, r in self.radars.items()) or tr.n_adsb > 0
 
     def _delete(self, tr: ManagedTrack, now: float) -> None:
         del self.tracks[tr.id]

@@ -6,6 +6,9 @@
 * ``paris`` — real flights around Paris (OpenSky, shipped subset) with four simulated radars,
   Pd 0.9 and ADS-B on every third aircraft.
 * ``manoeuvres`` — kinematic-model aircraft that turn at 3°/s, accelerate and climb.
+* ``tracking`` — for association: two aircraft crossing and two flying in parallel 3 NM apart,
+  all squawking the same Mode 3/A code (7000) so only kinematics tells them apart, a primary-only
+  aircraft, a 3°/s turn and a climb; Pd 0.9 and two false plots per antenna revolution.
 """
 
 from __future__ import annotations
@@ -109,11 +112,47 @@ def manoeuvres_scenario(seed: int = 1, duration: float | None = None) -> Simulat
     return Simulator(reference, radars, aircraft, 0.0, duration, seed=seed, name="manoeuvres")
 
 
+def tracking_scenario(seed: int = 1, duration: float | None = None) -> Simulator:
+    reference = (48.85, 2.35)
+    plane = SystemPlane(*reference)
+    radars = [
+        SimRadar(_radar(plane, "A", -40, -30, period=4.0), 80.0, math.radians(0.1), pd=0.9, false_per_scan=2.0),
+        SimRadar(_radar(plane, "B", 50, -10, period=6.0), -50.0, math.radians(-0.12), pd=0.9, false_per_scan=2.0,
+                 phase_rad=2.0),
+    ]
+    duration = 1200.0 if duration is None else duration
+    half = duration / 2
+    aircraft = []
+
+    def add(i, traj, transponder="mode_a_c", code="7000", adsb=False):
+        ac = Aircraft(_icao(200 + i), f"TRK{i}", code if transponder != "none" else None, adsb=adsb,
+                      transponder=transponder)
+        aircraft.append(SimAircraft(ac, traj))
+
+    # crossing at right angles over the origin at mid-time, same level, same code
+    v = 220.0
+    add(0, KinematicTrajectory(0.0, -v * half, 0.0, 7000.0, math.pi / 2, v, [Leg(duration)]))
+    add(1, KinematicTrajectory(0.0, 0.0, -v * half, 7000.0, 0.0, v, [Leg(duration)]))
+    # parallel, 3 NM apart, same speed and level, same code
+    sep = 3 * 1852.0
+    add(2, KinematicTrajectory(0.0, -60e3, 30e3, 9000.0, math.radians(80), 230.0, [Leg(duration)]))
+    add(3, KinematicTrajectory(0.0, -60e3 + sep * math.cos(math.radians(80)), 30e3 - sep * math.sin(math.radians(80)),
+                               9000.0, math.radians(80), 230.0, [Leg(duration)]))
+    # primary-only aircraft near the default primary altitude
+    add(4, KinematicTrajectory(0.0, 20e3, -40e3, 6000.0, math.radians(300), 180.0, [Leg(duration)]), "none")
+    # 3°/s turns and a climb, Mode S with ADS-B
+    legs = [Leg(200.0), Leg.turn(60.0, 3.0, 200.0), Leg(200.0, climb_mps=15.0), Leg.turn(90.0, -3.0, 200.0),
+            Leg(duration)]
+    add(5, KinematicTrajectory(0.0, 30e3, 40e3, 5000.0, math.radians(200), 200.0, legs), "mode_s", "2345", adsb=True)
+    return Simulator(reference, radars, aircraft, 0.0, duration, seed=seed, name="tracking")
+
+
 STANDARD_SCENARIOS: dict[str, Callable[..., Simulator]] = {
     "seed": seed_scenario,
     "demo": demo_scenario,
     "paris": paris_scenario,
     "manoeuvres": manoeuvres_scenario,
+    "tracking": tracking_scenario,
 }
 
 
