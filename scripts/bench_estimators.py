@@ -17,6 +17,8 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import json
+import os
+import platform
 import sys
 import time
 
@@ -116,6 +118,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--max-coupled-gib", type=float, default=1.0, help="largest dense covariance to try")
     ap.add_argument("--steps", type=int, default=3000, help="single-target measurements")
     args = ap.parse_args(argv)
+    print(json.dumps({"bench": "environment", "cpus": os.cpu_count(), "loadavg_1min": os.getloadavg()[0],
+                      "python": platform.python_version(), "numpy": np.__version__,
+                      "openblas_threads": os.environ.get("OPENBLAS_NUM_THREADS")}), flush=True)
 
     rows = []
     for m in args.radars:
