@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from radartracker.linsim import bias_jacobian, make_linear_scenario
 from radartracker.plugin import EstimatorConfig, PlaneMeasurement, make_estimator
@@ -116,3 +117,15 @@ def test_adsb_only_aircraft_leaves_biases_alone():
     for r in RADAR_XY:
         assert np.all(est.bias(r).bias == 0.0)
         np.testing.assert_array_equal(est.bias(r).cov, CFG.bias_prior())
+
+
+def test_non_finite_measurement_is_refused_without_touching_the_state():
+    for name in ("blom", "coupled"):
+        est = make_estimator(name, CFG, list(RADAR_XY))
+        est.add_aircraft("A", 0.0, np.zeros(4), np.eye(4) * 1e4)
+        bad = PlaneMeasurement(1.0, "A", "R1", np.array([np.nan, 0.0]), np.eye(2), np.eye(2))
+        with pytest.raises(ValueError, match="finite"):
+            est.update(bad)
+        a = est.aircraft("A")
+        assert a.time == 0.0 and np.all(a.state == 0.0) and np.all(a.cov == np.eye(4) * 1e4)
+        np.testing.assert_array_equal(est.bias("R1").cov, CFG.bias_prior())

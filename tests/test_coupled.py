@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.linalg import block_diag
 from scipy.stats import chi2
 
@@ -219,3 +221,20 @@ def test_coupled_anees_within_chi2_bounds_quick():
 @pytest.mark.slow
 def test_coupled_anees_within_chi2_bounds_monte_carlo():
     _assert_consistent(runs=60)
+
+
+@settings(max_examples=8, deadline=None)
+@given(seed=st.integers(0, 10_000), n=st.integers(1, 6), m=st.integers(1, 4), q=st.sampled_from([0.0, 1.0]))
+def test_joint_covariance_stays_symmetric_psd_and_finite(seed, n, m, q):
+    sc = make_linear_scenario(n_aircraft=n, n_radars=m, duration=60.0, rng=seed, adsb_aircraft=n // 2, q=q)
+    est = make_estimator("coupled", EstimatorConfig(motion=MotionModel(q)), sc.radar_ids)
+    for k, x in sc.initial.items():
+        est.add_aircraft(k, 0.0, x, np.diag([1e8, 1e8, 1e4, 1e4]))
+    for meas in sc.measurements:
+        est.update(meas)
+    x, P = est.joint()
+    assert np.isfinite(x).all() and np.isfinite(P).all()
+    d = np.sqrt(np.diag(P))
+    corr = P / np.outer(d, d)
+    np.testing.assert_allclose(corr, corr.T, atol=1e-12)
+    assert np.linalg.eigvalsh(0.5 * (corr + corr.T))[0] > -1e-9

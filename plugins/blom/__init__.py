@@ -97,6 +97,8 @@ class BlomEstimator(Estimator):
         return np.linalg.solve(Fx, Fs)
 
     def update(self, m: PlaneMeasurement) -> Innovation:
+        if not (np.isfinite(m.time) and np.isfinite(m.z).all() and np.isfinite(m.C).all() and np.isfinite(m.R).all()):
+            raise ValueError(f"measurement of {m.aircraft!r} at t={m.time}: z, C, R and time must be finite")
         ac = self._x[m.aircraft]
         A, Q = self.config.motion.transition(m.time - ac[0])
         x, P = A @ ac[1], A @ ac[2] @ A.T + Q

@@ -104,6 +104,7 @@ class CoupledEstimator(Estimator):
         self._bias_time = time if self._bias_time is None else max(self._bias_time, time)
 
     def update(self, m: PlaneMeasurement) -> Innovation:
+        _check_finite(m)
         ac = self._ac[m.aircraft]
         k = ac[0]
         self._predict_aircraft(k, m.time - ac[1])
@@ -156,6 +157,11 @@ class CoupledEstimator(Estimator):
     @property
     def radars(self) -> list[str]:
         return list(self._rad)
+
+
+def _check_finite(m: PlaneMeasurement) -> None:
+    if not (np.isfinite(m.time) and np.isfinite(m.z).all() and np.isfinite(m.C).all() and np.isfinite(m.R).all()):
+        raise ValueError(f"measurement of {m.aircraft!r} at t={m.time}: z, C, R and time must be finite")
 
 
 def _inverse_cholesky_2x2(S: np.ndarray) -> np.ndarray:
