@@ -12,14 +12,17 @@ independent::
 **Measurement** z = C_x χ_i + C_s ς_j + v, v ~ N(0, R) (C_s, R evaluated at the plot, so the model is
 linear and identical to the dense filter's): Y += Hᵀ R⁻¹ H, η += Hᵀ R⁻¹ z with H = [C_x at i, C_s at j]
 — it touches Y_ii, Y_ij, Y_jj only, so the pattern is kept. S changes by ΔY_jj minus the change of
-aircraft i's term Y_bi Y_ii⁻¹ Y_ib: O(k²) with k the radars that saw it.
+aircraft i's term Y_bi Y_ii⁻¹ Y_ib, which in closed form (eliminate χ_i with (1)) is the PSD rank-2
+term H_bᵀ Ω⁻¹ H_b with H_b = C_s E_j − C_x G_i, Ω = R + C_x Y_ii⁻¹ C_xᵀ (s: H_bᵀ Ω⁻¹ (z − C_x m_i)):
+O(k²) with k the radars that saw aircraft i, and S can only grow.
 
 **Prediction** of aircraft i alone, χ_i' = A χ_i + w, w ~ N(0, Q): by (1), χ_i' | ς ~
 N(A m_i − A G_i ς_K, A Y_ii⁻¹ Aᵀ + Q), still independent of the other aircraft given ς, and the
 marginal of everything else is untouched. Hence, in information form::
 
     Y_ii' = (A Y_ii⁻¹ Aᵀ + Q)⁻¹,   Y_ib' = Y_ii' A G_i,   η_i' = Y_ii' A m_i,
-    Y_bb' = Y_bb − Y_bi Y_ii⁻¹ Y_ib + Y_bi' Y_ii'⁻¹ Y_ib'     (η_b likewise),   S' = S, s' = s
+    Y_bb' = Y_bb − Y_bi Y_ii⁻¹ Y_ib + Y_bi' Y_ii'⁻¹ Y_ib' = Y_bb − G_iᵀ (Y_ii − Aᵀ Y_ii' A) G_i,
+    η_b' = η_b − G_iᵀ (Y_ii − Aᵀ Y_ii' A) m_i,   S' = S, s' = s
 
 — the arrowhead is kept with or without process noise. With Q = 0 this is Y_ii' = A⁻ᵀ Y_ii A⁻¹,
 Y_ib' = A⁻ᵀ Y_ib, η_i' = A⁻ᵀ η_i and Y_bb' = Y_bb.
@@ -164,10 +167,10 @@ class CoupledSparseEstimator(Estimator):
         w = self._work
         k = int(self._nk[s])
         if k > 0:
-            K._bias_index(self._rk, s, k, w.idx)
+            K.bias_index(self._rk, s, k, w.idx)
             if not K.conditional(self._Yxx, self._Yxb, self._ex, s, 2 * k, w.f4[0], w.V, w.v4[0], w.G, w.v4[1]):
                 raise SingularInformation(f"aircraft {key!r}: {_WHY[K.ERR_YII]}")
-            K._add_contribution(self._Ybb, self._eb, w.idx, w.V, w.v4[0], 2 * k, -1.0)
+            K.add_contribution(self._Ybb, self._eb, w.idx, w.V, w.v4[0], 2 * k, -1.0)
         self._nk[s] = -1
         self._keys[s] = None
         self._free.append(s)

@@ -72,7 +72,26 @@ def _ltsolve(L, B, X, n, nc):
 
 
 @njit(cache=True)
-def _bias_index(rk, s, nk, idx):
+def _identity(T):
+    for i in range(T.shape[0]):
+        for j in range(T.shape[1]):
+            T[i, j] = 1.0 if i == j else 0.0
+
+
+@njit(cache=True)
+def _gram(X, out):
+    """out = Xᵀ X for 4×4 X (exactly symmetric)."""
+    for i in range(4):
+        for j in range(i + 1):
+            acc = 0.0
+            for k in range(4):
+                acc += X[k, i] * X[k, j]
+            out[i, j] = acc
+            out[j, i] = acc
+
+
+@njit(cache=True)
+def bias_index(rk, s, nk, idx):
     """idx[:2k] = positions in the bias vector of aircraft s's radars, in their storage order."""
     for c in range(nk):
         idx[2 * c] = 2 * rk[s, c]
@@ -92,7 +111,7 @@ def conditional(Yxx, Yxb, ex, s, nK, L, V, u, G, mx):
 
 
 @njit(cache=True)
-def _add_contribution(M, vec, idx, V, u, nK, sign):
+def add_contribution(M, vec, idx, V, u, nK, sign):
     """M[idx, idx] += sign·VᵀV and vec[idx] += sign·Vᵀu (aircraft i's Schur term)."""
     for a in range(nK):
         va = 0.0
@@ -140,9 +159,6 @@ class Work:
         self.LS = np.zeros((nb, nb))
         self.LSi = np.zeros((nb, nb))
 
-    def args(self):
-        return self.f4, self.V, self.G, self.W, self.v4, self.idx, self.Kb
-
 
 @njit(cache=True)
 def predict(Yxx, Yxb, ex, Ybb, eb, s, nK, idx, dt, q, f4, V, G, W, v4):
@@ -172,18 +188,10 @@ def predict(Yxx, Yxb, ex, Ybb, eb, s, nK, idx, dt, q, f4, V, G, W, v4):
         return OK
     if not conditional(Yxx, Yxb, ex, s, nK, L, V, u, G, mx):
         return ERR_YII
-    _add_contribution(Ybb, eb, idx, V, u, nK, -1.0)  # remove the old term from Y_bb, η_b
-    # Σ = L⁻ᵀL⁻¹;  Σ' = A Σ Aᵀ + Q;  conditional mean/gain: m' = A m, G' = A G
-    for i in range(4):
-        for j in range(4):
-            T[i, j] = 1.0 if i == j else 0.0
+    # Σ = L⁻ᵀL⁻¹;  Σ' = A Σ Aᵀ + Q;  Y' = Σ'⁻¹ (into T)
+    _identity(T)
     _lsolve(L, T, Yn, 4, 4)  # Yn = L⁻¹
-    for i in range(4):
-        for j in range(4):
-            acc = 0.0
-            for k in range(4):
-                acc += Yn[k, i] * Yn[k, j]
-            Sg[i, j] = acc  # Σ
+    _gram(Yn, Sg)  # Σ
     for i in range(4):
         for j in range(4):
             acc = 0.0
@@ -199,18 +207,38 @@ def predict(Yxx, Yxb, ex, Ybb, eb, s, nK, idx, dt, q, f4, V, G, W, v4):
             Sg[j, i] = acc
     if not chol(Sg, Ln, 4):
         return ERR_YII
-    # Y' = Σ'⁻¹ = Ln⁻ᵀLn⁻¹; Y_ib' = Y' A G; η' = Y' A m
-    for i in range(4):
-        for j in range(4):
-            T[i, j] = 1.0 if i == j else 0.0
+    _identity(T)
     _lsolve(Ln, T, Yn, 4, 4)
+    _gram(Yn, T)  # T = Y'
+    # Y_bb' − Y_bb = c_i' − c_i = −Gᵀ M G with M = Y − Aᵀ Y' A (η_b: −Gᵀ M m)
     for i in range(4):
         for j in range(i + 1):
+            acc = Yxx[s, i, j]
+            for k in range(4):
+                for l in range(4):
+                    acc -= A[k, i] * T[k, l] * A[l, j]
+            Sg[i, j] = acc
+            Sg[j, i] = acc
+    for c in range(nK):
+        for i in range(4):
             acc = 0.0
             for k in range(4):
-                acc += Yn[k, i] * Yn[k, j]
-            Yxx[s, i, j] = acc
-            Yxx[s, j, i] = acc
+                acc += Sg[i, k] * G[k, c]
+            W[i, c] = acc
+    for a in range(nK):
+        acc = 0.0
+        for r in range(4):
+            for k in range(4):
+                acc += G[r, a] * Sg[r, k] * mx[k, 0]
+        eb[idx[a]] -= acc
+        for b in range(a + 1):
+            acc = 0.0
+            for r in range(4):
+                acc += G[r, a] * W[r, b]
+            Ybb[idx[a], idx[b]] -= acc
+            if b != a:
+                Ybb[idx[b], idx[a]] -= acc
+    # Y_ii' = Y', Y_ib' = Y' A G, η_i' = Y' A m
     for c in range(nK):
         for i in range(4):
             acc = 0.0
@@ -222,20 +250,20 @@ def predict(Yxx, Yxb, ex, Ybb, eb, s, nK, idx, dt, q, f4, V, G, W, v4):
         for k in range(4):
             acc += A[i, k] * mx[k, 0]
         u[i, 0] = acc
+    for i in range(4):
+        for j in range(4):
+            Yxx[s, i, j] = T[i, j]
     for c in range(nK):
         for i in range(4):
             acc = 0.0
             for k in range(4):
-                acc += Yxx[s, i, k] * W[k, c]
+                acc += T[i, k] * W[k, c]
             Yxb[s, i, c] = acc
     for i in range(4):
         acc = 0.0
         for k in range(4):
-            acc += Yxx[s, i, k] * u[k, 0]
+            acc += T[i, k] * u[k, 0]
         ex[s, i] = acc
-    if not conditional(Yxx, Yxb, ex, s, nK, L, V, u, G, mx):
-        return ERR_YII
-    _add_contribution(Ybb, eb, idx, V, u, nK, 1.0)  # add the new term
     return OK
 
 
@@ -273,7 +301,7 @@ def update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
             k += 1
             nk[s] = k
     nK = 2 * k
-    _bias_index(rk, s, k, idx)
+    bias_index(rk, s, k, idx)
     if dt != 0.0:
         code = predict(Yxx, Yxb, ex, Ybb, eb, s, nK, idx, dt, q, f4, V, G, W, v4)
         if code != OK:
@@ -307,8 +335,7 @@ def update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
             k1 += p0 * C[1, 0] + p1 * C[1, 1]
         Kb[p, 0] = k0
         Kb[p, 1] = k1
-    # Cov(χ[:2], h) = Σ[:2,:2] + G[:2] Cov(ς_K, ·)... computed as Σ[:2,:2] − G[:2] Kb[K]
-    # since Cov(χ, h) = Cov(e) C_xᵀ + Cov(m − Gς_K, h) = Σ[:, :2] − G Kb[K]
+    # Λ = C_x Cov(χ, h) + C_s Cov(ς_j, h) + R with Cov(χ, h) = Σ[:, :2] − G Kb[K] (χ = m − Gς_K + e)
     Sg = f4[3]
     for a in range(4):
         for b in range(4):
@@ -341,9 +368,36 @@ def update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
     for a in range(2):
         for b in range(2):
             out_lam[a, b] = Lam[a, b]
-    # --- commit: information update of the blocks, incremental S, rank-2 update of (Pb, bh)
-    _add_contribution(S, sv, idx, V, u, nK, 1.0)  # S += old term (re-subtracted below)
-    # R⁻¹ = Lr⁻ᵀ Lr⁻¹
+    # --- commit. S: eliminating χ_i from its conditional χ_i | ς ~ N(m − Gς_K, Σ) turns the plot into
+    # z − C_x m = H_b ς_K + noise(Ω), H_b = C_s E_j − C_x G, Ω = R + C_x Σ C_xᵀ, so
+    # ΔS = ΔY_bb − (c_i' − c_i) = H_bᵀ Ω⁻¹ H_b and Δs = H_bᵀ Ω⁻¹ (z − C_x m): a PSD rank-2 term.
+    Lo = f4[6]
+    for a in range(2):
+        for b in range(2):
+            Lam[a, b] = Rs[a, b]
+            for r in range(4):
+                Lam[a, b] += Li[r, a] * Li[r, b]
+    if not chol(Lam, Lo, 2):
+        return ERR_R, 0.0
+    o0 = (z[0] - mx[0, 0]) / Lo[0, 0]
+    o1 = (z[1] - mx[1, 0] - Lo[1, 0] * o0) / Lo[1, 1]
+    for c in range(nK):  # W[:2] = L_Ω⁻¹ H_b
+        h0 = -G[0, c]
+        h1 = -G[1, c]
+        if c // 2 == cj:
+            h0 += C[0, c % 2]
+            h1 += C[1, c % 2]
+        f0 = h0 / Lo[0, 0]
+        W[0, c] = f0
+        W[1, c] = (h1 - Lo[1, 0] * f0) / Lo[1, 1]
+    for a in range(nK):
+        sv[idx[a]] += W[0, a] * o0 + W[1, a] * o1
+        for b in range(a + 1):
+            d = W[0, a] * W[0, b] + W[1, a] * W[1, b]
+            S[idx[a], idx[b]] += d
+            if b != a:
+                S[idx[b], idx[a]] += d
+    # information update of the blocks: Y += Hᵀ R⁻¹ H, η += Hᵀ R⁻¹ z
     i00 = 1.0 / Lr[0, 0]
     i11 = 1.0 / Lr[1, 1]
     i10 = -Lr[1, 0] * i00 * i11
@@ -369,16 +423,9 @@ def update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
             for b in range(a + 1):
                 d = C[0, a] * RC[0, b] + C[1, a] * RC[1, b]  # Cᵀ R⁻¹ C
                 Ybb[2 * j + a, 2 * j + b] += d
-                S[2 * j + a, 2 * j + b] += d
                 if a != b:
                     Ybb[2 * j + b, 2 * j + a] += d
-                    S[2 * j + b, 2 * j + a] += d
-            d = C[0, a] * rz0 + C[1, a] * rz1  # Cᵀ R⁻¹ z
-            eb[2 * j + a] += d
-            sv[2 * j + a] += d
-    if not conditional(Yxx, Yxb, ex, s, nK, L, V, u, G, mx):
-        return ERR_YII, 0.0
-    _add_contribution(S, sv, idx, V, u, nK, -1.0)  # S −= new term
+            eb[2 * j + a] += C[0, a] * rz0 + C[1, a] * rz1  # Cᵀ R⁻¹ z
     # Pb −= U Uᵀ, ς̂ += U w with U = Kb L_Λ⁻ᵀ
     for p in range(nb):
         a0 = Kb[p, 0] / Ll[0, 0]
@@ -410,10 +457,10 @@ def rebuild(Yxx, Yxb, ex, nk, rk, Ybb, eb, S, sv, ctr, f4, V, G, v4, idx):
         k = nk[s]
         if k <= 0:  # free slot (−1) or no radar yet: no term
             continue
-        _bias_index(rk, s, k, idx)
+        bias_index(rk, s, k, idx)
         if not conditional(Yxx, Yxb, ex, s, 2 * k, f4[0], V, v4[0], G, v4[1]):
             return False
-        _add_contribution(S, sv, idx, V, v4[0], 2 * k, -1.0)
+        add_contribution(S, sv, idx, V, v4[0], 2 * k, -1.0)
     ctr[C_SINCE_REBUILD] = 0
     return True
 
@@ -470,7 +517,7 @@ def read_aircraft(Yxx, Yxb, ex, nk, rk, Pb, bh, s, out_x, out_P, f4, V, G, v4, i
     """χ̂_i = m − G ς̂_K and P_i = Y_ii⁻¹ + G Pb[K, K] Gᵀ (no dense matrix formed)."""
     k = max(nk[s], 0)
     nK = 2 * k
-    _bias_index(rk, s, k, idx)
+    bias_index(rk, s, k, idx)
     L, Li, T = f4[0], f4[1], f4[2]
     if not conditional(Yxx, Yxb, ex, s, nK, L, V, v4[0], G, v4[1]):
         return False

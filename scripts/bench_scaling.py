@@ -1,0 +1,329 @@
+"""Benchmark: time per plot and memory of ``coupled`` vs ``coupled-sparse``; a one-hour regional real-time run.
+
+    python scripts/bench_scaling.py [--aircraft 10 20 100 500 2000] [--radars 3 10 28] [--budget 1.5]
+                                    [--rt-aircraft 2000] [--rt-radars 28] [--rt-duration 3600] [--out FILE]
+
+1. *Scaling.* The seed's linearised model (as ``radartracker.linsim``): m radars on a 100 km ring,
+   n aircraft inside it, every radar seeing every aircraft once per turn (periods 4–12 s), so each
+   aircraft is coupled to all m biases (the worst case for the sparse filter). All aircraft are added
+   and, for ``coupled-sparse``, one full turn is fed first so every aircraft has its m bias blocks;
+   then plots are timed one ``update`` call at a time (the plugin API) and, for the sparse filter,
+   also as ``update_many`` batches of 1,000. ``coupled`` runs where its dense covariance fits in
+   ``--max-dense-gib``. Memory = bytes of the estimator's numpy storage (capacity included).
+2. *Real time.* A region of 28 radars on a jittered 7×4 grid (≈200 km apart, range 250 km, periods
+   4–12 s, Pd 0.9, constant biases) and traffic of ≈2,000 airborne aircraft (straight flights of
+   20–90 min, 200–250 m/s, starting and ending all hour long) for one hour. Plots are generated here in
+   the flat plane with the same linearised model (the rotating-radar simulator of
+   ``radartracker.simulate`` needs ≈20 min for this traffic), sorted by time, and replayed through
+   ``coupled-sparse`` with ``radartracker.replay``'s life cycle: a track starts at its first plot with
+   ``ReplayOptions.prior`` and is marginalised after ``drop_after_s`` without plots (sweeps every second,
+   one ``update_many`` per second of traffic). Reported: plots per wall-clock second and hours of
+   traffic per wall-clock second. Estimates are not read back per plot here (the cost of an
+   ``aircraft()`` read is reported in part 1).
+3. *Conversion.* For scale: the bulk plot-to-plane conversion (``replay.prepare``, pyproj) timed on
+   a 5-minute, 100-aircraft run of the real simulator over the same region.
+
+One JSON line per measurement, then the tables. Run in one process, one core.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+
+import numpy as np
+
+from radartracker.motion import MotionModel
+from radartracker.plugin import EstimatorConfig, make_estimator
+from radartracker.replay import ReplayOptions
+
+P0 = np.diag([1e4**2, 1e4**2, 300.0**2, 300.0**2])
+SIGMA_R, SIGMA_A = 70.0, math.radians(0.08)
+
+
+def plane_plots(t: np.ndarray, ac: np.ndarray, src: np.ndarray, p: np.ndarray, rxy: np.ndarray, bias: np.ndarray,
+                rng: np.random.Generator):
+    """z = p + C_s(ς_j + w), R = C_s W C_sᵀ with C_s = [u, Ω(p − p_R)] (seed eq. 1.11) for radar plots."""
+    d = p - rxy[src]
+    rho = np.linalg.norm(d, axis=1)
+    C = np.stack([np.column_stack([d[:, 0] / rho, d[:, 1]]), np.column_stack([d[:, 1] / rho, -d[:, 0]])], 1)
+    W = np.diag([SIGMA_R**2, SIGMA_A**2])
+    w = rng.normal(size=(len(t), 2)) * [SIGMA_R, SIGMA_A]
+    z = p + np.einsum("nij,nj->ni", C, bias[src] + w)
+    return z, C, C @ W @ C.transpose(0, 2, 1)
+
+
+def sweep_times(p_of_t, rxy: np.ndarray, period: float, phase: float, t_scan: np.ndarray) -> np.ndarray:
+    """Times the antenna (clockwise from north) points at the aircraft, per scan start (2 fixed-point steps)."""
+    t = t_scan.copy()
+    for _ in range(3):
+        d = p_of_t(t) - rxy
+        theta = np.arctan2(d[..., 0], d[..., 1])
+        antenna = phase + 2 * np.pi * t / period
+        t = t + period * (np.mod(theta - antenna + np.pi, 2 * np.pi) - np.pi) / (2 * np.pi)
+    return t
+
+
+# --- 1. scaling ----------------------------------------------------------------------------------
+def ring_plots(n: int, m: int, n_plots: int, seed: int):
+    """Every radar sees every aircraft: the first ``n_plots`` plots in time order."""
+    rng = np.random.default_rng(seed)
+    ang = rng.uniform(0, 2 * np.pi, m)
+    rxy = 100e3 * np.column_stack([np.sin(ang), np.cos(ang)])
+    period, phase = rng.uniform(4.0, 12.0, m), rng.uniform(0, 2 * np.pi, m)
+    bias = rng.normal(size=(m, 2)) * [100.0, math.radians(0.1)]
+    p0, v = rng.uniform(-40e3, 40e3, (n, 2)), rng.uniform(-200, 200, (n, 2))
+    dur = 1.2 * n_plots / (n * np.sum(1 / period)) + 12.0
+    cols = []
+    for j in range(m):
+        k = np.arange(int(dur / period[j]) + 1)
+        tt = sweep_times(lambda t: p0[:, None, :] + v[:, None, :] * t[..., None], rxy[j], period[j], phase[j],
+                         np.broadcast_to(period[j] * k, (n, len(k))))
+        cols.append((tt.ravel(), np.repeat(np.arange(n), len(k)), np.full(tt.size, j)))
+    t, a, src = (np.concatenate(c) for c in zip(*cols))
+    keep = np.argsort(t, kind="stable")
+    keep = keep[t[keep] >= 0][:n_plots]
+    t, a, src = t[keep], a[keep], src[keep]
+    z, C, R = plane_plots(t, a, src, p0[a] + v[a] * t[:, None], rxy, bias, rng)
+    ids = np.array([f"R{j:02d}" for j in range(m)], object)
+    return t, a, ids[src], z, C, R, list(ids), p0
+
+
+def state_bytes(est) -> int:
+    seen, total = set(), 0
+    for obj in (est, getattr(est, "_work", None)):
+        for val in vars(obj).values() if obj is not None else ():
+            if isinstance(val, np.ndarray) and id(val) not in seen:
+                seen.add(id(val))
+                total += val.nbytes
+    return total
+
+
+def time_scaling(name: str, n: int, m: int, budget: float, seed: int = 0) -> dict:
+    sparse = name == "coupled-sparse"
+    turn = int(n * m * 1.05) + 10  # plots in one turn of every radar
+    n_plots = (2 * turn + 40_000) if sparse else 200 + int(2e5 / (n + m))
+    t, a, radar, z, C, R, ids, p0 = ring_plots(n, m, n_plots, seed)
+    est = make_estimator(name, EstimatorConfig(motion=MotionModel(1.0)), ids)
+    for i in range(n):
+        est.add_aircraft(i, 0.0, np.array([*p0[i], 0.0, 0.0]), P0)
+    i0 = 0
+    if sparse:  # one full turn so that every aircraft carries its m bias blocks
+        i0 = min(turn, len(t) // 2)
+        est.update_many(t[:i0], a[:i0], radar[:i0], z[:i0], C[:i0], R[:i0])
+    out = {"bench": "scaling", "estimator": name, "aircraft": n, "radars": m}
+    done, t0 = 0, time.perf_counter()
+    from radartracker.plugin import PlaneMeasurement
+    rest = len(t) - i0
+    limit = rest // 2 if sparse else rest
+    while done < limit and (done < 10 or time.perf_counter() - t0 < budget):
+        i = i0 + done
+        est.update(PlaneMeasurement(t[i], a[i], radar[i], z[i], C[i], R[i]))
+        done += 1
+    sec = time.perf_counter() - t0
+    out.update(plots=done, us_per_plot=1e6 * sec / done)
+    i0 += done
+    if sparse:
+        done, t0 = 0, time.perf_counter()
+        while i0 + done < len(t) and (done < 1000 or time.perf_counter() - t0 < budget):
+            j = min(i0 + done + 1000, len(t))
+            est.update_many(t[i0 + done:j], a[i0 + done:j], radar[i0 + done:j], z[i0 + done:j], C[i0 + done:j],
+                            R[i0 + done:j])
+            done = j - i0
+        out.update(plots_batch=done, us_per_plot_batch=1e6 * (time.perf_counter() - t0) / done)
+        reps, t0 = 2000, time.perf_counter()
+        for r in range(reps):
+            est.aircraft(r % n)
+        out["us_per_aircraft_read"] = 1e6 * (time.perf_counter() - t0) / reps
+    out["state_mib"] = state_bytes(est) / 2**20
+    return out
+
+
+# --- 2. real time --------------------------------------------------------------------------------
+def region(n_radars: int, seed: int):
+    rng = np.random.default_rng([seed, 1])
+    cols = 7
+    rows = math.ceil(n_radars / cols)
+    j = np.arange(n_radars)
+    rxy = np.column_stack([(j % cols - (cols - 1) / 2) * 200e3, (j // cols - (rows - 1) / 2) * 220e3])
+    rxy += rng.uniform(-30e3, 30e3, rxy.shape)
+    period = rng.uniform(4.0, 12.0, n_radars)
+    phase = rng.uniform(0, 2 * np.pi, n_radars)
+    bias = rng.normal(size=(n_radars, 2)) * [100.0, math.radians(0.1)]
+    half = np.abs(rxy).max(axis=0) + 150e3
+    return rxy, period, phase, bias, half
+
+
+def traffic(n_airborne: int, duration: float, half: np.ndarray, seed: int):
+    """Straight flights of 20–90 min starting uniformly in [−90 min, duration]: ≈n_airborne in the air."""
+    rng = np.random.default_rng([seed, 2])
+    mean_life = (1200 + 5400) / 2
+    n = int(round(n_airborne * (duration + 5400) / mean_life))
+    life = rng.uniform(1200, 5400, n)
+    start = rng.uniform(-5400, duration, n)
+    keep = start + life > 0
+    life, start = life[keep], start[keep]
+    n = len(life)
+    head, speed = rng.uniform(0, 2 * np.pi, n), rng.uniform(200, 250, n)
+    v = speed[:, None] * np.column_stack([np.sin(head), np.cos(head)])
+    mid = rng.uniform(-1, 1, (n, 2)) * half  # position at mid-flight, anywhere over the region
+    return start, start + life, mid - v * (start + life / 2)[:, None], v
+
+
+def region_plots(n_airborne: int, n_radars: int, duration: float, seed: int = 0, pd: float = 0.9,
+                 max_range: float = 250e3):
+    rxy, period, phase, bias, half = region(n_radars, seed)
+    t0, t1, p0, v = traffic(n_airborne, duration, half, seed)
+    rng = np.random.default_rng([seed, 3])
+    cols = []
+    for j in range(n_radars):
+        k = np.arange(int(duration / period[j]) + 2)
+        scan = period[j] * k - period[j]
+        # aircraft that come within range of radar j while flying
+        a_ = np.clip(((rxy[j] - p0) * v).sum(1) / (v * v).sum(1), np.maximum(t0, 0), np.minimum(t1, duration))
+        near = np.flatnonzero(np.linalg.norm(p0 + v * a_[:, None] - rxy[j], axis=1) <= max_range)
+        for chunk in np.array_split(near, max(1, len(near) // 400)):
+            tt = sweep_times(lambda t: p0[chunk, None, :] + v[chunk, None, :] * t[..., None], rxy[j], period[j],
+                             phase[j], np.broadcast_to(scan, (len(chunk), len(scan))))
+            aa = np.broadcast_to(chunk[:, None], tt.shape)
+            ok = (tt >= np.maximum(t0[chunk], 0)[:, None]) & (tt <= np.minimum(t1[chunk], duration)[:, None])
+            tt, aa = tt[ok], aa[ok]
+            inr = np.linalg.norm(p0[aa] + v[aa] * tt[:, None] - rxy[j], axis=1) <= max_range
+            det = inr & (rng.random(len(tt)) < pd)
+            cols.append((tt[det], aa[det], np.full(det.sum(), j)))
+    t, a, src = (np.concatenate(c) for c in zip(*cols))
+    order = np.argsort(t, kind="stable")
+    t, a, src = t[order], a[order], src[order]
+    z, C, R = plane_plots(t, a, src, p0[a] + v[a] * t[:, None], rxy, bias, rng)
+    ids = np.array([f"R{j:02d}" for j in range(n_radars)], object)
+    airborne = np.mean([np.sum((t0 <= s) & (t1 >= s)) for s in np.linspace(0, duration, 13)])
+    return t, a, ids[src], z, C, R, list(ids), period, float(airborne)
+
+
+def time_realtime(n_airborne: int, n_radars: int, duration: float, seed: int = 0) -> dict:
+    g0 = time.perf_counter()
+    t, a, radar, z, C, R, ids, period, airborne = region_plots(n_airborne, n_radars, duration, seed)
+    gen_s = time.perf_counter() - g0
+    options = ReplayOptions(config=EstimatorConfig(motion=MotionModel(1.0)), drop_after_s=3 * period.max() + 30)
+    est = make_estimator("coupled-sparse", options.config, ids)
+    last_seen: dict = {}
+    started = created = removed = 0
+    t_start = time.perf_counter()
+    i, N = 0, len(t)
+    while i < N:
+        now = t[i]
+        for k in [k for k, ts in last_seen.items() if now - ts > options.drop_after_s]:
+            est.remove_aircraft(k)
+            del last_seen[k]
+            removed += 1
+        end = int(np.searchsorted(t, now + 1.0, "left"))
+        keys = a[i:end]
+        uniq, first = np.unique(keys, return_index=True)
+        for k, f in zip(uniq.tolist(), first.tolist()):
+            if k not in last_seen:
+                est.add_aircraft(k, t[i + f], *options.prior(z[i + f]))
+                created += 1
+        est.update_many(t[i:end], keys, radar[i:end], z[i:end], C[i:end], R[i:end])
+        _, last = np.unique(keys[::-1], return_index=True)
+        for k, li in zip(uniq.tolist(), (len(keys) - 1 - last).tolist()):
+            last_seen[k] = t[i + li]
+        i = end
+        started += 1
+    sec = time.perf_counter() - t_start
+    return {"bench": "realtime", "estimator": "coupled-sparse", "radars": n_radars, "aircraft_airborne": airborne,
+            "tracks_created": created, "tracks_removed": removed, "duration_s": duration, "plots": N,
+            "plots_per_traffic_s": N / duration, "wall_s": sec, "plots_per_wall_s": N / sec,
+            "traffic_hours_per_wall_s": duration / 3600 / sec, "real_time_factor": duration / sec,
+            "plot_generation_s": gen_s}
+
+
+# --- 3. conversion -------------------------------------------------------------------------------
+def time_conversion(n_radars: int, seed: int = 0) -> dict:
+    from radartracker.domain import Aircraft, Radar
+    from radartracker.geometry import SystemPlane
+    from radartracker.replay import prepare
+    from radartracker.simulate import KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator
+
+    ref = (47.0, 2.5)
+    plane = SystemPlane(*ref)
+    rxy, period, phase, bias, half = region(n_radars, seed)
+    radars = []
+    for j in range(n_radars):
+        lat, lon = plane.to_geodetic(*rxy[j])
+        radars.append(SimRadar(Radar(f"R{j:02d}", float(lat), float(lon), 100.0, SIGMA_R, SIGMA_A, float(period[j]),
+                                     250e3), float(bias[j, 0]), float(bias[j, 1]), pd=0.9, phase_rad=float(phase[j])))
+    rng = np.random.default_rng([seed, 4])
+    aircraft = [SimAircraft(Aircraft(f"{0x400000 + i:06x}", f"B{i:03d}", "1234", adsb=False, nacp=8),
+                            KinematicTrajectory(0.0, *(rng.uniform(-1, 1, 2) * half), 10_000.0,
+                                                rng.uniform(0, 2 * np.pi), 230.0, [Leg(300.0)]))
+                for i in range(100)]
+    data = Simulator(ref, radars, aircraft, 0.0, 300.0, seed=seed).run()
+    t0 = time.perf_counter()
+    _, meas, _ = prepare(data, ReplayOptions.for_scenario(data))
+    sec = time.perf_counter() - t0
+    return {"bench": "convert", "radars": n_radars, "plots": len(meas), "us_per_plot": 1e6 * sec / len(meas)}
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--aircraft", type=int, nargs="+", default=[10, 20, 100, 500, 2000])
+    ap.add_argument("--radars", type=int, nargs="+", default=[3, 10, 28])
+    ap.add_argument("--budget", type=float, default=1.5, help="seconds of timing per measurement")
+    ap.add_argument("--max-dense-gib", type=float, default=0.6)
+    ap.add_argument("--rt-aircraft", type=int, default=2000)
+    ap.add_argument("--rt-radars", type=int, default=28)
+    ap.add_argument("--rt-duration", type=float, default=3600.0)
+    ap.add_argument("--out", help="also append the JSON lines to this file")
+    args = ap.parse_args(argv)
+    rows = []
+
+    def emit(row: dict) -> None:
+        rows.append(row)
+        line = json.dumps(row)
+        print(line, flush=True)
+        if args.out:
+            with open(args.out, "a") as f:
+                f.write(line + "\n")
+
+    for m in args.radars:
+        for n in args.aircraft:
+            emit(time_scaling("coupled-sparse", n, m, args.budget))
+            if 8 * (4 * n + 2 * m) ** 2 / 2**30 <= args.max_dense_gib:
+                emit(time_scaling("coupled", n, m, args.budget))
+    if args.rt_duration > 0:
+        emit(time_realtime(args.rt_aircraft, args.rt_radars, args.rt_duration))
+        emit(time_conversion(args.rt_radars))
+    print_tables(rows)
+
+
+def print_tables(rows: list[dict]) -> None:
+    sc = [r for r in rows if r["bench"] == "scaling"]
+    print("\nTime per plot (µs) and estimator storage (MiB); every radar sees every aircraft")
+    print(f"{'m':>3} {'n':>5} | {'coupled':>10} {'MiB':>8} | {'sparse update':>13} {'batch':>7} {'MiB':>6} "
+          f"{'read':>6} | {'batch / batch(n=20)':>19}")
+    for m in sorted({r['radars'] for r in sc}):
+        ref = next((r["us_per_plot_batch"] for r in sc if r["radars"] == m and r["aircraft"] == 20
+                    and r["estimator"] == "coupled-sparse"), math.nan)
+        for n in sorted({r['aircraft'] for r in sc if r["radars"] == m}):
+            d = next((r for r in sc if r["radars"] == m and r["aircraft"] == n and r["estimator"] == "coupled"), None)
+            s = next(r for r in sc if r["radars"] == m and r["aircraft"] == n and r["estimator"] == "coupled-sparse")
+            dense = f"{d['us_per_plot']:10.1f} {d['state_mib']:8.1f}" if d else f"{'—':>10} {'—':>8}"
+            print(f"{m:>3} {n:>5} | {dense} | {s['us_per_plot']:13.1f} {s['us_per_plot_batch']:7.2f} "
+                  f"{s['state_mib']:6.2f} {s['us_per_aircraft_read']:6.1f} | {s['us_per_plot_batch'] / ref:19.2f}")
+    for r in rows:
+        if r["bench"] == "realtime":
+            print(f"\nReal time: {r['radars']} radars, {r['aircraft_airborne']:.0f} aircraft airborne on average "
+                  f"({r['tracks_created']} tracks), {r['duration_s'] / 3600:.2f} h of traffic, {r['plots']} plots "
+                  f"({r['plots_per_traffic_s']:.0f}/s of traffic)\n  coupled-sparse: {r['wall_s']:.1f} s wall, "
+                  f"{r['plots_per_wall_s']:.0f} plots/s, {r['traffic_hours_per_wall_s']:.3f} h of traffic per "
+                  f"wall-clock second = {r['real_time_factor']:.0f}× real time")
+        if r["bench"] == "convert":
+            print(f"  bulk plot conversion (replay.prepare, pyproj): {r['us_per_plot']:.2f} µs/plot "
+                  f"({r['plots']} simulated plots)")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
