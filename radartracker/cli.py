@@ -9,6 +9,7 @@ commands are registered in ``pyproject.toml`` exactly like a plugin's.
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import sys
 from importlib.metadata import entry_points
@@ -100,22 +101,36 @@ def register_replay(sub: argparse._SubParsersAction) -> None:
     p.add_argument("scenario", type=Path, help="scenario folder (see docs/formats.md)")
     p.add_argument("--estimator", default="decoupled", help="estimator plugin name")
     p.add_argument("--out", type=Path, required=True, help="output folder")
-    p.add_argument("--q", type=float, default=None, help="process noise density q (m²/s³)")
+    p.add_argument("--q", type=float, default=None, help="process noise density q (m²/s³; default 5, 0 is the seed's noiseless model)")
     p.add_argument("--skip-bad", action="store_true",
                    help="skip (and count) malformed input rows instead of stopping")
     p.add_argument("--plots", action="store_true", help="write figures (bias estimates over time)")
+    p.add_argument("--manager", action="store_true",
+                   help="associate with the TrackManager even when plots carry truth labels")
+    p.add_argument("--motion-model", default="cv", help="TrackManager motion model plugin (cv, imm, adaptive, ...)")
     p.set_defaults(func=_cmd_replay)
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
     from radartracker.formats import read_scenario
-    from radartracker.replay import ReplayOptions, replay, write_outputs
 
     data = read_scenario(args.scenario, skip_bad=args.skip_bad)
-    options = ReplayOptions.for_scenario(data, q=args.q)
-    result = replay(data, args.estimator, options)
-    write_outputs(result, args.out, figures=args.plots)
-    print(result.summary_table())
+    if args.manager or not data.plots.has_truth_labels:
+        from radartracker.manager import ManagerConfig
+        from radartracker.track_replay import track_replay, write_track_outputs
+
+        config = ManagerConfig(estimator=args.estimator, motion_model=args.motion_model)
+        tresult = track_replay(data, config)
+        write_track_outputs(tresult, args.out, figures=args.plots)
+        summary = tresult.summary()
+        print(json.dumps({k: summary[k] for k in ("counts", "biases")} | {"tracking": summary.get("tracking")},
+                         indent=1, default=str))
+    else:
+        from radartracker.replay import ReplayOptions, replay, write_outputs
+
+        result = replay(data, args.estimator, ReplayOptions.for_scenario(data, q=args.q))
+        write_outputs(result, args.out, figures=args.plots)
+        print(result.summary_table())
     print(f"outputs in {args.out}")
     return 0
 

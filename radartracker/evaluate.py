@@ -88,8 +88,11 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
                   grid: np.ndarray, c: float = 2000.0) -> dict:
     """Track-to-truth assignment on a time grid and the metrics derived from it.
 
-    At each grid time the alive tracks are assigned to the observed truths by minimum total
-    distance (Hungarian), pairs farther than ``c`` left unassigned. Per target, the *right* track
+    At each grid time the alive tracks are assigned to the observed truths as in CLEAR MOT
+    (Bernardin & Stiefelhagen 2008): a track keeps the target it had at the previous time while it
+    stays within ``c``; the others are assigned by minimum total distance (Hungarian), pairs
+    farther than ``c`` left unassigned. (Without the first rule, two tracks passing through the
+    same point at a crossing would "swap" for one instant by an accident of the tie.) Per target, the *right* track
     is the one assigned to it most often; continuity is the fraction of its observed time it holds.
     A *swap* is a track assigned to two different targets; a *break* a change of a target's
     assigned track; a *false track* is assigned to a target less than half of its life.
@@ -115,10 +118,14 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
         P = np.array([truth[tg][0][k, :2] for tg in live_t]).reshape(-1, 2)
         Q = np.array([tpos[tid][0][k] for tid in live_k]).reshape(-1, 2)
         D2 = np.sum((P[:, None, :] - Q[None, :, :]) ** 2, axis=-1)
-        pairs = []
-        if D2.size:
-            rows, cols = linear_sum_assignment(np.minimum(D2, c * c))
-            pairs = [(r, q) for r, q in zip(rows, cols) if D2[r, q] < c * c]
+        pairs = [(r, q) for r, tg in enumerate(live_t) for q, tid in enumerate(live_k)
+                 if k and assigned[tg][k - 1] == tid and D2[r, q] < c * c]
+        free_r = [r for r in range(len(live_t)) if all(r != a for a, _ in pairs)]
+        free_q = [q for q in range(len(live_k)) if all(q != b for _, b in pairs)]
+        if free_r and free_q:
+            sub = D2[np.ix_(free_r, free_q)]
+            rows, cols = linear_sum_assignment(np.minimum(sub, c * c))
+            pairs += [(free_r[r], free_q[q]) for r, q in zip(rows, cols) if sub[r, q] < c * c]
         d2 = np.array([D2[r, q] for r, q in pairs])
         g[k] = gospa(d2, len(live_t) - len(pairs), len(live_k) - len(pairs), c)
         sq.extend(d2)

@@ -24,7 +24,13 @@ def symmetrize(P: np.ndarray) -> np.ndarray:
 
 
 def gain(K: np.ndarray, S: np.ndarray) -> np.ndarray:
-    """G = K Λ⁻¹ via a Cholesky factorisation of Λ (``S``)."""
+    """G = K Λ⁻¹ via a Cholesky factorisation of Λ (``S``); closed form for the usual 2×2."""
+    if S.shape == (2, 2):  # LAPACK's call overhead dominates at this size
+        a, b, d = S[0, 0], 0.5 * (S[0, 1] + S[1, 0]), S[1, 1]
+        det = a * d - b * b
+        if not (a > 0 and det > 0 and np.isfinite(det)):
+            raise SingularInnovation(f"innovation covariance not positive definite: {S.tolist()}")
+        return K @ (np.array([[d, -b], [-b, a]]) / det)
     try:
         c = cho_factor(S, lower=True, check_finite=True)
     except (LinAlgError, ValueError) as exc:

@@ -1,6 +1,8 @@
 """TrackManager: plot streams in, tracks, bias estimates and events out (DESIGN §2, §6).
 
-Pipeline for every input (a :class:`Plot` or an :class:`AdsbReport`):
+Pipeline for every input — a :class:`Plot`, an :class:`AdsbReport`, or a
+:class:`PlaneMeasurement` with ``radar=None`` (an unbiased position with its covariance, such as a
+triangulated fix; associated by its ``aircraft`` key if that is a Mode S address, else by gating):
 
 1. **Admission** — unknown radars, non-domain objects, time jumps beyond ``max_time_jump_s``,
    duplicates and plots older than the reordering horizon are rejected and counted by reason.
@@ -98,9 +100,15 @@ class ManagedTrack:
     mode_3a: str | None = None
     altitude_m: float | None = None
     history: deque = attrs.field(factory=deque)
-    pending: list[PlaneMeasurement] = attrs.field(factory=list)
+    pending: list[tuple[PlaneMeasurement, str]] = attrs.field(factory=list)  # (measurement, kind)
     n_plots: int = 0
     n_adsb: int = 0
+
+
+def _finite_position(m: PlaneMeasurement) -> bool:
+    z, R = np.asarray(m.z, float), np.asarray(m.R, float)
+    return (math.isfinite(m.time) and z.shape == (2,) and R.shape == (2, 2) and bool(np.isfinite(z).all())
+            and bool(np.isfinite(R).all()) and bool(np.allclose(R, R.T)) and bool(np.all(np.linalg.eigvalsh(R) > 0)))
 
 
 class TrackManager:
@@ -177,8 +185,8 @@ class TrackManager:
         out = Counter(self.counts)
         for tr in self.tracks.values():
             if tr.status == "tentative":
-                out["plots_in_tentative_tracks"] += sum(m.radar is not None for m in tr.pending)
-                out["adsb_in_tentative_tracks"] += sum(m.radar is None for m in tr.pending)
+                for _, kind in tr.pending:
+                    out[f"{kind}_in_tentative_tracks"] += 1
         out["waiting_in_reorder_window"] = len(self._heap) + len(self._frame_items)
         return {k: v for k, v in out.items() if v}
 
@@ -193,9 +201,11 @@ class TrackManager:
             key = ("p", item.radar, item.time, item.range_m, item.azimuth_rad)
         elif isinstance(item, AdsbReport):
             key = ("a", item.icao24, item.time, item.lat, item.lon)
+        elif isinstance(item, PlaneMeasurement) and item.radar is None and _finite_position(item):
+            key = ("m", item.aircraft, item.time, float(item.z[0]), float(item.z[1]))
         else:
             return self._reject("invalid_input", item)
-        kind = "plots" if key[0] == "p" else "adsb"
+        kind = {"p": "plots", "a": "adsb", "m": "positions"}[key[0]]
         if self._newest is not None and item.time > self._newest + self.config.max_time_jump_s:
             return self._reject(f"{kind}_time_jump", item)
         if item.time <= self._horizon:
@@ -244,6 +254,8 @@ class TrackManager:
                 assigned[rid] = self._associate(rid, plots, live, pred, updates)
         for rep in (i for i in items if isinstance(i, AdsbReport)):
             updates.append(self._adsb_measurement(rep))
+        for m in (i for i in items if isinstance(i, PlaneMeasurement)):
+            updates.append(self._position_measurement(m, live, pred))
         self._misses(live, pred, assigned, t_a, t_b)
         for upd in sorted(updates, key=lambda u: (u[0], u[1])):
             self._apply(*upd[2:])
@@ -330,8 +342,22 @@ class TrackManager:
         tr = next((t for t in self.tracks.values() if t.mode_s == rep.icao24), None)
         return (rep.time, next(self._seq), tr, (np.array([float(x), float(y)]), np.zeros((2, 2)), np.eye(2) * sd * sd), rep)
 
+    def _position_measurement(self, m: PlaneMeasurement, live: list[ManagedTrack], pred: dict) -> tuple:
+        """An unbiased position (e.g. a triangulated fix): its track by identity, else by gating."""
+        tr = next((t for t in live if m.aircraft is not None and t.mode_s == m.aircraft), None)
+        if tr is None and live and m.aircraft is None:
+            pairs = candidate_pairs(m.z[None, :], pred["pos"], self.config.search_radius_m)
+            if len(pairs):
+                pos, vel, cov = self._exact(live, pred, pairs[:, 1])
+                n = len(pairs)
+                d2, cost = gate_costs(np.repeat(m.z[None], n, 0), np.zeros((n, 2, 2)), np.repeat(m.R[None], n, 0),
+                                      np.zeros(2), np.zeros((2, 2)), pos + vel * (m.time - pred["t"]), cov)
+                best = dict(assign(pairs, d2, cost, self.config.gate))
+                tr = live[best[0]] if 0 in best else None
+        return (m.time, next(self._seq), tr, (np.asarray(m.z, float), np.zeros((2, 2)), np.asarray(m.R, float)), m)
+
     # --- applying updates -------------------------------------------------------------------------
-    def _apply(self, tr: ManagedTrack | None, meas: tuple, src: Plot | AdsbReport) -> None:
+    def _apply(self, tr: ManagedTrack | None, meas: tuple, src: Plot | AdsbReport | PlaneMeasurement) -> None:
         z, C, R = meas
         radar = src.radar if isinstance(src, Plot) else None
         if radar is not None:
@@ -339,7 +365,10 @@ class TrackManager:
             zc, Rc = z - C @ b.bias, R + C @ b.cov @ C.T
         else:
             zc, Rc = z, R
-        code = src.mode_s if isinstance(src, Plot) else src.icao24
+        if isinstance(src, PlaneMeasurement):
+            code = src.aircraft if isinstance(src.aircraft, str) else None
+        else:
+            code = src.mode_s if isinstance(src, Plot) else src.icao24
         if tr is None:  # an ADS-B report may find the track a plot of this frame just started
             tr = next((t for t in self.tracks.values() if code is not None and t.mode_s == code), None)
         if tr is None:
@@ -353,40 +382,40 @@ class TrackManager:
             try:
                 tr.filter.update(src.time, zc, Rc)
             except SingularInnovation:
-                self.counts["plots_singular" if radar else "adsb_singular"] += 1
+                self.counts["plots_singular" if radar else "unbiased_singular"] += 1
                 return
         tr.last_update = src.time
         if isinstance(src, Plot):
             tr.n_plots += 1
             tr.mode_3a = src.mode_3a or tr.mode_3a
             tr.altitude_m = src.altitude_m if src.altitude_m is not None else tr.altitude_m
-        else:
+        elif isinstance(src, AdsbReport):
             tr.n_adsb += 1
             tr.altitude_m = src.altitude_m if src.altitude_m is not None else tr.altitude_m
         tr.history.append(True)
         m = PlaneMeasurement(src.time, tr.id, radar, z, C, R)
+        kind = "plots" if radar is not None else ("adsb" if isinstance(src, AdsbReport) else "positions")
         if tr.status == "tentative":
-            tr.pending.append(m)
+            tr.pending.append((m, kind))
             if sum(tr.history) >= self.config.confirm_m:
                 self._confirm(tr)
         else:
-            self._estimate(m)
+            self._estimate(m, kind)
             tr.status = "confirmed"
             self._emit(src.time, tr, "updated")
 
     def _confirm(self, tr: ManagedTrack) -> None:
-        first = tr.pending[0]
+        first = tr.pending[0][0]
         prior = np.diag([1e8, 1e8, self.config.motion.prior_sd_velocity_mps**2, self.config.motion.prior_sd_velocity_mps**2])
         self.estimator.add_aircraft(tr.id, first.time, np.array([*first.z, 0.0, 0.0]), prior)
         self.coupling.add_aircraft(tr.id)
-        for m in tr.pending:
-            self._estimate(m)
+        for m, kind in tr.pending:
+            self._estimate(m, kind)
         tr.pending = []
         tr.status = "confirmed"
         self._emit(tr.last_update, tr, "confirmed")
 
-    def _estimate(self, m: PlaneMeasurement) -> None:
-        kind = "plots" if m.radar is not None else "adsb"
+    def _estimate(self, m: PlaneMeasurement, kind: str) -> None:
         try:
             self.estimator.update(m)
         except SingularInnovation as exc:
@@ -436,8 +465,8 @@ class TrackManager:
     def _delete(self, tr: ManagedTrack, now: float) -> None:
         del self.tracks[tr.id]
         if tr.status == "tentative":
-            self.counts["plots_in_dropped_tentative_tracks"] += sum(m.radar is not None for m in tr.pending)
-            self.counts["adsb_in_dropped_tentative_tracks"] += sum(m.radar is None for m in tr.pending)
+            for _, kind in tr.pending:
+                self.counts[f"{kind}_in_dropped_tentative_tracks"] += 1
         else:
             self.estimator.remove_aircraft(tr.id)
             self.coupling.remove_aircraft(tr.id)

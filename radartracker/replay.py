@@ -31,6 +31,7 @@ from radartracker.motion import MotionModel
 from radartracker.plugin import Estimator, EstimatorConfig, PlaneMeasurement, make_estimator
 
 log = logging.getLogger(__name__)
+DEFAULT_Q = 5.0  # m²/s³, white-acceleration density for real traffic
 
 
 @attrs.frozen
@@ -46,9 +47,10 @@ class ReplayOptions:
 
     @classmethod
     def for_scenario(cls, data: ScenarioData, q: float | None = None) -> ReplayOptions:
-        """Defaults for ``data``: process noise 0 (the seed's CV model) unless ``q`` is given."""
+        """Defaults for ``data``; process noise ``q`` = 5 m²/s³ unless given (real aircraft turn:
+        with the seed's q = 0 a manoeuvre is explained away as radar bias)."""
         drop = 3.0 * max(r.period_s for r in data.radars) + 30.0
-        config = EstimatorConfig(motion=MotionModel(q or 0.0))
+        config = EstimatorConfig(motion=MotionModel(DEFAULT_Q if q is None else q))
         return cls(config=config, drop_after_s=drop)
 
     def prior(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
