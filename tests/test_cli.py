@@ -47,3 +47,15 @@ def test_estimators_and_demo(capsys):
     assert main(["demo", "--estimator", "decoupled"]) == 0
     out = capsys.readouterr().out
     assert "R1" in out and "position RMSE" in out
+
+
+def test_replay_without_truth_labels_uses_the_track_manager(tmp_path):
+    scen, out = tmp_path / "scen", tmp_path / "out"
+    assert main(["simulate", str(scen), "--scenario", "tracking", "--duration", "240"]) == 0
+    assert main(["replay", str(scen), "--estimator", "coupled", "--out", str(out), "--plots"]) == 0
+    with (out / "events.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert {r["event"] for r in rows} >= {"created", "confirmed", "updated"}
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["association"] == "track manager" and summary["tracking"]["false_tracks"] == 0
+    assert (out / "tracks.png").stat().st_size > 10_000 and (out / "coupling.graphml").exists()
