@@ -220,21 +220,26 @@ def _group(group: str) -> dict[str, Any]:
     return {ep.name: ep for ep in entry_points(group=group)}
 
 
+def _load(group: str, name: str, what: str, base: type | None = None) -> Any:
+    """Load entry point ``name`` of ``group``; a clear error lists what is installed."""
+    eps = _group(group)
+    if name not in eps:
+        known = ", ".join(sorted(eps)) or "none"
+        raise ValueError(f"unknown {what} {name!r}; installed: {known}")
+    obj = eps[name].load()
+    if base is not None and not (isinstance(obj, type) and issubclass(obj, base)):
+        raise TypeError(f"entry point {name!r} does not name a {base.__name__} subclass: {obj!r}")
+    return obj
+
+
 def available_estimators() -> list[str]:
     """Names of the installed estimator plugins."""
     return sorted(_group(ESTIMATOR_GROUP))
 
 
 def load_estimator(name: str) -> type[Estimator]:
-    """The estimator class registered under ``name``; a clear error lists what is installed."""
-    eps = _group(ESTIMATOR_GROUP)
-    if name not in eps:
-        known = ", ".join(sorted(eps)) or "none"
-        raise ValueError(f"unknown estimator {name!r}; installed: {known}")
-    cls = eps[name].load()
-    if not (isinstance(cls, type) and issubclass(cls, Estimator)):
-        raise TypeError(f"entry point {name!r} does not name an Estimator subclass: {cls!r}")
-    return cls
+    """The estimator class registered under ``name``."""
+    return _load(ESTIMATOR_GROUP, name, "estimator", Estimator)
 
 
 def available_reconstructors() -> list[str]:
@@ -244,11 +249,7 @@ def available_reconstructors() -> list[str]:
 
 def load_reconstructor(name: str) -> Any:
     """The reconstructor registered under ``name``."""
-    eps = _group(RECONSTRUCTOR_GROUP)
-    if name not in eps:
-        known = ", ".join(sorted(eps)) or "none"
-        raise ValueError(f"unknown reconstructor {name!r}; installed: {known}")
-    return eps[name].load()
+    return _load(RECONSTRUCTOR_GROUP, name, "reconstructor")
 
 
 def available_motion_models() -> list[str]:
@@ -258,14 +259,7 @@ def available_motion_models() -> list[str]:
 
 def load_motion_model(name: str) -> type[TrackFilter]:
     """The track-filter class registered under ``name``."""
-    eps = _group(MOTION_GROUP)
-    if name not in eps:
-        known = ", ".join(sorted(eps)) or "none"
-        raise ValueError(f"unknown motion model {name!r}; installed: {known}")
-    cls = eps[name].load()
-    if not (isinstance(cls, type) and issubclass(cls, TrackFilter)):
-        raise TypeError(f"entry point {name!r} does not name a TrackFilter subclass: {cls!r}")
-    return cls
+    return _load(MOTION_GROUP, name, "motion model", TrackFilter)
 
 
 def make_estimator(name: str, config: EstimatorConfig | None, radars: Iterable[str]) -> Estimator:
