@@ -69,7 +69,7 @@ def test_recovers_known_controls_and_switch_times(rec):
     np.testing.assert_allclose(ct.u, [leg.u for leg in LEGS], atol=0.2)
     np.testing.assert_allclose(ct.w, [leg.w for leg in LEGS], atol=0.05)
     # ranked alternatives are kept with their weights and scores
-    assert len(rec.hypotheses) == 5 and all(a.score <= b.score for a, b in zip(rec.hypotheses, rec.hypotheses[1:]))
+    assert len(rec.hypotheses) >= 3 and all(a.score <= b.score for a, b in zip(rec.hypotheses, rec.hypotheses[1:]))
 
 
 def test_beats_truth_weight_and_the_smoother(flight, rec):
@@ -112,3 +112,36 @@ def test_robust_loss_resists_outliers(flight):
         r = MultiHypothesisReconstructor(ReconstructionConfig(loss=loss, hypotheses=1)).reconstruct(dirty)
         err[loss] = np.sqrt(np.mean(np.sum((sample(r.control, pt.t)[:, :2] - truth) ** 2, axis=1)))
     assert err["huber"] < 0.5 * err["gauss"]
+
+
+def test_chain_rule_jacobian_matches_finite_differences(flight):
+    from scipy.optimize._numdiff import approx_derivative
+
+    pt, _ = flight
+    t = pt.t - pt.t[0]
+    cfg = ReconstructionConfig()
+    ct = ControlTrack(GeoPoint(0.0, *pt.z[0], 1.1, 165.0),
+                      [ControlSegment(0.3, 0.1, 0, 140), ControlSegment(2.5, -0.2, 140, 230),
+                       ControlSegment(-1.0, 0.5, 230, 400), ControlSegment(0.0, -0.1, 400, t[-1])])
+    obj = ControlObjective(TrackWeight(pt), t, 0.0, t[-1], len(ct), cfg)
+    theta = obj.pack((ct.initial.x, ct.initial.y, ct.initial.phi, ct.initial.v), ct.u, ct.w,
+                     np.array([s.t_start for s in ct] + [t[-1]]))
+    num = approx_derivative(obj.residuals, theta, method="3-point")
+    np.testing.assert_allclose(obj.jacobian(theta), num, rtol=1e-5, atol=1e-6 * np.abs(num).max())
+
+
+def test_split_keeps_the_track_and_halves_the_worst_segment(flight):
+    from radartracker_plugins.reconstruction.hypotheses import split
+
+    pt, _ = flight
+    t = pt.t - pt.t[0]
+    ct = ControlTrack(GeoPoint(0.0, *pt.z[0], 1.2, 170.0), [ControlSegment(0.0, 0.0, 0, 300), ControlSegment(0.0, 0.0, 300, t[-1])])
+    child = split(ct, 3, TrackWeight(pt), t, 10.0)
+    assert len(child) == 3
+    np.testing.assert_allclose(sample(child, t), sample(ct, t), atol=1e-6)
+    # the segment with the larger Mahalanobis excess Σd² − 2n (computed here from scratch) is halved
+    w = TrackWeight(pt)
+    d2 = w.distances2(sample(ct, t)[:, :2])
+    excess = [d2[t < 300].sum() - 2 * (t < 300).sum(), d2[t >= 300].sum() - 2 * (t >= 300).sum()]
+    expected = [150.0, 300.0] if excess[0] > excess[1] else [300.0, 300.0 + (t[-1] - 300.0) / 2]
+    np.testing.assert_allclose(child.switch_times, expected)

@@ -25,8 +25,8 @@ class ReconstructionConfig:
     (the model is singular at v = 0); ``penalty`` scales the constraint-violation penalty (per step
     unit); ``refine`` adds a joint least-squares refinement after the Hooke–Jeeves pass (at most
     ``refine_iterations`` Jacobians; see :func:`.fit.refine`); ``loss``/``loss_c`` choose the weight (see :mod:`.weight`);
-    ``grid_dt`` is the geometric-track spacing (s); ``hypotheses`` how many segment counts around
-    the detected one are optimised; ``max_segments`` caps the segment count; ``complexity`` the
+    ``grid_dt`` is the geometric-track spacing (s); ``hypotheses`` the most segment counts
+    optimised (see :mod:`.hypotheses`); ``max_segments`` caps the segment count; ``complexity`` the
     per-parameter penalty factor on ln n (1 = BIC).
     """
 
@@ -49,10 +49,10 @@ class ReconstructionConfig:
     v_min: float = attrs.field(default=10.0, validator=_pos)
     penalty: float = attrs.field(default=1e4, validator=_pos)
     refine: bool = True
-    refine_iterations: int = attrs.field(default=50, validator=_pos)
+    refine_iterations: int = attrs.field(default=200, validator=_pos)
     loss: str = attrs.field(default="gauss", validator=attrs.validators.in_(LOSSES))
     loss_c: float = attrs.field(default=3.0, validator=_pos)
     grid_dt: float = attrs.field(default=1.0, validator=_pos)
-    hypotheses: int = attrs.field(default=5, validator=_pos)
+    hypotheses: int = attrs.field(default=8, validator=_pos)
     max_segments: int = attrs.field(default=80, validator=_pos)
     complexity: float = attrs.field(default=1.0, validator=attrs.validators.ge(0.0))

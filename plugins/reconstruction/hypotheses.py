@@ -6,7 +6,10 @@
 2. **Segmentations.** For every segment count K the least-squares piecewise-constant fit of
    (u, w) with segments ≥ dt_min is found exactly by dynamic programming (Bellman 1961; Jackson
    et al. 2005). The count K₀ minimising the signal's own BIC, N·ln(SSE_K/N) + 3K·ln N, is the
-   centre; ``hypotheses`` counts around it are kept. Each gives switch times and starting (u, w).
+   first guess. The segmentations with K₀, K₀/1.5, 1.5·K₀ and 2.25·K₀ pieces give four starts (switch
+   times, and (u, w) as the pieces' means). Then the best hypothesis so far (by score, step 4) is
+   refined: its worst-fitting segments are halved to 1.5× as many (the same track, so the weight
+   can only drop) and refitted, while the score improves — at most ``hypotheses`` fits in all.
 3. **Optimisation** of each hypothesis by Hooke–Jeeves (:mod:`.fit`).
 4. **Selection** by the Bayesian information criterion on the plots:
    score = 2·weight + complexity · p · ln n, with p = 3K + 3 parameters (initial x, y, φ, v;
@@ -31,13 +34,15 @@ _MAX_GRID = 1000  # grid points for change detection (the DP is O(K N²))
 
 @attrs.frozen
 class Hypothesis:
-    """One optimised hypothesis: its control track, weight (NLL), score (BIC) and cost."""
+    """One optimised hypothesis: its control track, weight (NLL), score (BIC), cost, and where its
+    start came from (the change-point segmentation, or a split of a better hypothesis)."""
 
     control: ControlTrack
     weight: float
     score: float
     n_params: int
     nfev: int
+    origin: str = ""
 
 
 @attrs.frozen(eq=False)
@@ -107,37 +112,53 @@ def segmentations(sig: np.ndarray, min_len: int, k_max: int) -> tuple[np.ndarray
     return np.array(sse), starts
 
 
-def initial_hypotheses(plots: PlotTrack, cfg: ReconstructionConfig) -> tuple[list[ControlTrack], float, np.ndarray]:
-    """Starting control tracks for the candidate segment counts, the smoother's q, and its states."""
+def hypothesis_starts(plots: PlotTrack, cfg: ReconstructionConfig):
+    """(start(K) → starting control track with K segments, the detected K₀, the largest K, the smoother's q)."""
     xs, q, keep = gated_rts(plots.t, plots.z, plots.R)
     t = plots.t[keep]
     dur = t[-1] - t[0]
     g = max(cfg.dt_min / 2, dur / _MAX_GRID)
     tg, sig = control_signals(t, xs, g, cfg.dt_min)
-    k_fit = max(1, min(cfg.max_segments, int(dur // cfg.dt_min)))
-    sse, starts = segmentations(sig, max(1, int(np.ceil(cfg.dt_min / g))), k_fit)
+    k_fit = max(1, min(cfg.max_segments, int(dur // cfg.dt_min), int(plots.duration // cfg.dt_min)))
+    # one grid step more than dt_min, so no starting switch sits on the minimum-duration constraint
+    sse, starts = segmentations(sig, int(np.ceil(cfg.dt_min / g)) + 1, k_fit)
     N = len(sig)
     K_all = np.arange(1, len(sse) + 1)
-    bic = N * np.log(np.maximum(sse, 1e-12) / N) + 3 * K_all * np.log(N)
-    k0 = int(K_all[np.argmin(bic)])
-    half = (cfg.hypotheses - 1) // 2
-    lo = max(1, min(k0 - half, len(sse) - cfg.hypotheses + 1))
-    counts = range(lo, min(len(sse), lo + cfg.hypotheses - 1) + 1)
+    k0 = int(K_all[np.argmin(N * np.log(np.maximum(sse, 1e-12) / N) + 3 * K_all * np.log(N))])
     back = t[0] - plots.t[0]  # the first plot may have been gated out
-    start = GeoPoint(plots.t[0], xs[0, 0] - back * xs[0, 2], xs[0, 1] - back * xs[0, 3],
+    first = GeoPoint(plots.t[0], xs[0, 0] - back * xs[0, 2], xs[0, 1] - back * xs[0, 3],
                      np.arctan2(xs[0, 2], xs[0, 3]), max(np.hypot(xs[0, 2], xs[0, 3]), cfg.v_min))
-    t = plots.t
-    tracks = []
-    for K in counts:
+    ta, tb = plots.t[0], plots.t[-1]
+
+    def start(K: int) -> ControlTrack:
         cuts = np.concatenate([[0], starts[K - 1], [N]])
-        times = np.concatenate([[t[0]], tg[starts[K - 1]] - g / 2, [t[-1]]])
-        times[1:-1] = np.clip(times[1:-1], t[0] + cfg.dt_min * np.arange(1, K),
-                              t[-1] - cfg.dt_min * np.arange(K - 1, 0, -1))
-        segs = [ControlSegment(np.clip(sig[a:b, 0].mean(), -cfg.max_u, cfg.max_u),
-                               np.clip(sig[a:b, 1].mean(), -cfg.max_w, cfg.max_w), times[k], times[k + 1])
-                for k, (a, b) in enumerate(zip(cuts[:-1], cuts[1:]))]
-        tracks.append(ControlTrack(start, segs))
-    return tracks, q, xs
+        times = np.concatenate([[ta], tg[starts[K - 1]] - g / 2, [tb]])
+        times[1:-1] = np.clip(times[1:-1], ta + cfg.dt_min * np.arange(1, K), tb - cfg.dt_min * np.arange(K - 1, 0, -1))
+        return ControlTrack(first, [ControlSegment(np.clip(sig[a:b, 0].mean(), -cfg.max_u, cfg.max_u),
+                                                   np.clip(sig[a:b, 1].mean(), -cfg.max_w, cfg.max_w), times[k], times[k + 1])
+                                    for k, (a, b) in enumerate(zip(cuts[:-1], cuts[1:]))])
+
+    return start, k0, len(sse), q
+
+
+def split(ct: ControlTrack, K: int, weight: TrackWeight, times: np.ndarray, dt_min: float) -> ControlTrack:
+    """``ct`` with segments halved (same controls, so the same track) until it has K segments.
+
+    The segment whose plots fit worst — largest Σ d² − 2·n (Mahalanobis excess over its expectation)
+    — is halved first; segments shorter than 2·dt_min are not split.
+    """
+    d2 = weight.distances2(sample(ct, times)[:, :2])
+    seg = ct.segment_index(times)
+    items = [[float(np.sum(d2[seg == k]) - 2 * np.sum(seg == k)), s] for k, s in enumerate(ct)]
+    while len(items) < K:
+        ok = [i for i, (_, s) in enumerate(items) if s.duration >= 2 * dt_min]
+        if not ok:
+            break
+        i = max(ok, key=lambda j: items[j][0])
+        ex, s = items[i]
+        mid = 0.5 * (s.t_start + s.t_end)
+        items[i:i + 1] = [[ex / 2, attrs.evolve(s, t_end=mid)], [ex / 2, attrs.evolve(s, t_start=mid)]]
+    return ControlTrack(ct.initial, [s for _, s in items])
 
 
 def height_profile(plots: PlotTrack):
@@ -160,18 +181,33 @@ def reconstruct(plots: PlotTrack, cfg: ReconstructionConfig | None = None, biase
     weight = TrackWeight(plots, cfg.loss, cfg.loss_c, biases)
     t0 = float(plots.t[0])  # fit in time since the first plot: epoch seconds would swamp the steps
     rel = attrs.evolve(plots, t=plots.t - t0)
-    starts, q, _ = initial_hypotheses(rel, cfg)
-    hyps = []
-    for ct in starts:
+    start, k0, k_max, q = hypothesis_starts(rel, cfg)
+    found: list[tuple[Hypothesis, ControlTrack]] = []  # with the track in time since the first plot
+
+    def run(ct: ControlTrack, origin: str) -> Hypothesis:
         best, _, nfev = fit_hypothesis(ct, rel.t, weight, cfg)
         wgt = weight(sample(best, rel.t)[:, :2])
         n_par = 3 * len(best) + 3
-        hyps.append(Hypothesis(best.shifted(t0), wgt, 2 * wgt + cfg.complexity * n_par * np.log(len(plots)),
-                               n_par, nfev))
+        hyp = Hypothesis(best.shifted(t0), wgt, 2 * wgt + cfg.complexity * n_par * np.log(len(plots)), n_par, nfev, origin)
+        found.append((hyp, best))
+        return hyp
+
+    for K in dict.fromkeys([k0, max(1, round(k0 / 1.5)), min(k_max, round(k0 * 1.5)), min(k_max, round(k0 * 2.25))]):
+        if len(found) < cfg.hypotheses:
+            run(start(K), "segmentation")
+    # refine the best so far: split its worst-fitting segments (the same track to start with, so the
+    # weight can only drop) while the score improves
+    while len(found) < cfg.hypotheses:
+        best_h, best_ct = min(found, key=lambda f: f[0].score)
+        K = min(k_max, max(len(best_ct) + 1, round(1.5 * len(best_ct))))
+        child = split(best_ct, K, weight, rel.t, cfg.dt_min)
+        if len(child) == len(best_ct) or run(child, f"split of {len(best_ct)}").score >= best_h.score:
+            break
+    hyps = [h for h, _ in found]
     hyps.sort(key=lambda hy: hy.score)
     geo = geo_track(hyps[0].control, cfg.grid_dt, height_profile(plots))
     return Reconstruction(plots.key, plots, tuple(hyps), geo, q)
 
 
-__all__ = ["ControlObjective", "Hypothesis", "Reconstruction", "reconstruct", "initial_hypotheses",
-           "segmentations", "control_signals", "height_profile"]
+__all__ = ["ControlObjective", "Hypothesis", "Reconstruction", "reconstruct", "hypothesis_starts",
+           "segmentations", "control_signals", "height_profile", "split"]
