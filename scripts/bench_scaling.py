@@ -16,7 +16,7 @@
    4–12 s, Pd 0.9, constant biases) and traffic of ≈2,000 airborne aircraft (straight flights of
    20–90 min, 200–250 m/s, starting and ending all hour long) for one hour. Plots are generated here in
    the flat plane with the same linearised model (the rotating-radar simulator of
-   ``radartracker.simulate`` needs ≈20 min for this traffic), sorted by time, and replayed through
+   ``radartracker.simulate`` would need ≈9 min for this traffic), sorted by time, and replayed through
    ``coupled-sparse`` with ``radartracker.replay``'s life cycle: a track starts at its first plot with
    ``ReplayOptions.prior`` and is marginalised after ``drop_after_s`` without plots (sweeps every second,
    one ``update_many`` per second of traffic). Reported: plots per wall-clock second and hours of
