@@ -6,11 +6,13 @@
 2. **Segmentations.** For every segment count K the least-squares piecewise-constant fit of
    (u, w) with segments ≥ dt_min is found exactly by dynamic programming (Bellman 1961; Jackson
    et al. 2005). The count K₀ minimising the signal's own BIC, N·ln(SSE_K/N) + 3K·ln N, is the
-   first guess. The segmentations with K₀, K₀/1.5, 1.5·K₀ and 2.25·K₀ pieces give four starts (switch
-   times, and (u, w) as the pieces' means). Then the best hypothesis so far (by score, step 4) is
-   refined: its worst-fitting segments are halved to 1.5× as many (the same track, so the weight
-   can only drop) and refitted, while the score improves — at most ``hypotheses`` fits in all.
-3. **Optimisation** of each hypothesis by Hooke–Jeeves (:mod:`.fit`).
+   first guess (often too low where the smoother is noisy). The segmentations with K₀, K₀/1.5,
+   1.5·K₀ pieces and one piece per minute give up to four starts (switch times, and (u, w) as the
+   pieces' means). Then hypotheses are refined by splitting: the worst-fitting segments are halved
+   to 1.5× as many (the same track, so the weight can only drop) and refitted, climbing from the
+   best by score (step 4), or from the last child while its weight still drops by at least a
+   quarter of what BIC charges for its new parameters — at most ``hypotheses`` fits in all.
+3. **Optimisation** of each hypothesis by Hooke–Jeeves and a least-squares refinement (:mod:`.fit`).
 4. **Selection** by the Bayesian information criterion on the plots:
    score = 2·weight + complexity · p · ln n, with p = 3K + 3 parameters (initial x, y, φ, v;
    K pairs (u, w); K − 1 switch times) and n plots. All hypotheses are kept, ranked by score.
@@ -192,16 +194,26 @@ def reconstruct(plots: PlotTrack, cfg: ReconstructionConfig | None = None, biase
         found.append((hyp, best))
         return hyp
 
-    for K in dict.fromkeys([k0, max(1, round(k0 / 1.5)), min(k_max, round(k0 * 1.5)), min(k_max, round(k0 * 2.25))]):
+    k_minute = max(1, min(k_max, round(plots.duration / 60.0)))
+    for K in dict.fromkeys([k0, max(1, round(k0 / 1.5)), min(k_max, round(k0 * 1.5)), k_minute]):
         if len(found) < cfg.hypotheses:
             run(start(K), "segmentation")
-    # refine the best so far: split its worst-fitting segments (the same track to start with, so the
-    # weight can only drop) while the score improves
+    # refine: split the worst-fitting segments of a hypothesis to 1.5× as many (the same track to
+    # start with, so the weight can only drop) and refit; climb from the best by score, or from the
+    # last child while its weight still drops by more than its added parameters cost
+    parent = min(found, key=lambda f: f[0].score)
     while len(found) < cfg.hypotheses:
-        best_h, best_ct = min(found, key=lambda f: f[0].score)
-        K = min(k_max, max(len(best_ct) + 1, round(1.5 * len(best_ct))))
-        child = split(best_ct, K, weight, rel.t, cfg.dt_min)
-        if len(child) == len(best_ct) or run(child, f"split of {len(best_ct)}").score >= best_h.score:
+        K = min(k_max, max(len(parent[1]) + 1, round(1.5 * len(parent[1]))))
+        child_ct = split(parent[1], K, weight, rel.t, cfg.dt_min)
+        if len(child_ct) == len(parent[1]):
+            break
+        child = run(child_ct, f"split of {len(parent[1])}")
+        best = min(found, key=lambda f: f[0].score)
+        if best[0] is child or parent[0].weight - child.weight > 0.5 * cfg.complexity * (child.n_params - parent[0].n_params) * np.log(len(plots)) / 4:
+            parent = found[-1]
+        elif best is not parent:
+            parent = best
+        else:
             break
     hyps = [h for h, _ in found]
     hyps.sort(key=lambda hy: hy.score)
