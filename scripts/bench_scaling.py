@@ -252,7 +252,8 @@ def time_realtime(n_airborne: int, n_radars: int, duration: float, seed: int = 0
     sec = time.perf_counter() - t_start
     return {"bench": "realtime", "estimator": "coupled-sparse", "radars": n_radars, "aircraft_airborne": airborne,
             "tracks_created": created, "tracks_removed": removed, "duration_s": duration, "plots": N,
-            "plots_per_traffic_s": N / duration, "plots_per_aircraft_s": N / duration / airborne, "wall_s": sec, "plots_per_wall_s": N / sec,
+            "plots_per_traffic_s": N / duration, "plots_per_aircraft_s": N / duration / airborne,
+            "wall_s": sec, "plots_per_wall_s": N / sec,
             "traffic_hours_per_wall_s": duration / 3600 / sec, "real_time_factor": duration / sec,
             "plot_generation_s": gen_s}
 
@@ -341,7 +342,8 @@ def print_tables(rows: list[dict]) -> None:
         if r["bench"] == "realtime":
             print(f"\nReal time: {r['radars']} radars, {r['aircraft_airborne']:.0f} aircraft airborne on average "
                   f"({r['tracks_created']} tracks), {r['duration_s'] / 3600:.2f} h of traffic, {r['plots']} plots "
-                  f"({r['plots_per_traffic_s']:.0f}/s of traffic, {r['plots_per_aircraft_s']:.2f}/s per aircraft)\n  coupled-sparse: {r['wall_s']:.1f} s wall, "
+                  f"({r['plots_per_traffic_s']:.0f}/s of traffic, {r['plots_per_aircraft_s']:.2f}/s per aircraft)\n"
+                  f"  coupled-sparse: {r['wall_s']:.1f} s wall, "
                   f"{r['plots_per_wall_s']:.0f} plots/s, {r['traffic_hours_per_wall_s']:.3f} h of traffic per "
                   f"wall-clock second = {r['real_time_factor']:.0f}× real time")
         if r["bench"] == "convert":

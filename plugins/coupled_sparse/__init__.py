@@ -76,6 +76,7 @@ _WHY = {
     K.ERR_YII: "aircraft information block Y_ii is not positive definite",
     K.ERR_LAMBDA: "innovation covariance Λ is not positive definite",
     K.ERR_S: "bias Schur complement S is not positive definite",
+    K.ERR_REBUILD: "recomputing S from the blocks met an aircraft block Y_ii that is not positive definite",
 }
 
 
@@ -178,7 +179,8 @@ class CoupledSparseEstimator(Estimator):
 
     # --- filter ------------------------------------------------------------------------------
     def update(self, m: PlaneMeasurement) -> Innovation:
-        nu, lam, nis = self.update_many([m.time], [m.aircraft], [m.radar], m.z[None], m.C[None], m.R[None])
+        z, C, R = (np.asarray(a, float)[None] for a in (m.z, m.C, m.R))
+        nu, lam, nis = self.update_many([m.time], [m.aircraft], [m.radar], z, C, R)
         return Innovation(nu[0], lam[0], float(nis[0]))
 
     def update_many(self, time: Sequence[float], aircraft: Sequence[Hashable], radar: Sequence[str | None],
@@ -202,7 +204,7 @@ class CoupledSparseEstimator(Estimator):
                            f"{_WHY[code]}")
             exc.index = i
             raise exc
-        self._bias_time = max(float(times.max()), self._bias_time) if self._bias_time == self._bias_time else float(times.max())
+        self._bias_time = float(np.fmax(self._bias_time, times.max()))  # fmax ignores the initial NaN
         return Innovation(nu, lam, nis)
 
     def _slot(self, key: Hashable) -> int:
@@ -221,8 +223,8 @@ class CoupledSparseEstimator(Estimator):
         """Recompute S from the blocks (``rebuild``), then S⁻¹ and ς̂ from S, now."""
         w = self._work
         if rebuild and not K.rebuild(self._Yxx, self._Yxb, self._ex, self._nk, self._rk, self._Ybb, self._eb,
-                                     self._S, self._sv, self._ctr, w.f4, w.V, w.G, w.v4, w.idx):
-            raise SingularInformation(_WHY[K.ERR_YII])
+                                     self._S, self._sv, self._ctr, w.f4, w.V, w.G, w.v4, w.idx, w.LSi, w.Kb[:, 0]):
+            raise SingularInformation(_WHY[K.ERR_REBUILD])
         if not K.refresh(self._S, self._sv, self._Pb, self._bh, self._ctr, w.LS, w.LSi):
             raise SingularInformation(_WHY[K.ERR_S])
 

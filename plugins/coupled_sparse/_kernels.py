@@ -25,6 +25,7 @@ ERR_R = 2  # R not positive definite (the information form needs R⁻¹)
 ERR_YII = 3  # an aircraft's information block Y_ii not positive definite
 ERR_LAMBDA = 4  # innovation covariance Λ not positive definite
 ERR_S = 5  # bias Schur complement S not positive definite
+ERR_REBUILD = 6  # recomputing S from the blocks met an aircraft whose Y_ii is not positive definite
 
 # ctr: [updates since refresh, refresh_every, updates since rebuild, rebuild_factor, n alive]
 C_SINCE_REFRESH, C_REFRESH_EVERY, C_SINCE_REBUILD, C_REBUILD_FACTOR, C_ALIVE = range(5)
@@ -441,7 +442,8 @@ def update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
     ctr[C_SINCE_REFRESH] += 1
     ctr[C_SINCE_REBUILD] += 1
     if ctr[C_SINCE_REBUILD] >= ctr[C_REBUILD_FACTOR] * (ctr[C_ALIVE] + 1):
-        rebuild(Yxx, Yxb, ex, nk, rk, Ybb, eb, S, sv, ctr, f4, V, G, v4, idx)
+        if not rebuild(Yxx, Yxb, ex, nk, rk, Ybb, eb, S, sv, ctr, f4, V, G, v4, idx, LSi, Kb[:, 0]):
+            return ERR_REBUILD, nis
     if ctr[C_SINCE_REFRESH] >= ctr[C_REFRESH_EVERY]:
         if not refresh(S, sv, Pb, bh, ctr, LS, LSi):
             return ERR_S, nis
@@ -449,10 +451,10 @@ def update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
 
 
 @njit(cache=True)
-def rebuild(Yxx, Yxb, ex, nk, rk, Ybb, eb, S, sv, ctr, f4, V, G, v4, idx):
-    """S = Y_bb − Σ_i Y_bi Y_ii⁻¹ Y_ib and sv from the blocks, from scratch (aircraft with nk ≥ 0)."""
-    S[:, :] = Ybb
-    sv[:] = eb
+def rebuild(Yxx, Yxb, ex, nk, rk, Ybb, eb, S, sv, ctr, f4, V, G, v4, idx, S_new, sv_new):
+    """S = Y_bb − Σ_i Y_bi Y_ii⁻¹ Y_ib and sv from the blocks, from scratch; S, sv untouched on failure."""
+    S_new[:, :] = Ybb
+    sv_new[:] = eb
     for s in range(nk.shape[0]):
         k = nk[s]
         if k <= 0:  # free slot (−1) or no radar yet: no term
@@ -460,7 +462,9 @@ def rebuild(Yxx, Yxb, ex, nk, rk, Ybb, eb, S, sv, ctr, f4, V, G, v4, idx):
         bias_index(rk, s, k, idx)
         if not conditional(Yxx, Yxb, ex, s, 2 * k, f4[0], V, v4[0], G, v4[1]):
             return False
-        add_contribution(S, sv, idx, V, v4[0], 2 * k, -1.0)
+        add_contribution(S_new, sv_new, idx, V, v4[0], 2 * k, -1.0)
+    S[:, :] = S_new
+    sv[:] = sv_new
     ctr[C_SINCE_REBUILD] = 0
     return True
 
