@@ -162,3 +162,16 @@ def test_imm_beats_cv_on_a_3deg_turn():
 def test_imm_bad_params(bad):
     with pytest.raises(ValueError, match="params"):
         IMMFilter(MotionSettings(params=bad))
+
+
+def test_switching_matrix_equals_scipy_expm():
+    """Π(Δt) = exp(G Δt) for three modes (G: leaving rate 1/τ_i shared equally), against scipy."""
+    from scipy.linalg import expm
+
+    tau = np.array([100.0, 30.0, 20.0])
+    f = IMMFilter(MotionSettings(params={"models": [{"kind": "cv"}, {"kind": "ct"}, {"kind": "cv", "q": 50.0}],
+                                         "sojourn_s": tau.tolist()}))
+    G = np.ones((3, 3)) / (2 * tau[:, None])
+    np.fill_diagonal(G, -1 / tau)
+    for dt in (0.0, 0.7, 7.3, 400.0):
+        np.testing.assert_allclose(f.switching(dt), expm(G * dt), atol=1e-12)

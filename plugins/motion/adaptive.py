@@ -39,7 +39,8 @@ from scipy.stats import chi2
 from radartracker.kalman import symmetrize
 from radartracker.motion import MotionModel
 from radartracker.plugin import MotionSettings, TrackFilter
-from radartracker_plugins.motion.base import check_measurement, check_time, position_update, start_state
+from radartracker_plugins.motion.base import (check_measurement, check_time, position_update,
+                                               require_started, start_state)
 
 
 class _ScaledCV(TrackFilter):
@@ -120,7 +121,7 @@ class _ScaledCV(TrackFilter):
         return step.nis
 
     def estimate(self) -> tuple[float, np.ndarray, np.ndarray]:
-        check_time(0.0, self.time)
+        require_started(self.time)
         return self.time, self.x.copy(), self.P.copy()
 
 

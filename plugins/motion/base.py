@@ -43,10 +43,15 @@ def check_measurement(time: float, z: np.ndarray, R: np.ndarray) -> tuple[float,
     return time, z, R
 
 
-def check_time(time: float, current: float | None) -> float:
-    """``time`` as a finite float, once the filter has been started (a negative Δt extrapolates back)."""
+def require_started(current: float | None) -> None:
+    """A ``ValueError`` unless ``start`` has been called (``current`` is the filter's epoch)."""
     if current is None:
         raise ValueError("filter not started: call start() first")
+
+
+def check_time(time: float, current: float | None) -> float:
+    """``time`` as a finite float, once the filter has been started (a negative Δt extrapolates back)."""
+    require_started(current)
     time = float(time)
     if not math.isfinite(time):
         raise ValueError(f"time: not finite ({time})")

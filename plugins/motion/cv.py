@@ -11,7 +11,8 @@ import numpy as np
 
 from radartracker.motion import MotionModel
 from radartracker.plugin import MotionSettings, TrackFilter
-from radartracker_plugins.motion.base import check_measurement, check_time, position_update, start_state
+from radartracker_plugins.motion.base import (check_measurement, check_time, position_update,
+                                               require_started, start_state)
 
 
 class CVFilter(TrackFilter):
@@ -46,5 +47,5 @@ class CVFilter(TrackFilter):
         return step.nis
 
     def estimate(self) -> tuple[float, np.ndarray, np.ndarray]:
-        check_time(0.0, self.time)
+        require_started(self.time)
         return self.time, self.x.copy(), self.P.copy()
