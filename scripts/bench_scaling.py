@@ -24,6 +24,8 @@
    ``aircraft()`` read is reported in part 1).
 3. *Conversion.* For scale: the bulk plot-to-plane conversion (``replay.prepare``, pyproj) timed on
    a 5-minute, 100-aircraft run of the real simulator over the same region.
+4. *Replay loop.* ``radartracker.replay.replay()`` end to end on the ``paris`` scenario (q = 20) with
+   ``coupled`` and ``coupled-sparse``: the per-plot loop of the product, recording every estimate.
 
 One JSON line per measurement (with the 1-minute load average: the machine is shared), then the
 tables. One process, pinned to one core.
@@ -285,6 +287,20 @@ def time_conversion(n_radars: int, seed: int = 0) -> dict:
     return {"bench": "convert", "radars": n_radars, "plots": len(meas), "us_per_plot": 1e6 * sec / len(meas)}
 
 
+# --- 4. the replay loop ----------------------------------------------------------------------------
+def time_replay(name: str, scenario: str = "paris", q: float = 20.0) -> dict:
+    """radartracker.replay.replay() end to end (per-plot loop, coupling graph, estimates recorded)."""
+    from radartracker.replay import replay
+    from radartracker.scenarios import build_scenario
+
+    data = build_scenario(scenario, seed=1).run()
+    res = replay(data, name, ReplayOptions.for_scenario(data, q=q))
+    n = res.counts.get("plots_used", 0) + res.counts.get("adsb_used", 0)
+    return {"bench": "replay", "estimator": name, "scenario": scenario, "measurements": n,
+            "aircraft": len(data.aircraft), "radars": len(data.radars), "seconds": res.seconds,
+            "us_per_measurement": 1e6 * res.seconds / n}
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--aircraft", type=int, nargs="+", default=[10, 20, 100, 500, 2000])
@@ -320,6 +336,8 @@ def main(argv: list[str] | None = None) -> None:
     if args.rt_duration > 0:
         emit(time_realtime(args.rt_aircraft, args.rt_radars, args.rt_duration))
         emit(time_conversion(args.rt_radars))
+    for name in ("coupled", "coupled-sparse"):
+        emit(time_replay(name))
     print_tables(rows)
 
 
@@ -346,6 +364,9 @@ def print_tables(rows: list[dict]) -> None:
                   f"  coupled-sparse: {r['wall_s']:.1f} s wall, "
                   f"{r['plots_per_wall_s']:.0f} plots/s, {r['traffic_hours_per_wall_s']:.3f} h of traffic per "
                   f"wall-clock second = {r['real_time_factor']:.0f}× real time")
+        if r["bench"] == "replay":
+            print(f"  replay() of '{r['scenario']}' ({r['aircraft']} aircraft, {r['radars']} radars, "
+                  f"{r['measurements']} measurements) with {r['estimator']}: {r['us_per_measurement']:.1f} µs each")
         if r["bench"] == "convert":
             print(f"  bulk plot conversion (replay.prepare, pyproj): {r['us_per_plot']:.2f} µs/plot "
                   f"({r['plots']} simulated plots)")
