@@ -14,7 +14,7 @@ linear and identical to the dense filter's): Y += Hᵀ R⁻¹ H, η += Hᵀ R⁻
 — it touches Y_ii, Y_ij, Y_jj only, so the pattern is kept. S changes by ΔY_jj minus the change of
 aircraft i's term Y_bi Y_ii⁻¹ Y_ib, which in closed form (eliminate χ_i with (1)) is the PSD rank-2
 term H_bᵀ Ω⁻¹ H_b with H_b = C_s E_j − C_x G_i, Ω = R + C_x Y_ii⁻¹ C_xᵀ (s: H_bᵀ Ω⁻¹ (z − C_x m_i)):
-O(k²) with k the radars that saw aircraft i, and S can only grow.
+O(k²) with k the radars that saw aircraft i; S only grows between its recomputations.
 
 **Prediction** of aircraft i alone, χ_i' = A χ_i + w, w ~ N(0, Q): by (1), χ_i' | ς ~
 N(A m_i − A G_i ς_K, A Y_ii⁻¹ Aᵀ + Q), still independent of the other aircraft given ς, and the
@@ -39,8 +39,8 @@ also kept in covariance form by the rank-2 Kalman update of the bias marginal
 ``refresh_every`` updates; S itself is recomputed from the blocks by (2) every ``rebuild_factor``
 × (n + 1) updates (amortised O(k²) per plot) to bound round-off.
 
-**Numerical hygiene.** Every block update is symmetric by construction (terms VᵀV with
-V = L⁻¹Y_ib, L Lᵀ = Y_ii). Positive definiteness is checked by a Cholesky factorisation of R, Y_ii
+**Numerical hygiene.** Every block update is symmetric by construction (Gram products such as VᵀV
+with V = L⁻¹Y_ib, L Lᵀ = Y_ii, or one triangle computed and mirrored). Positive definiteness is checked by a Cholesky factorisation of R, Y_ii
 (at every prediction, update and read), Λ (every plot) and S (every refresh); a failure raises
 :class:`SingularInformation` (a :class:`~radartracker.kalman.SingularInnovation`, hence a
 ValueError) naming the aircraft, radar and time — never a NaN. Non-finite input raises ValueError.
@@ -100,7 +100,6 @@ class CoupledSparseEstimator(Estimator):
         self._q = float(self.config.motion.q)
         self._rad: dict[str, int] = {}
         self._ac: dict[Hashable, int] = {}  # key -> slot
-        self._keys: list[Hashable | None] = []  # slot -> key
         self._free: list[int] = []
         self._bias_time = float("nan")  # latest update time, as coupled's global bias epoch
         self._ctr = np.array([0, refresh_every, 0, rebuild_factor, 0], np.int64)
@@ -149,17 +148,15 @@ class CoupledSparseEstimator(Estimator):
             raise SingularInformation(f"aircraft {key!r}: prior covariance is not positive definite "
                                       "(the information form needs its inverse)")
         if not self._free:
-            cap = self._Yxx.shape[0]
-            self._alloc(max(16, 2 * cap), len(self._rad))
-            self._free = list(range(2 * max(8, cap) - 1, cap - 1, -1))
+            cap, new_cap = self._Yxx.shape[0], max(16, 2 * self._Yxx.shape[0])
+            self._alloc(new_cap, len(self._rad))
+            self._free = list(range(new_cap - 1, cap - 1, -1))
         s = self._free.pop()
         Li = np.linalg.inv(L)
         self._Yxx[s] = Li.T @ Li
         self._ex[s] = self._Yxx[s] @ state
         self._tx[s], self._nk[s] = float(time), 0
         self._ac[key] = s
-        self._keys.extend([None] * (s + 1 - len(self._keys)))
-        self._keys[s] = key
         self._ctr[K.C_ALIVE] += 1
 
     def remove_aircraft(self, key: Hashable) -> None:
@@ -173,7 +170,6 @@ class CoupledSparseEstimator(Estimator):
                 raise SingularInformation(f"aircraft {key!r}: {_WHY[K.ERR_YII]}")
             K.add_contribution(self._Ybb, self._eb, w.idx, w.V, w.v4[0], 2 * k, -1.0)
         self._nk[s] = -1
-        self._keys[s] = None
         self._free.append(s)
         self._ctr[K.C_ALIVE] -= 1
 
@@ -198,13 +194,17 @@ class CoupledSparseEstimator(Estimator):
         code, i = K.update_batch(self._Yxx, self._Yxb, self._ex, self._tx, self._nk, self._rk, self._Ybb, self._eb,
                                  self._S, self._sv, self._Pb, self._bh, self._ctr, slots, radars, times, Z, Cs, Rs,
                                  self._q, nu, lam, nis, w.f4, w.V, w.G, w.W, w.v4, w.idx, w.Kb, w.LS, w.LSi)
+        # plots before i are applied; plot i was predicted (Λ) or fully applied (S) — as coupled does
+        done = i + (code in (K.ERR_LAMBDA, K.ERR_S, K.ERR_REBUILD))
+        if done:
+            self._bias_time = float(np.fmax(self._bias_time, times[:done].max()))  # fmax ignores the initial NaN
         if code != K.OK:
             exc_type = ValueError if code == K.ERR_NONFINITE else SingularInformation
-            exc = exc_type(f"measurement of aircraft {aircraft[i]!r} by radar {radar[i]!r} at t={times[i]}: "
-                           f"{_WHY[code]}")
+            when = "after" if code in (K.ERR_S, K.ERR_REBUILD) else "at"
+            exc = exc_type(f"{when} the measurement of aircraft {aircraft[i]!r} by radar {radar[i]!r} at "
+                           f"t={times[i]}: {_WHY[code]}")
             exc.index = i
             raise exc
-        self._bias_time = float(np.fmax(self._bias_time, times.max()))  # fmax ignores the initial NaN
         return Innovation(nu, lam, nis)
 
     def _slot(self, key: Hashable) -> int:
