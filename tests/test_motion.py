@@ -279,6 +279,22 @@ def test_bad_input_raises(name):
                  (np.zeros(2), -np.eye(2)), (np.zeros(2), np.array([[1.0, 2.0], [0.0, 1.0]]))):
         with pytest.raises(ValueError):
             f.update(1.0, z, R)
-    with pytest.raises(ValueError, match="time"):
-        f.update(float("inf"), np.zeros(2), np.eye(2))
+    before = pickle.dumps(f)
+    for t in (float("inf"), float("nan"), 1e12, -1e12):
+        with pytest.raises(ValueError, match="time"):
+            f.update(t, np.zeros(2), np.eye(2))
+    assert pickle.dumps(f) == before
     np.linalg.cholesky(f.estimate()[2])
+
+
+@pytest.mark.parametrize("name", ["cv", "imm", "adaptive", "fading"])
+def test_longest_accepted_gap_keeps_covariance_positive_definite(name):
+    """An update max_gap_s (one hour) after the last, then normal updates: P stays PD and finite."""
+    f = load_motion_model(name)(MotionSettings(q=400.0, q_turn=400.0))
+    f.start(0.0, np.zeros(2), 50.0**2 * np.eye(2))
+    f.update(4.0, np.array([800.0, 0.0]), 50.0**2 * np.eye(2))
+    for t in (3604.0, 3608.0, 3612.0, 7212.0):
+        f.update(t, np.array([7e5, 1e3]), 50.0**2 * np.eye(2))
+        _, x, P = f.estimate()
+        assert np.all(np.isfinite(x))
+        np.linalg.cholesky(P)

@@ -39,8 +39,8 @@ from scipy.stats import chi2
 from radartracker.kalman import symmetrize
 from radartracker.motion import MotionModel
 from radartracker.plugin import MotionSettings, TrackFilter
-from radartracker_plugins.motion.base import (check_measurement, check_time, position_update,
-                                               require_started, start_state)
+from radartracker_plugins.motion.base import (check_measurement, check_time, max_gap,
+                                               position_update, require_started, start_state)
 
 
 class _ScaledCV(TrackFilter):
@@ -48,6 +48,7 @@ class _ScaledCV(TrackFilter):
 
     def __init__(self, settings: MotionSettings | None = None) -> None:
         super().__init__(settings)
+        self.max_gap = max_gap(self.settings)
         p = self.settings.params
         self.window = int(p.get("window", 5))
         if self.window < 1:
@@ -103,15 +104,15 @@ class _ScaledCV(TrackFilter):
         self.kappa, self.nis, self.theta = 1.0, [], self.nominal
 
     def predict(self, time: float) -> tuple[np.ndarray, np.ndarray]:
-        x, P, _ = self._prior(check_time(time, self.time))
+        x, P, _ = self._prior(check_time(time, self.time, self.max_gap))
         return x, P
 
     def update(self, time: float, z: np.ndarray, R: np.ndarray) -> float:
         time, z, R = check_measurement(time, z, R)
-        check_time(time, self.time)
-        x, P, self.theta = self._prior(time)
+        check_time(time, self.time, self.max_gap)
+        x, P, theta = self._prior(time)
         step = position_update(x, P, z, R)
-        self.time, self.x, self.P, self.R = time, step.x, step.P, R
+        self.time, self.x, self.P, self.R, self.theta = time, step.x, step.P, R, theta
         self.nis.append(step.nis)
         if len(self.nis) == self.window:
             s = sum(self.nis)

@@ -49,13 +49,28 @@ def require_started(current: float | None) -> None:
         raise ValueError("filter not started: call start() first")
 
 
-def check_time(time: float, current: float | None) -> float:
-    """``time`` as a finite float, once the filter has been started (a negative Δt extrapolates back)."""
+def check_time(time: float, current: float | None, max_gap: float) -> float:
+    """``time`` as a finite float within ``max_gap`` seconds of the started filter's epoch ``current``.
+
+    A longer extrapolation (either way) is refused: its covariance, of order q Δt³, would swamp
+    double precision long before Δt reaches 10⁹ s, and a track that old is no track.
+    """
     require_started(current)
     time = float(time)
     if not math.isfinite(time):
         raise ValueError(f"time: not finite ({time})")
+    if abs(time - current) > max_gap:
+        raise ValueError(f"time: {time} is {time - current:.6g} s from the track's epoch {current}; "
+                         f"more than max_gap_s = {max_gap:g}")
     return time
+
+
+def max_gap(settings) -> float:
+    """``params["max_gap_s"]`` (default one hour): the longest prediction a filter accepts."""
+    gap = float(settings.params.get("max_gap_s", 3600.0))
+    if not gap > 0:
+        raise ValueError(f"params['max_gap_s']: must be positive, got {gap}")
+    return gap
 
 
 def position_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray) -> Step:

@@ -11,20 +11,22 @@ import numpy as np
 
 from radartracker.motion import MotionModel
 from radartracker.plugin import MotionSettings, TrackFilter
-from radartracker_plugins.motion.base import (check_measurement, check_time, position_update,
-                                               require_started, start_state)
+from radartracker_plugins.motion.base import (check_measurement, check_time, max_gap,
+                                               position_update, require_started, start_state)
 
 
 class CVFilter(TrackFilter):
     """Kalman filter on χ = [x, y, vx, vy] with the constant-velocity model of density ``settings.q``.
 
-    ``params["q"]`` overrides ``settings.q`` for this model only.
+    ``params["q"]`` overrides ``settings.q`` for this model only; ``params["max_gap_s"]`` (3600 s) is
+    the longest prediction accepted (the same in every motion model).
     """
 
     name = "cv"
 
     def __init__(self, settings: MotionSettings | None = None) -> None:
         super().__init__(settings)
+        self.max_gap = max_gap(self.settings)
         self.model = MotionModel(float(self.settings.params.get("q", self.settings.q)))
         self.time: float | None = None
         self.x = np.zeros(4)
@@ -35,7 +37,7 @@ class CVFilter(TrackFilter):
         self.x, self.P = start_state(z, R, self.settings.prior_sd_velocity_mps)
 
     def predict(self, time: float) -> tuple[np.ndarray, np.ndarray]:
-        time = check_time(time, self.time)
+        time = check_time(time, self.time, self.max_gap)
         A, Q = self.model.transition(time - self.time)
         return A @ self.x, A @ self.P @ A.T + Q
 

@@ -35,8 +35,8 @@ import numpy as np
 from radartracker.kalman import symmetrize
 from radartracker.motion import MotionModel
 from radartracker.plugin import MotionSettings, TrackFilter
-from radartracker_plugins.motion.base import (check_measurement, check_time, position_update,
-                                               require_started, start_state)
+from radartracker_plugins.motion.base import (check_measurement, check_time, max_gap,
+                                               position_update, require_started, start_state)
 from radartracker_plugins.motion.ct import ct_noise, ct_transition
 
 
@@ -78,6 +78,7 @@ class IMMFilter(TrackFilter):
 
     def __init__(self, settings: MotionSettings | None = None) -> None:
         super().__init__(settings)
+        self.max_gap = max_gap(self.settings)
         p = self.settings.params
         specs = p.get("models", [{"kind": "cv"}, {"kind": "ct"}])
         self.modes = [_make_mode(dict(m), self.settings) for m in specs]
@@ -162,13 +163,13 @@ class IMMFilter(TrackFilter):
             self.Ps.append(Pp.copy())
 
     def predict(self, time: float) -> tuple[np.ndarray, np.ndarray]:
-        time = check_time(time, self.time)
+        time = check_time(time, self.time, self.max_gap)
         cbar, pred = self._predicted(time)
         return self._combine(cbar, pred)
 
     def update(self, time: float, z: np.ndarray, R: np.ndarray) -> float:
         time, z, R = check_measurement(time, z, R)
-        check_time(time, self.time)
+        check_time(time, self.time, self.max_gap)
         cbar, pred = self._predicted(time)
         x_bar, P_bar = self._combine(cbar, pred)
         nis = position_update(x_bar, P_bar, z, R).nis
