@@ -20,8 +20,8 @@ the R of the last update standing in for the next one::
 The convex family P̄(β) = P_a + β (Q_m − P_a) only reaches innovation covariances between those of
 P_a and Q_m: where Q_m ≺ P_a (short Δt, or a large P̂) inflating needs α > 1, i.e. β < 0, and
 P̄ = α P_a − |β| Q_m is positive definite only while |β| Q_m ≺ α P_a. By default β is clipped to
-[β_min, β_max] ⊂ [0, 1]; ``allow_negative_beta`` lets β go down to the smallest value for which P̄
-keeps a Cholesky factor with margin (P̄ ⪰ ½ α P_a is what is checked). ``docs/tracking.md`` compares
+[β_min, β_max] ⊂ [0, 1]; ``allow_negative_beta`` lets β go below 0, halving |β| from the matching
+value until P̄ keeps a Cholesky factor with margin (P̄ ⪰ ½ α P_a is what is checked). ``docs/tracking.md`` compares
 this with the fading factor, which inflates P_a without touching Q.
 
 ``params`` (both): ``window`` N (5), ``significance`` p (0.05), ``kappa_max`` (100); fixed values
