@@ -8,7 +8,7 @@ by maximum likelihood on the plots (what one can do on real data) and by minimum
 truth (an oracle-tuned upper bound for the smoother). Calibration flights are cut into windows.
 
 Prints one JSON line per flight and a summary per group; writes docs/figures/reconstruction_real_*.png.
-Usage: python scripts/reconstruction_real.py [--paris N] [--cal N] [--window S] [--workers W]
+Usage: python scripts/reconstruction_real.py [--paris N] [--cal N] [--window S] [--workers W] [--dejitter Q --tag _dejittered]
 """
 
 from __future__ import annotations
@@ -35,8 +35,12 @@ DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real_flights.c
 FIG = Path(__file__).resolve().parents[1] / "docs" / "figures"
 
 
-def flights_to_plots(flights, window: float, seed: int):
-    """(plot tracks, truth at plot times, planes) of every flight (windows of calibration flights)."""
+def flights_to_plots(flights, window: float, seed: int, dejitter: float | None = None):
+    """(plot tracks, truth at plot times) of every flight (windows of calibration flights).
+
+    ``dejitter``: fly the RTS-smoothed ADS-B track (σ 30 m, q = dejitter m²/s³) instead of the raw
+    positions, and measure against it (OpenSky positions are stale or jittered between updates).
+    """
     rng = np.random.default_rng(seed)
     tracks, truth = [], {}
     for fid, f in flights.items():
@@ -51,6 +55,10 @@ def flights_to_plots(flights, window: float, seed: int):
             ref = (float(np.mean(f.lat[sel])), float(np.mean(f.lon[sel])))
             plane = SystemPlane(*ref)
             traj = RecordedTrajectory.from_geodetic(plane, f.time[sel], f.lat[sel], f.lon[sel], f.altitude_m[sel])
+            if dejitter:
+                z = np.column_stack([traj.x, traj.y])
+                xs, _, _ = rts_smooth(traj.t, z, np.tile(np.eye(2) * 30.0**2, (len(z), 1, 1)), dejitter)
+                traj = RecordedTrajectory(traj.t, xs[:, 0], xs[:, 1], traj.h)
             ang = rng.uniform(0, 2 * np.pi) + np.array([0.0, rng.uniform(1.5, 4.5)])
             dist = rng.uniform(40, 90, 2)
             sites = np.column_stack([dist * np.sin(ang), dist * np.cos(ang)])
@@ -73,11 +81,14 @@ def main() -> None:
     ap.add_argument("--window", type=float, default=1800.0, help="calibration-flight window (s)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--dejitter", type=float, default=None, metavar="Q",
+                    help="fly and score against the RTS-smoothed ADS-B track (q = Q) instead of the raw positions")
+    ap.add_argument("--tag", default="", help="suffix of the figure names")
     args = ap.parse_args()
     allf = load_flights(DATA)
     paris = sorted(k for k in allf if not k.startswith("cal_"))[: args.paris]
     cal = sorted(k for k in allf if k.startswith("cal_"))[: args.cal]
-    tracks, truth = flights_to_plots({k: allf[k] for k in paris + cal}, args.window, args.seed)
+    tracks, truth = flights_to_plots({k: allf[k] for k in paris + cal}, args.window, args.seed, args.dejitter)
     cfg = ReconstructionConfig(max_u=9.5)
     t0 = time.perf_counter()
     results = {}
@@ -123,10 +134,10 @@ def main() -> None:
         print(json.dumps({"group": gname, **s}))
     hours = sum(pt.duration for pt in tracks) / 3600
     print(json.dumps({"wall_s": round(wall, 1), "workers": args.workers, "flight_hours": round(hours, 2)}))
-    _figures(groups, best_example)
+    _figures(groups, best_example, args.tag)
 
 
-def _figures(groups, example) -> None:
+def _figures(groups, example, tag: str) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -147,11 +158,11 @@ def _figures(groups, example) -> None:
         ax.legend(fontsize=8)
     fig.suptitle("Real flights (The OpenSky Network), simulated radar plots σ 70 m / 0.08°")
     fig.tight_layout()
-    fig.savefig(FIG / "reconstruction_real_errors.png", dpi=110)
+    fig.savefig(FIG / f"reconstruction_real_errors{tag}.png", dpi=110)
     plt.close(fig)
     if example is not None:
         r, tr = example
-        plot_reconstruction(r, FIG / "reconstruction_real_example.png", (r.plots.t, tr))
+        plot_reconstruction(r, FIG / f"reconstruction_real_example{tag}.png", (r.plots.t, tr))
 
 
 if __name__ == "__main__":

@@ -7,11 +7,13 @@ a constraint (|u| ≤ u_max, |w| ≤ w_max, segments ≥ dt_min, speed ≥ v_min
 initial steps) is added, so a start that violates the constraints slides back into the feasible
 region; the track is integrated (:mod:`.integrate`) and its weight (:mod:`.weight`) returned.
 
-Search: one window of two consecutive segments at a time (segment k with its initial state fixed
-by segments < k, segment k+1 as a look-ahead, the plots of both), with the seed's steps; then
-one joint search over all of θ from ``polish_scale`` × the seed's steps down to the final steps.
-Each window is cheap, and the joint search starts close to the optimum, so the ill-conditioning
-of a long chain (an early u moves every later position) costs little.
+Search: Hooke–Jeeves with the seed's steps over one window of two consecutive segments at a time
+(segment k with its initial state fixed by segments < k, segment k+1 as a look-ahead, the plots
+of both); each window is cheap, and the chain is walked once. Then (``refine``, on by default)
+a joint Levenberg–Marquardt refinement of all of θ with the chain-rule Jacobian
+(:meth:`ControlObjective.jacobian`): the seed's final steps (0.01 m/s² in u) leave hundreds of
+metres of drift over a long segment, and coordinate moves crawl along the valleys that couple an
+early control with every later position.
 """
 
 from __future__ import annotations
@@ -151,9 +153,12 @@ class ControlObjective:
             S = end
         J = -np.einsum("nij,njp->nip", self.weight.Linv, dp).reshape(2 * len(times), len(theta))
         # a coordinate the projection holds at a constraint does not move the track
+        # (active set: also a control on its bound that the descent direction pushes outwards)
+        g = J.T @ self.residuals(theta)[:-1]
         held = np.zeros(len(theta), bool)
-        held[n0:n0 + K] = np.abs(theta[n0:n0 + K]) > self.cfg.max_u
-        held[n0 + K:n0 + 2 * K] = np.abs(theta[n0 + K:n0 + 2 * K]) > self.cfg.max_w
+        for sl, cap in ((slice(n0, n0 + K), self.cfg.max_u), (slice(n0 + K, n0 + 2 * K), self.cfg.max_w)):
+            th = theta[sl]
+            held[sl] = (np.abs(th) > cap) | ((th >= cap - 1e-9) & (g[sl] < 0)) | ((th <= -cap + 1e-9) & (g[sl] > 0))
         held[n0 + 2 * K:] = np.abs(theta[n0 + 2 * K:] - bounds[1:-1]) > 1e-9
         J[:, held] = 0.0
         return np.vstack([J, np.zeros((1, len(theta)))])
@@ -190,13 +195,17 @@ def _state_after(init, u, w, bounds, k: int) -> tuple[float, float, float, float
 
 
 def fit_hypothesis(ct: ControlTrack, times: np.ndarray, weight: TrackWeight,
-                   cfg: ReconstructionConfig) -> tuple[ControlTrack, float, int]:
-    """Optimise the starting control track ``ct``: (best track, its weight, evaluations)."""
+                   cfg: ReconstructionConfig, windows: bool = True) -> tuple[ControlTrack, float, int]:
+    """Optimise the starting control track ``ct``: (best track, its weight, evaluations).
+
+    ``windows=False`` skips the Hooke–Jeeves window pass (for a start that already fits well,
+    e.g. a split of a fitted track: the refinement alone can only improve on it).
+    """
     init = (ct.initial.x, ct.initial.y, ct.initial.phi, ct.initial.v)
     u, w = ct.u.copy(), ct.w.copy()
     bounds = np.array([s.t_start for s in ct] + [ct.t_end])
     K, nfev = len(ct), 0
-    for k in range(K):
+    for k in range(K if windows else 0):
         last = min(k + 2, K)
         t_a, t_b = bounds[k], bounds[last]
         sel = (times >= t_a) & (times < t_b) if last < K else times >= t_a

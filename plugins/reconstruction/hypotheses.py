@@ -9,9 +9,10 @@
    first guess (often too low where the smoother is noisy). The segmentations with K₀, K₀/1.5,
    1.5·K₀ pieces and one piece per minute give up to four starts (switch times, and (u, w) as the
    pieces' means). Then hypotheses are refined by splitting: the worst-fitting segments are halved
-   to 1.5× as many (the same track, so the weight can only drop) and refitted, climbing from the
-   best by score (step 4), or from the last child while its weight still drops by at least a
-   quarter of what BIC charges for its new parameters — at most ``hypotheses`` fits in all.
+   to 1.5× as many (the same track) and refined by least squares alone (so the weight can only
+   drop), climbing from the last child while it is the best by score (step 4) or its weight still
+   drops by at least a quarter of what BIC charges for its new parameters, else from the best
+   hypothesis not yet split — at most ``hypotheses`` fits in all.
 3. **Optimisation** of each hypothesis by Hooke–Jeeves and a least-squares refinement (:mod:`.fit`).
 4. **Selection** by the Bayesian information criterion on the plots:
    score = 2·weight + complexity · p · ln n, with p = 3K + 3 parameters (initial x, y, φ, v;
@@ -186,8 +187,8 @@ def reconstruct(plots: PlotTrack, cfg: ReconstructionConfig | None = None, biase
     start, k0, k_max, q = hypothesis_starts(rel, cfg)
     found: list[tuple[Hypothesis, ControlTrack]] = []  # with the track in time since the first plot
 
-    def run(ct: ControlTrack, origin: str) -> Hypothesis:
-        best, _, nfev = fit_hypothesis(ct, rel.t, weight, cfg)
+    def run(ct: ControlTrack, origin: str, windows: bool = True) -> Hypothesis:
+        best, _, nfev = fit_hypothesis(ct, rel.t, weight, cfg, windows or not cfg.refine)
         wgt = weight(sample(best, rel.t)[:, :2])
         n_par = 3 * len(best) + 3
         hyp = Hypothesis(best.shifted(t0), wgt, 2 * wgt + cfg.complexity * n_par * np.log(len(plots)), n_par, nfev, origin)
@@ -202,19 +203,22 @@ def reconstruct(plots: PlotTrack, cfg: ReconstructionConfig | None = None, biase
     # start with, so the weight can only drop) and refit; climb from the best by score, or from the
     # last child while its weight still drops by more than its added parameters cost
     parent = min(found, key=lambda f: f[0].score)
+    was_split: set[int] = set()
     while len(found) < cfg.hypotheses:
+        was_split.add(id(parent[0]))
         K = min(k_max, max(len(parent[1]) + 1, round(1.5 * len(parent[1]))))
         child_ct = split(parent[1], K, weight, rel.t, cfg.dt_min)
         if len(child_ct) == len(parent[1]):
             break
-        child = run(child_ct, f"split of {len(parent[1])}")
-        best = min(found, key=lambda f: f[0].score)
-        if best[0] is child or parent[0].weight - child.weight > 0.5 * cfg.complexity * (child.n_params - parent[0].n_params) * np.log(len(plots)) / 4:
+        child = run(child_ct, f"split of {len(parent[1])}", windows=False)
+        gain = parent[0].weight - child.weight
+        if min(found, key=lambda f: f[0].score)[0] is child or gain > cfg.complexity * (child.n_params - parent[0].n_params) * np.log(len(plots)) / 8:
             parent = found[-1]
-        elif best is not parent:
-            parent = best
-        else:
+            continue
+        rest = [f for f in found if id(f[0]) not in was_split]
+        if not rest:
             break
+        parent = min(rest, key=lambda f: f[0].score)
     hyps = [h for h, _ in found]
     hyps.sort(key=lambda hy: hy.score)
     geo = geo_track(hyps[0].control, cfg.grid_dt, height_profile(plots))
