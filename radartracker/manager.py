@@ -279,8 +279,11 @@ class TrackManager:
         for i in np.unique(idx):
             if i not in cache:
                 tr = live[i]
-                x, P = tr.filter.predict(max(t, tr.filter.estimate()[0]))
-                cache[i] = (x[:2], x[2:], P[:2, :2])
+                try:
+                    x, P = tr.filter.predict(max(t, tr.filter.estimate()[0]))
+                    cache[i] = (x[:2], x[2:], P[:2, :2])
+                except ValueError:  # the filter refuses this step: the track cannot be gated
+                    cache[i] = (np.full(2, np.nan), np.zeros(2), np.eye(2))
         return tuple(np.array([cache[i][k] for i in idx]) for k in range(3))
 
     def _convert(self, rid: str, plots: list[Plot], live: list[ManagedTrack]) -> tuple[np.ndarray, ...]:
@@ -381,8 +384,9 @@ class TrackManager:
         else:
             try:
                 tr.filter.update(src.time, zc, Rc)
-            except SingularInnovation:
-                self.counts["plots_singular" if radar else "unbiased_singular"] += 1
+            except ValueError as exc:  # SingularInnovation, or a filter refusing the time step
+                self.counts["plots_refused_by_filter" if radar else "unbiased_refused_by_filter"] += 1
+                log.warning("track %s refused a measurement at t=%s: %s", tr.id, src.time, exc)
                 return
         tr.last_update = src.time
         if isinstance(src, Plot):
@@ -474,7 +478,9 @@ class TrackManager:
         self._emit(now, tr, "deleted")
 
     def _emit(self, time: float, tr: ManagedTrack, kind: str) -> None:
-        _, x, _ = tr.filter.estimate()
+        t0, x, _ = tr.filter.estimate()
+        if time > t0:  # coasting/deleted events happen after the last update: report the position then
+            x = np.concatenate([x[:2] + x[2:] * (time - t0), x[2:]])
         ev = TrackEvent(float(time), tr.id, kind, tr.status, tuple(float(v) for v in x))
         self._events.append(ev)
         if self.on_event is not None:
