@@ -9,10 +9,11 @@
    first guess (often too low where the smoother is noisy). The segmentations with K₀, K₀/1.5,
    1.5·K₀ pieces and one piece per minute give up to four starts (switch times, and (u, w) as the
    pieces' means). Then hypotheses are refined by splitting: the worst-fitting segments are halved
-   to 1.5× as many (the same track) and refined by least squares alone (so the weight can only
-   drop), climbing from the last child while it is the best by score (step 4) or its weight still
-   drops by at least a quarter of what BIC charges for its new parameters, else from the best
-   hypothesis not yet split — at most ``hypotheses`` fits in all.
+   to 1.5× as many (the same track) and refitted — if the window pass loses the start's fit, the
+   start is refined by least squares alone instead, so the weight never rises — climbing from
+   the last child while it is the best by score (step 4) or its weight still drops by at least a
+   quarter of what BIC charges for its new parameters, else from the best hypothesis not yet
+   split — at most ``hypotheses`` fits in all.
 3. **Optimisation** of each hypothesis by Hooke–Jeeves and a least-squares refinement (:mod:`.fit`).
 4. **Selection** by the Bayesian information criterion on the plots:
    score = 2·weight + complexity · p · ln n, with p = 3K + 3 parameters (initial x, y, φ, v;
@@ -187,9 +188,14 @@ def reconstruct(plots: PlotTrack, cfg: ReconstructionConfig | None = None, biase
     start, k0, k_max, q = hypothesis_starts(rel, cfg)
     found: list[tuple[Hypothesis, ControlTrack]] = []  # with the track in time since the first plot
 
-    def run(ct: ControlTrack, origin: str, windows: bool = True) -> Hypothesis:
-        best, _, nfev = fit_hypothesis(ct, rel.t, weight, cfg, windows or not cfg.refine)
+    def run(ct: ControlTrack, origin: str, floor: float = np.inf) -> Hypothesis:
+        best, _, nfev = fit_hypothesis(ct, rel.t, weight, cfg)
         wgt = weight(sample(best, rel.t)[:, :2])
+        if wgt > floor and cfg.refine:  # the window pass lost the start's fit: refine the start alone
+            alt, _, n2 = fit_hypothesis(ct, rel.t, weight, cfg, windows=False)
+            nfev += n2
+            if (w2 := weight(sample(alt, rel.t)[:, :2])) < wgt:
+                best, wgt = alt, w2
         n_par = 3 * len(best) + 3
         hyp = Hypothesis(best.shifted(t0), wgt, 2 * wgt + cfg.complexity * n_par * np.log(len(plots)), n_par, nfev, origin)
         found.append((hyp, best))
@@ -210,7 +216,7 @@ def reconstruct(plots: PlotTrack, cfg: ReconstructionConfig | None = None, biase
         child_ct = split(parent[1], K, weight, rel.t, cfg.dt_min)
         if len(child_ct) == len(parent[1]):
             break
-        child = run(child_ct, f"split of {len(parent[1])}", windows=False)
+        child = run(child_ct, f"split of {len(parent[1])}", floor=parent[0].weight)
         gain = parent[0].weight - child.weight
         if min(found, key=lambda f: f[0].score)[0] is child or gain > cfg.complexity * (child.n_params - parent[0].n_params) * np.log(len(plots)) / 8:
             parent = found[-1]
