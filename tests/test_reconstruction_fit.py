@@ -145,3 +145,25 @@ def test_split_keeps_the_track_and_halves_the_worst_segment(flight):
     excess = [d2[t < 300].sum() - 2 * (t < 300).sum(), d2[t >= 300].sum() - 2 * (t >= 300).sum()]
     expected = [150.0, 300.0] if excess[0] > excess[1] else [300.0, 300.0 + (t[-1] - 300.0) / 2]
     np.testing.assert_allclose(child.switch_times, expected)
+
+
+def test_multiple_shooting_jacobian_and_round_trip(flight):
+    from scipy.optimize._numdiff import approx_derivative
+
+    from radartracker_plugins.reconstruction.shooting import MultipleShooting
+
+    pt, _ = flight
+    t = pt.t - pt.t[0]
+    obj = ControlObjective(TrackWeight(pt), t, 0.0, t[-1], 3, ReconstructionConfig())
+    theta = obj.pack((pt.z[0, 0], pt.z[0, 1], 1.1, 165.0), np.array([0.3, 2.5, -1.0]), np.array([0.1, -0.2, 0.3]),
+                     np.array([0.0, 150.0, 300.0, t[-1]]))
+    ms = MultipleShooting(obj)
+    phi = ms.from_single(theta)
+    np.testing.assert_allclose(ms.to_single(phi), theta)
+    r = ms.residuals(phi)
+    # a chained start has no continuity gaps, and the plot residuals are the single-shooting ones
+    np.testing.assert_allclose(r[2 * len(t):], 0.0, atol=1e-6)
+    np.testing.assert_allclose(r[:2 * len(t)], obj.residuals(theta)[:-1], atol=1e-8)
+    phi[4:8] += [30.0, -20.0, 0.01, 2.0]  # open a gap at the second segment's start
+    num = approx_derivative(ms.residuals, phi, method="3-point")
+    np.testing.assert_allclose(ms.jacobian(phi), num, rtol=1e-5, atol=1e-6 * np.abs(num).max())

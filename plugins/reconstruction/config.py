@@ -24,7 +24,9 @@ class ReconstructionConfig:
     (m), ``dphi1``/``dphi_fin`` (rad), ``dv1``/``dv_fin`` (m/s); ``v_min`` keeps the speed positive
     (the model is singular at v = 0); ``penalty`` scales the constraint-violation penalty (per step
     unit); ``refine`` adds a joint least-squares refinement after the Hooke–Jeeves pass (at most
-    ``refine_iterations`` Jacobians; see :func:`.fit.refine`); ``loss``/``loss_c`` choose the weight (see :mod:`.weight`);
+    ``refine_iterations`` evaluations; see :func:`.fit.refine`), preceded by a multiple-shooting
+    one when ``shooting`` (Gaussian weight only, at most ``shooting_iterations`` evaluations;
+    see :mod:`.shooting`); ``loss``/``loss_c`` choose the weight (see :mod:`.weight`);
     ``grid_dt`` is the geometric-track spacing (s); ``hypotheses`` the most segment counts
     optimised (see :mod:`.hypotheses`); ``max_segments`` caps the segment count; ``complexity`` the
     per-parameter penalty factor on ln n (1 = BIC).
@@ -49,6 +51,8 @@ class ReconstructionConfig:
     v_min: float = attrs.field(default=10.0, validator=_pos)
     penalty: float = attrs.field(default=1e4, validator=_pos)
     refine: bool = True
+    shooting: bool = True
+    shooting_iterations: int = attrs.field(default=100, validator=_pos)
     refine_iterations: int = attrs.field(default=200, validator=_pos)
     loss: str = attrs.field(default="gauss", validator=attrs.validators.in_(LOSSES))
     loss_c: float = attrs.field(default=3.0, validator=_pos)

@@ -10,7 +10,8 @@ region; the track is integrated (:mod:`.integrate`) and its weight (:mod:`.weigh
 Search: Hooke–Jeeves with the seed's steps over one window of two consecutive segments at a time
 (segment k with its initial state fixed by segments < k, segment k+1 as a look-ahead, the plots
 of both); each window is cheap, and the chain is walked once. Then (``refine``, on by default)
-a joint Levenberg–Marquardt refinement of all of θ with the chain-rule Jacobian
+a multiple-shooting refinement (:mod:`.shooting`, ``shooting``) and a joint Levenberg–Marquardt
+refinement of all of θ with the chain-rule Jacobian
 (:meth:`ControlObjective.jacobian`): the seed's final steps (0.01 m/s² in u) leave hundreds of
 metres of drift over a long segment, and coordinate moves crawl along the valleys that couple an
 early control with every later position.
@@ -25,6 +26,7 @@ from radartracker.kinematics import propagate
 from radartracker_plugins.reconstruction.config import ReconstructionConfig
 from radartracker_plugins.reconstruction.hooke_jeeves import hooke_jeeves
 from radartracker_plugins.reconstruction.objects import ControlSegment, ControlTrack, GeoPoint
+from radartracker_plugins.reconstruction.shooting import MultipleShooting
 from radartracker_plugins.reconstruction.weight import TrackWeight
 
 
@@ -225,13 +227,19 @@ def fit_hypothesis(ct: ControlTrack, times: np.ndarray, weight: TrackWeight,
     obj = ControlObjective(weight, times, bounds[0], bounds[-1], K, cfg)
     theta = obj.pack(init, u, w, bounds)
     if cfg.refine:
+        if cfg.shooting and K > 1 and cfg.loss == "gauss":
+            theta, n = MultipleShooting(obj).refine(theta, cfg.shooting_iterations)
+            i0, up, wp, bp, _ = obj.unpack(theta)
+            theta = obj.pack(i0, up, obj.positions(i0, up, wp, bp)[1], bp)
+            nfev += n
         theta, n = refine(obj, theta)
         nfev += n
     return obj.control_track(theta), obj(theta), nfev
 
 
 def refine(obj: ControlObjective, theta: np.ndarray) -> tuple[np.ndarray, int]:
-    """Joint trust-region least-squares refinement of θ (scipy ``least_squares``, ``trf``).
+    """Joint least-squares refinement of θ: Levenberg–Marquardt (MINPACK) for the Gaussian weight,
+    scipy's ``trf`` with the box bounds for the robust losses; the chain-rule Jacobian either way.
 
     Beyond the seed: Hooke–Jeeves stops at the seed's final steps (0.01 m/s² in u is ≈ 200 m of
     lateral drift after 200 s), and coordinate moves crawl along the valleys that couple an
@@ -249,4 +257,4 @@ def refine(obj: ControlObjective, theta: np.ndarray) -> tuple[np.ndarray, int]:
         return res.x, int(res.nfev)
     res = least_squares(obj.residuals, x0, bounds=(lo, hi), method="trf", loss=loss,
                         f_scale=obj.cfg.loss_c, x_scale="jac", max_nfev=obj.cfg.refine_iterations, jac=obj.jacobian)
-    return res.x, int(res.nfev * (len(theta) + 1))
+    return res.x, int(res.nfev)
