@@ -35,6 +35,8 @@ def register_reconstruct(sub: argparse._SubParsersAction) -> None:
                    help="track weight: Gaussian NLL or a robust loss (default gauss)")
     p.add_argument("--hypotheses", type=int, default=8, help="most segment counts tried per flight (default 8)")
     p.add_argument("--grid", type=float, default=1.0, help="geometric track spacing in seconds (default 1)")
+    p.add_argument("--no-shooting", action="store_true",
+                   help="skip the multiple-shooting refinement (about 3x faster, less accurate on long flights)")
     p.add_argument("--truth-biases", action="store_true",
                    help="scenario input: remove the radar biases of truth_biases.csv from the plots")
     p.add_argument("--no-figures", action="store_true", help="skip the per-aircraft figures")
@@ -80,7 +82,7 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
         raise CliError(f"--sigma: must be > 0, got {args.sigma}")
     try:
         cfg = ReconstructionConfig(max_u=args.max_u, max_w=args.max_w, loss=args.loss,
-                                   hypotheses=args.hypotheses, grid_dt=args.grid)
+                                   hypotheses=args.hypotheses, grid_dt=args.grid, shooting=not args.no_shooting)
     except (ValueError, TypeError) as exc:
         raise CliError(str(exc)) from None
     tracks, planes, truth, skipped, truth_biases = _load(args.inputs, args.sigma, args.min_plots)
