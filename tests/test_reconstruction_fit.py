@@ -167,3 +167,38 @@ def test_multiple_shooting_jacobian_and_round_trip(flight):
     phi[4:8] += [30.0, -20.0, 0.01, 2.0]  # open a gap at the second segment's start
     num = approx_derivative(ms.residuals, phi, method="3-point")
     np.testing.assert_allclose(ms.jacobian(phi), num, rtol=1e-5, atol=1e-6 * np.abs(num).max())
+
+
+def _random_flight(rng):
+    legs = [Leg(float(rng.uniform(80, 200)))]
+    for i in range(int(rng.integers(2, 4))):
+        legs.append(Leg(float(rng.uniform(40, 120)), u=float(rng.uniform(1.5, 3.5) * rng.choice([-1, 1]))))
+        legs.append(Leg(float(rng.uniform(80, 200)), w=float(rng.choice([0.0, rng.uniform(-0.6, 0.6)]))))
+    return KinematicTrajectory(0.0, rng.uniform(-20e3, 20e3), rng.uniform(-20e3, 20e3), 5000.0,
+                               rng.uniform(0, 2 * np.pi), float(rng.uniform(130, 220)), legs)
+
+
+def _monte_carlo(n, seed):
+    rng = np.random.default_rng(seed)
+    plane = SystemPlane(*REFERENCE)
+    for i in range(n):
+        traj = _random_flight(rng)
+        pt, truth = simulate_flight(traj, radars_around(plane, [(-60, -40), (50, 60)], rng.uniform(4, 12, 2)), seed=i)
+        rec = MultiHypothesisReconstructor().reconstruct(pt)
+        rmse = np.sqrt(np.mean(np.sum((sample(rec.control, pt.t)[:, :2] - truth) ** 2, axis=1)))
+        xs, _ = tuned_rts(pt.t, pt.z, pt.R)
+        rts = np.sqrt(np.mean(np.sum((xs[:, :2] - truth) ** 2, axis=1)))
+        assert rmse < rts, (i, rmse, rts)
+        assert rec.best.weight <= TrackWeight(pt)(truth) + 1e-6
+        if len(rec.control) == len(traj.legs):
+            true_sw = np.cumsum([leg.duration for leg in traj.legs])[:-1]
+            np.testing.assert_allclose(rec.control.switch_times, true_sw, atol=8.0)
+
+
+def test_monte_carlo_recovery_short():
+    _monte_carlo(1, seed=11)
+
+
+@pytest.mark.slow
+def test_monte_carlo_recovery():
+    _monte_carlo(10, seed=12)

@@ -6,7 +6,8 @@ Folder ``<out>/<key>/``:
   altitude (m), heading (deg clockwise from north), speed (m/s), segment index;
 * ``track.plt`` — the same track for OziExplorer (:func:`radartracker.recording.write_plt`);
 * ``segments.csv`` — the control track: segment, t_start, t_end, u, w (m/s²), first/last grid point;
-* ``hypotheses.csv`` — every hypothesis ranked: rank, segments, weight (NLL), score (BIC), parameters;
+* ``hypotheses.csv`` — every hypothesis ranked: rank, segments, weight (NLL), score (BIC), parameters,
+  evaluations, origin (segmentation or split);
 * ``figure.png`` — plots, reconstruction and truth (when known) in the plane; u and w over time.
 """
 
@@ -48,9 +49,9 @@ def write_reconstruction(rec: Reconstruction, plane: SystemPlane, out: Path, tru
                          s.geo_span.start, s.geo_span.stop - 1])
     with open(folder / "hypotheses.csv", "w", newline="") as f:
         wr = csv.writer(f)
-        wr.writerow(["rank", "segments", "weight", "score", "parameters", "evaluations"])
+        wr.writerow(["rank", "segments", "weight", "score", "parameters", "evaluations", "origin"])
         for r, h in enumerate(rec.hypotheses, 1):
-            wr.writerow([r, len(h.control), f"{h.weight:.3f}", f"{h.score:.3f}", h.n_params, h.nfev])
+            wr.writerow([r, len(h.control), f"{h.weight:.3f}", f"{h.score:.3f}", h.n_params, h.nfev, h.origin])
     if figure:
         plot_reconstruction(rec, folder / "figure.png", truth)
     return folder
