@@ -54,12 +54,12 @@ class ControlObjective:
         head = list(init) if self.initial is None else []
         return np.concatenate([head, u, w, bounds[1:-1]])
 
-    def steps(self, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-        """Initial (× ``scale``) and final Hooke–Jeeves steps for θ."""
+    def steps(self) -> tuple[np.ndarray, np.ndarray]:
+        """Initial and final Hooke–Jeeves steps for θ (the seed's constants)."""
         c, K = self.cfg, self.K
         s0 = [c.dxy1, c.dxy1, c.dphi1, c.dv1] if self.initial is None else []
         s1 = [c.dxy_fin, c.dxy_fin, c.dphi_fin, c.dv_fin] if self.initial is None else []
-        first = np.concatenate([s0, [c.du1] * K, [c.dw1] * K, [c.dt1] * (K - 1)]) * scale
+        first = np.concatenate([s0, [c.du1] * K, [c.dw1] * K, [c.dt1] * (K - 1)])
         final = np.concatenate([s1, [c.du_fin] * K, [c.dw_fin] * K, [c.dt_fin] * (K - 1)])
         return np.maximum(first, final), final
 

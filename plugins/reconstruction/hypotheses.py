@@ -26,7 +26,7 @@ import attrs
 import numpy as np
 
 from radartracker_plugins.reconstruction.config import ReconstructionConfig
-from radartracker_plugins.reconstruction.fit import ControlObjective, fit_hypothesis
+from radartracker_plugins.reconstruction.fit import fit_hypothesis
 from radartracker_plugins.reconstruction.integrate import geo_track, sample
 from radartracker_plugins.reconstruction.objects import (
     ControlSegment, ControlTrack, GeoPoint, GeoTrack, PlotTrack)
@@ -231,5 +231,5 @@ def reconstruct(plots: PlotTrack, cfg: ReconstructionConfig | None = None, biase
     return Reconstruction(plots.key, plots, tuple(hyps), geo, q)
 
 
-__all__ = ["ControlObjective", "Hypothesis", "Reconstruction", "reconstruct", "hypothesis_starts",
+__all__ = ["Hypothesis", "Reconstruction", "reconstruct", "hypothesis_starts",
            "segmentations", "control_signals", "height_profile", "split"]
