@@ -26,7 +26,7 @@ def register_reconstruct(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: one per core)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="Dask scheduler address (implies --engine dask); default: a LocalCluster")
-    p.add_argument("--batch-plots", type=int, default=2000, help="plots per task (default 2000)")
+    p.add_argument("--batch-plots", type=int, default=500, help="plots per task (default 500)")
     p.add_argument("--sigma", type=float, default=100.0, help=".new4 input: position σ in metres (default 100)")
     p.add_argument("--min-plots", type=int, default=10, help="skip aircraft with fewer plots (default 10)")
     p.add_argument("--max-u", type=float, default=4.0, help="lateral acceleration bound m/s² (default 4)")

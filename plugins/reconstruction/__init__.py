@@ -33,7 +33,7 @@ class MultiHypothesisReconstructor:
         return reconstruct(plots, self.config, biases)
 
     def reconstruct_many(self, tracks: list[PlotTrack], executor: Executor | None = None,
-                         batch_plots: int = 2000, progress: bool = False) -> Iterator[Reconstruction | Failure]:
+                         batch_plots: int = 500, progress: bool = False) -> Iterator[Reconstruction | Failure]:
         """Reconstruct many flights on ``executor`` (this process when None), as they finish."""
         return run_many(tracks, self.config, executor, batch_plots, progress)
 

@@ -82,7 +82,7 @@ def executor(engine: str = "process", workers: int | None = None, scheduler: str
 
 
 def run_many(tracks: list[PlotTrack], cfg: ReconstructionConfig, ex: Executor | None,
-             batch_plots: int = 2000, progress: bool = True, biases=None) -> Iterator[Reconstruction | Failure]:
+             batch_plots: int = 500, progress: bool = True, biases=None) -> Iterator[Reconstruction | Failure]:
     """Reconstruct every track on ``ex`` (in this process when None), yielding results as they finish."""
     work = batches(tracks, batch_plots)
     bar = tqdm(total=len(tracks), unit="flight", disable=not progress, desc="reconstruct")
