@@ -216,6 +216,14 @@ class TrackFilter(abc.ABC):
         """(time, χ, P) of the current estimate."""
 
 
+def validated_prior(key: Hashable, state: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """An aircraft prior as float arrays, checked (finite 4-vector, 4×4) and symmetrised."""
+    state, cov = np.asarray(state, float), np.asarray(cov, float)
+    if state.shape != (4,) or cov.shape != (4, 4) or not (np.isfinite(state).all() and np.isfinite(cov).all()):
+        raise ValueError(f"aircraft {key!r}: prior must be a finite 4-vector and 4×4 covariance")
+    return state, 0.5 * (cov + cov.T)
+
+
 def _group(group: str) -> dict[str, Any]:
     return {ep.name: ep for ep in entry_points(group=group)}
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from radartracker.domain import BiasState
 from radartracker.kalman import SingularInnovation
-from radartracker.plugin import AircraftEstimate, Estimator, Innovation, PlaneMeasurement
+from radartracker.plugin import AircraftEstimate, Estimator, Innovation, PlaneMeasurement, validated_prior
 
 
 class CoupledEstimator(Estimator):
@@ -65,14 +65,12 @@ class CoupledEstimator(Estimator):
     def add_aircraft(self, key: Hashable, time: float, state: np.ndarray, cov: np.ndarray) -> None:
         if key in self._ac:
             raise ValueError(f"aircraft {key!r} already estimated")
-        state, cov = np.asarray(state, float), np.asarray(cov, float)
-        if state.shape != (4,) or cov.shape != (4, 4) or not (np.isfinite(state).all() and np.isfinite(cov).all()):
-            raise ValueError(f"aircraft {key!r}: prior must be a finite 4-vector and 4×4 covariance")
+        state, cov = validated_prior(key, state, cov)
         k = self._free.pop() if self._free else self._alloc(4)
         self._x[k:k + 4] = state
         self._P[k:k + 4, :] = 0.0
         self._P[:, k:k + 4] = 0.0
-        self._P[k:k + 4, k:k + 4] = 0.5 * (cov + cov.T)
+        self._P[k:k + 4, k:k + 4] = cov
         self._ac[key] = [k, float(time)]
 
     def remove_aircraft(self, key: Hashable) -> None:

@@ -61,7 +61,7 @@ import numpy as np
 from radartracker.domain import BiasState
 from radartracker.kalman import SingularInnovation
 from radartracker.motion import MotionModel
-from radartracker.plugin import AircraftEstimate, Estimator, EstimatorConfig, Innovation, PlaneMeasurement
+from radartracker.plugin import AircraftEstimate, Estimator, EstimatorConfig, Innovation, PlaneMeasurement, validated_prior
 
 from . import _kernels as K
 
@@ -140,11 +140,9 @@ class CoupledSparseEstimator(Estimator):
     def add_aircraft(self, key: Hashable, time: float, state: np.ndarray, cov: np.ndarray) -> None:
         if key in self._ac:
             raise ValueError(f"aircraft {key!r} already estimated")
-        state, cov = np.asarray(state, float), np.asarray(cov, float)
-        if state.shape != (4,) or cov.shape != (4, 4) or not (np.isfinite(state).all() and np.isfinite(cov).all()):
-            raise ValueError(f"aircraft {key!r}: prior must be a finite 4-vector and 4×4 covariance")
+        state, cov = validated_prior(key, state, cov)
         L = np.zeros((4, 4))
-        if not K.chol(0.5 * (cov + cov.T), L, 4):
+        if not K.chol(cov, L, 4):
             raise SingularInformation(f"aircraft {key!r}: prior covariance is not positive definite "
                                       "(the information form needs its inverse)")
         if not self._free:

@@ -19,7 +19,7 @@ import numpy as np
 
 from radartracker.domain import BiasState
 from radartracker.kalman import correct
-from radartracker.plugin import AircraftEstimate, Estimator, Innovation, PlaneMeasurement
+from radartracker.plugin import AircraftEstimate, Estimator, Innovation, PlaneMeasurement, validated_prior
 
 
 class DecoupledEstimator(Estimator):
@@ -40,7 +40,7 @@ class DecoupledEstimator(Estimator):
     def add_aircraft(self, key: Hashable, time: float, state: np.ndarray, cov: np.ndarray) -> None:
         if key in self._x:
             raise ValueError(f"aircraft {key!r} already estimated")
-        self._x[key] = [float(time), np.array(state, float), np.array(cov, float)]
+        self._x[key] = [float(time), *validated_prior(key, state, cov)]
 
     def remove_aircraft(self, key: Hashable) -> None:
         del self._x[key]
