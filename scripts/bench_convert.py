@@ -18,11 +18,11 @@ import tempfile
 import time
 from pathlib import Path
 
-from radartracker.recording import write_synthetic_recording
+from radartracker.io.recording import write_synthetic_recording
 
 CHILD = """
 import json, sys
-from radartracker.convert import ConvertOptions, convert
+from radartracker.io.convert import ConvertOptions, convert
 r = convert(sys.argv[1], sys.argv[2], ConvertOptions(AZN_TRACKS_MAX=10**9))
 print(json.dumps({"aircraft": len(r["selected_aircraft"]), "buckets": r["buckets"],
                   "lines": sum(f["lines"] for f in r["files"].values()),

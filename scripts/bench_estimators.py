@@ -2,7 +2,7 @@
 
     python scripts/bench_estimators.py [--aircraft 10 100 500 2000] [--radars 3 10 28] [--budget 2.0]
 
-Data: the seed's linear toy model (radartracker.linsim), every radar seeing every aircraft. For
+Data: the seed's linear toy model (radartracker.simulation.linsim), every radar seeing every aircraft. For
 each (estimator, n aircraft, m radars) all aircraft are added, then plots are fed until ``budget``
 seconds have passed (at least 10 plots); coupled runs only where its dense covariance fits in
 ``--max-coupled-gib``. Then, on the same constant-velocity single-target data (unbiased position
@@ -24,9 +24,10 @@ import time
 
 import numpy as np
 
-from radartracker.linsim import make_linear_scenario
-from radartracker.motion import MotionModel
-from radartracker.plugin import EstimatorConfig, make_estimator
+from radartracker.simulation.linsim import make_linear_scenario
+from radartracker.estimation.motion import MotionModel
+from radartracker.estimation.base import EstimatorConfig
+from radartracker.registry import make_estimator
 
 ESTIMATORS = ("decoupled", "blom", "coupled")
 P0 = np.diag([500.0**2, 500.0**2, 50.0**2, 50.0**2])

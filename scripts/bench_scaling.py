@@ -4,7 +4,7 @@
                                     [--repeat 3] [--rt-aircraft 2000] [--rt-radars 28] [--rt-duration 3600]
                                     [--out FILE]
 
-1. *Scaling.* The seed's linearised model (as ``radartracker.linsim``): m radars on a 100 km ring,
+1. *Scaling.* The seed's linearised model (as ``radartracker.simulation.linsim``): m radars on a 100 km ring,
    n aircraft inside it, every radar seeing every aircraft once per turn (periods 4–12 s), so each
    aircraft is coupled to all m biases (the worst case for the sparse filter). All aircraft are added
    and, for ``coupled-sparse``, one full turn is fed first so every aircraft has its m bias blocks;
@@ -16,15 +16,15 @@
    4–12 s, Pd 0.9, constant biases) and traffic of ≈2,000 airborne aircraft (straight flights of
    20–90 min, 200–250 m/s, starting and ending all hour long) for one hour. Plots are generated here in
    the flat plane with the same linearised model (the rotating-radar simulator of
-   ``radartracker.simulate`` would need ≈9 min for this traffic), sorted by time, and replayed through
-   ``coupled-sparse`` with ``radartracker.replay``'s life cycle: a track starts at its first plot with
+   ``radartracker.simulation.simulator`` would need ≈9 min for this traffic), sorted by time, and replayed through
+   ``coupled-sparse`` with ``radartracker.pipeline.replay``'s life cycle: a track starts at its first plot with
    ``ReplayOptions.prior`` and is marginalised after ``drop_after_s`` without plots (sweeps every second,
    one ``update_many`` per second of traffic). Reported: plots per wall-clock second and hours of
    traffic per wall-clock second. Estimates are not read back per plot here (the cost of an
    ``aircraft()`` read is reported in part 1).
 3. *Conversion.* For scale: the bulk plot-to-plane conversion (``replay.prepare``, pyproj) timed on
    a 5-minute, 100-aircraft run of the real simulator over the same region.
-4. *Replay loop.* ``radartracker.replay.replay()`` end to end on the ``paris`` scenario (q = 20) with
+4. *Replay loop.* ``radartracker.pipeline.replay.replay()`` end to end on the ``paris`` scenario (q = 20) with
    ``coupled`` and ``coupled-sparse``: the per-plot loop of the product, recording every estimate.
 
 One JSON line per measurement (with the 1-minute load average: the machine is shared), then the
@@ -42,9 +42,10 @@ import time
 
 import numpy as np
 
-from radartracker.motion import MotionModel
-from radartracker.plugin import EstimatorConfig, PlaneMeasurement, make_estimator
-from radartracker.replay import ReplayOptions
+from radartracker.estimation.motion import MotionModel
+from radartracker.estimation.base import EstimatorConfig, PlaneMeasurement
+from radartracker.registry import make_estimator
+from radartracker.pipeline.replay import ReplayOptions
 
 P0 = np.diag([1e4**2, 1e4**2, 300.0**2, 300.0**2])
 SIGMA_R, SIGMA_A = 70.0, math.radians(0.08)
@@ -263,9 +264,9 @@ def time_realtime(n_airborne: int, n_radars: int, duration: float, seed: int = 0
 # --- 3. conversion -------------------------------------------------------------------------------
 def time_conversion(n_radars: int, seed: int = 0) -> dict:
     from radartracker.domain import Aircraft, Radar
-    from radartracker.geometry import SystemPlane
-    from radartracker.replay import prepare
-    from radartracker.simulate import KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator
+    from radartracker.geometry.plane import SystemPlane
+    from radartracker.pipeline.replay import prepare
+    from radartracker.simulation.simulator import KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator
 
     ref = (47.0, 2.5)
     plane = SystemPlane(*ref)
@@ -289,9 +290,9 @@ def time_conversion(n_radars: int, seed: int = 0) -> dict:
 
 # --- 4. the replay loop ----------------------------------------------------------------------------
 def time_replay(name: str, scenario: str = "paris", q: float = 20.0) -> dict:
-    """radartracker.replay.replay() end to end (per-plot loop, coupling graph, estimates recorded)."""
-    from radartracker.replay import replay
-    from radartracker.scenarios import build_scenario
+    """radartracker.pipeline.replay.replay() end to end (per-plot loop, coupling graph, estimates recorded)."""
+    from radartracker.pipeline.replay import replay
+    from radartracker.simulation.scenarios import build_scenario
 
     data = build_scenario(scenario, seed=1).run()
     res = replay(data, name, ReplayOptions.for_scenario(data, q=q))

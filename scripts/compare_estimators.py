@@ -2,10 +2,10 @@
 
     python scripts/compare_estimators.py [--seeds 1 2 3] [--mc-runs 50] [--no-docs]
 
-For each scenario and seed: simulate, replay through every estimator (radartracker.compare), pool
+For each scenario and seed: simulate, replay through every estimator (radartracker.pipeline.compare), pool
 the scores over seeds, and print one Markdown table per scenario. Figures of the first seed go to
 docs/figures/estimators_<scenario>_{bias_error,rmse_vs_time}.png. A Monte Carlo on the seed's
-linear toy model (radartracker.linsim) gives each estimator's ANEES against its χ² 95 % bounds.
+linear toy model (radartracker.simulation.linsim) gives each estimator's ANEES against its χ² 95 % bounds.
 The tables replace the block between the markers in docs/estimators.md.
 """
 
@@ -20,12 +20,13 @@ import numpy as np
 from scipy.linalg import block_diag
 from scipy.stats import chi2
 
-from radartracker.compare import DEFAULT_ESTIMATORS, markdown_table, plot_bias_errors, plot_rmse_vs_time, pool, run_comparison, score
-from radartracker.linsim import make_linear_scenario
-from radartracker.motion import MotionModel
-from radartracker.plugin import EstimatorConfig, make_estimator
-from radartracker.replay import ReplayOptions
-from radartracker.scenarios import build_scenario
+from radartracker.pipeline.compare import (DEFAULT_ESTIMATORS, markdown_table, plot_bias_errors, plot_rmse_vs_time, pool, run_comparison, score)
+from radartracker.simulation.linsim import make_linear_scenario
+from radartracker.estimation.motion import MotionModel
+from radartracker.estimation.base import EstimatorConfig
+from radartracker.registry import make_estimator
+from radartracker.pipeline.replay import ReplayOptions
+from radartracker.simulation.scenarios import build_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 # scenario -> (process noise q for the CV model, description)

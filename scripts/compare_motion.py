@@ -1,6 +1,6 @@
 """Position RMSE of the track motion models on real flights seen by simulated radars.
 
-Each real flight (OpenSky Network ADS-B, ``radartracker.flights``) is flown through the rotating-radar
+Each real flight (OpenSky Network ADS-B, ``radartracker.simulation.flights``) is flown through the rotating-radar
 simulator with three unbiased radars around it (σ 70 m / 0.08°, periods 4, 8 and 12 s, Pd 0.9), so
 the comparison isolates motion modelling. Plots are converted to the plane exactly
 (``convert_plots``), associated by their truth label, and fed in time order to each filter. A track
@@ -31,12 +31,13 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from radartracker.domain import Aircraft, Radar  # noqa: E402
-from radartracker.evaluate import TruthPaths  # noqa: E402
-from radartracker.flights import Flight, load_flights  # noqa: E402
-from radartracker.geometry import SystemPlane  # noqa: E402
-from radartracker.measurement import convert_plots  # noqa: E402
-from radartracker.plugin import MotionSettings, load_motion_model  # noqa: E402
-from radartracker.simulate import RecordedTrajectory, SimAircraft, SimRadar, Simulator  # noqa: E402
+from radartracker.pipeline.evaluate import TruthPaths  # noqa: E402
+from radartracker.simulation.flights import Flight, load_flights  # noqa: E402
+from radartracker.geometry.plane import SystemPlane  # noqa: E402
+from radartracker.estimation.measurement import convert_plots  # noqa: E402
+from radartracker.tracking.filters import MotionSettings  # noqa: E402
+from radartracker.registry import load_motion_model  # noqa: E402
+from radartracker.simulation.simulator import RecordedTrajectory, SimAircraft, SimRadar, Simulator  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 FULL = ROOT.parent / "shared" / "data" / "real_flights.csv.gz"

@@ -26,10 +26,11 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).parent))
 from bench_scaling import region_plots  # noqa: E402
 
-from radartracker.coupling import CouplingGraph  # noqa: E402
-from radartracker.motion import MotionModel  # noqa: E402
-from radartracker.plugin import EstimatorConfig, make_estimator  # noqa: E402
-from radartracker.replay import ReplayOptions  # noqa: E402
+from radartracker.estimation.coupling import CouplingGraph  # noqa: E402
+from radartracker.estimation.motion import MotionModel  # noqa: E402
+from radartracker.estimation.base import EstimatorConfig  # noqa: E402
+from radartracker.registry import make_estimator  # noqa: E402
+from radartracker.pipeline.replay import ReplayOptions  # noqa: E402
 
 FIG = Path(__file__).resolve().parent.parent / "docs" / "figures"
 

@@ -17,7 +17,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from reconstruction_real import DATA, flights_to_plots  # noqa: E402
 
-from radartracker.flights import load_flights  # noqa: E402
+from radartracker.simulation.flights import load_flights  # noqa: E402
 from radartracker_plugins.reconstruction import ReconstructionConfig  # noqa: E402
 from radartracker_plugins.reconstruction.engine import executor, run_many  # noqa: E402
 

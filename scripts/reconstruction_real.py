@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from radartracker.flights import load_flights
-from radartracker.geometry import SystemPlane
-from radartracker.simulate import RecordedTrajectory
+from radartracker.simulation.flights import load_flights
+from radartracker.geometry.plane import SystemPlane
+from radartracker.simulation.simulator import RecordedTrajectory
 from radartracker_plugins.reconstruction import ReconstructionConfig
 from radartracker_plugins.reconstruction.engine import Failure, executor, run_many
 from radartracker_plugins.reconstruction.integrate import sample

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from radartracker.geometry import SystemPlane
-from radartracker.simulate import KinematicTrajectory, Leg
+from radartracker.geometry.plane import SystemPlane
+from radartracker.simulation.simulator import KinematicTrajectory, Leg
 from radartracker_plugins.reconstruction import ReconstructionConfig
 from radartracker_plugins.reconstruction.engine import executor, run_many
 from radartracker_plugins.reconstruction.integrate import sample

@@ -15,10 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-from radartracker.figures import plot_tracks_over_truth
-from radartracker.manager import ManagerConfig
-from radartracker.scenarios import build_scenario
-from radartracker.track_replay import track_replay
+from radartracker.pipeline.figures import plot_tracks_over_truth
+from radartracker.tracking.manager import ManagerConfig
+from radartracker.simulation.scenarios import build_scenario
+from radartracker.pipeline.track_replay import track_replay
 
 FIGURES = Path(__file__).resolve().parents[1] / "docs" / "figures"
 

@@ -2,7 +2,7 @@
 
 import pytest
 
-from radartracker.scenarios import build_scenario
+from radartracker.simulation.scenarios import build_scenario
 
 
 @pytest.fixture(scope="session")

@@ -13,9 +13,7 @@ import asterix4py  # test-only dependency: the independent decoder
 import numpy as np
 import pytest
 
-from radartracker.asterix import (CAT021, CAT048, CAT062, FL_M, NM, cat021_record, cat048_record,
-                                  cat062_record, datablocks, decode_block, decode_cat062, iter_datablocks,
-                                  read_asterix, write_asterix, write_cat062, write_pcap)
+from radartracker.io.asterix import (CAT021, CAT048, CAT062, FL_M, NM, cat021_record, cat048_record, cat062_record, datablocks, decode_block, decode_cat062, iter_datablocks, read_asterix, write_asterix, write_cat062, write_pcap)
 from radartracker.cli import main
 
 RHO_RES, THETA_RES = NM / 256, 2 * math.pi / 2**16  # I048/040
@@ -25,7 +23,7 @@ LATLON_RES = 180 / 2**30                             # I021/131
 
 @pytest.fixture(scope="module")
 def scenario():
-    from radartracker.scenarios import build_scenario
+    from radartracker.simulation.scenarios import build_scenario
 
     return build_scenario("manoeuvres", seed=3, duration=120).run()
 
@@ -116,7 +114,7 @@ def test_cat062_from_tracks_decodes(tmp_path):
 
 
 def test_cat062_from_a_replay(tmp_path, scenario):
-    from radartracker import replay
+    from radartracker.pipeline import replay
     result = replay.replay(scenario, "decoupled", replay.ReplayOptions.for_scenario(scenario))
     numbers = write_cat062(tmp_path / "tracks.ast", result)
     got = [decode_cat062(r) for _, b in iter_datablocks(tmp_path / "tracks.ast") for r in decode_block(b, "t")[1]]
@@ -174,7 +172,7 @@ def test_bad_files_give_clear_errors(tmp_path, scenario):
 
 
 def test_cli_import_export(tmp_path, scenario):
-    from radartracker.formats import read_scenario, write_scenario
+    from radartracker.io.scenario import read_scenario, write_scenario
 
     write_scenario(tmp_path / "scen", scenario)
     assert main(["asterix-export", str(tmp_path / "scen"), "--out", str(tmp_path / "x.ast")]) == 0

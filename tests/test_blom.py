@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from radartracker.linsim import bias_jacobian, make_linear_scenario
-from radartracker.plugin import EstimatorConfig, PlaneMeasurement, make_estimator
+from radartracker.simulation.linsim import bias_jacobian, make_linear_scenario
+from radartracker.estimation.base import EstimatorConfig, PlaneMeasurement
+from radartracker.registry import make_estimator
 
 CFG = EstimatorConfig()
 RADAR_XY = {"R1": np.array([-80e3, 0.0]), "R2": np.array([60e3, 70e3])}

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from radartracker.cli import main
-from radartracker.compare import Score, markdown_table, pool, run_comparison, score, write_comparison
-from radartracker.formats import write_scenario
-from radartracker.scenarios import build_scenario
+from radartracker.pipeline.compare import Score, markdown_table, pool, run_comparison, score, write_comparison
+from radartracker.io.scenario import write_scenario
+from radartracker.simulation.scenarios import build_scenario
 
 
 @pytest.fixture(scope="module")

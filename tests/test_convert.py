@@ -13,11 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import radartracker.convert as conv
+import radartracker.io.convert as conv
 from radartracker.cli import main
-from radartracker.convert import ConvertOptions, convert
-from radartracker.recording import (AdsRecord, PlotRecord, TrackRecord, read_converted, read_new4,
-                                    read_plt, write_recording)
+from radartracker.io.convert import ConvertOptions, convert
+from radartracker.io.recording import (AdsRecord, PlotRecord, TrackRecord, read_converted, read_new4, read_plt, write_recording)
 
 FILES = ("plots_ads.txt", "tracks.txt", "plots.txt")
 
@@ -222,9 +221,9 @@ def test_cli_convert(tmp_path, capsys):
 
 
 def test_simulated_scenario_round_trip(tmp_path):
-    from radartracker.geometry import RadarFrame, SystemPlane
-    from radartracker.recording import write_scenario_recording
-    from radartracker.scenarios import build_scenario
+    from radartracker.geometry.plane import RadarFrame, SystemPlane
+    from radartracker.io.recording import write_scenario_recording
+    from radartracker.simulation.scenarios import build_scenario
 
     data = build_scenario("manoeuvres", seed=2, duration=200).run()
     write_scenario_recording(tmp_path / "rec", data)
@@ -263,8 +262,8 @@ def test_simulated_scenario_round_trip(tmp_path):
 
 
 def test_cli_simulate_write_recording_convert(tmp_path):
-    from radartracker.formats import write_scenario
-    from radartracker.scenarios import build_scenario
+    from radartracker.io.scenario import write_scenario
+    from radartracker.simulation.scenarios import build_scenario
 
     data = build_scenario("demo", seed=1, duration=150).run()
     write_scenario(tmp_path / "scen", data)

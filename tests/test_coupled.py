@@ -10,9 +10,10 @@ from hypothesis import strategies as st
 from scipy.linalg import block_diag
 from scipy.stats import chi2
 
-from radartracker.linsim import make_linear_scenario
-from radartracker.motion import MotionModel
-from radartracker.plugin import EstimatorConfig, make_estimator
+from radartracker.simulation.linsim import make_linear_scenario
+from radartracker.estimation.motion import MotionModel
+from radartracker.estimation.base import EstimatorConfig
+from radartracker.registry import make_estimator
 
 
 def _cv(dt: float) -> np.ndarray:

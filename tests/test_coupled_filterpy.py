@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter
 
-from radartracker.linsim import make_linear_scenario
-from radartracker.motion import MotionModel
-from radartracker.plugin import EstimatorConfig, make_estimator
+from radartracker.simulation.linsim import make_linear_scenario
+from radartracker.estimation.motion import MotionModel
+from radartracker.estimation.base import EstimatorConfig
+from radartracker.registry import make_estimator
 
 
 @pytest.mark.parametrize("name", ["decoupled", "blom", "coupled"])

@@ -9,10 +9,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.linalg import cho_factor, cho_solve
 
-from radartracker.kalman import SingularInnovation
-from radartracker.linsim import bias_jacobian, make_linear_scenario
-from radartracker.motion import MotionModel
-from radartracker.plugin import Estimator, EstimatorConfig, PlaneMeasurement, make_estimator
+from radartracker.estimation.kalman import SingularInnovation
+from radartracker.simulation.linsim import bias_jacobian, make_linear_scenario
+from radartracker.estimation.motion import MotionModel
+from radartracker.estimation.base import Estimator, EstimatorConfig, PlaneMeasurement
+from radartracker.registry import make_estimator
 from radartracker_plugins.coupled_sparse import CoupledSparseEstimator, SingularInformation
 from radartracker_plugins.coupled_sparse import _kernels as kernels
 
@@ -294,8 +295,8 @@ def test_invalid_configuration_and_prior_are_refused():
 
 def test_radar_added_after_aircraft_and_replay_matches_dense():
     """Growing the radar set mid-run keeps the blocks; the replay loop gives the dense filter's biases."""
-    from radartracker.replay import replay
-    from radartracker.scenarios import build_scenario
+    from radartracker.pipeline.replay import replay
+    from radartracker.simulation.scenarios import build_scenario
 
     data = build_scenario("demo", seed=2, duration=240.0).run()
     res = {name: replay(data, name) for name in ("coupled", "coupled-sparse")}

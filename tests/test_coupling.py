@@ -7,9 +7,10 @@ import json
 import networkx as nx
 import numpy as np
 
-from radartracker.coupling import ADSB, CouplingGraph
-from radartracker.linsim import make_linear_scenario
-from radartracker.plugin import EstimatorConfig, make_estimator
+from radartracker.estimation.coupling import ADSB, CouplingGraph
+from radartracker.simulation.linsim import make_linear_scenario
+from radartracker.estimation.base import EstimatorConfig
+from radartracker.registry import make_estimator
 
 
 def test_edges_count_observations_and_last_time():
@@ -91,8 +92,8 @@ def test_graphml_round_trip(tmp_path):
 
 def test_replay_writes_graphml_and_observability(tmp_path):
     """seed scenario (no ADS-B): radars share aircraft but are not anchored; demo: ADS-B anchors all."""
-    from radartracker.replay import replay, write_outputs
-    from radartracker.scenarios import build_scenario
+    from radartracker.pipeline.replay import replay, write_outputs
+    from radartracker.simulation.scenarios import build_scenario
 
     for name, status in (("seed", "relative"), ("demo", "anchored")):
         result = replay(build_scenario(name, seed=3, duration=120.0).run(), "coupled")

@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter
 
-from radartracker.motion import MotionModel
-from radartracker.plugin import EstimatorConfig, PlaneMeasurement, load_estimator
-from radartracker.replay import ReplayOptions, prepare, replay
+from radartracker.estimation.motion import MotionModel
+from radartracker.estimation.base import EstimatorConfig, PlaneMeasurement
+from radartracker.registry import load_estimator
+from radartracker.pipeline.replay import ReplayOptions, prepare, replay
 
 
 def single_aircraft_measurements(n=120, seed=0):
@@ -72,7 +73,7 @@ def test_bias_filter_follows_its_equations():
 
 def test_replay_beats_raw_plots(demo_data):
     """Tracks are closer to the truth than the converted plots themselves (independent truth)."""
-    from radartracker.evaluate import TruthPaths, state_errors
+    from radartracker.pipeline.evaluate import TruthPaths, state_errors
 
     result = replay(demo_data, "decoupled")
     plane, meas, _ = prepare(demo_data, ReplayOptions.for_scenario(demo_data))

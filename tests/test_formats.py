@@ -6,7 +6,8 @@ import shutil
 import numpy as np
 import pytest
 
-from radartracker.formats import FormatError, read_scenario, write_scenario
+from radartracker.errors import FormatError
+from radartracker.io.scenario import read_scenario, write_scenario
 
 
 @pytest.fixture()

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pyproj import Geod, Proj
 
-from radartracker.geometry import RadarFrame, SystemPlane
+from radartracker.geometry.plane import RadarFrame, SystemPlane
 
 PLANE = SystemPlane(48.85, 2.35)
 RADAR = RadarFrame(49.4, 3.6, 150.0, PLANE)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from radartracker.kinematics import propagate
+from radartracker.geometry.kinematics import propagate
 
 
 def numeric(x0, y0, phi0, v0, u, w, tau):

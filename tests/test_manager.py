@@ -12,10 +12,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from radartracker.domain import AdsbReport, Plot
-from radartracker.manager import ManagerConfig, TrackManager
-from radartracker.plugin import PlaneMeasurement
-from radartracker.scenarios import build_scenario
-from radartracker.track_replay import scenario_items, track_replay
+from radartracker.tracking.manager import ManagerConfig, TrackManager
+from radartracker.estimation.base import PlaneMeasurement
+from radartracker.simulation.scenarios import build_scenario
+from radartracker.pipeline.track_replay import scenario_items, track_replay
 
 
 @pytest.fixture(scope="module")
@@ -88,14 +88,14 @@ def test_out_of_order_within_window_late_and_duplicates(tracking_data):
 
 def test_snapshot_restore_in_a_fresh_process(tmp_path, tracking_data):
     """Half, snapshot, restore in a new interpreter, the rest == one uninterrupted replay (1e-12)."""
-    from radartracker.formats import write_scenario
+    from radartracker.io.scenario import write_scenario
 
     write_scenario(tmp_path / "scen", tracking_data)
     script = textwrap.dedent(f"""
         import pickle, sys
-        from radartracker.formats import read_scenario
-        from radartracker.manager import ManagerConfig, TrackManager
-        from radartracker.track_replay import scenario_items
+        from radartracker.io.scenario import read_scenario
+        from radartracker.tracking.manager import ManagerConfig, TrackManager
+        from radartracker.pipeline.track_replay import scenario_items
         data = read_scenario({str(tmp_path / 'scen')!r})
         items = [i for i in scenario_items(data) if i.time < 400]
         half = len(items) // 2

@@ -10,8 +10,9 @@ from filterpy.kalman import KalmanFilter
 from scipy.optimize import brentq
 from scipy.stats import chi2
 
-from radartracker.motion import MotionModel
-from radartracker.plugin import MotionSettings, available_motion_models, load_motion_model
+from radartracker.estimation.motion import MotionModel
+from radartracker.tracking.filters import MotionSettings
+from radartracker.registry import available_motion_models, load_motion_model
 from radartracker_plugins.motion import AdaptiveFilter, CVFilter, FadingFilter, IMMFilter
 
 

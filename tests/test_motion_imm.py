@@ -10,10 +10,10 @@ import pytest
 from filterpy.kalman import IMMEstimator, KalmanFilter
 from scipy.linalg import expm
 
-from radartracker.kinematics import propagate
-from radartracker.motion import MotionModel
-from radartracker.plugin import MotionSettings
-from radartracker.simulate import KinematicTrajectory, Leg
+from radartracker.geometry.kinematics import propagate
+from radartracker.estimation.motion import MotionModel
+from radartracker.tracking.filters import MotionSettings
+from radartracker.simulation.simulator import KinematicTrajectory, Leg
 from radartracker_plugins.motion import CVFilter, IMMFilter
 from radartracker_plugins.motion.ct import ct_noise, ct_transition
 from test_motion import assert_close, cv_track, manoeuvre_track, run

@@ -7,13 +7,14 @@ import numpy as np
 import pytest
 
 from radartracker.cli import main
-from radartracker.plugin import Estimator, available_estimators, load_estimator
-from radartracker.replay import replay
+from radartracker.estimation.base import Estimator
+from radartracker.registry import available_estimators, load_estimator
+from radartracker.pipeline.replay import replay
 
 PLUGIN = '''
 import numpy as np
 from radartracker.domain import BiasState
-from radartracker.plugin import AircraftEstimate, Estimator, Innovation
+from radartracker.estimation.base import AircraftEstimate, Estimator, Innovation
 
 
 class Frozen(Estimator):

@@ -13,10 +13,10 @@ import pytest
 
 from radartracker.cli import main
 from radartracker.domain import Aircraft
-from radartracker.formats import write_scenario
-from radartracker.geometry import SystemPlane
-from radartracker.recording import TrackPoints, read_plt, write_new4
-from radartracker.simulate import KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator
+from radartracker.io.scenario import write_scenario
+from radartracker.geometry.plane import SystemPlane
+from radartracker.io.recording import TrackPoints, read_plt, write_new4
+from radartracker.simulation.simulator import KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator
 from radartracker_plugins.reconstruction import MultiHypothesisReconstructor, ReconstructionConfig
 from radartracker_plugins.reconstruction.engine import batches, executor
 from radartracker_plugins.reconstruction.sim import REFERENCE, radars_around

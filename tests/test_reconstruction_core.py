@@ -10,7 +10,7 @@ from scipy.integrate import solve_ivp
 from scipy.special import huber
 from scipy.stats import multivariate_normal
 
-from radartracker.kinematics import propagate
+from radartracker.geometry.kinematics import propagate
 from radartracker_plugins.reconstruction.integrate import geo_track, sample
 from radartracker_plugins.reconstruction.objects import ControlSegment, ControlTrack, GeoPoint, PlotTrack
 from radartracker_plugins.reconstruction.smoother import rts_smooth
@@ -133,7 +133,7 @@ def test_robust_losses_and_bias_correction():
 def test_rts_matches_filterpy():
     from filterpy.kalman import KalmanFilter, rts_smoother
 
-    from radartracker.motion import MotionModel
+    from radartracker.estimation.motion import MotionModel
 
     pt = _plots(60, seed=3)
     q = 0.5

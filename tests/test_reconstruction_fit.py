@@ -10,8 +10,8 @@ import itertools
 import numpy as np
 import pytest
 
-from radartracker.geometry import SystemPlane
-from radartracker.simulate import KinematicTrajectory, Leg
+from radartracker.geometry.plane import SystemPlane
+from radartracker.simulation.simulator import KinematicTrajectory, Leg
 from radartracker_plugins.reconstruction import MultiHypothesisReconstructor, ReconstructionConfig
 from radartracker_plugins.reconstruction.fit import ControlObjective, fit_hypothesis
 from radartracker_plugins.reconstruction.hypotheses import segmentations

@@ -7,9 +7,7 @@ import datetime as dt
 import numpy as np
 import pytest
 
-from radartracker.recording import (ADS_COLUMNS, PLOT_COLUMNS, TRACK_COLUMNS, AdsRecord, PlotRecord,
-                                    TrackPoints, TrackRecord, format_plt, ozi_days, read_new4, read_plt,
-                                    write_new4, write_plt, write_recording)
+from radartracker.io.recording import (ADS_COLUMNS, PLOT_COLUMNS, TRACK_COLUMNS, AdsRecord, PlotRecord, TrackPoints, TrackRecord, format_plt, ozi_days, read_new4, read_plt, write_new4, write_plt, write_recording)
 
 
 def _points(n=25, seed=3):
@@ -111,8 +109,8 @@ def test_recording_writer_columns_and_refuses_existing(tmp_path):
 
 
 def test_synthetic_recording_is_geometrically_consistent(tmp_path):
-    from radartracker.geometry import RadarFrame, SystemPlane
-    from radartracker.recording import synthetic_records, write_synthetic_recording
+    from radartracker.geometry.plane import RadarFrame, SystemPlane
+    from radartracker.io.recording import synthetic_records, write_synthetic_recording
 
     size = write_synthetic_recording(tmp_path / "syn", batches=1, aircraft_per_batch=3, flight_s=120.0, seed=5)
     assert size == sum((tmp_path / "syn" / n).stat().st_size for n in ("plots.txt", "tracks.txt", "plots_ads.txt"))

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from radartracker.domain import Aircraft, Radar
-from radartracker.geometry import RadarFrame, SystemPlane
-from radartracker.scenarios import build_scenario
-from radartracker.simulate import KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator
+from radartracker.geometry.plane import RadarFrame, SystemPlane
+from radartracker.simulation.scenarios import build_scenario
+from radartracker.simulation.simulator import KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator
 
 
 def single(pd=1.0, false_per_scan=0.0, sr=0.0, sa=0.0, bias=(0.0, 0.0), drift=0.0):

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from radartracker.evaluate import TrackHistory, TruthPaths, gospa, track_metrics
+from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, gospa, track_metrics
 
 GRID = np.arange(0.0, 100.0, 1.0)
 

@@ -7,9 +7,10 @@ map for R), batch weighted least squares over the same measurements, χ² bounds
 import numpy as np
 from scipy import stats
 
-from radartracker.geometry import SystemPlane
-from radartracker.motion import MotionModel
-from radartracker.plugin import EstimatorConfig, PlaneMeasurement, load_estimator
+from radartracker.geometry.plane import SystemPlane
+from radartracker.estimation.motion import MotionModel
+from radartracker.estimation.base import EstimatorConfig, PlaneMeasurement
+from radartracker.registry import load_estimator
 from radartracker_plugins.triangulation import (DirectionFinder, TriangulationFrame, fix_measurement,
                                                 locate, plane_measurement)
 from radartracker_plugins.triangulation.simulate import noisy_bearings, sites_around, true_bearings

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from radartracker.geometry import RadarFrame, SystemPlane
+from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker_plugins.triangulation import Bearing, DirectionFinder, TriangulationFrame
 from radartracker_plugins.triangulation import crlb
 from radartracker_plugins.triangulation.dynamic import PolynomialBasis

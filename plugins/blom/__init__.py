@@ -38,9 +38,7 @@ from collections.abc import Hashable
 
 import numpy as np
 
-from radartracker.domain import BiasState
-from radartracker.kalman import correct
-from radartracker.plugin import AircraftEstimate, Estimator, Innovation, PlaneMeasurement
+from radartracker.api import AircraftEstimate, BiasState, Estimator, Innovation, PlaneMeasurement, correct
 
 _ADSB = None  # source key of unbiased measurements
 

@@ -24,9 +24,7 @@ from collections.abc import Hashable
 
 import numpy as np
 
-from radartracker.domain import BiasState
-from radartracker.kalman import SingularInnovation
-from radartracker.plugin import AircraftEstimate, Estimator, Innovation, PlaneMeasurement, validated_prior
+from radartracker.api import (AircraftEstimate, BiasState, Estimator, Innovation, PlaneMeasurement, SingularInnovation, validated_prior)
 
 
 class CoupledEstimator(Estimator):

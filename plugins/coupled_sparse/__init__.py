@@ -58,10 +58,7 @@ from collections.abc import Hashable, Sequence
 
 import numpy as np
 
-from radartracker.domain import BiasState
-from radartracker.kalman import SingularInnovation
-from radartracker.motion import MotionModel
-from radartracker.plugin import AircraftEstimate, Estimator, EstimatorConfig, Innovation, PlaneMeasurement, validated_prior
+from radartracker.api import (AircraftEstimate, BiasState, Estimator, EstimatorConfig, Innovation, MotionModel, PlaneMeasurement, SingularInnovation, validated_prior)
 
 from . import _kernels as K
 

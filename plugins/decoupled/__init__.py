@@ -17,9 +17,7 @@ from collections.abc import Hashable
 
 import numpy as np
 
-from radartracker.domain import BiasState
-from radartracker.kalman import correct
-from radartracker.plugin import AircraftEstimate, Estimator, Innovation, PlaneMeasurement, validated_prior
+from radartracker.api import (AircraftEstimate, BiasState, Estimator, Innovation, PlaneMeasurement, correct, validated_prior)
 
 
 class DecoupledEstimator(Estimator):

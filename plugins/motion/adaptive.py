@@ -36,9 +36,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2
 
-from radartracker.kalman import symmetrize
-from radartracker.motion import MotionModel
-from radartracker.plugin import MotionSettings, TrackFilter
+from radartracker.api import MotionModel, MotionSettings, TrackFilter, symmetrize
 from radartracker_plugins.motion.base import (check_measurement, check_time, max_gap,
                                                position_update, require_started, start_state)
 

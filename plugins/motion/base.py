@@ -11,7 +11,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from radartracker.kalman import correct
+from radartracker.api import correct
 
 
 class Step(NamedTuple):

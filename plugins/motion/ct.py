@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from radartracker.motion import MotionModel
+from radartracker.api import MotionModel
 
 _SMALL = 1e-4  # |ωT| below which the Taylor series are used
 

@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from radartracker.motion import MotionModel
-from radartracker.plugin import MotionSettings, TrackFilter
+from radartracker.api import MotionModel, MotionSettings, TrackFilter
 from radartracker_plugins.motion.base import (check_measurement, check_time, max_gap,
                                                position_update, require_started, start_state)
 

@@ -32,9 +32,7 @@ import math
 
 import numpy as np
 
-from radartracker.kalman import symmetrize
-from radartracker.motion import MotionModel
-from radartracker.plugin import MotionSettings, TrackFilter
+from radartracker.api import MotionModel, MotionSettings, TrackFilter, symmetrize
 from radartracker_plugins.motion.base import (check_measurement, check_time, max_gap,
                                                position_update, require_started, start_state)
 from radartracker_plugins.motion.ct import ct_noise, ct_transition

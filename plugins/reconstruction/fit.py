@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
-from radartracker.kinematics import propagate
+from radartracker.api import propagate
 from radartracker_plugins.reconstruction.config import ReconstructionConfig
 from radartracker_plugins.reconstruction.hooke_jeeves import hooke_jeeves
 from radartracker_plugins.reconstruction.objects import ControlSegment, ControlTrack, GeoPoint

@@ -12,7 +12,7 @@ from __future__ import annotations
 import attrs
 import numpy as np
 
-from radartracker.kinematics import propagate
+from radartracker.api import propagate
 from radartracker_plugins.reconstruction.objects import ControlTrack, GeoTrack
 
 

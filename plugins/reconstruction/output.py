@@ -18,8 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from radartracker.geometry import SystemPlane
-from radartracker.recording import TrackPoints, write_plt
+from radartracker.api import SystemPlane, TrackPoints, write_plt
 from radartracker_plugins.reconstruction.hypotheses import Reconstruction
 
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
-from radartracker.kinematics import propagate
+from radartracker.api import propagate
 
 # continuity scale (x, y m; φ rad; v m/s): gaps this size cost as much as one σ of one plot
 SIGMA_CONTINUITY = np.array([1.0, 1.0, 1e-4, 1e-2])

@@ -12,9 +12,7 @@ import math
 
 import numpy as np
 
-from radartracker.domain import Aircraft, Radar
-from radartracker.geometry import SystemPlane
-from radartracker.simulate import SimAircraft, SimRadar, Simulator
+from radartracker.api import Aircraft, Radar, SimAircraft, SimRadar, Simulator, SystemPlane
 from radartracker_plugins.reconstruction.objects import PlotTrack
 from radartracker_plugins.reconstruction.tracks import scenario_tracks
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from radartracker.motion import MotionModel
+from radartracker.api import MotionModel
 
 Q_GRID = tuple(np.logspace(-3, 2, 11))
 _V0_SD = 300.0  # m/s, prior velocity spread of the first plot (diffuse for aircraft)

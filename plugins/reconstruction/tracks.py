@@ -14,11 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from radartracker.formats import ScenarioData
-from radartracker.geometry import SystemPlane
-from radartracker.measurement import convert_plots, fill_altitudes, plot_keys
-from radartracker.recording import read_new4
+from radartracker.api import ScenarioData, SystemPlane, convert_plots, fill_altitudes, plot_keys, read_new4
 from radartracker_plugins.reconstruction.objects import PlotTrack
+from radartracker.api import InputError
 
 DEFAULT_ALTITUDE_M = 3000.0
 
@@ -53,7 +51,7 @@ def new4_track(path: Path | str, sigma_m: float) -> tuple[PlotTrack, SystemPlane
     path = Path(path)
     pts = read_new4(path)
     if len(pts.time) < 2:
-        raise ValueError(f"{path}: fewer than 2 points")
+        raise InputError(f"{path}: fewer than 2 points")
     order = np.argsort(pts.time, kind="stable")
     plane = SystemPlane(float(np.mean(pts.lat)), float(np.mean(pts.lon)))
     x, y = plane.to_plane(pts.lat[order], pts.lon[order])

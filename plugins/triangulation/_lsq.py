@@ -30,6 +30,8 @@ from typing import NamedTuple
 import numpy as np
 from scipy.optimize import least_squares
 
+import radartracker.api as api
+
 from .frame import TriangulationFrame, wrap_angle
 from .sensors import Bearing
 
@@ -38,7 +40,7 @@ log = logging.getLogger("radartracker.triangulation")
 RANK_RTOL = 1e-9  # singular values below this fraction of the largest count as zero
 
 
-class GeometryError(ValueError):
+class GeometryError(api.GeometryError):
     """The bearings do not determine the target: degenerate or too poor geometry (GDOP given)."""
 
     def __init__(self, message: str, gdop: float) -> None:
@@ -51,10 +53,10 @@ class BearingSet:
 
     def __init__(self, frame: TriangulationFrame, bearings: Sequence[Bearing]) -> None:
         if not bearings:
-            raise ValueError("bearings: none given")
+            raise api.InputError("bearings: none given")
         unknown = sorted({b.station for b in bearings} - set(frame.stations))
         if unknown:
-            raise ValueError(f"station: unknown station id(s) {unknown}; known: {sorted(frame.stations)}")
+            raise api.InputError(f"station: unknown station id(s) {unknown}; known: {sorted(frame.stations)}")
         self.frame = frame
         self.time = np.array([b.time for b in bearings])
         self.station = np.array([b.station for b in bearings])

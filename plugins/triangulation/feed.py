@@ -19,8 +19,7 @@ from collections.abc import Hashable
 
 import numpy as np
 
-from radartracker.geometry import SystemPlane
-from radartracker.plugin import PlaneMeasurement
+from radartracker.api import PlaneMeasurement, SystemPlane
 
 from .frame import TriangulationFrame
 from .static import Fix

@@ -25,9 +25,10 @@ from collections.abc import Iterable
 import numpy as np
 from pyproj import Transformer
 
-from radartracker.geometry import RadarFrame, SystemPlane
+from radartracker.api import RadarFrame, SystemPlane
 
 from .sensors import DirectionFinder
+from radartracker.api import InputError
 
 _PROBE_M = 1000.0  # lever arm used to read the rotation R_m off the pyproj pipeline
 
@@ -56,10 +57,10 @@ class TriangulationFrame:
         self.stations: dict[str, DirectionFinder] = {}
         for s in stations:
             if s.id in self.stations:
-                raise ValueError(f"station id {s.id!r} appears twice")
+                raise InputError(f"station id {s.id!r} appears twice")
             self.stations[s.id] = s
         if not self.stations:
-            raise ValueError("stations: at least one direction finder is needed")
+            raise InputError("stations: at least one direction finder is needed")
         sites = list(self.stations.values())
         if reference is None:
             lon = np.radians([s.lon for s in sites])

@@ -18,6 +18,7 @@ from .dynamic import TrackFix
 from .frame import TriangulationFrame
 from .sensors import Bearing, DirectionFinder
 from .static import Fix
+from radartracker.api import InputError
 
 STATION_COLUMNS = ("id", "lat_deg", "lon_deg", "height_m", "sigma_azimuth_deg", "sigma_elevation_deg")
 BEARING_COLUMNS = ("time_s", "station", "azimuth_deg", "elevation_deg")
@@ -36,11 +37,11 @@ def _rows(path: Path, required: tuple[str, ...]) -> Iterator[tuple[int, dict[str
         try:
             lineno, header = next(lines)
         except StopIteration:
-            raise ValueError(f"{path.name}: empty file, expected a header {','.join(required)}") from None
+            raise InputError(f"{path.name}: empty file, expected a header {','.join(required)}") from None
         names = [h.strip() for h in next(csv.reader([header]))]
         missing = [c for c in required if c not in names]
         if missing:
-            raise ValueError(f"{path.name} line {lineno}: header lacks column(s) {', '.join(missing)}")
+            raise InputError(f"{path.name} line {lineno}: header lacks column(s) {', '.join(missing)}")
         for lineno, line in lines:
             values = next(csv.reader([line]))
             yield lineno, (None if len(values) != len(names)
@@ -75,20 +76,20 @@ def _read(path: Path, required: tuple[str, ...], make: Callable[[dict[str, str]]
     for lineno, row in _rows(path, required):
         try:
             if row is None:
-                raise ValueError("wrong number of fields for the header")
+                raise InputError("wrong number of fields for the header")
             out.append(make(row))
         except ValueError as exc:
             if skip_bad:
                 skipped += 1
                 continue
             if row is None:
-                raise ValueError(f"{path.name} line {lineno}: {exc}") from None
+                raise InputError(f"{path.name} line {lineno}: {exc}") from None
             if isinstance(exc, _FieldError):
                 field, problem = exc.field, exc.problem
             else:  # a domain validator: "attribute: problem"
                 attr, _, problem = str(exc).partition(": ")
                 field = _COLUMN_OF.get(attr, attr)
-            raise ValueError(f"{path.name} line {lineno}, field {field!r}: {problem}") from None
+            raise InputError(f"{path.name} line {lineno}, field {field!r}: {problem}") from None
     return out, skipped
 
 
@@ -101,11 +102,11 @@ def read_stations(path: str | Path) -> list[DirectionFinder]:
     path = Path(path)
     stations, _ = _read(path, STATION_COLUMNS, make, skip_bad=False)
     if not stations:
-        raise ValueError(f"{path.name}: no stations")
+        raise InputError(f"{path.name}: no stations")
     ids = [s.id for s in stations]
     twice = sorted({i for i in ids if ids.count(i) > 1})
     if twice:
-        raise ValueError(f"{path.name}, field 'id': station id(s) {twice} appear more than once")
+        raise InputError(f"{path.name}, field 'id': station id(s) {twice} appear more than once")
     return stations
 
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from pyproj import Geod
 
-from radartracker.geometry import RadarFrame, SystemPlane
+from radartracker.api import RadarFrame, SystemPlane
 
 from .frame import TriangulationFrame
 from .sensors import Bearing

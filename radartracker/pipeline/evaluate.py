@@ -10,8 +10,8 @@ from __future__ import annotations
 import attrs
 import numpy as np
 
-from radartracker.formats import TruthTable
-from radartracker.geometry import SystemPlane
+from radartracker.io.tables import TruthTable
+from radartracker.geometry.plane import SystemPlane
 
 
 @attrs.frozen

@@ -13,8 +13,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, LinAlgError
 
+from radartracker.errors import NumericalError
 
-class SingularInnovation(ValueError):
+
+class SingularInnovation(NumericalError):
     """The innovation covariance Λ is not positive definite (degenerate measurement or state)."""
 
 

@@ -22,8 +22,8 @@ import attrs
 import numpy as np
 
 from radartracker.domain import NACP_EPU_M, Radar
-from radartracker.formats import AdsbTable, PlotTable
-from radartracker.geometry import RadarFrame, SystemPlane
+from radartracker.io.tables import AdsbTable, PlotTable
+from radartracker.geometry.plane import RadarFrame, SystemPlane
 
 
 @attrs.frozen

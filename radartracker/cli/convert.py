@@ -6,11 +6,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from radartracker.cli import CliError
+from radartracker.errors import ConfigurationError
 
 
 def register_convert(sub: argparse._SubParsersAction) -> None:
-    from radartracker.convert import ConvertOptions
+    from radartracker.io.convert import ConvertOptions
 
     d = ConvertOptions()
     p = sub.add_parser("convert", help="convert a text recording (tracks.txt, plots.txt, plots_ads.txt) "
@@ -31,15 +31,15 @@ def register_convert(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_convert(args: argparse.Namespace) -> int:
-    from radartracker.convert import ConvertOptions, convert
+    from radartracker.io.convert import ConvertOptions, convert
 
     try:
         opts = ConvertOptions(args.AZN_TRACKS_MAX, args.AZN_TRACKS_MIN_MEASUR, args.TRACKS_MIN_MEASUR,
                               args.RADAR_SENSOR_ONLY, int(args.bucket_mb * 2**20))
     except ValueError as exc:
-        raise CliError(f"bad option: {exc}") from None
+        raise ConfigurationError(f"bad option: {exc}") from None
     if not args.recording.is_dir():
-        raise CliError(f"{args.recording}: not a recording folder")
+        raise ConfigurationError(f"{args.recording}: not a recording folder")
     report = convert(args.recording, args.out, opts)
     print(f"wrote {args.out}: {len(report['selected_aircraft'])} aircraft in {report['seconds']} s")
     for name, f in report["files"].items():
@@ -59,11 +59,11 @@ def register_asterix_import(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_asterix_import(args: argparse.Namespace) -> int:
-    from radartracker.asterix import read_asterix
-    from radartracker.formats import write_scenario
+    from radartracker.io.asterix import read_asterix
+    from radartracker.io.scenario import write_scenario
 
     if args.out.exists():
-        raise CliError(f"{args.out} already exists; choose a new folder")
+        raise ConfigurationError(f"{args.out} already exists; choose a new folder")
     data = read_asterix(args.recording)
     write_scenario(args.out, data)
     print(f"wrote {args.out}: {len(data.radars)} radars, {len(data.plots)} plots, "
@@ -79,11 +79,11 @@ def register_asterix_export(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_asterix_export(args: argparse.Namespace) -> int:
-    from radartracker.asterix import write_asterix
-    from radartracker.formats import read_scenario
+    from radartracker.io.asterix import write_asterix
+    from radartracker.io.scenario import read_scenario
 
     if args.out.exists():
-        raise CliError(f"{args.out} already exists; choose a new file")
+        raise ConfigurationError(f"{args.out} already exists; choose a new file")
     n = write_asterix(args.out, read_scenario(args.scenario))
     print(f"wrote {args.out}: {n} ASTERIX records")
     return 0
@@ -101,12 +101,12 @@ def register_write_recording(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_write_recording(args: argparse.Namespace) -> int:
-    from radartracker.recording import write_scenario_recording, write_synthetic_recording
+    from radartracker.io.recording import write_scenario_recording, write_synthetic_recording
 
     if args.out.exists():
-        raise CliError(f"{args.out} already exists; choose a new folder")
+        raise ConfigurationError(f"{args.out} already exists; choose a new folder")
     if args.scenario is not None:
-        from radartracker.formats import read_scenario
+        from radartracker.io.scenario import read_scenario
 
         write_scenario_recording(args.out, read_scenario(args.scenario))
     else:

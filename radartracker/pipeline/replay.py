@@ -21,14 +21,15 @@ import attrs
 import numpy as np
 from tqdm import tqdm
 
-from radartracker.coupling import CouplingGraph
-from radartracker.evaluate import TruthPaths, nees, state_errors
-from radartracker.formats import ScenarioData
-from radartracker.geometry import SystemPlane
-from radartracker.kalman import SingularInnovation
-from radartracker.measurement import Measurements, convert_adsb, convert_plots, fill_altitudes, merge, plot_keys
-from radartracker.motion import MotionModel
-from radartracker.plugin import Estimator, EstimatorConfig, PlaneMeasurement, make_estimator
+from radartracker.estimation.coupling import CouplingGraph
+from radartracker.pipeline.evaluate import TruthPaths, nees, state_errors
+from radartracker.io.tables import ScenarioData
+from radartracker.geometry.plane import SystemPlane
+from radartracker.estimation.kalman import SingularInnovation
+from radartracker.estimation.measurement import (Measurements, convert_adsb, convert_plots, fill_altitudes, merge, plot_keys)
+from radartracker.estimation.motion import MotionModel
+from radartracker.estimation.base import Estimator, EstimatorConfig, PlaneMeasurement
+from radartracker.registry import make_estimator
 
 log = logging.getLogger(__name__)
 DEFAULT_Q = 5.0  # m²/s³, white-acceleration density for real traffic
@@ -235,6 +236,6 @@ def write_outputs(result: ReplayResult, out: Path | str, *, figures: bool = Fals
     if result.coupling is not None:
         result.coupling.write_graphml(out / "coupling.graphml")
     if figures:
-        from radartracker.figures import plot_biases
+        from radartracker.pipeline.figures import plot_biases
 
         plot_biases(result, out / "biases.png")

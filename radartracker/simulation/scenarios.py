@@ -19,9 +19,9 @@ from collections.abc import Callable
 import numpy as np
 
 from radartracker.domain import Aircraft, Radar
-from radartracker.flights import load_flights
-from radartracker.geometry import SystemPlane
-from radartracker.simulate import KinematicTrajectory, Leg, RecordedTrajectory, SimAircraft, SimRadar, Simulator
+from radartracker.simulation.flights import load_flights
+from radartracker.geometry.plane import SystemPlane
+from radartracker.simulation.simulator import (KinematicTrajectory, Leg, RecordedTrajectory, SimAircraft, SimRadar, Simulator)
 
 
 def _radar(plane: SystemPlane, rid: str, x_km: float, y_km: float, *, period: float, sr: float = 70.0,

@@ -35,7 +35,7 @@ from asterix.base import Bits, RawDatablock
 import asterix.generated as gen
 
 from radartracker.domain import Aircraft, Radar
-from radartracker.formats import RADAR_COLUMNS, AdsbTable, PlotTable, ScenarioData
+from radartracker.io.tables import RADAR_COLUMNS, AdsbTable, PlotTable, ScenarioData
 
 CAT048, CAT021, CAT062 = gen.Cat_048_1_32, gen.Cat_021_2_6, gen.Cat_062_1_21
 NM, FT = 1852.0, 0.3048
@@ -402,7 +402,7 @@ class _Clock:
 
 def read_sites(path: Path) -> tuple[list[Radar], dict[tuple[int, int], str]]:
     """Radar sites and the SAC/SIC → radar id map of a ``.radars.csv`` sidecar."""
-    from radartracker.formats import read_radars
+    from radartracker.io.scenario import read_radars
 
     radars = read_radars(path)
     with open(path, newline="", encoding="utf-8") as f:

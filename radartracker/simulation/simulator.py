@@ -26,9 +26,9 @@ import attrs
 import numpy as np
 
 from radartracker.domain import Aircraft, Radar, nacp_sigma_m
-from radartracker.formats import AdsbTable, PlotTable, ScenarioData, TruthTable
-from radartracker.geometry import RadarFrame, SystemPlane
-from radartracker.kinematics import propagate
+from radartracker.io.tables import AdsbTable, PlotTable, ScenarioData, TruthTable
+from radartracker.geometry.plane import RadarFrame, SystemPlane
+from radartracker.geometry.kinematics import propagate
 
 _EARTH_RADIUS_M = 6_371_008.8
 _MODE_C_STEP_M = 25 * 0.3048

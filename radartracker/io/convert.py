@@ -1,7 +1,7 @@
 """The seed's conversion program ``tracks_plots_00`` (seed 000 §2.6, DESIGN §8), streaming.
 
 Input: a recording folder with ``plots_ads.txt``, ``tracks.txt``, ``plots.txt`` (columns in
-:mod:`radartracker.recording`). Output ``new/<global>/``: ``ads``, ``240_mr`` (multi-radar track),
+:mod:`radartracker.io.recording`). Output ``new/<global>/``: ``ads``, ``240_mr`` (multi-radar track),
 ``<radar>_mr`` (monoradar tracks) and ``<radar>_r`` (radar plots), each as ``.new4`` and ``.plt``,
 plus ``new/report.json`` accounting for every input line.
 
@@ -35,8 +35,7 @@ from pathlib import Path
 import attrs
 import numpy as np
 
-from radartracker.recording import (ADS_FILE, COLUMNS, MULTI_RADAR, PLOTS_FILE, TRACKS_FILE,
-                                    format_new4, format_plt)
+from radartracker.io.recording import ADS_FILE, COLUMNS, MULTI_RADAR, PLOTS_FILE, TRACKS_FILE, format_new4, format_plt
 
 KIND_ADS, KIND_MULTI, KIND_MONO, KIND_PLOT = 0, 1, 2, 3
 _KIND_FILE = {KIND_ADS: ADS_FILE, KIND_MULTI: TRACKS_FILE, KIND_MONO: TRACKS_FILE, KIND_PLOT: PLOTS_FILE}

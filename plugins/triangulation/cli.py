@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from radartracker.cli import CliError
+from radartracker.api import ConfigurationError
 
 
 def register_triangulate(sub: argparse._SubParsersAction) -> None:
@@ -44,9 +44,9 @@ def _reference(text: str | None) -> tuple[float, ...] | None:
     try:
         values = tuple(float(v) for v in text.split(","))
     except ValueError:
-        raise CliError(f"--reference: expected LAT,LON[,H] in degrees and metres, got {text!r}") from None
+        raise ConfigurationError(f"--reference: expected LAT,LON[,H] in degrees and metres, got {text!r}") from None
     if len(values) not in (2, 3):
-        raise CliError(f"--reference: expected LAT,LON[,H], got {text!r}")
+        raise ConfigurationError(f"--reference: expected LAT,LON[,H], got {text!r}")
     return values
 
 
@@ -55,16 +55,16 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
                                                     track)
 
     if args.out.exists() and any(args.out.iterdir()):
-        raise CliError(f"{args.out} exists and is not empty; choose a new folder")
+        raise ConfigurationError(f"{args.out} exists and is not empty; choose a new folder")
     if args.order < 0:
-        raise CliError(f"--order: must be >= 0, got {args.order}")
+        raise ConfigurationError(f"--order: must be >= 0, got {args.order}")
     if args.step is not None and args.step <= 0:
-        raise CliError(f"--step: must be > 0, got {args.step}")
+        raise ConfigurationError(f"--step: must be > 0, got {args.step}")
     frame = TriangulationFrame(io.read_stations(args.stations), _reference(args.reference))
     bearings, malformed = io.read_bearings(args.bearings, skip_bad=args.skip_bad)
     unknown = sorted({b.station for b in bearings} - set(frame.stations))
     if unknown and not args.skip_bad:
-        raise CliError(f"{args.bearings.name}, field 'station': station id(s) {unknown} are not in "
+        raise ConfigurationError(f"{args.bearings.name}, field 'station': station id(s) {unknown} are not in "
                        f"{args.stations.name} (use --skip-bad to skip and count them)")
     known = [b for b in bearings if b.station in frame.stations]
     skipped = {"malformed": malformed, "unknown_station": len(bearings) - len(known)}

@@ -12,7 +12,7 @@ triangulated fix; associated by its ``aircraft`` key if that is a Mode S address
    radar within a frame (a sector of one antenna scan) are associated together:
    Mode S address → the track with that address; otherwise global nearest neighbour with gates on
    the bias-corrected predicted position and the full innovation covariance
-   (:mod:`radartracker.association`), Mode 3/A codes restricting the candidates.
+   (:mod:`radartracker.tracking.association`), Mode 3/A codes restricting the candidates.
    Unassigned plots start tentative tracks. ADS-B reports go to the track with their address.
 4. **Misses** — each radar's antenna phase is estimated from its plots (α(t) = φ + 2πt/T); a track
    in coverage whose azimuth the antenna swept during the frame without a plot has missed a
@@ -43,14 +43,15 @@ from pathlib import Path
 import attrs
 import numpy as np
 
-from radartracker.association import assign, candidate_pairs, gate_costs
-from radartracker.coupling import CouplingGraph
+from radartracker.tracking.association import assign, candidate_pairs, gate_costs
+from radartracker.estimation.coupling import CouplingGraph
 from radartracker.domain import AdsbReport, Plot, Radar, nacp_sigma_m
-from radartracker.geometry import RadarFrame, SystemPlane
-from radartracker.kalman import SingularInnovation
-from radartracker.motion import MotionModel
-from radartracker.plugin import (EstimatorConfig, MotionSettings, PlaneMeasurement, TrackFilter, load_motion_model,
-                                 make_estimator)
+from radartracker.geometry.plane import RadarFrame, SystemPlane
+from radartracker.estimation.kalman import SingularInnovation
+from radartracker.estimation.motion import MotionModel
+from radartracker.estimation.base import EstimatorConfig, PlaneMeasurement
+from radartracker.tracking.filters import MotionSettings, TrackFilter
+from radartracker.registry import load_motion_model, make_estimator
 
 log = logging.getLogger(__name__)
 EVENT_KINDS = ("created", "confirmed", "updated", "coasting", "deleted")

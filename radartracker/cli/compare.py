@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from radartracker.cli import CliError
+from radartracker.errors import ConfigurationError
 
 
 def register_compare(sub: argparse._SubParsersAction) -> None:
@@ -20,17 +20,17 @@ def register_compare(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from radartracker.compare import run_comparison, write_comparison
-    from radartracker.formats import read_scenario
-    from radartracker.plugin import available_estimators
-    from radartracker.replay import ReplayOptions
+    from radartracker.pipeline.compare import run_comparison, write_comparison
+    from radartracker.io.sources import read_source
+    from radartracker.registry import available_estimators
+    from radartracker.pipeline.replay import ReplayOptions
 
     names = [n.strip() for n in args.estimators.split(",") if n.strip()]
     unknown = [n for n in names if n not in available_estimators()]
     if not names or unknown:
-        raise CliError(f"--estimators: unknown {', '.join(unknown) or '(none given)'}; "
+        raise ConfigurationError(f"--estimators: unknown {', '.join(unknown) or '(none given)'}; "
                        f"installed: {', '.join(available_estimators())}")
-    data = read_scenario(args.scenario, skip_bad=args.skip_bad)
+    data = read_source(args.scenario, skip_bad=args.skip_bad)
     results = run_comparison(data, names, ReplayOptions.for_scenario(data, q=args.q))
     write_comparison(results, args.out)
     print((args.out / "comparison.md").read_text(), end="")

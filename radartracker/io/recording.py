@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import IO, NamedTuple
 
 import numpy as np
+from radartracker.errors import FormatError, InputError
 
 ADS_FILE, TRACKS_FILE, PLOTS_FILE = "plots_ads.txt", "tracks.txt", "plots.txt"
 MULTI_RADAR = "240"  # the seed's radar number of the multi-radar (system) track
@@ -148,12 +149,12 @@ class RecordingWriter:
 
     def write_track(self, r: TrackRecord) -> None:
         if not _TOKEN.fullmatch(r.radar):
-            raise ValueError(f"tracks.txt: radar must be a token of [A-Za-z0-9_.-], got {r.radar!r}")
+            raise InputError(f"tracks.txt: radar must be a token of [A-Za-z0-9_.-], got {r.radar!r}")
         self._put(TRACKS_FILE, format_track(r))
 
     def write_plot(self, r: PlotRecord) -> None:
         if not _TOKEN.fullmatch(r.radar):
-            raise ValueError(f"plots.txt: radar must be a token of [A-Za-z0-9_.-], got {r.radar!r}")
+            raise InputError(f"plots.txt: radar must be a token of [A-Za-z0-9_.-], got {r.radar!r}")
         self._put(PLOTS_FILE, format_plot(r))
 
     def extend(self, records: Iterable[AdsRecord | TrackRecord | PlotRecord]) -> None:
@@ -248,8 +249,8 @@ def write_plt(path: Path | str, pts: TrackPoints, name: str = "track") -> None:
     Path(path).write_text(format_plt(*pts, name=name), encoding="utf-8", newline="\n")
 
 
-def _bad(path: Path, line: int, field: str, text: str) -> ValueError:
-    return ValueError(f"{path}: line {line}: field {field}: {text}")
+def _bad(path: Path, line: int, field: str, text: str) -> FormatError:
+    return FormatError(str(path), line, field, text)
 
 
 def read_new4(path: Path | str) -> TrackPoints:
@@ -323,7 +324,7 @@ def synthetic_records(*, seed: int = 0, batches: int | None = None, aircraft_per
     Plot range/azimuth come from the exact pyproj geometry, lat/lon from the noisy measurement;
     2 % extra false plots carry no global number. Records within a batch are in time order.
     """
-    from radartracker.geometry import RadarFrame, SystemPlane
+    from radartracker.geometry.plane import RadarFrame, SystemPlane
 
     rng = np.random.default_rng(seed)
     plane = SystemPlane(*center)
@@ -415,7 +416,7 @@ def scenario_records(data) -> Iterator[AdsRecord | PlotRecord]:
     Mode S address, else 2 (SSR) with a Mode 3/A code, else 1 (PSR). The simulator has no tracker, so
     no ``tracks.txt`` records come from it.
     """
-    from radartracker.geometry import RadarFrame, SystemPlane
+    from radartracker.geometry.plane import RadarFrame, SystemPlane
 
     number = {a.icao24: i + 1 for i, a in enumerate(data.aircraft)}
     plane = SystemPlane(*data.reference)

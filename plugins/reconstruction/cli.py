@@ -13,7 +13,7 @@ import json
 import sys
 from pathlib import Path
 
-from radartracker.cli import CliError
+from radartracker.api import ConfigurationError
 
 
 def register_reconstruct(sub: argparse._SubParsersAction) -> None:
@@ -46,18 +46,18 @@ def register_reconstruct(sub: argparse._SubParsersAction) -> None:
 
 def _load(inputs: list[Path], sigma: float, min_plots: int):
     """(tracks, plane per key, truth per key, skipped counts, truth biases or None)."""
-    from radartracker.formats import read_scenario
+    from radartracker.api import read_scenario
     from radartracker_plugins.reconstruction.tracks import new4_track, scenario_tracks, scenario_truth
 
     for p in inputs:
         if not p.exists():
-            raise CliError(f"{p}: no such file or folder")
+            raise ConfigurationError(f"{p}: no such file or folder")
     if len(inputs) == 1 and inputs[0].is_dir():
         data = read_scenario(inputs[0])
         tracks, plane, skipped = scenario_tracks(data, min_plots)
         return tracks, {t.key: plane for t in tracks}, scenario_truth(data, plane), dict(skipped), data.truth_biases
     if any(p.is_dir() or p.suffix != ".new4" for p in inputs):
-        raise CliError("give either one scenario folder or .new4 files")
+        raise ConfigurationError("give either one scenario folder or .new4 files")
     tracks, planes, skipped = [], {}, {}
     for p in inputs:
         pt, plane = new4_track(p, sigma)
@@ -65,7 +65,7 @@ def _load(inputs: list[Path], sigma: float, min_plots: int):
             skipped[f"tracks with < {min_plots} points"] = skipped.get(f"tracks with < {min_plots} points", 0) + 1
             continue
         if pt.key in planes:
-            raise CliError(f"{p}: two inputs map to the same aircraft key {pt.key!r}")
+            raise ConfigurationError(f"{p}: two inputs map to the same aircraft key {pt.key!r}")
         tracks.append(pt)
         planes[pt.key] = plane
     return tracks, planes, {}, skipped, None
@@ -77,20 +77,20 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
     from radartracker_plugins.reconstruction.output import write_reconstruction
 
     if args.out.exists() and any(args.out.iterdir()):
-        raise CliError(f"{args.out} exists and is not empty; choose a new folder")
+        raise ConfigurationError(f"{args.out} exists and is not empty; choose a new folder")
     if args.sigma <= 0:
-        raise CliError(f"--sigma: must be > 0, got {args.sigma}")
+        raise ConfigurationError(f"--sigma: must be > 0, got {args.sigma}")
     try:
         cfg = ReconstructionConfig(max_u=args.max_u, max_w=args.max_w, loss=args.loss,
                                    hypotheses=args.hypotheses, grid_dt=args.grid, shooting=not args.no_shooting)
     except (ValueError, TypeError) as exc:
-        raise CliError(str(exc)) from None
+        raise ConfigurationError(str(exc)) from None
     tracks, planes, truth, skipped, truth_biases = _load(args.inputs, args.sigma, args.min_plots)
     if args.truth_biases and not truth_biases:
-        raise CliError("--truth-biases: the input has no truth biases")
+        raise ConfigurationError("--truth-biases: the input has no truth biases")
     biases = truth_biases if args.truth_biases else None
     if not tracks:
-        raise CliError("no aircraft with enough plots to reconstruct")
+        raise ConfigurationError("no aircraft with enough plots to reconstruct")
     engine = "dask" if args.scheduler else args.engine
     args.out.mkdir(parents=True, exist_ok=True)
     summary = {"flights": len(tracks), "skipped_plots": skipped, "reconstructed": [], "failed": {}}

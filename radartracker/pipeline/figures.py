@@ -13,7 +13,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 if TYPE_CHECKING:
-    from radartracker.replay import ReplayResult
+    from radartracker.pipeline.replay import ReplayResult
 
 
 def plot_biases(result: ReplayResult, path: Path) -> None:

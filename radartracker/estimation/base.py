@@ -1,4 +1,4 @@
-"""The public plugin API: what an estimator implements and how plugins are found.
+"""The estimator contract: what an estimator plugin implements (DESIGN §4–5).
 
 An *estimator* receives associated measurements already converted to the system plane
 (:class:`PlaneMeasurement`) and keeps the aircraft states and the radar biases. The observation
@@ -10,28 +10,19 @@ where ``C_s`` and ``R`` come with the measurement (``C_s = 0`` for unbiased sour
 Aircraft states are χ = [x, y, vx, vy] (metres, m/s, x east, y north); a bias is ς = [Δr, Δθ]
 (metres, radians). Each aircraft has its own epoch: an estimator predicts an aircraft only when a
 measurement of it arrives.
-
-Plugins are discovered through ``importlib.metadata`` entry points in the groups
-``radartracker.estimators`` and ``radartracker.reconstructors``; the built-in plugins register
-themselves the same way a third party would.
 """
 
 from __future__ import annotations
 
 import abc
-from collections.abc import Hashable, Iterable, Sequence
-from importlib.metadata import entry_points
-from typing import Any, ClassVar, NamedTuple
+from collections.abc import Hashable, Sequence
+from typing import ClassVar, NamedTuple
 
 import attrs
 import numpy as np
 
 from radartracker.domain import BiasState
-from radartracker.motion import MotionModel
-
-ESTIMATOR_GROUP = "radartracker.estimators"
-RECONSTRUCTOR_GROUP = "radartracker.reconstructors"
-MOTION_GROUP = "radartracker.motion_models"
+from radartracker.estimation.motion import MotionModel
 
 
 @attrs.frozen
@@ -169,110 +160,9 @@ class Estimator(abc.ABC):
         A, Q = self.config.motion.transition(time - est.time)
         return AircraftEstimate(time, A @ est.state, A @ est.cov @ A.T + Q)
 
-
-@attrs.frozen
-class MotionSettings:
-    """Settings of the track kinematic filters; each motion-model plugin reads what it needs.
-
-    ``q`` is the constant-velocity white-acceleration density (m²/s³); ``q_turn`` the density of
-    the coordinated-turn model and ``turn_rate_sd`` (rad/s) its turn-rate noise; ``params`` holds
-    plugin-specific options (e.g. IMM switching probabilities, the adaptive filter's window).
-    """
-
-    q: float = 1.0
-    q_turn: float = 1.0
-    turn_rate_sd: float = float(np.radians(0.5))
-    prior_sd_velocity_mps: float = 300.0
-    params: dict[str, Any] = attrs.field(factory=dict)
-
-
-class TrackFilter(abc.ABC):
-    """Kinematic filter of one track in the plane (a ``radartracker.motion_models`` plugin).
-
-    The TrackManager feeds it bias-corrected positions z (m) with covariance R (2×2) and reads
-    predictions for gating. States are χ = [x, y, vx, vy]; a multiple-model filter reports the
-    moment-matched mixture. ``start`` initialises from one position (velocity from the prior).
-    """
-
-    name: ClassVar[str] = "?"
-
-    def __init__(self, settings: MotionSettings | None = None) -> None:
-        self.settings = settings if settings is not None else MotionSettings()
-
-    @abc.abstractmethod
-    def start(self, time: float, z: np.ndarray, R: np.ndarray) -> None:
-        """Initialise at ``time`` from position ``z`` with covariance ``R``."""
-
-    @abc.abstractmethod
-    def predict(self, time: float) -> tuple[np.ndarray, np.ndarray]:
-        """(χ, P) predicted to ``time`` without changing the filter."""
-
-    @abc.abstractmethod
-    def update(self, time: float, z: np.ndarray, R: np.ndarray) -> float:
-        """Predict to ``time``, correct with position ``z`` (covariance ``R``); return the NIS."""
-
-    @abc.abstractmethod
-    def estimate(self) -> tuple[float, np.ndarray, np.ndarray]:
-        """(time, χ, P) of the current estimate."""
-
-
 def validated_prior(key: Hashable, state: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """An aircraft prior as float arrays, checked (finite 4-vector, 4×4) and symmetrised."""
     state, cov = np.asarray(state, float), np.asarray(cov, float)
     if state.shape != (4,) or cov.shape != (4, 4) or not (np.isfinite(state).all() and np.isfinite(cov).all()):
         raise ValueError(f"aircraft {key!r}: prior must be a finite 4-vector and 4×4 covariance")
     return state, 0.5 * (cov + cov.T)
-
-
-def _group(group: str) -> dict[str, Any]:
-    return {ep.name: ep for ep in entry_points(group=group)}
-
-
-def _load(group: str, name: str, what: str, base: type | None = None) -> Any:
-    """Load entry point ``name`` of ``group``; a clear error lists what is installed."""
-    eps = _group(group)
-    if name not in eps:
-        known = ", ".join(sorted(eps)) or "none"
-        raise ValueError(f"unknown {what} {name!r}; installed: {known}")
-    obj = eps[name].load()
-    if base is not None and not (isinstance(obj, type) and issubclass(obj, base)):
-        raise TypeError(f"entry point {name!r} does not name a {base.__name__} subclass: {obj!r}")
-    return obj
-
-
-def available_estimators() -> list[str]:
-    """Names of the installed estimator plugins."""
-    return sorted(_group(ESTIMATOR_GROUP))
-
-
-def load_estimator(name: str) -> type[Estimator]:
-    """The estimator class registered under ``name``."""
-    return _load(ESTIMATOR_GROUP, name, "estimator", Estimator)
-
-
-def available_reconstructors() -> list[str]:
-    """Names of the installed reconstructor plugins."""
-    return sorted(_group(RECONSTRUCTOR_GROUP))
-
-
-def load_reconstructor(name: str) -> Any:
-    """The reconstructor registered under ``name``."""
-    return _load(RECONSTRUCTOR_GROUP, name, "reconstructor")
-
-
-def available_motion_models() -> list[str]:
-    """Names of the installed track motion-model plugins."""
-    return sorted(_group(MOTION_GROUP))
-
-
-def load_motion_model(name: str) -> type[TrackFilter]:
-    """The track-filter class registered under ``name``."""
-    return _load(MOTION_GROUP, name, "motion model", TrackFilter)
-
-
-def make_estimator(name: str, config: EstimatorConfig | None, radars: Iterable[str]) -> Estimator:
-    """Instantiate estimator ``name`` and register ``radars`` with it."""
-    est = load_estimator(name)(config)
-    for r in radars:
-        est.add_radar(r)
-    return est

@@ -4,7 +4,7 @@ Each estimator goes through :func:`radartracker.replay.replay` on the same measu
 
 * bias RMSE — over radars, of the final range / azimuth bias error (truth from the scenario);
 * aircraft position / velocity RMSE and mean NEES over every recorded estimate (4 dof, expected 4;
-  :mod:`radartracker.evaluate` defines the truth interpolation);
+  :mod:`radartracker.pipeline.evaluate` defines the truth interpolation);
 * bias NEES — mean over radars of the final (ς̂ − ς)ᵀ P_s⁻¹ (ς̂ − ς) (2 dof, expected 2): how honest
   each estimator's bias covariance is;
 * time per measurement — the replay's wall time over the measurements used.
@@ -23,9 +23,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from radartracker.evaluate import TruthPaths, state_errors  # noqa: E402
-from radartracker.formats import ScenarioData  # noqa: E402
-from radartracker.replay import ReplayOptions, ReplayResult, replay  # noqa: E402
+from radartracker.pipeline.evaluate import TruthPaths, state_errors  # noqa: E402
+from radartracker.io.tables import ScenarioData  # noqa: E402
+from radartracker.pipeline.replay import ReplayOptions, ReplayResult, replay  # noqa: E402
 
 DEFAULT_ESTIMATORS = ("decoupled", "blom", "coupled")
 

@@ -23,130 +23,11 @@ import attrs
 import numpy as np
 
 from radartracker.domain import Aircraft, Radar
+from radartracker.errors import FormatError
+from radartracker.io.tables import (ADSB_COLUMNS, BIAS_COLUMNS, PLOT_COLUMNS, RADAR_COLUMNS, TRUTH_COLUMNS, AdsbTable,
+                                    PlotTable, ScenarioData, TruthTable)
 
 log = logging.getLogger(__name__)
-
-RADAR_COLUMNS = ("radar", "lat", "lon", "height_m", "sigma_range_m", "sigma_azimuth_deg", "period_s", "max_range_m")
-PLOT_COLUMNS = ("time", "radar", "range_m", "azimuth_deg", "altitude_m", "mode_s", "mode_3a")
-ADSB_COLUMNS = ("time", "icao24", "lat", "lon", "altitude_m", "nacp")
-TRUTH_COLUMNS = ("time", "target", "lat", "lon", "altitude_m")
-BIAS_COLUMNS = ("radar", "range_bias_m", "azimuth_bias_deg")
-
-
-class FormatError(ValueError):
-    """A row of an input file that cannot be used: says file, line, field and why."""
-
-    def __init__(self, file: str, line: int, field: str | None, message: str, reason: str = "malformed"):
-        where = f"{file} line {line}" + (f", field '{field}'" if field else "")
-        super().__init__(f"{where}: {message}")
-        self.file, self.line, self.field, self.reason = file, line, field, reason
-
-
-def _obj(values: Iterable[Any]) -> np.ndarray:
-    arr = np.empty(len(values := list(values)), dtype=object)
-    arr[:] = values
-    return arr
-
-
-@attrs.define
-class PlotTable:
-    """Radar plots as columns (SI units; ``altitude_m`` NaN and codes ``None`` where absent)."""
-
-    time: np.ndarray
-    radar: np.ndarray
-    range_m: np.ndarray
-    azimuth_rad: np.ndarray
-    altitude_m: np.ndarray
-    mode_s: np.ndarray
-    mode_3a: np.ndarray
-    target: np.ndarray
-
-    @classmethod
-    def from_columns(cls, **cols: Iterable[Any]) -> PlotTable:
-        return cls(
-            time=np.asarray(cols["time"], float), radar=_obj(cols["radar"]),
-            range_m=np.asarray(cols["range_m"], float), azimuth_rad=np.asarray(cols["azimuth_rad"], float),
-            altitude_m=np.asarray(cols["altitude_m"], float), mode_s=_obj(cols["mode_s"]),
-            mode_3a=_obj(cols["mode_3a"]), target=_obj(cols["target"]),
-        )
-
-    def __len__(self) -> int:
-        return len(self.time)
-
-    def take(self, idx: np.ndarray) -> PlotTable:
-        return PlotTable(**{f.name: getattr(self, f.name)[idx] for f in attrs.fields(PlotTable)})
-
-    @property
-    def has_truth_labels(self) -> bool:
-        return len(self) > 0 and all(t is not None for t in self.target)
-
-
-@attrs.define
-class AdsbTable:
-    """ADS-B reports as columns (degrees for lat/lon as in the file, metres for altitude)."""
-
-    time: np.ndarray
-    icao24: np.ndarray
-    lat: np.ndarray
-    lon: np.ndarray
-    altitude_m: np.ndarray
-    nacp: np.ndarray
-
-    @classmethod
-    def from_columns(cls, **cols: Iterable[Any]) -> AdsbTable:
-        return cls(
-            time=np.asarray(cols["time"], float), icao24=_obj(cols["icao24"]),
-            lat=np.asarray(cols["lat"], float), lon=np.asarray(cols["lon"], float),
-            altitude_m=np.asarray(cols["altitude_m"], float), nacp=np.asarray(cols["nacp"], int),
-        )
-
-    def __len__(self) -> int:
-        return len(self.time)
-
-
-@attrs.define
-class TruthTable:
-    """True aircraft positions as columns (degrees, metres)."""
-
-    time: np.ndarray
-    target: np.ndarray
-    lat: np.ndarray
-    lon: np.ndarray
-    altitude_m: np.ndarray
-
-    @classmethod
-    def from_columns(cls, **cols: Iterable[Any]) -> TruthTable:
-        return cls(
-            time=np.asarray(cols["time"], float), target=_obj(cols["target"]),
-            lat=np.asarray(cols["lat"], float), lon=np.asarray(cols["lon"], float),
-            altitude_m=np.asarray(cols["altitude_m"], float),
-        )
-
-    def __len__(self) -> int:
-        return len(self.time)
-
-
-@attrs.define
-class ScenarioData:
-    """Everything a scenario folder holds, validated.
-
-    ``reference`` is the system plane's centre (lat, lon in degrees); ``truth_biases`` maps a
-    radar id to its true (Δr m, Δθ rad); ``skipped`` counts rows skipped by reason.
-    """
-
-    reference: tuple[float, float]
-    radars: list[Radar]
-    plots: PlotTable
-    adsb: AdsbTable
-    truth: TruthTable | None = None
-    truth_biases: dict[str, tuple[float, float]] | None = None
-    aircraft: list[Aircraft] = attrs.field(factory=list)
-    name: str = ""
-    skipped: dict[str, int] = attrs.field(factory=dict)
-
-    @property
-    def radar_by_id(self) -> dict[str, Radar]:
-        return {r.id: r for r in self.radars}
 
 
 # --- reading ----------------------------------------------------------------------------------
@@ -353,12 +234,8 @@ def read_truth_biases(path: Path, radar_ids: set[str]) -> dict[str, tuple[float,
 
 
 def read_scenario(folder: Path | str, *, skip_bad: bool = False) -> ScenarioData:
-    """Read and validate a scenario folder (see docs/formats.md), or an ASTERIX recording file."""
+    """Read and validate a scenario folder (see docs/formats.md)."""
     folder = Path(folder)
-    if folder.suffix.lower() in (".ast", ".pcap", ".ff", ".final"):
-        from radartracker.asterix import read_asterix
-
-        return read_asterix(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"scenario folder {folder} does not exist")
     radars = read_radars(folder / "radars.csv")

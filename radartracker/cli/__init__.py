@@ -15,11 +15,9 @@ import sys
 from importlib.metadata import entry_points
 from pathlib import Path
 
+from radartracker.errors import ConfigurationError, RadarTrackerError
+
 COMMAND_GROUP = "radartracker.commands"
-
-
-class CliError(Exception):
-    """An error the user caused (bad file, bad option): printed without a traceback."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -28,6 +26,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Multi-radar surveillance: tracking with radar bias estimation.",
     )
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
+    parser.add_argument("--debug", action="store_true", help="show the traceback of every error")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for ep in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
         try:
@@ -47,7 +46,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     try:
         return int(args.func(args) or 0)
-    except (CliError, ValueError, FileNotFoundError, FileExistsError) as exc:
+    except (RadarTrackerError, OSError) as exc:
+        if isinstance(exc, BrokenPipeError):  # `radartracker compare | head`: the reader left
+            sys.stderr.close()
+            return 0
+        if args.debug:
+            raise
         print(f"radartracker {args.command}: error: {exc}", file=sys.stderr)
         return 2
 
@@ -61,7 +65,7 @@ def register_estimators(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_estimators(args: argparse.Namespace) -> int:
-    from radartracker.plugin import ESTIMATOR_GROUP, RECONSTRUCTOR_GROUP
+    from radartracker.registry import ESTIMATOR_GROUP, RECONSTRUCTOR_GROUP
 
     for group, title in ((ESTIMATOR_GROUP, "estimators"), (RECONSTRUCTOR_GROUP, "reconstructors")):
         print(f"{title}:")
@@ -71,7 +75,7 @@ def _cmd_estimators(args: argparse.Namespace) -> int:
 
 
 def register_simulate(sub: argparse._SubParsersAction) -> None:
-    from radartracker.scenarios import STANDARD_SCENARIOS
+    from radartracker.simulation.scenarios import STANDARD_SCENARIOS
 
     p = sub.add_parser("simulate", help="simulate a multi-radar scenario into a scenario folder")
     p.add_argument("out", type=Path, help="scenario folder to write (must not exist)")
@@ -83,11 +87,11 @@ def register_simulate(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from radartracker.formats import write_scenario
-    from radartracker.scenarios import build_scenario
+    from radartracker.io.scenario import write_scenario
+    from radartracker.simulation.scenarios import build_scenario
 
     if args.out.exists():
-        raise CliError(f"{args.out} already exists; choose a new folder")
+        raise ConfigurationError(f"{args.out} already exists; choose a new folder")
     scenario = build_scenario(args.scenario, seed=args.seed, duration=args.duration)
     data = scenario.run()
     write_scenario(args.out, data)
@@ -112,12 +116,12 @@ def register_replay(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
-    from radartracker.formats import read_scenario
+    from radartracker.io.sources import read_source
 
-    data = read_scenario(args.scenario, skip_bad=args.skip_bad)
+    data = read_source(args.scenario, skip_bad=args.skip_bad)
     if args.manager or not data.plots.has_truth_labels:
-        from radartracker.manager import ManagerConfig
-        from radartracker.track_replay import track_replay, write_track_outputs
+        from radartracker.tracking.manager import ManagerConfig
+        from radartracker.pipeline.track_replay import track_replay, write_track_outputs
 
         config = ManagerConfig(estimator=args.estimator, motion_model=args.motion_model)
         tresult = track_replay(data, config)
@@ -126,7 +130,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
         print(json.dumps({k: summary[k] for k in ("counts", "biases")} | {"tracking": summary.get("tracking")},
                          indent=1, default=str))
     else:
-        from radartracker.replay import ReplayOptions, replay, write_outputs
+        from radartracker.pipeline.replay import ReplayOptions, replay, write_outputs
 
         result = replay(data, args.estimator, ReplayOptions.for_scenario(data, q=args.q))
         write_outputs(result, args.out, figures=args.plots)
@@ -146,10 +150,11 @@ def register_demo(sub: argparse._SubParsersAction) -> None:
 def _cmd_demo(args: argparse.Namespace) -> int:
     import tempfile
 
-    from radartracker.formats import read_scenario, write_scenario
-    from radartracker.plugin import available_estimators
-    from radartracker.replay import ReplayOptions, replay, write_outputs
-    from radartracker.scenarios import build_scenario
+    from radartracker.io.scenario import write_scenario
+    from radartracker.io.sources import read_source
+    from radartracker.registry import available_estimators
+    from radartracker.pipeline.replay import ReplayOptions, replay, write_outputs
+    from radartracker.simulation.scenarios import build_scenario
 
     installed = available_estimators()
     name = args.estimator or next(
@@ -160,7 +165,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         scen_dir = root / "scenario"
         data = build_scenario("demo", seed=args.seed).run()
         write_scenario(scen_dir, data)
-        data = read_scenario(scen_dir)  # through the public file format, as a user would
+        data = read_source(scen_dir)  # through the public file format, as a user would
         print(f"demo: scenario 'demo' ({len(data.radars)} radars, {len(data.plots)} plots, "
               f"{len(data.adsb)} ADS-B reports), estimator '{name}'")
         result = replay(data, name, ReplayOptions.for_scenario(data))

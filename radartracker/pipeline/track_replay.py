@@ -18,9 +18,9 @@ import numpy as np
 from tqdm import tqdm
 
 from radartracker.domain import AdsbReport, Plot
-from radartracker.evaluate import TrackHistory, TruthPaths, track_metrics
-from radartracker.formats import ScenarioData
-from radartracker.manager import ManagerConfig, TrackEvent, TrackManager
+from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, track_metrics
+from radartracker.io.tables import ScenarioData
+from radartracker.tracking.manager import ManagerConfig, TrackEvent, TrackManager
 
 
 def scenario_items(data: ScenarioData) -> list[Plot | AdsbReport]:
@@ -147,6 +147,6 @@ def write_track_outputs(result: TrackReplayResult, out: Path | str, *, figures: 
     (out / "summary.json").write_text(json.dumps(result.summary(), indent=1))
     result.manager.coupling.write_graphml(out / "coupling.graphml")
     if figures:
-        from radartracker.figures import plot_tracks_over_truth
+        from radartracker.pipeline.figures import plot_tracks_over_truth
 
         plot_tracks_over_truth(result, out / "tracks.png")

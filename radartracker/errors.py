@@ -1,0 +1,42 @@
+"""One error hierarchy for everything a user can cause.
+
+Every error that bad input, a bad option or an impossible geometry can cause derives from
+:class:`RadarTrackerError`. The CLI turns those (and ``OSError``) into one line and exit 2; any
+other exception is a bug and keeps its traceback. The concrete classes also derive from
+``ValueError`` so that code written against earlier releases keeps catching them.
+"""
+
+from __future__ import annotations
+
+
+class RadarTrackerError(Exception):
+    """Base of every error radartracker raises for a cause outside its own code."""
+
+
+class InputError(RadarTrackerError, ValueError):
+    """Input that cannot be used: a file, a record or a value handed to the API."""
+
+
+class FormatError(InputError):
+    """A row or record of an input file that cannot be used: says file, line, field and why."""
+
+    def __init__(self, file: str, line: int, field: str | None, message: str, reason: str = "malformed"):
+        where = f"{file} line {line}" + (f", field '{field}'" if field else "")
+        super().__init__(f"{where}: {message}")
+        self.file, self.line, self.field, self.reason = file, line, field, reason
+
+
+class ConfigurationError(RadarTrackerError, ValueError):
+    """An option, setting or plugin choice that cannot work (unknown name, out of range, refused)."""
+
+
+class GeometryError(RadarTrackerError, ValueError):
+    """A geometry that cannot give an answer (target at a radar, degenerate bearings, bad reference)."""
+
+
+class NumericalError(RadarTrackerError, ValueError):
+    """A computation that lost its footing (a covariance not positive definite, a step refused)."""
+
+
+class PluginError(RadarTrackerError):
+    """A plugin failed; the message names the plugin, the aircraft or radar and the time."""

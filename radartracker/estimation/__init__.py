@@ -1,0 +1,1 @@
+"""Estimation: the estimator contract, Kalman building blocks, plot-to-plane conversion, the coupling graph."""

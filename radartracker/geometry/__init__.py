@@ -1,0 +1,1 @@
+"""Geometry: the system plane (pyproj stereographic), radar polar ↔ plane, and the kinematic closed forms."""

@@ -1,0 +1,1 @@
+"""Input and output: scenario folders, ASTERIX, recordings and their conversion, one door for every source."""

@@ -1,0 +1,92 @@
+"""The package layout holds: no import cycles in the core, plugins use nothing but ``radartracker.api``."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import networkx as nx
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _module_name(path: Path, top: Path, package: str) -> str:
+    rel = path.relative_to(top).with_suffix("")
+    parts = [package, *rel.parts]
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _runtime_nodes(tree: ast.AST):
+    """Every node except those under ``if TYPE_CHECKING:`` (annotations only, never executed)."""
+    for node in ast.iter_child_nodes(tree):
+        if isinstance(node, ast.If) and getattr(node.test, "id", getattr(node.test, "attr", "")) == "TYPE_CHECKING":
+            yield from (n for orelse in node.orelse for n in ast.walk(orelse))
+            continue
+        yield node
+        yield from _runtime_nodes(node)
+
+
+def _imports(path: Path, module: str) -> set[str]:
+    """Modules imported at run time by ``path`` (absolute names; relative imports resolved)."""
+    out = set()
+    pkg = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    for node in _runtime_nodes(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = pkg.split(".")
+                anchor = anchor[: len(anchor) - node.level + 1]
+                base = ".".join(anchor + ([base] if base else []))
+            out.add(base)
+            out.update(f"{base}.{a.name}" for a in node.names)
+    return out
+
+
+def _graph(top: Path, package: str) -> nx.DiGraph:
+    files = {_module_name(p, top, package): p for p in top.rglob("*.py")}
+    g = nx.DiGraph()
+    g.add_nodes_from(files)
+    for mod, path in files.items():
+        for imp in _imports(path, mod):
+            if imp in files and imp != mod:
+                g.add_edge(mod, imp)
+    return g
+
+
+def test_core_has_no_import_cycles():
+    g = _graph(ROOT / "radartracker", "radartracker")
+    # a package importing its own submodule is not a cycle the reader has to untangle
+    g.remove_edges_from([(a, b) for a, b in list(g.edges) if b.startswith(a + ".")])
+    cycles = list(nx.simple_cycles(g))
+    assert cycles == [], f"import cycles: {cycles[:5]}"
+
+
+def test_plugins_import_only_the_public_api():
+    offending = []
+    for path in (ROOT / "plugins").rglob("*.py"):
+        mod = _module_name(path, ROOT / "plugins", "radartracker_plugins")
+        for imp in _imports(path, mod):
+            if imp.startswith("radartracker.") and not (imp == "radartracker.api" or imp.startswith("radartracker.api.")):
+                offending.append(f"{path.relative_to(ROOT)}: {imp}")
+            if imp == "radartracker":
+                offending.append(f"{path.relative_to(ROOT)}: radartracker")
+    assert offending == []
+
+
+def test_the_walker_sees_a_cycle_and_an_internal_import(tmp_path):
+    """The two checks above can fail: a planted cycle and a planted internal import are found."""
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("from pkg.b import x\n")
+    (pkg / "b.py").write_text("from pkg import a\nx = 1\n")
+    g = _graph(pkg, "pkg")
+    g.remove_edges_from([(a, b) for a, b in list(g.edges) if b.startswith(a + ".")])
+    assert list(nx.simple_cycles(g))
+    plug = tmp_path / "plug.py"
+    plug.write_text("from radartracker.tracking.manager import TrackManager\n")
+    assert "radartracker.tracking.manager" in _imports(plug, "radartracker_plugins.plug")
