@@ -16,7 +16,7 @@ from radartracker.tracking.filters import MotionSettings
 from radartracker.simulation.simulator import KinematicTrajectory, Leg
 from radartracker_plugins.motion import CVFilter, IMMFilter
 from radartracker_plugins.motion.ct import ct_noise, ct_transition
-from test_motion import assert_close, cv_track, manoeuvre_track, run
+from tests.plugins.test_motion import assert_close, cv_track, manoeuvre_track, run
 
 
 @pytest.mark.parametrize("w", [0.0, 1e-7, -3e-6, math.radians(3.0), -math.radians(6.0), 0.4])
