@@ -55,7 +55,25 @@ def register_asterix_import(sub: argparse._SubParsersAction) -> None:
                                               "into a scenario folder")
     p.add_argument("recording", type=Path, help="raw ASTERIX blocks (.ast), FINAL format or pcap")
     p.add_argument("--out", type=Path, required=True, help="scenario folder to write (must not exist)")
+    p.add_argument("--day-start", type=_day_start, default=0.0, metavar="DATE|SECONDS",
+                   help="UTC day of the first record (YYYY-MM-DD or seconds since 1970 of its midnight); "
+                        "ASTERIX carries only the time of day (default 0: times are seconds of the day; "
+                        "pcap files take the day from their packet time stamps)")
     p.set_defaults(func=_cmd_asterix_import)
+
+
+def _day_start(text: str) -> float:
+    from datetime import date, datetime, timezone
+
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    try:
+        d = date.fromisoformat(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a date (YYYY-MM-DD) nor seconds since 1970: {text!r}") from None
+    return datetime(d.year, d.month, d.day, tzinfo=timezone.utc).timestamp()
 
 
 def _cmd_asterix_import(args: argparse.Namespace) -> int:
@@ -64,7 +82,7 @@ def _cmd_asterix_import(args: argparse.Namespace) -> int:
 
     if args.out.exists():
         raise ConfigurationError(f"{args.out} already exists; choose a new folder")
-    data = read_asterix(args.recording)
+    data = read_asterix(args.recording, day_start=args.day_start)
     write_scenario(args.out, data)
     print(f"wrote {args.out}: {len(data.radars)} radars, {len(data.plots)} plots, "
           f"{len(data.adsb)} ADS-B reports")

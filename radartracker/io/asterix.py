@@ -87,8 +87,14 @@ def cat021_record(time: float, sac: int, sic: int, icao24: str, lat: float, lon:
 
 
 def cat062_record(time: float, sac: int, sic: int, track_number: int, lat: float, lon: float,
-                  x_m: float, y_m: float, vx_mps: float, vy_mps: float, altitude_m: float | None = None):
-    """One CAT062 system track update (position in WGS-84 and in the system plane, velocity)."""
+                  x_m: float, y_m: float, vx_mps: float, vy_mps: float, altitude_m: float | None = None, *,
+                  mode_3a: str | None = None, mode_s: str | None = None, coasting: bool = False,
+                  ended: bool = False):
+    """One CAT062 system track update (position in WGS-84 and in the system plane, velocity).
+
+    I080: CNF = 0 (confirmed); with ``coasting`` or ``ended`` the extents up to the fourth are sent,
+    TSE (last update of the track) and CST (coasted: no plot in the last scan) set as given.
+    """
     items: dict = {
         "010": (("SAC", sac), ("SIC", sic)),
         "015": 0,
@@ -97,20 +103,24 @@ def cat062_record(time: float, sac: int, sic: int, track_number: int, lat: float
         "100": (("X", (x_m, "m")), ("Y", (y_m, "m"))),
         "185": (("VX", (vx_mps, "m/s")), ("VY", (vy_mps, "m/s"))),
         "040": int(track_number),
-        "080": (0,),
+        "080": (0, 32 * ended, 0, 64 * coasting) if coasting or ended else (0,),
     }
     if altitude_m is not None and math.isfinite(altitude_m):
         items["136"] = (altitude_m / FL_M, "FL")
+    if mode_3a:
+        items["060"] = (0, 0, 0, 0, ("MODE3A", mode_3a))
+    if mode_s:
+        items["380"] = {"ADR": int(mode_s, 16)}
     return CAT062.cv_record.create(items)
 
 
-def datablocks(cat, records: Iterable) -> Iterator[bytes]:
-    """Pack records into data blocks of at most :data:`MAX_BLOCK` bytes."""
+def datablocks(cat, records: Iterable, max_bytes: int = MAX_BLOCK) -> Iterator[bytes]:
+    """Pack records into data blocks of at most ``max_bytes`` bytes of records."""
     batch: list = []
     size = 0
     for rec in records:
         n = len(rec.unparse().to_bytes())
-        if batch and size + n > MAX_BLOCK:
+        if batch and size + n > max_bytes:
             yield cat.create(batch).unparse().to_bytes()
             batch, size = [], 0
         batch.append(rec)
@@ -378,7 +388,15 @@ def decode_cat021(rec) -> dict:
 
 def decode_cat062(rec) -> dict:
     fl = _q(rec, "136", None, "FL")
+    i060, i380, i080 = rec.get_item("060"), rec.get_item("380"), rec.get_item("080").variation
+    adr = None if i380 is None else i380.variation.get_item("ADR")
     return {
+        "sac": rec.get_item("010").variation.get_item("SAC").as_uint(),
+        "sic": rec.get_item("010").variation.get_item("SIC").as_uint(),
+        "mode_3a": None if i060 is None else i060.variation.get_item("MODE3A").variation.content.as_string(),
+        "mode_s": None if adr is None else f"{adr.variation.as_uint():06x}",
+        "coasting": bool(i080.get_item("CST") and i080.get_item("CST").as_uint()),
+        "ended": bool(i080.get_item("TSE") and i080.get_item("TSE").as_uint()),
         "tod": _q(rec, "070", None, "s"), "track_number": rec.get_item("040").variation.as_uint(),
         "lat": _q(rec, "105", "LAT", "°"), "lon": _q(rec, "105", "LON", "°"),
         "x_m": _q(rec, "100", "X", "m"), "y_m": _q(rec, "100", "Y", "m"),
@@ -453,6 +471,10 @@ def read_asterix(path: Path | str, *, radars: Path | str | None = None, day_star
         raise ValueError(f"{sites_path}: no radar with SAC/SIC {', '.join(unknown)}")
     icaos = sorted({a["icao24"] for a in adsb} | {p["mode_s"] for p in plots if p["mode_s"]})
     equipped = {a["icao24"] for a in adsb}
+    squawks: dict[str, Counter] = {}  # an aircraft's Mode 3/A code: the one its plots carry most often
+    for p in plots:
+        if p["mode_s"] and p["mode_3a"]:
+            squawks.setdefault(p["mode_s"], Counter())[p["mode_3a"]] += 1
     return ScenarioData(
         reference=(float(np.mean([r.lat for r in site_list])), float(np.mean([r.lon for r in site_list])))
         if site_list else ((float(np.mean([a["lat"] for a in adsb])), float(np.mean([a["lon"] for a in adsb])))
@@ -468,7 +490,25 @@ def read_asterix(path: Path | str, *, radars: Path | str | None = None, day_star
             "lat": [a["lat"] for a in adsb], "lon": [a["lon"] for a in adsb],
             "altitude_m": [a["altitude_m"] for a in adsb],
             "nacp": [8 if a["nacp"] is None else a["nacp"] for a in adsb]}),
-        aircraft=[Aircraft(i, adsb=i in equipped) for i in icaos],
+        aircraft=[Aircraft(i, adsb=i in equipped, mode_3a=squawks[i].most_common(1)[0][0] if i in squawks else None)
+                  for i in icaos],
         name=path.stem, skipped=dict(skipped),
     )
 
+
+def read_cat062(path: Path | str, *, day_start: float = 0.0) -> list[dict]:
+    """The CAT062 system track updates of a recording (raw, FINAL or pcap), in file order, as
+    :func:`decode_cat062` dicts with absolute ``time`` (see the module notes on time of day);
+    records of other categories are skipped."""
+    out: list[dict] = []
+    clock = None
+    for k, (stamp, block) in enumerate(iter_datablocks(path)):
+        if clock is None:
+            clock = _Clock(math.floor(stamp / DAY) * DAY if stamp is not None else day_start)
+        cat, recs = decode_block(block, f"{path}: data block {k}")
+        if cat == 62:
+            for r in recs:
+                d = decode_cat062(r)
+                d["time"] = clock(d["tod"])
+                out.append(d)
+    return out
