@@ -79,10 +79,15 @@ def register_simulate(sub: argparse._SubParsersAction) -> None:
 
     p = sub.add_parser("simulate", help="simulate a multi-radar scenario into a scenario folder")
     p.add_argument("out", type=Path, help="scenario folder to write (must not exist)")
-    p.add_argument("--scenario", default="seed", choices=sorted(STANDARD_SCENARIOS),
-                   help="built-in scenario (default: seed)")
+    p.add_argument("--scenario", default="seed", choices=sorted([*STANDARD_SCENARIOS, "traffic"]),
+                   help="built-in scenario (default: seed); 'traffic': national traffic of any size")
     p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     p.add_argument("--duration", type=float, default=None, help="seconds to simulate")
+    traffic = p.add_argument_group("traffic scenario (radartracker.simulation.traffic)")
+    traffic.add_argument("--aircraft", type=int, help="mean number of airborne aircraft (default 200)")
+    traffic.add_argument("--radars", type=int, help="number of radars on a 200 km grid (default 28)")
+    traffic.add_argument("--adsb-share", type=float, help="share of aircraft with ADS-B (default 0.3)")
+    traffic.add_argument("--primary-share", type=float, help="share of primary-only aircraft (default 0)")
     p.set_defaults(func=_cmd_simulate)
 
 
@@ -92,7 +97,16 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     if args.out.exists():
         raise ConfigurationError(f"{args.out} already exists; choose a new folder")
-    scenario = build_scenario(args.scenario, seed=args.seed, duration=args.duration)
+    options = {k: getattr(args, k) for k in ("aircraft", "radars", "adsb_share", "primary_share")
+               if getattr(args, k) is not None}
+    if args.scenario == "traffic":
+        from radartracker.simulation.traffic import traffic_scenario
+
+        scenario = traffic_scenario(seed=args.seed, duration=args.duration, **options)
+    elif options:
+        raise ConfigurationError(f"--{next(iter(options)).replace('_', '-')} applies to --scenario traffic only")
+    else:
+        scenario = build_scenario(args.scenario, seed=args.seed, duration=args.duration)
     data = scenario.run()
     write_scenario(args.out, data)
     print(f"wrote {args.out}: {len(data.radars)} radars, {len(data.plots)} plots, "

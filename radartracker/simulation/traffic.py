@@ -1,0 +1,342 @@
+"""National-scale synthetic traffic, vectorised over aircraft and antenna scans.
+
+The model is :class:`radartracker.simulation.simulator.Simulator`'s, computed for all aircraft
+of a radar at once instead of one aircraft at a time:
+
+* Flights follow seed 000 eq. 2.1 at constant speed (w = 0): straight legs of 5–15 min between
+  level turns of 1–3 °/s lasting 20–60 s (u = v·ω), at a constant altitude. Flights last 20–90 min
+  and start uniformly over [−90 min, duration], so about ``aircraft`` are airborne at any time.
+* Radars on a jittered grid ``spacing_km`` apart, periods 4–12 s, Pd, constant biases.
+* Antenna timing as in the simulator: for each scan k the crossing time solves θ(t) = α(t),
+  α(t) = φ + 2π(t − t₀)/T, by the same fixed-point iteration on the exact azimuth (pyproj,
+  :class:`RadarFrame` and :class:`SystemPlane` called once per iteration on every aircraft-scan
+  pair of the radar); visibility (range, radar horizon, 45° cone of silence), Mode C rounding,
+  range/azimuth noise, bias random walk, false plots and ADS-B as in the simulator.
+
+:meth:`TrafficSimulator.simulator` builds the equivalent per-aircraft :class:`Simulator`; the
+tests hold both to the same noiseless plots.
+"""
+
+from __future__ import annotations
+
+import math
+
+import attrs
+import numpy as np
+
+from radartracker.domain import Aircraft, Radar, nacp_sigma_m
+from radartracker.errors import ConfigurationError
+from radartracker.geometry.plane import RadarFrame, SystemPlane
+from radartracker.io.tables import AdsbTable, PlotTable, ScenarioData, TruthTable
+from radartracker.simulation.simulator import (_CONE_OF_SILENCE_RAD, _EARTH_RADIUS_M, _MODE_C_STEP_M,
+                                               KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator)
+
+_U_EPS = 1e-9  # as radartracker.geometry.kinematics: below this |u| a leg is straight
+_N_LEGS = 36  # enough alternating straight/turn legs for the longest flight (90 min)
+
+
+def _share(inst, attr, value) -> None:
+    if not 0.0 <= value <= 1.0:
+        raise ConfigurationError(f"{attr.name}: must be in [0, 1], got {value!r}")
+
+
+def _at_least(low: float, strict: bool = False):
+    def check(inst, attr, value) -> None:
+        if not (value > low if strict else value >= low) or not math.isfinite(value):
+            raise ConfigurationError(f"{attr.name}: must be {'>' if strict else '>='} {low:g}, got {value!r}")
+    return check
+
+
+@attrs.frozen
+class TrafficConfig:
+    """Size and mix of the synthetic traffic: mean airborne ``aircraft``, ``radars``, ``duration_s``."""
+
+    aircraft: int = attrs.field(default=200, validator=_at_least(1))
+    radars: int = attrs.field(default=28, validator=_at_least(1))
+    duration_s: float = attrs.field(default=180.0, validator=_at_least(0.0, strict=True))
+    adsb_share: float = attrs.field(default=0.3, validator=_share)
+    primary_share: float = attrs.field(default=0.0, validator=_share)
+    pd: float = attrs.field(default=0.9, validator=_share)
+    false_per_scan: float = attrs.field(default=0.0, validator=_at_least(0.0))
+    spacing_km: float = attrs.field(default=200.0, validator=_at_least(0.0, strict=True))
+    max_range_km: float = attrs.field(default=250.0, validator=_at_least(0.0, strict=True))
+    truth_step_s: float = attrs.field(default=2.0, validator=_at_least(0.0, strict=True))
+    reference: tuple[float, float] = (46.5, 2.5)
+    seed: int = 1
+
+    def __attrs_post_init__(self) -> None:
+        if self.adsb_share + self.primary_share > 1.0:
+            raise ConfigurationError(f"adsb_share + primary_share must be <= 1 (primary-only aircraft have no ADS-B), "
+                                     f"got {self.adsb_share} + {self.primary_share}")
+
+
+@attrs.frozen
+class Flights:
+    """Legs of every flight as arrays (n, L): start time, position, heading at each leg start, and u."""
+
+    t_start: np.ndarray
+    t_end: np.ndarray
+    leg_t: np.ndarray
+    leg_x: np.ndarray
+    leg_y: np.ndarray
+    leg_phi: np.ndarray
+    leg_u: np.ndarray
+    speed: np.ndarray
+    altitude: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.t_start)
+
+    def position(self, ac: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Plane (x, y, h) of flights ``ac`` at times ``t`` (clamped to each flight's span)."""
+        t = np.clip(t, self.t_start[ac], self.t_end[ac])
+        n_legs = self.leg_t.shape[1]
+        # leg index: number of leg starts ≤ t, minus one (legs sorted per flight, flights offset)
+        span = float(np.ptp(self.leg_t)) + 1.0 if self.leg_t.size else 1.0
+        offset = (np.arange(len(self)) * span)[:, None]
+        flat = (self.leg_t - self.leg_t.min() + offset).ravel()
+        seg = np.searchsorted(flat, t - self.leg_t.min() + ac * span, side="right") - 1 - ac * n_legs
+        seg = np.clip(seg, 0, n_legs - 1)
+        x, y, _ = _arc(self.leg_x[ac, seg], self.leg_y[ac, seg], self.leg_phi[ac, seg], self.speed[ac],
+                       self.leg_u[ac, seg], t - self.leg_t[ac, seg])
+        return x, y, self.altitude[ac]
+
+
+def _arc(x0, y0, phi0, v, u, tau):
+    """Seed eq. 2.1 with w = 0, element by element (the formulas of ``kinematics.propagate``)."""
+    turning = np.abs(u) >= _U_EPS
+    safe_u = np.where(turning, u, 1.0)
+    phi = np.where(turning, phi0 + u / v * tau, phi0)
+    r = v * v / safe_u
+    x = np.where(turning, x0 - r * (np.cos(phi) - np.cos(phi0)), x0 + v * tau * np.sin(phi0))
+    y = np.where(turning, y0 + r * (np.sin(phi) - np.sin(phi0)), y0 + v * tau * np.cos(phi0))
+    return x, y, phi
+
+
+def _grid(n: int, spacing: float, rng: np.random.Generator) -> np.ndarray:
+    rows = max(1, round(math.sqrt(n / 1.75)))
+    cols = math.ceil(n / rows)
+    j = np.arange(n)
+    xy = np.column_stack([(j % cols - (cols - 1) / 2) * spacing, (j // cols - (rows - 1) / 2) * 1.1 * spacing])
+    return xy + rng.uniform(-0.15, 0.15, xy.shape) * spacing
+
+
+class TrafficSimulator:
+    """Radars, flights and identities of a :class:`TrafficConfig`; :meth:`run` gives the scenario."""
+
+    def __init__(self, config: TrafficConfig) -> None:
+        self.config = c = config
+        self.plane = SystemPlane(*c.reference)
+        self.t0, self.t1 = 0.0, float(c.duration_s)
+        rng = np.random.default_rng([c.seed, 10])
+        rxy = _grid(c.radars, c.spacing_km * 1e3, rng)
+        lat, lon = self.plane.to_geodetic(rxy[:, 0], rxy[:, 1])
+        self.radars = [
+            SimRadar(Radar(f"R{j:02d}", float(lat[j]), float(lon[j]), 100.0, 70.0, math.radians(0.08),
+                           float(rng.uniform(4.0, 12.0)), c.max_range_km * 1e3),
+                     float(rng.normal(0.0, 100.0)), float(rng.normal(0.0, math.radians(0.1))), pd=c.pd,
+                     false_per_scan=c.false_per_scan, phase_rad=float(rng.uniform(0, 2 * np.pi)))
+            for j in range(c.radars)]
+        half = np.abs(rxy).max(axis=0) + c.max_range_km * 1e3 * 0.6
+        self.flights = self._flights(rng, half)
+        n = len(self.flights)
+        kind = rng.random(n)
+        primary = kind < c.primary_share
+        adsb = ~primary & (rng.random(n) < c.adsb_share / max(1.0 - c.primary_share, 1e-9))
+        self.aircraft = [Aircraft(f"{0x400000 + i:06x}", f"TFC{i:05d}", f"{(1000 + 37 * i) % 4096:04o}",
+                                  adsb=bool(adsb[i]), nacp=8, transponder="none" if primary[i] else "mode_s")
+                         for i in range(n)]
+
+    def _flights(self, rng: np.random.Generator, half: np.ndarray) -> Flights:
+        c = self.config
+        n = int(round(c.aircraft * (c.duration_s + 5400.0) / 3300.0))  # mean life (1200 + 5400)/2
+        life = rng.uniform(1200.0, 5400.0, n)
+        start = rng.uniform(-5400.0, c.duration_s, n)
+        keep = (start + life > 0.0)
+        n = int(keep.sum())
+        life, start = life[keep], start[keep]
+        speed = rng.uniform(200.0, 250.0, n)
+        heading = rng.uniform(0.0, 2 * np.pi, n)
+        altitude = rng.uniform(7000.0, 12000.0, n)
+        # alternating straight legs (5–15 min) and turns of 1–3 °/s for 20–60 s
+        dur = np.where(np.arange(_N_LEGS) % 2 == 0, rng.uniform(300.0, 900.0, (n, _N_LEGS)),
+                       rng.uniform(20.0, 60.0, (n, _N_LEGS)))
+        rate = np.radians(rng.uniform(1.0, 3.0, (n, _N_LEGS))) * rng.choice([-1.0, 1.0], (n, _N_LEGS))
+        u = np.where(np.arange(_N_LEGS) % 2 == 1, speed[:, None] * rate, 0.0)
+        # start so that mid-flight lies anywhere over the region
+        mid = rng.uniform(-1.0, 1.0, (n, 2)) * half
+        x = mid[:, 0] - 0.5 * life * speed * np.sin(heading)
+        y = mid[:, 1] - 0.5 * life * speed * np.cos(heading)
+        cols = {k: np.empty((n, _N_LEGS)) for k in ("t", "x", "y", "phi")}
+        t, phi = start.copy(), heading.copy()
+        for leg in range(_N_LEGS):
+            cols["t"][:, leg], cols["x"][:, leg], cols["y"][:, leg], cols["phi"][:, leg] = t, x, y, phi
+            x, y, phi = _arc(x, y, phi, speed, u[:, leg], dur[:, leg])
+            t = t + dur[:, leg]
+        return Flights(start, start + life, cols["t"], cols["x"], cols["y"], cols["phi"], u, speed, altitude)
+
+    # --- the equivalent per-aircraft simulator ----------------------------------------------------
+    def simulator(self) -> Simulator:
+        """The same radars and flights as a :class:`Simulator` (slow; for checking this module)."""
+        f = self.flights
+        aircraft = []
+        for i, ac in enumerate(self.aircraft):
+            starts = f.leg_t[i]
+            used = np.flatnonzero(starts < f.t_end[i])
+            ends = np.append(starts[used[1:]], f.t_end[i])
+            legs = [Leg(float(e - s), u=float(f.leg_u[i, k])) for k, s, e in zip(used, starts[used], ends)]
+            traj = KinematicTrajectory(float(f.t_start[i]), float(f.leg_x[i, 0]), float(f.leg_y[i, 0]),
+                                       float(f.altitude[i]), float(f.leg_phi[i, 0]), float(f.speed[i]), legs)
+            aircraft.append(SimAircraft(ac, traj))
+        c = self.config
+        return Simulator(c.reference, self.radars, aircraft, self.t0, self.t1, seed=c.seed,
+                         truth_step_s=c.truth_step_s, name="traffic")
+
+    # --- simulation -------------------------------------------------------------------------------
+    def run(self) -> ScenarioData:
+        parts, truth_biases = [], {}
+        for j, sr in enumerate(self.radars):
+            cols, truth_biases[sr.radar.id] = self._radar_plots(j, sr)
+            parts.append(cols)
+        cols = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+        order = np.argsort(cols["time"], kind="stable")
+        plots = PlotTable(**{k: v[order] for k, v in cols.items()})
+        return ScenarioData(reference=self.config.reference, radars=[sr.radar for sr in self.radars], plots=plots,
+                            adsb=self._adsb(), truth=self._truth(), truth_biases=truth_biases,
+                            aircraft=self.aircraft, name="traffic")
+
+    def _span(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.maximum(self.flights.t_start, self.t0), np.minimum(self.flights.t_end, self.t1)
+
+    def _polar(self, frame: RadarFrame, ac: np.ndarray, t: np.ndarray):
+        x, y, h = self.flights.position(ac, t)
+        lat, lon = self.plane.to_geodetic(x, y)
+        return frame.polar(lat, lon, h)
+
+    def _crossings(self, frame: RadarFrame, sr: SimRadar) -> tuple[np.ndarray, np.ndarray]:
+        """(flight, time) of every antenna crossing within each flight's span, as Simulator._crossings."""
+        T = sr.radar.period_s
+        ta, tb = self._span()
+        alive = np.flatnonzero(tb > ta)
+        k_lo = np.floor((ta[alive] - self.t0) / T).astype(int) - 1
+        k_hi = np.ceil((tb[alive] - self.t0) / T).astype(int) + 1
+        count = k_hi - k_lo
+        ac = np.repeat(alive, count)
+        k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count) + np.repeat(k_lo, count)
+        scan_start = self.t0 + k * T
+        # only pairs that can be in range: the aircraft moves < 300 m/s × T within a scan
+        x, y, _ = self.flights.position(ac, scan_start)
+        near = np.hypot(x - frame.xy[0], y - frame.xy[1]) < sr.radar.max_range_m + 300.0 * T + 10e3
+        ac, scan_start = ac[near], scan_start[near]
+        lo, hi = ta[ac], tb[ac]
+        _, theta, _ = self._polar(frame, ac, np.clip(scan_start, lo, hi))
+        t = scan_start + T * np.mod(theta - sr.phase_rad, 2 * np.pi) / (2 * np.pi)
+        for _ in range(3):
+            _, theta, _ = self._polar(frame, ac, np.clip(t, lo, hi))
+            antenna = sr.phase_rad + 2 * np.pi * (t - self.t0) / T
+            t = t + T * (np.mod(theta - antenna + np.pi, 2 * np.pi) - np.pi) / (2 * np.pi)
+        inside = (t >= lo) & (t <= hi)
+        ac, t = ac[inside], t[inside]
+        order = np.lexsort((t, ac))
+        ac, t = ac[order], t[order]
+        # adjacent scans can converge to the same crossing near the antenna's start azimuth
+        first = np.concatenate([[True], (ac[1:] != ac[:-1]) | (np.diff(t) > 0.5 * T)]) if len(t) else np.empty(0, bool)
+        return ac[first], t[first]
+
+    def _radar_plots(self, j: int, sr: SimRadar) -> tuple[dict[str, np.ndarray], tuple[float, float]]:
+        rng = np.random.default_rng([self.config.seed, 1, j])
+        radar = sr.radar
+        frame = RadarFrame(radar.lat, radar.lon, radar.height_m, self.plane)
+        dip = math.acos(_EARTH_RADIUS_M / (_EARTH_RADIUS_M + max(radar.height_m, 0.0)))
+        ac, t = self._crossings(frame, sr)
+        rho, theta, elev = self._polar(frame, ac, t)
+        seen = (rho <= radar.max_range_m) & (elev >= -dip) & (elev <= _CONE_OF_SILENCE_RAD)
+        seen &= rng.random(len(t)) < sr.pd
+        ac, t, rho, theta = ac[seen], t[seen], rho[seen], theta[seen]
+        n = len(t)
+        rho = rho + rng.normal(0.0, radar.sigma_range_m, n)
+        theta = theta + rng.normal(0.0, radar.sigma_azimuth_rad, n)
+        icao = np.array([a.icao24 for a in self.aircraft], dtype=object)
+        squawk = np.array([a.mode_3a for a in self.aircraft], dtype=object)
+        primary = np.array([a.transponder == "none" for a in self.aircraft], bool)
+        mode_s = np.array([a.transponder == "mode_s" for a in self.aircraft], bool)
+        alt = np.round(self.flights.altitude[ac] / _MODE_C_STEP_M) * _MODE_C_STEP_M
+        cols = {"time": t, "range_m": rho, "azimuth_rad": theta, "altitude_m": np.where(primary[ac], np.nan, alt),
+                "mode_s": np.where(mode_s[ac], icao[ac], None), "mode_3a": np.where(primary[ac], None, squawk[ac]),
+                "target": icao[ac]}
+        false = self._false_plots(sr, rng)
+        cols = {k: np.concatenate([v, false[k]]) for k, v in cols.items()}
+        t = cols["time"]
+        order = np.argsort(t, kind="stable")
+        rng_b = np.random.default_rng([self.config.seed, 2, j])
+        tt = np.append(t[order], self.t1)
+        dt = np.diff(np.concatenate([[self.t0], tt]))
+        br = sr.range_bias_m + np.cumsum(rng_b.normal(0.0, 1.0, len(tt)) * np.sqrt(sr.drift_range * dt))
+        ba = sr.azimuth_bias_rad + np.cumsum(rng_b.normal(0.0, 1.0, len(tt)) * np.sqrt(sr.drift_azimuth * dt))
+        bias_r, bias_a = np.empty_like(t), np.empty_like(t)
+        bias_r[order], bias_a[order] = br[:-1], ba[:-1]
+        cols["range_m"] = np.maximum(cols["range_m"] + bias_r, 0.0)
+        cols["azimuth_rad"] = np.mod(cols["azimuth_rad"] + bias_a, 2 * np.pi)
+        cols["radar"] = np.full(len(t), radar.id, dtype=object)
+        return cols, (float(br[-1]), float(ba[-1]))
+
+    def _false_plots(self, sr: SimRadar, rng: np.random.Generator) -> dict[str, np.ndarray]:
+        T = sr.radar.period_s
+        n_scans = int(math.ceil((self.t1 - self.t0) / T))
+        counts = rng.poisson(sr.false_per_scan, n_scans) if sr.false_per_scan > 0 else np.zeros(n_scans, int)
+        n = int(counts.sum())
+        scan = np.repeat(np.arange(n_scans), counts)
+        theta = rng.uniform(0, 2 * np.pi, n)
+        t = self.t0 + T * (scan + np.mod(theta - sr.phase_rad, 2 * np.pi) / (2 * np.pi))
+        rho = sr.radar.max_range_m * np.sqrt(rng.uniform(0.0025, 1.0, n))
+        keep = t <= self.t1
+        m = int(keep.sum())
+        none = np.full(m, None, dtype=object)
+        return {"time": t[keep], "range_m": rho[keep], "azimuth_rad": theta[keep], "altitude_m": np.full(m, np.nan),
+                "mode_s": none, "mode_3a": none, "target": none}
+
+    def _adsb(self) -> AdsbTable:
+        """Reports every second from a random phase, per-axis noise from NACp (as the simulator)."""
+        ta, tb = self._span()
+        cols: dict[str, list] = {k: [] for k in ("time", "ac", "dx", "dy")}
+        for i, ac in enumerate(self.aircraft):
+            if not ac.adsb or tb[i] <= ta[i]:
+                continue
+            rng = np.random.default_rng([self.config.seed, 3, i])
+            t = np.arange(ta[i] + rng.uniform(0, 1.0), tb[i], 1.0)
+            sd = nacp_sigma_m(ac.nacp)
+            cols["time"].append(t)
+            cols["ac"].append(np.full(len(t), i))
+            cols["dx"].append(rng.normal(0, sd, len(t)))
+            cols["dy"].append(rng.normal(0, sd, len(t)))
+        t, i, dx, dy = (np.concatenate(v) if v else np.empty(0) for v in cols.values())
+        i = i.astype(int)
+        x, y, h = self.flights.position(i, t)
+        lat, lon = self.plane.to_geodetic(x + dx, y + dy)
+        order = np.argsort(t, kind="stable")
+        icao = np.array([a.icao24 for a in self.aircraft], dtype=object)
+        nacp = np.array([a.nacp for a in self.aircraft], int)
+        return AdsbTable(time=t[order], icao24=icao[i][order], lat=lat[order], lon=lon[order], altitude_m=h[order],
+                         nacp=nacp[i][order])
+
+    def _truth(self) -> TruthTable:
+        """Positions every ``truth_step_s`` from each flight's first time in the run, and at its last."""
+        ta, tb = self._span()
+        alive = np.flatnonzero(tb > ta)
+        step = self.config.truth_step_s
+        count = np.ceil((tb[alive] - ta[alive]) / step).astype(int) + 1
+        ac = np.repeat(alive, count)
+        k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+        t = np.minimum(ta[ac] + k * step, tb[ac])
+        last = np.cumsum(count) - 1
+        t[last] = tb[alive]
+        x, y, h = self.flights.position(ac, t)
+        lat, lon = self.plane.to_geodetic(x, y)
+        icao = np.array([a.icao24 for a in self.aircraft], dtype=object)
+        order = np.lexsort((ac, t))
+        return TruthTable(time=t[order], target=icao[ac][order], lat=lat[order], lon=lon[order], altitude_m=h[order])
+
+
+def traffic_scenario(seed: int = 1, duration: float | None = None, **options) -> TrafficSimulator:
+    """National traffic (see :class:`TrafficConfig` for ``options``); 3 minutes unless ``duration``."""
+    return TrafficSimulator(TrafficConfig(seed=seed, duration_s=180.0 if duration is None else duration, **options))
