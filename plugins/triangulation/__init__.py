@@ -4,6 +4,7 @@
 * :class:`TriangulationFrame` — a common local ENU frame (pyproj) and the exact bearing model.
 * :func:`locate` — static ML position (line-of-sight intersection start, then weighted NLS).
 * :func:`track` — dynamic ML motion x(t) = Aᵀq(t), y(t) = Bᵀq(t), z(t) = Cᵀq(t).
+* :class:`StationWeights` — a free weight matrix W for the seed's LSQ estimate (both cases).
 * :mod:`.crlb` — Cramér–Rao bounds; :mod:`.feed` — fixes as tracker measurements;
   :mod:`.io` — file formats; :mod:`.simulate` — simulated bearings.
 
@@ -17,6 +18,8 @@ from .feed import fix_measurement, plane_measurement
 from .frame import TriangulationFrame
 from .sensors import Bearing, DirectionFinder
 from .static import Fix, locate
+from .weights import StationWeights, read_weights
 
 __all__ = ["Bearing", "DirectionFinder", "Fix", "GeometryError", "PolynomialBasis", "TrackFix",
-           "TriangulationFrame", "fix_measurement", "locate", "plane_measurement", "track"]
+           "StationWeights", "TriangulationFrame", "fix_measurement", "locate", "plane_measurement", "read_weights",
+           "track"]

@@ -9,10 +9,13 @@ The target position at bearing n is linear in the parameters: r_n = Θ q_n, with
    Σ w_n (P_n ⊗ q_n q_nᵀ) vec Θ = Σ w_n (P_n p_n) ⊗ q_n. First w_n = 1/σ̄_n², then once more with
    w_n = 1/(σ̄_n ρ_n)² using the ranges ρ_n of the first pass (the perpendicular miss of a line of
    sight grows as ρ σ).
-2. **Refine** — Gaussian ML = weighted nonlinear LS (seed 001 eq. 2.3/3.1 with W = K⁻¹):
-   min Σ_n Δγ_nᵀ K_n⁻¹ Δγ_n, Δγ_n = γ̃_n − h(r_n), by Levenberg–Marquardt
-   (``scipy.optimize.least_squares``) on whitened residuals with the analytic Jacobian
-   J_n = H_n (I₃ ⊗ q_nᵀ). The covariance is the inverse Fisher information (J̃ᵀJ̃)⁻¹.
+2. **Refine** — nonlinear weighted LS (seed 001 eq. 3.1): min Σ_n Δγ_nᵀ W_n Δγ_n,
+   Δγ_n = γ̃_n − h(r_n), by Levenberg–Marquardt (``scipy.optimize.least_squares``) on the
+   residuals L_nᵀ Δγ_n (W_n = L_n L_nᵀ) with the analytic Jacobian J_n = H_n (I₃ ⊗ q_nᵀ).
+   W_n = K_n⁻¹ is the Gaussian ML estimate (eq. 2.3) and its covariance the inverse Fisher
+   information (JᵀK⁻¹J)⁻¹. Any other W (e.g. W = I, which needs no error model) is the seed's
+   LSQ estimate; its covariance under the stations' stated noise K is the sandwich
+   (JᵀWJ)⁻¹ JᵀWKWJ (JᵀWJ)⁻¹, which is never below the ML one (Gauss–Markov).
 
 Geometry is refused (:class:`GeometryError`) when J̃ has no non-singular 3K×3K minor (seed 001
 §3: numerical rank < 3K), or when the GDOP exceeds ``max_gdop``.
@@ -86,10 +89,24 @@ class BearingSet:
         return out
 
     def residual(self, r: np.ndarray) -> np.ndarray:
-        """Whitened residuals (γ̃ − h(r)) / σ, azimuth wrapped, shape (N, 2)."""
+        """Residuals γ̃ − h(r) in radians, azimuth wrapped, shape (N, 2)."""
         d = self.gamma - self.predict(r)
         d[:, 0] = wrap_angle(d[:, 0])
-        return d / self.sigma
+        return d
+
+    def ml_weights(self) -> np.ndarray:
+        """W_n = K_n⁻¹ = diag(1/σ_az², 1/σ_el²), shape (N, 2, 2): the Gaussian ML weights."""
+        W = np.zeros((len(self), 2, 2))
+        W[:, 0, 0], W[:, 1, 1] = self.sigma[:, 0] ** -2, self.sigma[:, 1] ** -2
+        return W
+
+
+def root(W: np.ndarray) -> np.ndarray:
+    """Lᵀ with W = L Lᵀ for each 2×2 block (symmetric square root; W positive semi-definite)."""
+    lam, V = np.linalg.eigh(0.5 * (W + np.swapaxes(W, 1, 2)))
+    if np.any(lam < -1e-12 * np.abs(lam).max(initial=1.0)):
+        raise api.InputError("weights: every 2×2 weight block must be positive semi-definite")
+    return np.sqrt(np.clip(lam, 0.0, None))[:, :, None] * np.swapaxes(V, 1, 2)
 
 
 class Solution(NamedTuple):
@@ -133,19 +150,28 @@ def intersect(bs: BearingSet, Q: np.ndarray, w: np.ndarray) -> np.ndarray:
     return (V @ ((V.T @ b) / lam)).reshape(3, K)
 
 
-def solve(bs: BearingSet, Q: np.ndarray, *, warn_gdop: float, max_gdop: float | None) -> Solution:
-    """Start by intersection, refine by ML, and report covariance, GDOP and χ² (module docstring)."""
+def solve(bs: BearingSet, Q: np.ndarray, *, warn_gdop: float, max_gdop: float | None,
+          weights: np.ndarray | None = None) -> Solution:
+    """Start by intersection, refine by weighted LS, and report covariance, GDOP and χ².
+
+    ``weights`` (N, 2, 2) are the blocks W_n; ``None`` is ML (W_n = K_n⁻¹). χ² is always the
+    ML-weighted residual sum Σ Δγᵀ K⁻¹ Δγ, the statistic that is χ²(2N − 3K) when the noise model
+    holds, whatever W was used to fit.
+    """
     N, K = Q.shape
+    ml = bs.ml_weights()
+    W = ml if weights is None else np.asarray(weights, float)
+    Lt = root(W)
     s2 = np.mean(bs.sigma**2, axis=1)
     theta = intersect(bs, Q, 1.0 / s2)
     rho = np.linalg.norm(Q @ theta.T - bs.site, axis=1)
     start = intersect(bs, Q, 1.0 / (s2 * np.maximum(rho, 1.0) ** 2))
 
     def fun(x):
-        return bs.residual(Q @ x.reshape(3, K).T).ravel()
+        return np.einsum("nij,nj->ni", Lt, bs.residual(Q @ x.reshape(3, K).T)).ravel()
 
     def jac(x):
-        H = bs.jacobian(Q @ x.reshape(3, K).T) / bs.sigma[:, :, None]
+        H = Lt @ bs.jacobian(Q @ x.reshape(3, K).T)
         return -design(Q, H).reshape(2 * N, 3 * K)
 
     fit = least_squares(fun, start.ravel(), jac=jac, method="lm", x_scale="jac",
@@ -158,7 +184,11 @@ def solve(bs: BearingSet, Q: np.ndarray, *, warn_gdop: float, max_gdop: float | 
             f"degenerate geometry: the bearing Jacobian has rank {rank} < {3 * K}, so no non-singular "
             f"{3 * K}×{3 * K} minor; GDOP = inf (a single station, or stations and target collinear)",
             math.inf)
-    cov = (Vt.T / s**2) @ Vt
+    cov = (Vt.T / s**2) @ Vt  # (JᵀWJ)⁻¹
+    if weights is not None:  # sandwich with the stated noise K: Jᵀ (Lᵀ K L) J, J whitened by Lᵀ
+        M = Lt @ np.linalg.inv(ml) @ np.swapaxes(Lt, 1, 2)
+        Jn = fit.jac.reshape(N, 2, 3 * K)
+        cov = cov @ np.einsum("nai,nab,nbj->ij", Jn, M, Jn) @ cov
     r = Q @ theta.T
     rho = np.linalg.norm(r - bs.site, axis=1)
     rms_err = math.sqrt(float(np.mean(np.trace(position_cov(Q, cov), axis1=1, axis2=2))))
@@ -174,5 +204,6 @@ def solve(bs: BearingSet, Q: np.ndarray, *, warn_gdop: float, max_gdop: float | 
     if poor:
         log.warning("poor triangulation geometry: GDOP = %.3g > %.3g (RMS position error %.4g m)",
                     gdop, warn_gdop, rms_err)
-    chi2 = float(np.sum(fit.fun**2))
+    d = bs.residual(r)
+    chi2 = float(np.einsum("ni,nij,nj->", d, ml, d))
     return Solution(theta, cov, start, gdop, chi2, 2 * N - 3 * K, bool(poor))

@@ -34,6 +34,12 @@ def register_triangulate(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--warn-gdop", type=float, default=10.0, help="flag fixes with GDOP above this (default 10)")
     p.add_argument("--max-gdop", type=float, default=None,
                    help="refuse fixes with GDOP above this (default 0.5/σ: error above half the range)")
+    p.add_argument("--estimator", choices=("ml", "lsq"), default="ml",
+                   help="ml: Gaussian maximum likelihood (W = K⁻¹); lsq: least squares with the weights of "
+                        "--weights (seed 001 eq. 3.1; default ml)")
+    p.add_argument("--weights", default=None, metavar="identity|FILE",
+                   help="lsq weight matrix: identity (W = I, needs no error model; the default) or a CSV of "
+                        "per-station 2×2 blocks (docs/formats.md)")
     p.add_argument("--skip-bad", action="store_true", help="skip (and count) malformed bearing rows")
     p.set_defaults(func=_cmd_triangulate)
 
@@ -51,8 +57,8 @@ def _reference(text: str | None) -> tuple[float, ...] | None:
 
 
 def _cmd_triangulate(args: argparse.Namespace) -> int:
-    from radartracker_plugins.triangulation import (GeometryError, TriangulationFrame, io, locate,
-                                                    track)
+    from radartracker_plugins.triangulation import (GeometryError, StationWeights, TriangulationFrame, io, locate,
+                                                    read_weights, track)
 
     if args.out.exists() and any(args.out.iterdir()):
         raise ConfigurationError(f"{args.out} exists and is not empty; choose a new folder")
@@ -60,6 +66,12 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
         raise ConfigurationError(f"--order: must be >= 0, got {args.order}")
     if args.step is not None and args.step <= 0:
         raise ConfigurationError(f"--step: must be > 0, got {args.step}")
+    if args.estimator == "ml" and args.weights is not None:
+        raise ConfigurationError("--weights: only with --estimator lsq (ML weighs by the stations' σ)")
+    weights = None
+    if args.estimator == "lsq":
+        weights = (StationWeights.identity() if args.weights in (None, "identity")
+                   else read_weights(Path(args.weights)))
     frame = TriangulationFrame(io.read_stations(args.stations), _reference(args.reference))
     bearings, malformed = io.read_bearings(args.bearings, skip_bad=args.skip_bad)
     unknown = sorted({b.station for b in bearings} - set(frame.stations))
@@ -76,9 +88,11 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
     for target, bs in by_target.items():
         try:
             if args.mode == "static":
-                done.append((target, locate(frame, bs, warn_gdop=args.warn_gdop, max_gdop=args.max_gdop)))
+                done.append((target, locate(frame, bs, warn_gdop=args.warn_gdop, max_gdop=args.max_gdop,
+                                            weights=weights)))
             else:
-                tr = track(frame, bs, order=args.order, warn_gdop=args.warn_gdop, max_gdop=args.max_gdop)
+                tr = track(frame, bs, order=args.order, warn_gdop=args.warn_gdop, max_gdop=args.max_gdop,
+                           weights=weights)
                 times = (np.unique([b.time for b in bs]) if args.step is None
                          else np.arange(tr.t_min, tr.t_max + 1e-9, args.step))
                 done.append((target, tr, times))
@@ -89,7 +103,8 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
     name = "fixes.csv" if args.mode == "static" else "tracks.csv"
     (io.write_fixes if args.mode == "static" else io.write_tracks)(args.out / name, frame, done)
     summary = {
-        "mode": args.mode, "reference": dict(zip(("lat_deg", "lon_deg", "height_m"), frame.reference)),
+        "mode": args.mode, "estimator": args.estimator, "weights": args.weights if weights is not None else None,
+        "reference": dict(zip(("lat_deg", "lon_deg", "height_m"), frame.reference)),
         "order": args.order if args.mode == "dynamic" else None,
         "bearings": len(bearings), "skipped_rows": skipped, "targets": len(by_target),
         "solved": [t[0] for t in done], "refused": refused,
