@@ -5,7 +5,8 @@ Pipeline for every input — a :class:`Plot`, an :class:`AdsbReport`, or a
 triangulated fix; associated by its ``aircraft`` key if that is a Mode S address, else by gating):
 
 1. **Admission** — unknown radars, non-domain objects, time jumps beyond ``max_time_jump_s``,
-   duplicates and plots older than the reordering horizon are rejected and counted by reason.
+   duplicates, plots older than the reordering horizon and time stamps far ahead of the robust
+   stream time (:mod:`radartracker.tracking.admission`) are rejected and counted by reason.
 2. **Reordering** — admitted inputs wait in a heap until the newest time is ``reorder_window_s``
    ahead of them, so moderately out-of-order streams are processed in time order.
 3. **Frames** — released inputs are processed in frames of ``frame_s`` seconds. The plots of one
@@ -22,7 +23,10 @@ triangulated fix; associated by its ``aircraft`` key if that is a Mode S address
 5. **Estimation** — each track has a kinematic filter (a ``radartracker.motion_models`` plugin: CV,
    IMM, adaptive) fed with bias-corrected positions z − C_s ς̂ (covariance R + C_s P_ς C_sᵀ); the
    bias estimator plugin receives the raw measurements of confirmed tracks (a track's tentative
-   measurements are handed over when it is confirmed) and is told when tracks end.
+   measurements are handed over when it is confirmed) and is told when tracks end. Before that,
+   every measurement of an existing track is screened (:mod:`radartracker.estimation.screening`):
+   ADS-B plausibility, then d² against the track's bias-corrected prediction; a rejected one is
+   counted (``*_outlier``) and touches nothing; repeated rejections re-initialise an identified track.
 
 Every input is either used or counted under a named reason (:attr:`TrackManager.counts`).
 :meth:`snapshot` / :meth:`restore` save and load the whole state (tracks, estimator, coupling
@@ -45,6 +49,9 @@ import numpy as np
 
 from radartracker.tracking.association import assign, candidate_pairs, gate_costs
 from radartracker.estimation.coupling import CouplingGraph
+from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, ScreeningConfig, judge,
+                                               normalised_innovation)
+from radartracker.tracking.admission import ClockConfig, StreamClock
 from radartracker.domain import AdsbReport, Plot, Radar, nacp_sigma_m
 from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.estimation.kalman import SingularInnovation
@@ -55,6 +62,7 @@ from radartracker.registry import load_motion_model, make_estimator
 
 log = logging.getLogger(__name__)
 EVENT_KINDS = ("created", "confirmed", "updated", "coasting", "deleted")
+_ZERO2, _ZERO22 = np.zeros(2), np.zeros((2, 2))
 
 
 @attrs.frozen
@@ -75,6 +83,8 @@ class ManagerConfig:
     max_time_jump_s: float = 3600.0
     primary_altitude_m: float = 6000.0
     search_radius_m: float = 25_000.0
+    screening: ScreeningConfig = attrs.field(factory=ScreeningConfig)
+    clock: ClockConfig = attrs.field(factory=ClockConfig)
 
 
 @attrs.frozen
@@ -104,6 +114,7 @@ class ManagedTrack:
     pending: list[tuple[PlaneMeasurement, str]] = attrs.field(factory=list)  # (measurement, kind)
     n_plots: int = 0
     n_adsb: int = 0
+    strikes: int = 0  # consecutive measurements rejected by innovation screening
 
 
 def _finite_position(m: PlaneMeasurement) -> bool:
@@ -139,6 +150,8 @@ class TrackManager:
         self._frame_items: list = []
         self._phase: dict[str, complex] = {}
         self._events: list[TrackEvent] = []
+        self.clock = StreamClock(self.config.clock)
+        self.adsb_check = AdsbPlausibility(self.config.screening)
 
     # --- public API ------------------------------------------------------------------------------
     def process(self, item: Plot | AdsbReport) -> list[TrackEvent]:
@@ -213,6 +226,8 @@ class TrackManager:
             return self._reject(f"{kind}_late", item)
         if key in self._recent:
             return self._reject(f"{kind}_duplicate", item)
+        if not self.clock.admit(item.time):
+            return self._reject(f"{kind}_time_jump", item)
         self._recent[key] = item.time
         return True
 
@@ -373,8 +388,26 @@ class TrackManager:
             code = src.aircraft if isinstance(src.aircraft, str) else None
         else:
             code = src.mode_s if isinstance(src, Plot) else src.icao24
+        if tr is not None and tr.id not in self.tracks:  # re-initialised earlier in this frame
+            tr = None
         if tr is None:  # an ADS-B report may find the track a plot of this frame just started
             tr = next((t for t in self.tracks.values() if code is not None and t.mode_s == code), None)
+        kind = "plots" if radar is not None else ("adsb" if isinstance(src, AdsbReport) else "positions")
+        if self.config.screening.enabled:
+            why = (self.adsb_check.check(src.icao24, src.time, z, math.sqrt(R[0, 0]), src.nacp)
+                   if isinstance(src, AdsbReport) else None)
+            if why is not None:
+                self.counts[why] += 1
+                return
+            verdict = ACCEPT if tr is None else self._screen(tr, zc, Rc, src.time, kind)
+            if verdict == REJECT:
+                return
+            if verdict == REINIT:  # the track, not its measurements, is wrong: start again from this one
+                log.warning("track %s (%s) re-initialised after %d rejected measurements", tr.id, tr.mode_s,
+                            self.config.screening.reinit_after)
+                self.counts["tracks_reinitialised"] += 1
+                self._delete(tr, src.time)
+                tr = None
         if tr is None:
             filt = self._filter_cls(self.config.motion)
             filt.start(src.time, zc, Rc)
@@ -399,7 +432,6 @@ class TrackManager:
             tr.altitude_m = src.altitude_m if src.altitude_m is not None else tr.altitude_m
         tr.history.append(True)
         m = PlaneMeasurement(src.time, tr.id, radar, z, C, R)
-        kind = "plots" if radar is not None else ("adsb" if isinstance(src, AdsbReport) else "positions")
         if tr.status == "tentative":
             tr.pending.append((m, kind))
             if sum(tr.history) >= self.config.confirm_m:
@@ -408,6 +440,20 @@ class TrackManager:
             self._estimate(m, kind)
             tr.status = "confirmed"
             self._emit(src.time, tr, "updated")
+
+    def _screen(self, tr: ManagedTrack, zc: np.ndarray, Rc: np.ndarray, t: float, kind: str) -> str:
+        """Screening verdict for a bias-corrected measurement (zc, Rc = R + C P_ς Cᵀ) of track ``tr``:
+        d² against the track filter's prediction, so S = P̄_pp + C P_ς Cᵀ + R."""
+        try:
+            x, P = tr.filter.predict(max(t, tr.filter.estimate()[0]))
+        except ValueError:  # the filter refuses this step; its update refuses it too and counts it
+            return ACCEPT
+        d2 = normalised_innovation(zc, _ZERO22, Rc, _ZERO2, _ZERO22, x[:2], P[:2, :2])
+        verdict = judge(self.config.screening, kind, d2, tr.strikes, identified=tr.mode_s is not None)
+        tr.strikes = tr.strikes + 1 if verdict == REJECT else 0
+        if verdict == REJECT:
+            self.counts[f"{kind}_outlier"] += 1
+        return verdict
 
     def _confirm(self, tr: ManagedTrack) -> None:
         first = tr.pending[0][0]

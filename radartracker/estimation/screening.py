@@ -1,0 +1,195 @@
+"""Innovation screening: a measurement must agree with its aircraft before it may touch a filter or a bias.
+
+For measurement z of aircraft i (bias Jacobian C, noise R; C = 0 for ADS-B and other unbiased
+positions), the aircraft's prediction to the measurement time (p̄, P̄_pp) and the radar's bias
+estimate (ς̂, P_ς)::
+
+    ν = z − p̄ − C ς̂,   S = P̄_pp + C P_ς Cᵀ + R,   d² = νᵀ S⁻¹ ν   (χ²₂ when the model holds)
+
+A measurement with d² above its kind's gate is rejected and counted (``plots_outlier``,
+``adsb_outlier``, ``positions_outlier``); it changes neither the track nor the estimator. The gates
+(defaults in :class:`ScreeningConfig`) were chosen from the d² of clean simulated streams and the
+gross errors of scripts/fault_injection.py: see docs/reliability.md, section "Gross errors".
+
+``reinit_after`` consecutive rejections of one identified aircraft (Mode S address, ADS-B address,
+labelled key) mean the track, not the measurements, is wrong — it started on a wild measurement or
+a swapped address: the track is re-initialised from the newest measurement instead of being frozen.
+
+A new track has a diffuse prior, so its first measurement passes trivially. What protects the
+biases from a wild *first* measurement is that a new aircraft reaches the bias estimator only once
+a second, consistent measurement exists: in the TrackManager the tentative stage (its M-of-N hits
+are screened measurements, so a wild start collects rejections and is re-initialised or dropped
+before confirmation); on the labelled path :class:`LabelledScreen` holds the first measurement
+until the next one of that aircraft agrees with it (implied speed, :func:`speed_consistent`).
+
+ADS-B must also be plausible before it may anchor a bias (:class:`AdsbPlausibility`): NACp at or
+above a floor (the report carries no NIC in this domain model), and an implied speed from the last
+accepted report of the same address below ``adsb_max_speed_mps``. Its consistency with the radars
+that see the aircraft is the innovation test above against the track they feed.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Hashable
+
+import attrs
+import numpy as np
+
+from radartracker.estimation.base import Estimator, PlaneMeasurement
+
+KINDS = ("plots", "adsb", "positions")
+ACCEPT, REJECT, REINIT = "accept", "reject", "reinit"
+
+
+@attrs.frozen
+class ScreeningConfig:
+    """Gates (on d², χ²₂-distributed for good measurements) and plausibility limits.
+
+    ``gate_*`` per measurement kind; ``reinit_after`` consecutive rejections re-initialise an
+    identified aircraft's track; ``adsb_min_nacp`` is the lowest NACp that may be used;
+    ``adsb_max_speed_mps`` the fastest implied speed between reports of one address, allowing
+    ``speed_sigmas`` standard deviations of the two positions' noise on top.
+    """
+
+    enabled: bool = True
+    gate_plots: float = attrs.field(default=40.0, validator=attrs.validators.gt(0.0))
+    gate_adsb: float = attrs.field(default=40.0, validator=attrs.validators.gt(0.0))
+    gate_positions: float = attrs.field(default=40.0, validator=attrs.validators.gt(0.0))
+    reinit_after: int = attrs.field(default=3, validator=attrs.validators.ge(1))
+    adsb_min_nacp: int = attrs.field(default=5, validator=attrs.validators.in_(range(1, 12)))
+    adsb_max_speed_mps: float = attrs.field(default=600.0, validator=attrs.validators.gt(0.0))
+    speed_sigmas: float = attrs.field(default=5.0, validator=attrs.validators.gt(0.0))
+
+    def gate(self, kind: str) -> float:
+        return {"plots": self.gate_plots, "adsb": self.gate_adsb, "positions": self.gate_positions}[kind]
+
+
+def normalised_innovation(z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray,
+                          pos: np.ndarray, pos_cov: np.ndarray) -> float:
+    """d² = νᵀ S⁻¹ ν with ν = z − p̄ − C ς̂ and S = P̄_pp + C P_ς Cᵀ + R (∞ if S is not positive definite)."""
+    nu = np.asarray(z, float) - pos - C @ bias
+    S = pos_cov + C @ bias_cov @ C.T + R
+    try:
+        L = np.linalg.cholesky(0.5 * (S + S.T))
+    except np.linalg.LinAlgError:
+        return math.inf
+    w = np.linalg.solve(L, nu)
+    d2 = float(w @ w)
+    return d2 if math.isfinite(d2) else math.inf
+
+
+def judge(config: ScreeningConfig, kind: str, d2: float, strikes: int, identified: bool) -> str:
+    """ACCEPT when d² ≤ gate; else REINIT on the ``reinit_after``-th consecutive rejection of an
+    identified aircraft (``strikes`` counts the rejections before this one), else REJECT."""
+    if d2 <= config.gate(kind):
+        return ACCEPT
+    return REINIT if identified and strikes + 1 >= config.reinit_after else REJECT
+
+
+def speed_consistent(config: ScreeningConfig, dt: float, a: np.ndarray, sd_a: float, b: np.ndarray, sd_b: float) -> bool:
+    """Two positions of one aircraft ``dt`` s apart agree: ‖b − a‖ ≤ v_max·|dt| + k·√(σ_a² + σ_b²)."""
+    allowance = config.adsb_max_speed_mps * abs(dt) + config.speed_sigmas * math.hypot(sd_a, sd_b)
+    return bool(np.hypot(*(np.asarray(b, float) - a)) <= allowance)
+
+
+class AdsbPlausibility:
+    """NACp floor and implied speed from the last accepted report of the same address.
+
+    A report failing the speed test is counted and not used, and the reference stays the last
+    accepted report — so a single wild report costs only itself. If ``reinit_after`` reports in a
+    row fail, the reference was the wild one: the newest report becomes the reference and is used.
+    """
+
+    def __init__(self, config: ScreeningConfig) -> None:
+        self.config = config
+        self._last: dict[str, tuple[float, np.ndarray, float]] = {}
+        self._fails: dict[str, int] = {}
+
+    def check(self, icao24: str, time: float, xy: np.ndarray, sd: float, nacp: int) -> str | None:
+        """``None`` if the report may be used, else the counter it is rejected under."""
+        if nacp < self.config.adsb_min_nacp:
+            return "adsb_low_nacp"
+        last = self._last.get(icao24)
+        if last is not None and not speed_consistent(self.config, time - last[0], last[1], last[2], xy, sd):
+            fails = self._fails.get(icao24, 0) + 1
+            if fails < self.config.reinit_after:
+                self._fails[icao24] = fails
+                return "adsb_implausible_speed"
+        self._fails.pop(icao24, None)
+        self._last[icao24] = (time, np.asarray(xy, float), sd)
+        if len(self._last) > 20_000:  # forget addresses silent for an hour
+            self._last = {k: v for k, v in self._last.items() if time - v[0] < 3600.0}
+            self._fails = {k: v for k, v in self._fails.items() if k in self._last}
+        return None
+
+    def state_dict(self) -> dict:
+        """The state as plain values (for TrackManager snapshots)."""
+        return {"last": {k: [t, [float(v) for v in xy], sd] for k, (t, xy, sd) in self._last.items()},
+                "fails": dict(self._fails)}
+
+    def load_state_dict(self, state: dict) -> None:
+        self._last = {k: (float(t), np.array(xy, float), float(sd)) for k, (t, xy, sd) in state["last"].items()}
+        self._fails = {k: int(v) for k, v in state["fails"].items()}
+
+
+class LabelledScreen:
+    """Screening for the labelled replay, where the estimator is the only model of each aircraft.
+
+    A measurement of a known aircraft is tested against the estimator's own prediction
+    (:meth:`Estimator.predict`) and the radar's bias (S as in the module docstring). A new aircraft's
+    first measurement is held back until a second one agrees with it (:func:`speed_consistent`,
+    σ = √(largest eigenvalue of R)); a disagreeing pair drops the older one (counted as an
+    outlier) and holds the newer. ``reinit_after`` consecutive rejections remove the aircraft from
+    the estimator and start it again from the newest measurement.
+    """
+
+    def __init__(self, config: ScreeningConfig) -> None:
+        self.config = config
+        self.adsb = AdsbPlausibility(config)
+        self._held: dict[Hashable, PlaneMeasurement] = {}
+        self._strikes: dict[Hashable, int] = {}
+
+    def screen(self, est: Estimator, m: PlaneMeasurement, kind: str, known: bool) -> tuple[str, list[PlaneMeasurement]]:
+        """(verdict, measurements to apply in order) for measurement ``m`` of aircraft ``m.aircraft``.
+
+        ``known``: the estimator has this aircraft. Verdicts: ACCEPT (apply the list), REJECT
+        (count ``m`` as an outlier), REINIT (remove the aircraft, then start it from the list),
+        "held" (a new aircraft's first measurement, nothing to apply yet), "replaced" (the held one
+        was dropped as an outlier and ``m`` is held instead).
+        """
+        key = m.aircraft
+        if not known:
+            held = self._held.pop(key, None)
+            if held is None:
+                self._held[key] = m
+                return "held", []
+            if speed_consistent(self.config, m.time - held.time, held.z, _sd(held.R), m.z, _sd(m.R)):
+                return ACCEPT, [held, m]
+            self._held[key] = m
+            return "replaced", []
+        pred = est.predict(key, m.time)
+        if m.radar is not None:
+            b = est.bias(m.radar)
+            bias, bias_cov = b.bias, b.cov
+        else:
+            bias, bias_cov = np.zeros(2), np.zeros((2, 2))
+        d2 = normalised_innovation(m.z, m.C, m.R, bias, bias_cov, pred.state[:2], pred.cov[:2, :2])
+        verdict = judge(self.config, kind, d2, self._strikes.get(key, 0), identified=True)
+        if verdict == REJECT:
+            self._strikes[key] = self._strikes.get(key, 0) + 1
+            return REJECT, []
+        self._strikes.pop(key, None)
+        return verdict, [m]
+
+    def pending(self) -> list[PlaneMeasurement]:
+        """Measurements still held at the end (each the only one of its aircraft)."""
+        return list(self._held.values())
+
+    def forget(self, key: Hashable) -> None:
+        """Aircraft ``key`` was removed from the estimator (not seen for a while)."""
+        self._strikes.pop(key, None)
+
+
+def _sd(R: np.ndarray) -> float:
+    return math.sqrt(float(np.linalg.eigvalsh(R)[-1]))

@@ -1,0 +1,110 @@
+"""Robust stream clock: a far-off time stamp is rejected and costs no good input (issue 12 §2)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from radartracker.domain import Plot
+from radartracker.tracking.admission import ClockConfig, StreamClock
+from radartracker.tracking.manager import TrackManager
+
+YEARS_10 = 10 * 365.25 * 86400.0
+
+
+def jittered_times(n: int = 400, seed: int = 0) -> np.ndarray:
+    """A stream every 0.5 s with up to ±1 s of arrival jitter (out of order within the window)."""
+    rng = np.random.default_rng(seed)
+    return np.arange(n) * 0.5 + rng.uniform(-1.0, 1.0, n)
+
+
+@pytest.mark.parametrize("ahead", [YEARS_10, 1800.0])
+@pytest.mark.parametrize("where", [1, 3, 200])
+def test_one_far_future_time_is_the_only_rejection(ahead, where):
+    times = jittered_times()
+    bad = times.copy()
+    bad[where] += ahead
+    clock = StreamClock()
+    admitted = np.array([clock.admit(t) for t in bad])
+    assert not admitted[where]
+    assert admitted[np.arange(len(bad)) != where].all()
+
+
+def test_clean_jittered_stream_fully_admitted():
+    clock = StreamClock()
+    assert all(clock.admit(t) for t in jittered_times())
+
+
+def test_stream_resuming_after_a_pause_steps_after_a_few_inputs():
+    cfg = ClockConfig()
+    times = np.concatenate([np.arange(50.0), 5000.0 + np.arange(50.0)])
+    clock = StreamClock(cfg)
+    admitted = np.array([clock.admit(t) for t in times])
+    # the price of a genuine step: step_after − 1 inputs; everything after it is admitted
+    assert (~admitted).sum() == cfg.step_after - 1
+    assert admitted[50 + cfg.step_after - 1:].all()
+
+
+def test_a_source_with_a_wrong_clock_never_drags_the_stream():
+    """Every third input 30 min ahead (one radar with a wrong clock): all of those are rejected,
+    none of the good ones, because good inputs interleave and break every run."""
+    t = np.arange(300) * 1.0
+    wrong = np.arange(300) % 3 == 0
+    t[wrong] += 1800.0
+    clock = StreamClock()
+    admitted = np.array([clock.admit(x) for x in t])
+    assert admitted[~wrong].all()
+    assert not admitted[wrong][1:].any()  # the very first input has nothing to be judged against
+
+
+def test_non_finite_time_rejected():
+    clock = StreamClock()
+    assert clock.admit(0.0)
+    assert not clock.admit(math.inf)
+    assert not clock.admit(math.nan)
+
+
+def test_state_dict_round_trip():
+    a, b = StreamClock(), StreamClock()
+    for t in jittered_times(30):
+        a.admit(t)
+    a.admit(1e9)
+    b.load_state_dict(a.state_dict())
+    assert [a.admit(t) for t in (20.0, 2e9, 2e9 + 1)] == [b.admit(t) for t in (20.0, 2e9, 2e9 + 1)]
+
+
+def _plots(demo_data, limit_s: float) -> list[Plot]:
+    p = demo_data.plots
+    out = [Plot(float(p.time[i]), p.radar[i], float(p.range_m[i]), float(p.azimuth_rad[i]),
+                None if math.isnan(p.altitude_m[i]) else float(p.altitude_m[i]), p.mode_s[i], p.mode_3a[i])
+           for i in range(len(p)) if p.time[i] < limit_s]
+    return sorted(out, key=lambda x: x.time)
+
+
+def _jitter(plots: list[Plot], seed: int) -> list[Plot]:
+    """Arrival order shuffled by up to ±1 s (the manager's reorder window is 2 s)."""
+    rng = np.random.default_rng(seed)
+    keys = [p.time + rng.uniform(-1.0, 1.0) for p in plots]
+    return [plots[i] for i in np.argsort(keys)]
+
+
+@pytest.mark.parametrize("ahead", [YEARS_10, 1800.0])
+def test_manager_far_future_plot_costs_no_good_input(demo_data, ahead):
+    """Through the API: one plot 30 min (or 10 years) ahead in a jittered stream is counted as a time
+    jump; every other plot is used exactly as in the run without it (oracle: that run)."""
+    stream = _jitter(_plots(demo_data, 300.0), seed=4)
+    k = len(stream) // 3
+    bad = stream[:k] + [Plot(stream[k].time + ahead, stream[k].radar, stream[k].range_m, stream[k].azimuth_rad,
+                             stream[k].altitude_m, stream[k].mode_s)] + stream[k:]
+
+    def counts(items):
+        mgr = TrackManager(demo_data.radars, demo_data.reference)
+        mgr.process_many(items)
+        return mgr.accounting(), mgr
+
+    clean, clean_mgr = counts(stream)
+    dirty, dirty_mgr = counts(bad)
+    assert dirty.pop("plots_time_jump") == 1
+    assert dirty == clean
+    for rid in demo_data.truth_biases:
+        np.testing.assert_array_equal(dirty_mgr.estimator.bias(rid).bias, clean_mgr.estimator.bias(rid).bias)
