@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-from radartracker_plugins.triangulation import (DirectionFinder, GeometryError, PolynomialBasis,
+from radartracker_plugins.triangulation import (DirectionFinder, GeometryError, PolynomialBasis, StationWeights,
                                                 TriangulationFrame, locate, track)
 from radartracker_plugins.triangulation import crlb
 from radartracker_plugins.triangulation.simulate import (noisy_bearings, schedule, sites_around,
@@ -45,8 +45,12 @@ class Case:
         self.pos = positions_of(frame, self.times)
         self.truth = true_bearings(frame, self.ids, self.pos)
 
-    def frame(self, sigma):
-        return TriangulationFrame([DirectionFinder(f"s{i}", la, lo, 200.0, sigma, sigma,
+    def frame(self, sigma, spread=False):
+        """Stations with σ_α = σ_β = σ, or with ``spread`` station i at σ·(1 + i) in azimuth and
+        twice that in elevation (unequal noise: where W = I and W = K⁻¹ part ways)."""
+        def sig(i):
+            return (sigma * (1 + i), 2 * sigma * (1 + i)) if spread else (sigma, sigma)
+        return TriangulationFrame([DirectionFinder(f"s{i}", la, lo, 200.0, *sig(i),
                                                    None if self.grids is None else self.grids[i])
                                    for i, (la, lo) in enumerate(self.sites)], self.reference)
 
@@ -99,6 +103,41 @@ def run(case: Case, sigma: float, runs: int, rng) -> dict:
             "ratio": round(rmse / crlb_m, 4), "ratio_ci95_if_efficient": ci}
 
 
+def run_lsq(case: Case, sigma: float, runs: int, rng) -> dict:
+    """ML and LSQ(W = I) on the same bearings with unequal station noise, against the CRLB."""
+    frame = case.frame(sigma, spread=True)
+    bound, _ = case.bound(frame)
+    crlb_m = math.sqrt(np.mean(np.trace(bound, axis1=1, axis2=2)))
+    sq = {"ml": [], "lsq": []}
+    sandwich, refused = [], 0
+    for _ in range(runs):
+        bs = noisy_bearings(frame, case.ids, case.times, case.truth, rng)
+        try:
+            fits = {}
+            for name, w in (("ml", None), ("lsq", StationWeights.identity())):
+                if case.order is None:
+                    fits[name] = locate(frame, bs, weights=w)
+                else:
+                    fits[name] = track(frame, bs, order=case.order, weights=w)
+        except GeometryError:
+            refused += 1
+            continue
+        for name, fit in fits.items():
+            if case.order is None:
+                err, cov = fit.position[None] - case.pos[:1], fit.cov[None]
+            else:
+                err, cov = fit.position(case.times) - case.pos, fit.covariance(case.times)
+            sq[name].append(np.mean(np.sum(err**2, axis=1)))
+            if name == "lsq":
+                sandwich.append(np.mean(np.trace(cov, axis1=1, axis2=2)))
+    rm = {k: math.sqrt(np.mean(v)) if v else math.nan for k, v in sq.items()}
+    return {"case": case.name, "sigma_mrad": sigma * 1e3, "runs": runs, "solved": len(sq["ml"]),
+            "refused": refused, "crlb_m": round(crlb_m, 3), "ml_rmse_m": round(rm["ml"], 3),
+            "lsq_rmse_m": round(rm["lsq"], 3), "ml_ratio": round(rm["ml"] / crlb_m, 4),
+            "lsq_ratio": round(rm["lsq"] / crlb_m, 4),
+            "lsq_sandwich_ratio": round(math.sqrt(np.mean(sandwich)) / crlb_m, 4) if sandwich else None}
+
+
 def _two_stations(baseline_m, distance_m, off_axis_deg, alt=3000.0):
     """Stations ±baseline/2 east–west of the centre; the target ``distance_m`` from the centre,
     ``off_axis_deg`` from the baseline axis (90: broadside, 0: on the axis, collinear)."""
@@ -142,10 +181,25 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--sigma-mrad", type=float, default=1.0, help="bearing noise of the table (default 1 mrad)")
     ap.add_argument("--no-figures", action="store_true")
+    ap.add_argument("--lsq-only", action="store_true", help="only the ML vs LSQ(W = I) study")
     args = ap.parse_args(argv)
     logging.getLogger("radartracker.triangulation").setLevel(logging.ERROR)  # counted, not logged
     rng = np.random.default_rng(args.seed)
     cases, fixed = build_cases()
+
+    lsq_sigmas = np.array([0.5, 1.0, 2.0, 4.0]) * 1e-3
+    lsq = [run_lsq(c, s, args.runs, rng) for c in cases.values() for s in lsq_sigmas]
+    for row in lsq:
+        print(json.dumps({"study": "lsq", **row}))
+    print()
+    print(f"ML vs LSQ(W = I) vs CRLB, unequal station noise (station i: σ·(1+i), elevation 2×), {args.runs} runs")
+    print("| case | σ (mrad) | CRLB (m) | ML RMSE/CRLB | LSQ(W=I) RMSE/CRLB | LSQ stated σ/CRLB | refused |")
+    print("|---|---|---|---|---|---|---|")
+    for r in lsq:
+        print(f"| {r['case']} | {r['sigma_mrad']:g} | {r['crlb_m']:.1f} | {r['ml_ratio']:.3f} | {r['lsq_ratio']:.3f} | "
+              f"{r['lsq_sandwich_ratio']:.3f} | {r['refused']} |")
+    if args.lsq_only:
+        return 0
 
     table = [run(c, args.sigma_mrad * 1e-3, args.runs, rng) for c in cases.values()]
     for row in table:
