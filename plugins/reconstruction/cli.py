@@ -33,7 +33,7 @@ def register_reconstruct(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-w", type=float, default=2.0, help="longitudinal acceleration bound m/s² (default 2)")
     p.add_argument("--loss", choices=("gauss", "huber", "cauchy"), default="gauss",
                    help="track weight: Gaussian NLL or a robust loss (default gauss)")
-    p.add_argument("--hypotheses", type=int, default=8, help="most segment counts tried per flight (default 8)")
+    p.add_argument("--hypotheses", type=int, default=10, help="most hypotheses fitted per flight (default 10)")
     p.add_argument("--grid", type=float, default=1.0, help="geometric track spacing in seconds (default 1)")
     p.add_argument("--no-shooting", action="store_true",
                    help="skip the multiple-shooting refinement (about 3x faster, less accurate on long flights)")

@@ -57,6 +57,6 @@ class ReconstructionConfig:
     loss: str = attrs.field(default="gauss", validator=attrs.validators.in_(LOSSES))
     loss_c: float = attrs.field(default=3.0, validator=_pos)
     grid_dt: float = attrs.field(default=1.0, validator=_pos)
-    hypotheses: int = attrs.field(default=8, validator=_pos)
+    hypotheses: int = attrs.field(default=10, validator=_pos)
     max_segments: int = attrs.field(default=80, validator=_pos)
     complexity: float = attrs.field(default=1.0, validator=attrs.validators.ge(0.0))

@@ -5,15 +5,17 @@
    dt_min.
 2. **Segmentations.** For every segment count K the least-squares piecewise-constant fit of
    (u, w) with segments ≥ dt_min is found exactly by dynamic programming (Bellman 1961; Jackson
-   et al. 2005). The count K₀ minimising the signal's own BIC, N·ln(SSE_K/N) + 3K·ln N, is the
-   first guess (often too low where the smoother is noisy). The segmentations with K₀, K₀/1.5,
-   1.5·K₀ pieces and one piece per minute give up to four starts (switch times, and (u, w) as the
-   pieces' means). Then hypotheses are refined by splitting: the worst-fitting segments are halved
-   to 1.5× as many (the same track) and refitted — if the window pass loses the start's fit, the
-   start is refined by least squares alone instead, so the weight never rises — climbing from
-   the last child while it is the best by score (step 4) or its weight still drops by at least a
-   quarter of what BIC charges for its new parameters, else from the best hypothesis not yet
-   split — at most ``hypotheses`` fits in all.
+   et al. 2005). The starting count K₀ minimises a noise-aware BIC of the signal
+   (:func:`noise_aware_count`: whitened by a robust noise estimate, with the effective number of
+   independent samples). Starts: always 1, 2 and 3 segments, then K₀, K₀/1.5 and 1.5·K₀ (switch
+   times, and (u, w) as the pieces' means).
+   Then moves from the best hypothesis by score that has one left: a **split** of its
+   worst-fitting segments to 1.5× as many (the same track; if the window pass loses the start's
+   fit, the start is refined by least squares alone, so the weight never rises) — climbing on
+   from the child while its weight drops by at least a quarter of what BIC charges for its new
+   parameters — or a **merge** of its most alike neighbours to 1/1.5 as many (refitted). Split is
+   tried first when the hypothesis's normalised χ² exceeds 1. The search stops after two moves in
+   a row that do not improve the best score, or at ``hypotheses`` fits in all.
 3. **Optimisation** of each hypothesis by Hooke–Jeeves and a least-squares refinement (:mod:`.fit`).
 4. **Selection** by the Bayesian information criterion on the plots:
    score = 2·weight + complexity · p · ln n, with p = 3K + 3 parameters (initial x, y, φ, v;
@@ -47,18 +49,22 @@ class Hypothesis:
     n_params: int
     nfev: int
     origin: str = ""
+    chi2: float = float("nan")  # normalised residual χ²: Σ d_i² / (2n − p), ≈ 1 when the model and R hold
 
 
 @attrs.frozen(eq=False)
 class Reconstruction:
     """A flight's reconstruction: the selected hypothesis, all hypotheses ranked by score,
-    the geometric track of the best one, and the tuned smoother's q (m²/s³)."""
+    the geometric track of the best one, the tuned smoother's q (m²/s³), the starting count K₀
+    and its criterion per K (:func:`noise_aware_count`), and the radar biases removed."""
 
     key: str
     plots: PlotTrack
     hypotheses: tuple[Hypothesis, ...]
     geo: GeoTrack
     smoother_q: float
+    k0: int = 0
+    count_criterion: tuple[float, ...] = ()
 
     @property
     def best(self) -> Hypothesis:
@@ -116,19 +122,48 @@ def segmentations(sig: np.ndarray, min_len: int, k_max: int) -> tuple[np.ndarray
     return np.array(sse), starts
 
 
+def noise_aware_count(sig: np.ndarray, g: float, tau: float, min_len: int, k_fit: int) -> tuple[int, np.ndarray, list]:
+    """(K₀, criterion per K, segmentation starts) of the control signal ``sig`` on a grid of ``g`` s.
+
+    The signal's noise is correlated over ``tau`` seconds (the smoother's memory), so it holds about
+    N_eff = N·g/τ independent samples. Each channel's noise σ_c is estimated robustly from
+    differences at lag τ (1.4826·MAD/√2, insensitive to the few control jumps), the signal is
+    whitened by it, and K₀ minimises the known-variance BIC of the whitened signal::
+
+        crit(K) = SSE_K · N_eff / N + 3K · ln N_eff
+
+    (3 parameters per segment: the two means and a switch time). The scale-free form
+    N·ln(SSE_K/N) assumes independent samples and, on a smoother's correlated output, buys
+    a segment for every wiggle (22 on a straight flight).
+    """
+    N = len(sig)
+    lag = int(min(max(1, round(tau / g)), max(1, N // 2)))
+    d = sig[lag:] - sig[:-lag] if N > lag else np.diff(sig, axis=0)
+    sd = 1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0) / np.sqrt(2)
+    sd = np.where(sd > 0, sd, np.maximum(sig.std(axis=0), 1e-9))
+    sse, starts = segmentations(sig / sd, min_len, k_fit)
+    n_eff = max(N * g / tau, 2.0)
+    K_all = np.arange(1, len(sse) + 1)
+    crit = sse * n_eff / N + 3 * K_all * np.log(n_eff)
+    return int(K_all[np.argmin(crit)]), crit, starts
+
+
 def hypothesis_starts(plots: PlotTrack, cfg: ReconstructionConfig):
-    """(start(K) → starting control track with K segments, the detected K₀, the largest K, the smoother's q)."""
+    """(start(K) → starting control track with K segments, the detected K₀, the largest K, the smoother's q,
+    the starting-count criterion per K)."""
     xs, q, keep = gated_rts(plots.t, plots.z, plots.R)
     t = plots.t[keep]
     dur = t[-1] - t[0]
     g = max(cfg.dt_min / 2, dur / _MAX_GRID)
     tg, sig = control_signals(t, xs, g, cfg.dt_min)
     k_fit = max(1, min(cfg.max_segments, int(dur // cfg.dt_min), int(plots.duration // cfg.dt_min)))
+    # the smoother's memory: a CV smoother with white-acceleration density q and measurement noise
+    # density r (m²·s) averages over about (r/q)^¼ seconds; never less than the moving average
+    r_density = float(np.sqrt(np.mean(np.linalg.det(plots.R[keep])))) * dur / max(len(t) - 1, 1)
+    tau = max(cfg.dt_min, (r_density / q) ** 0.25)
     # one grid step more than dt_min, so no starting switch sits on the minimum-duration constraint
-    sse, starts = segmentations(sig, int(np.ceil(cfg.dt_min / g)) + 1, k_fit)
+    k0, crit, starts = noise_aware_count(sig, g, tau, int(np.ceil(cfg.dt_min / g)) + 1, k_fit)
     N = len(sig)
-    K_all = np.arange(1, len(sse) + 1)
-    k0 = int(K_all[np.argmin(N * np.log(np.maximum(sse, 1e-12) / N) + 3 * K_all * np.log(N))])
     back = t[0] - plots.t[0]  # the first plot may have been gated out
     first = GeoPoint(plots.t[0], xs[0, 0] - back * xs[0, 2], xs[0, 1] - back * xs[0, 3],
                      np.arctan2(xs[0, 2], xs[0, 3]), max(np.hypot(xs[0, 2], xs[0, 3]), cfg.v_min))
@@ -142,7 +177,7 @@ def hypothesis_starts(plots: PlotTrack, cfg: ReconstructionConfig):
                                                    np.clip(sig[a:b, 1].mean(), -cfg.max_w, cfg.max_w), times[k], times[k + 1])
                                     for k, (a, b) in enumerate(zip(cuts[:-1], cuts[1:]))])
 
-    return start, k0, len(sse), q
+    return start, k0, len(crit), q, crit
 
 
 def split(ct: ControlTrack, K: int, weight: TrackWeight, times: np.ndarray, dt_min: float) -> ControlTrack:
@@ -165,6 +200,26 @@ def split(ct: ControlTrack, K: int, weight: TrackWeight, times: np.ndarray, dt_m
     return ControlTrack(ct.initial, [s for _, s in items])
 
 
+def merge(ct: ControlTrack, K: int) -> ControlTrack:
+    """``ct`` with neighbouring segments merged until K remain.
+
+    Each step merges the pair that changes the controls least — Ward's criterion
+    d₁d₂/(d₁ + d₂)·(Δu² + Δw²), the growth of Σ duration·|control − mean|² — into one segment with the
+    duration-weighted mean controls. Unlike a split this changes the track: the child is refitted.
+    """
+    segs = list(ct)
+    while len(segs) > max(K, 1):
+        def cost(i):
+            a, b = segs[i], segs[i + 1]
+            return a.duration * b.duration / (a.duration + b.duration) * ((a.u - b.u) ** 2 + (a.w - b.w) ** 2)
+        i = min(range(len(segs) - 1), key=cost)
+        a, b = segs[i], segs[i + 1]
+        d = a.duration + b.duration
+        segs[i:i + 2] = [ControlSegment((a.u * a.duration + b.u * b.duration) / d,
+                                        (a.w * a.duration + b.w * b.duration) / d, a.t_start, b.t_end)]
+    return ControlTrack(ct.initial, segs)
+
+
 def height_profile(plots: PlotTrack):
     """Heights along the flight: running median (5 plots) of the known plot heights, interpolated."""
     ok = np.isfinite(plots.h)
@@ -185,8 +240,9 @@ def reconstruct(plots: PlotTrack, cfg: ReconstructionConfig | None = None, biase
     weight = TrackWeight(plots, cfg.loss, cfg.loss_c, biases)
     t0 = float(plots.t[0])  # fit in time since the first plot: epoch seconds would swamp the steps
     rel = attrs.evolve(plots, t=plots.t - t0)
-    start, k0, k_max, q = hypothesis_starts(rel, cfg)
+    start, k0, k_max, q, crit = hypothesis_starts(rel, cfg)
     found: list[tuple[Hypothesis, ControlTrack]] = []  # with the track in time since the first plot
+    n = len(plots)
 
     def run(ct: ControlTrack, origin: str, floor: float = np.inf) -> Hypothesis:
         best, _, nfev = fit_hypothesis(ct, rel.t, weight, cfg)
@@ -197,39 +253,64 @@ def reconstruct(plots: PlotTrack, cfg: ReconstructionConfig | None = None, biase
             if (w2 := weight(sample(alt, rel.t)[:, :2])) < wgt:
                 best, wgt = alt, w2
         n_par = 3 * len(best) + 3
-        hyp = Hypothesis(best.shifted(t0), wgt, 2 * wgt + cfg.complexity * n_par * np.log(len(plots)), n_par, nfev, origin)
+        chi2 = float(np.sum(weight.distances2(sample(best, rel.t)[:, :2]))) / max(2 * n - n_par, 1)
+        hyp = Hypothesis(best.shifted(t0), wgt, 2 * wgt + cfg.complexity * n_par * np.log(n), n_par, nfev, origin, chi2)
         found.append((hyp, best))
         return hyp
 
-    k_minute = max(1, min(k_max, round(plots.duration / 60.0)))
-    for K in dict.fromkeys([k0, max(1, round(k0 / 1.5)), min(k_max, round(k0 * 1.5)), k_minute]):
-        if len(found) < cfg.hypotheses:
+    # starts: always the simple answers (1–3 segments), then K₀ and its neighbours
+    for K in dict.fromkeys([1, 2, 3, k0, round(k0 / 1.5), round(k0 * 1.5)]):
+        if 1 <= K <= k_max and len(found) < cfg.hypotheses:
             run(start(K), "segmentation")
-    # refine: split the worst-fitting segments of a hypothesis to 1.5× as many (the same track to
-    # start with, so the weight can only drop) and refit; climb from the best by score, or from the
-    # last child while its weight still drops by more than its added parameters cost
-    parent = min(found, key=lambda f: f[0].score)
-    was_split: set[int] = set()
-    while len(found) < cfg.hypotheses:
-        was_split.add(id(parent[0]))
-        K = min(k_max, max(len(parent[1]) + 1, round(1.5 * len(parent[1]))))
-        child_ct = split(parent[1], K, weight, rel.t, cfg.dt_min)
-        if len(child_ct) == len(parent[1]):
+    # moves from the best hypothesis by score that still has one untried: split its worst-fitting
+    # segments to 1.5× as many (the same track, so the weight can only drop) or merge the most alike
+    # neighbours to 1/1.5 as many (refitted); split first when its χ² says the plots are not yet explained;
+    # a move to a segment count already fitted is not made
+    tried: set[tuple[int, str]] = set()
+    follow: tuple[Hypothesis, ControlTrack] | None = None
+    stale = 0  # moves in a row that did not improve the best score; the search stops at two
+    while len(found) < cfg.hypotheses and stale < 2:
+        best_score = min(h.score for h, _ in found)
+        fitted = {len(ct) for _, ct in found}  # a move to a count already fitted would spend a fit for little
+        move = None
+        queue = [(*follow, ("split",))] if follow else []
+        queue += [(h, ct, ("split", "merge") if h.chi2 > 1.0 else ("merge", "split"))
+                  for h, ct in sorted(found, key=lambda f: f[0].score)]
+        for h, ct, order in queue:
+            K = len(ct)
+            k_split, k_merge = min(k_max, max(K + 1, round(1.5 * K))), max(1, min(K - 1, round(K / 1.5)))
+            for mv in order:
+                target = k_split if mv == "split" else k_merge
+                if (id(h), mv) not in tried and target != K and target not in fitted:
+                    move = (h, ct, mv, target)
+                    break
+            if move:
+                break
+        if move is None:
             break
-        child = run(child_ct, f"split of {len(parent[1])}", floor=parent[0].weight)
-        gain = parent[0].weight - child.weight
-        if min(found, key=lambda f: f[0].score)[0] is child or gain > cfg.complexity * (child.n_params - parent[0].n_params) * np.log(len(plots)) / 8:
-            parent = found[-1]
+        h, ct, mv, K = move
+        tried.add((id(h), mv))
+        follow = None
+        if mv == "merge":
+            child = run(merge(ct, K), f"merge of {len(ct)}")
+        else:
+            child_ct = split(ct, K, weight, rel.t, cfg.dt_min)
+            if len(child_ct) == len(ct):
+                continue
+            child = run(child_ct, f"split of {len(ct)}", floor=h.weight)
+        stale = 0 if child.score < best_score else stale + 1
+        if mv == "merge":
             continue
-        rest = [f for f in found if id(f[0]) not in was_split]
-        if not rest:
-            break
-        parent = min(rest, key=lambda f: f[0].score)
+        # keep climbing from a split child while its weight drops by more than a quarter of BIC's
+        # charge for its new parameters
+        if h.weight - child.weight > cfg.complexity * (child.n_params - h.n_params) * np.log(n) / 8:
+            follow = found[-1]
     hyps = [h for h, _ in found]
     hyps.sort(key=lambda hy: hy.score)
     geo = geo_track(hyps[0].control, cfg.grid_dt, height_profile(plots))
-    return Reconstruction(plots.key, plots, tuple(hyps), geo, q)
+    return Reconstruction(plots.key, plots, tuple(hyps), geo, q, k0, tuple(float(c) for c in crit))
 
 
 __all__ = ["Hypothesis", "Reconstruction", "reconstruct", "hypothesis_starts",
-           "segmentations", "control_signals", "height_profile", "split"]
+           "segmentations", "control_signals", "height_profile", "split", "merge",
+           "noise_aware_count"]
