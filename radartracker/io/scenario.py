@@ -24,6 +24,7 @@ import numpy as np
 
 from radartracker.domain import Aircraft, Radar
 from radartracker.errors import FormatError
+from radartracker.tracking.admission import StreamClock
 from radartracker.io.tables import (ADSB_COLUMNS, BIAS_COLUMNS, PLOT_COLUMNS, RADAR_COLUMNS, TRUTH_COLUMNS, AdsbTable,
                                     PlotTable, ScenarioData, TruthTable)
 
@@ -158,6 +159,7 @@ def read_plots(path: Path, radar_ids: set[str], skip: _Skipper) -> PlotTable:
     has_target = "target" in rows.optional
     cols: dict[str, list] = {k: [] for k in ("time", "radar", "range_m", "azimuth_rad", "altitude_m", "mode_s", "mode_3a", "target")}
     last_time: dict[str, tuple[float, int]] = {}
+    clock = StreamClock()
     for line, row in rows:
         try:
             t = rows.number(row, line, "time")
@@ -168,6 +170,9 @@ def read_plots(path: Path, radar_ids: set[str], skip: _Skipper) -> PlotTable:
                 raise FormatError(rows.name, line, "time",
                                   f"{t} is earlier than {last_time[rid][0]} on line {last_time[rid][1]} of the same radar",
                                   "time_backwards")
+            if not clock.admit(t):  # one far-off time stamp must not make the good rows after it "backwards"
+                raise FormatError(rows.name, line, "time", f"{t} is more than {clock.config.max_ahead_s:g} s ahead of "
+                                  f"the stream time {clock.now} (median of the last rows read)", "time_jump")
             rng = rows.number(row, line, "range_m", check=_nonneg)
             az = rows.number(row, line, "azimuth_deg", check=_range(0, 360, hi_open=True))
             alt = rows.number(row, line, "altitude_m", optional=True)
