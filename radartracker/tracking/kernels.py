@@ -1,0 +1,172 @@
+"""Compiled kernels of the track filters' hot path (numba, cached on disk: a first run does not stall).
+
+The equations are those of the numpy code they replace, written out for the small fixed sizes
+(4-state CV, 5-state CT) so that one call does what took a dozen numpy calls:
+
+* :func:`cv_predict` — χ̄ = A(Δt) χ̂, P̄ = A P̂ Aᵀ + Q(Δt), A = [[I, Δt I], [0, I]],
+  Q = q [[|Δt|³/3 I, Δt²/2 I], [Δt²/2 I, |Δt| I]] (:class:`radartracker.estimation.motion.MotionModel`).
+* :func:`ct_predict` — the extended-Kalman coordinated-turn prediction f(ξ), F P Fᵀ + Q of
+  ``radartracker_plugins.motion.ct`` (Taylor series below |ωT| = 10⁻⁴).
+* :func:`position_update` — correction by a position z (H = [I₂ 0]): ν = z − Hχ̄, Λ = H P̄ Hᵀ + R,
+  G = P̄ Hᵀ Λ⁻¹ (closed-form 2×2 inverse), χ̂ = χ̄ + G ν, P̂ = sym(P̄ − G H P̄), with
+  NIS = νᵀΛ⁻¹ν and log N(ν; 0, Λ) from the Cholesky factor of Λ; ``ok`` is False when Λ is not
+  positive definite (the caller raises).
+* :func:`measurement_ok` — the checks of a position measurement: finite time and z, R finite,
+  symmetric (``numpy.allclose`` tolerances) and positive definite.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+_LOG_2PI = math.log(2.0 * math.pi)
+_SMALL = 1e-4  # |ωT| below which the CT Taylor series are used (as plugins/motion/ct.py)
+
+
+@njit(cache=True)
+def measurement_ok(time: float, z: np.ndarray, R: np.ndarray) -> int:
+    """0 if (time, z, R) is a valid position measurement, else 1 (time), 2 (z) or 3 (R)."""
+    if not math.isfinite(time):
+        return 1
+    if z.shape[0] != 2 or not (math.isfinite(z[0]) and math.isfinite(z[1])):
+        return 2
+    if R.shape[0] != 2 or R.shape[1] != 2:
+        return 3
+    for i in range(2):
+        for j in range(2):
+            if not math.isfinite(R[i, j]):
+                return 3
+    if abs(R[0, 1] - R[1, 0]) > 1e-8 + 1e-5 * abs(R[1, 0]):
+        return 3
+    a = R[0, 0]
+    if not a > 0.0:
+        return 3
+    if not R[1, 1] - R[1, 0] * R[1, 0] / a > 0.0:
+        return 3
+    return 0
+
+
+@njit(cache=True)
+def cv_predict(x: np.ndarray, P: np.ndarray, dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
+    """Constant-velocity prediction of (χ, P) by ``dt`` seconds with white-acceleration density ``q``."""
+    xp = x.copy()
+    xp[0] += dt * x[2]
+    xp[1] += dt * x[3]
+    AP = P.copy()  # A P: rows 0, 1 gain dt × rows 2, 3
+    for j in range(4):
+        AP[0, j] += dt * P[2, j]
+        AP[1, j] += dt * P[3, j]
+    Pp = AP.copy()  # (A P) Aᵀ: columns 0, 1 gain dt × columns 2, 3
+    for i in range(4):
+        Pp[i, 0] += dt * AP[i, 2]
+        Pp[i, 1] += dt * AP[i, 3]
+    if q != 0.0 and dt != 0.0:
+        adt = abs(dt)
+        q3, q2, q1 = q * (adt**3 / 3), q * (adt**2 / 2), q * adt
+        for k in range(2):
+            Pp[k, k] += q3
+            Pp[k, k + 2] += q2
+            Pp[k + 2, k] += q2
+            Pp[k + 2, k + 2] += q1
+    return xp, Pp
+
+
+@njit(cache=True)
+def ct_predict(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_sd: float
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Coordinated-turn EKF prediction of (ξ, P), ξ = [x, y, vx, vy, ω], over ``T`` seconds."""
+    vx, vy, w = x[2], x[3], x[4]
+    a = w * T
+    if abs(a) < _SMALL:
+        f1 = T * (1 - a * a / 6)
+        f2 = T * (a / 2 - a**3 / 24)
+        d1 = T * T * (-a / 3 + a**3 / 30)
+        d2 = T * T * (0.5 - a * a / 8)
+    else:
+        s0, c0 = math.sin(a), math.cos(a)
+        f1, f2 = s0 / w, (1 - c0) / w
+        d1 = (T * c0 * w - s0) / (w * w)
+        d2 = (T * s0 * w - (1 - c0)) / (w * w)
+    s, c = math.sin(w * T), math.cos(w * T)
+    xp = np.empty(5)
+    xp[0] = x[0] + f1 * vx + f2 * vy
+    xp[1] = x[1] - f2 * vx + f1 * vy
+    xp[2] = c * vx + s * vy
+    xp[3] = -s * vx + c * vy
+    xp[4] = w
+    F = np.eye(5)
+    F[0, 2], F[0, 3], F[0, 4] = f1, f2, d1 * vx + d2 * vy
+    F[1, 2], F[1, 3], F[1, 4] = -f2, f1, -d2 * vx + d1 * vy
+    F[2, 2], F[2, 3], F[2, 4] = c, s, T * (-s * vx + c * vy)
+    F[3, 2], F[3, 3], F[3, 4] = -s, c, T * (-c * vx - s * vy)
+    FP = np.zeros((5, 5))
+    for i in range(5):
+        for k in range(5):
+            if F[i, k] != 0.0:
+                for j in range(5):
+                    FP[i, j] += F[i, k] * P[k, j]
+    Pp = np.zeros((5, 5))
+    for i in range(5):
+        for j in range(5):
+            acc = 0.0
+            for k in range(5):
+                acc += FP[i, k] * F[j, k]
+            Pp[i, j] = acc
+    if q != 0.0 and T != 0.0:
+        adt = abs(T)
+        q3, q2, q1 = q * (adt**3 / 3), q * (adt**2 / 2), q * adt
+        for k in range(2):
+            Pp[k, k] += q3
+            Pp[k, k + 2] += q2
+            Pp[k + 2, k] += q2
+            Pp[k + 2, k + 2] += q1
+    Pp[4, 4] += turn_rate_sd**2 * abs(T)
+    return xp, Pp
+
+
+@njit(cache=True)
+def position_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray):
+    """(χ̂, P̂, ν, Λ, NIS, log-likelihood, ok) of the position correction (module docstring)."""
+    n = x.shape[0]
+    nu = np.empty(2)
+    nu[0], nu[1] = z[0] - x[0], z[1] - x[1]
+    S = np.empty((2, 2))
+    for i in range(2):
+        for j in range(2):
+            S[i, j] = P[i, j] + R[i, j]
+    a, b, d = S[0, 0], 0.5 * (S[0, 1] + S[1, 0]), S[1, 1]
+    det = a * d - b * b
+    if not (a > 0 and det > 0 and math.isfinite(det)):
+        return x.copy(), P.copy(), nu, S, math.nan, math.nan, False
+    i00, i01, i11 = d / det, -b / det, a / det
+    G = np.empty((n, 2))  # K Λ⁻¹ with K = P Hᵀ = P[:, :2]
+    for i in range(n):
+        G[i, 0] = P[i, 0] * i00 + P[i, 1] * i01
+        G[i, 1] = P[i, 0] * i01 + P[i, 1] * i11
+    xn = np.empty(n)
+    for i in range(n):
+        xn[i] = x[i] + G[i, 0] * nu[0] + G[i, 1] * nu[1]
+    Pn = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            Pn[i, j] = P[i, j] - (G[i, 0] * P[j, 0] + G[i, 1] * P[j, 1])
+    for i in range(n):
+        for j in range(i + 1, n):
+            m = 0.5 * (Pn[i, j] + Pn[j, i])
+            Pn[i, j] = m
+            Pn[j, i] = m
+    # NIS and log-likelihood from the Cholesky factor of Λ (lower triangle, as numpy.linalg.cholesky)
+    l00 = math.sqrt(S[0, 0])
+    l10 = S[1, 0] / l00
+    r = S[1, 1] - l10 * l10
+    if not r > 0.0:
+        return x.copy(), P.copy(), nu, S, math.nan, math.nan, False
+    l11 = math.sqrt(r)
+    w0 = nu[0] / l00
+    w1 = (nu[1] - l10 * w0) / l11
+    nis = w0 * w0 + w1 * w1
+    loglik = -0.5 * nis - (math.log(l00) + math.log(l11)) - _LOG_2PI
+    return xn, Pn, nu, S, nis, loglik, True
