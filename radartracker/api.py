@@ -17,16 +17,16 @@ from radartracker.estimation.motion import MotionModel
 from radartracker.geometry.kinematics import propagate
 from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.io.recording import TrackPoints, read_new4, write_plt
-from radartracker.io.scenario import read_scenario
+from radartracker.io.scenario import read_radars, read_scenario
 from radartracker.io.tables import ScenarioData
 from radartracker.simulation.simulator import SimAircraft, SimRadar, Simulator
-from radartracker.tracking.filters import MotionSettings, TrackFilter
+from radartracker.tracking.filters import MotionConfig, TrackFilter
 
 __all__ = [
     "AdsbReport", "Aircraft", "AircraftEstimate", "BiasState", "ConfigurationError", "Estimator", "EstimatorConfig",
-    "FormatError", "GeometryError", "Innovation", "InputError", "MotionModel", "MotionSettings", "NumericalError",
+    "FormatError", "GeometryError", "Innovation", "InputError", "MotionConfig", "MotionModel", "NumericalError",
     "PlaneMeasurement", "Plot", "PluginError", "Radar", "RadarFrame", "RadarTrackerError", "ScenarioData",
     "SimAircraft", "SimRadar", "Simulator", "SingularInnovation", "SystemPlane", "TrackFilter", "TrackPoints",
     "convert_plots", "correct", "fill_altitudes", "gain", "nacp_sigma_m", "nis", "plot_keys", "propagate",
-    "read_new4", "read_scenario", "symmetrize", "validated_prior", "write_plt",
+    "read_new4", "read_radars", "read_scenario", "symmetrize", "validated_prior", "write_plt",
 ]

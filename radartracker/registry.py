@@ -1,19 +1,32 @@
-"""Plugin discovery: estimators, reconstructors and motion models are found through
-``importlib.metadata`` entry points; the built-in plugins register themselves the same way a third
-party would."""
+"""Plugin discovery and construction: estimators, reconstructors and motion models are found through
+``importlib.metadata`` entry points (the built-in plugins register themselves the same way a third
+party would) and built with their typed options.
+
+A plugin declares its options as an attrs class — an estimator in ``options_class``, a motion model
+in ``config_class`` (a :class:`MotionConfig`) — and :func:`parse_options` turns ``KEY=VALUE`` strings
+into it from the fields' annotations: ``float``, ``int``, ``bool`` (true/false/yes/no/on/off/1/0),
+``str``, ``X | None`` (``none`` for None), ``tuple[float, ...]`` (``1,2,3``) and
+``tuple[tuple[float, ...], ...]`` (rows separated by ``;``: ``0.9,0.1;0.2,0.8``).
+"""
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import types
+import typing
+from collections.abc import Callable, Iterable, Mapping
 from importlib.metadata import entry_points
 from typing import Any
 
+import attrs
+
+from radartracker.errors import ConfigurationError
 from radartracker.estimation.base import Estimator, EstimatorConfig
-from radartracker.tracking.filters import TrackFilter
+from radartracker.tracking.filters import MotionConfig, TrackFilter
 
 ESTIMATOR_GROUP = "radartracker.estimators"
 RECONSTRUCTOR_GROUP = "radartracker.reconstructors"
 MOTION_GROUP = "radartracker.motion_models"
+
 
 def _group(group: str) -> dict[str, Any]:
     return {ep.name: ep for ep in entry_points(group=group)}
@@ -24,10 +37,10 @@ def _load(group: str, name: str, what: str, base: type | None = None) -> Any:
     eps = _group(group)
     if name not in eps:
         known = ", ".join(sorted(eps)) or "none"
-        raise ValueError(f"unknown {what} {name!r}; installed: {known}")
+        raise ConfigurationError(f"unknown {what} {name!r}; installed: {known}")
     obj = eps[name].load()
     if base is not None and not (isinstance(obj, type) and issubclass(obj, base)):
-        raise TypeError(f"entry point {name!r} does not name a {base.__name__} subclass: {obj!r}")
+        raise ConfigurationError(f"entry point {name!r} does not name a {base.__name__} subclass: {obj!r}")
     return obj
 
 
@@ -61,9 +74,165 @@ def load_motion_model(name: str) -> type[TrackFilter]:
     return _load(MOTION_GROUP, name, "motion model", TrackFilter)
 
 
-def make_estimator(name: str, config: EstimatorConfig | None, radars: Iterable[str]) -> Estimator:
-    """Instantiate estimator ``name`` and register ``radars`` with it."""
-    est = load_estimator(name)(config)
+# --- options ----------------------------------------------------------------------------------------
+
+def parse_key_values(items: Iterable[str], what: str = "option") -> dict[str, str]:
+    """``["k=v", ...]`` (as given to ``--estimator-option``) as a dict; a later key wins."""
+    out: dict[str, str] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ConfigurationError(f"{what} {item!r}: expected KEY=VALUE")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def _parse_value(text: str, tp: Any) -> Any:
+    """``text`` converted to the annotation ``tp`` (see the module docstring); TypeError if unsupported."""
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if origin in (typing.Union, types.UnionType):
+        if type(None) in args and text.strip().lower() in ("none", "null", ""):
+            return None
+        rest = [a for a in args if a is not type(None)]
+        if len(rest) != 1:
+            raise TypeError(f"cannot read {tp} from text")
+        return _parse_value(text, rest[0])
+    if tp is bool:
+        low = text.strip().lower()
+        if low in ("true", "yes", "on", "1"):
+            return True
+        if low in ("false", "no", "off", "0"):
+            return False
+        raise ValueError(f"expected true or false, got {text!r}")
+    if tp in (int, float, str):
+        return tp(text.strip()) if tp is not str else text
+    if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
+        sep = ";" if typing.get_origin(args[0]) is tuple else ","
+        return tuple(_parse_value(part, args[0]) for part in text.split(sep) if part.strip())
+    raise TypeError(f"cannot read {tp} from text")
+
+
+def option_fields(cls: type) -> dict[str, attrs.Attribute]:
+    """The settable options of an attrs options class, by name (types resolved)."""
+    attrs.resolve_types(cls)
+    return {a.name: a for a in attrs.fields(cls) if a.init}
+
+
+def parse_options(owner: str, cls: type, options: Mapping[str, str] | None, base: Any = None) -> Any:
+    """An instance of the options class ``cls`` from ``KEY=VALUE`` strings, on top of ``base``
+    (an instance of ``cls``; default its defaults). ``owner`` names the plugin in errors: an unknown
+    key or a bad value is a :class:`ConfigurationError` naming the plugin, the key and the valid keys."""
+    fields = option_fields(cls)
+    valid = ", ".join(sorted(fields)) or "none"
+    values: dict[str, Any] = {}
+    for key, text in (options or {}).items():
+        if key not in fields:
+            raise ConfigurationError(f"{owner}: unknown option {key!r}; valid options: {valid}")
+        try:
+            values[key] = _parse_value(str(text), fields[key].type)
+        except (TypeError, ValueError) as exc:
+            raise ConfigurationError(f"{owner}: option {key}={text!r}: {exc} (valid options: {valid})") from None
+    try:
+        return attrs.evolve(base, **values) if base is not None else cls(**values)
+    except ConfigurationError as exc:
+        raise ConfigurationError(f"{owner}: {exc}") from None
+    except (TypeError, ValueError) as exc:
+        raise ConfigurationError(f"{owner}: options {dict(options or {})}: {exc} (valid options: {valid})") from None
+
+
+def describe_options(cls: type | None) -> list[tuple[str, str, Any]]:
+    """(name, type, default) of each option of an options class (for listings and docs)."""
+    if cls is None:
+        return []
+    out = []
+    for name, a in option_fields(cls).items():
+        default = a.default.factory() if isinstance(a.default, attrs.Factory) else a.default
+        out.append((name, getattr(a.type, "__name__", None) or str(a.type), default))
+    return out
+
+
+# --- construction -----------------------------------------------------------------------------------
+
+def make_estimator(spec: str | Estimator, config: EstimatorConfig | None, radars: Iterable[str],
+                   options: Mapping[str, str] | None = None) -> Estimator:
+    """An estimator with ``radars`` registered: plugin ``spec`` built with ``config`` and its typed
+    ``options`` (``KEY=VALUE`` strings, parsed into the plugin's ``options_class``), or the instance
+    ``spec`` as it is (``config`` and ``options`` do not apply to it), given each radar it lacks."""
+    if isinstance(spec, Estimator):
+        if options:
+            raise ConfigurationError(f"estimator instance {type(spec).__name__}: options apply to a plugin "
+                                     "name; set them when constructing the instance")
+        est = spec
+    else:
+        cls = load_estimator(spec)
+        owner = f"estimator {spec!r}"
+        if cls.options_class is None and options:
+            raise ConfigurationError(f"{owner}: unknown option {next(iter(options))!r}; this estimator takes no options")
+        try:
+            est = cls(config) if cls.options_class is None else cls(config, parse_options(owner, cls.options_class, options))
+        except ConfigurationError:
+            raise
+        except ValueError as exc:  # a plugin refusing its settings
+            raise ConfigurationError(f"{owner}: {exc}") from exc
+    have = set(est.radars)
     for r in radars:
-        est.add_radar(r)
+        if r not in have:
+            est.add_radar(r)
+            have.add(r)
     return est
+
+
+@attrs.frozen
+class FilterFactory:
+    """Makes track filters: ``factory()`` is ``cls(config)``; ``factory(other)`` uses another config
+    (a restored snapshot's). ``name`` and ``config`` say which plugin and which effective settings."""
+
+    cls: type[TrackFilter]
+    config: MotionConfig
+
+    @property
+    def name(self) -> str:
+        return self.cls.name
+
+    def __call__(self, config: MotionConfig | None = None) -> TrackFilter:
+        return self.cls(self.config if config is None else config)
+
+
+@attrs.frozen
+class CallableFilterFactory:
+    """A user's zero-argument filter factory behind the :class:`FilterFactory` call signature;
+    the config argument is ignored (the factory's filters carry their own)."""
+
+    make: Callable[[], TrackFilter]
+
+    @property
+    def name(self) -> str:
+        return getattr(self.make, "__name__", type(self.make).__name__)
+
+    def __call__(self, config: MotionConfig | None = None) -> TrackFilter:
+        filt = self.make()
+        if not isinstance(filt, TrackFilter):
+            raise ConfigurationError(f"filter factory {self.name!r} returned {type(filt).__name__}, not a TrackFilter")
+        return filt
+
+
+def make_filter_factory(spec: str | type[TrackFilter] | Callable[[], TrackFilter],
+                        options: Mapping[str, str] | None = None,
+                        config: MotionConfig | None = None) -> FilterFactory | CallableFilterFactory:
+    """A factory of track filters: for a plugin name or a TrackFilter class, a :class:`FilterFactory`
+    with ``config`` (default: the class's ``config_class()``) updated by ``options`` (``KEY=VALUE``
+    strings); any other zero-argument callable returning a TrackFilter (no options) is wrapped in a
+    :class:`CallableFilterFactory`; a factory made here is returned as it is."""
+    if isinstance(spec, (FilterFactory, CallableFilterFactory)) and not options and config is None:
+        return spec
+    if isinstance(spec, str) or (isinstance(spec, type) and issubclass(spec, TrackFilter)):
+        cls = load_motion_model(spec) if isinstance(spec, str) else spec
+        owner = f"motion model {spec if isinstance(spec, str) else cls.name!r}"
+        if config is not None and not isinstance(config, cls.config_class):
+            raise ConfigurationError(f"{owner} takes a {cls.config_class.__name__}, not a {type(config).__name__}")
+        return FilterFactory(cls, parse_options(owner, cls.config_class, options, config))
+    if not callable(spec):
+        raise ConfigurationError(f"motion model: expected a plugin name, a TrackFilter class or a factory, got {spec!r}")
+    if options or config is not None:
+        raise ConfigurationError("motion model factory: options and config apply to a plugin name or class")
+    return CallableFilterFactory(spec)

@@ -35,9 +35,10 @@ from radartracker.pipeline.evaluate import TruthPaths  # noqa: E402
 from radartracker.simulation.flights import Flight, load_flights  # noqa: E402
 from radartracker.geometry.plane import SystemPlane  # noqa: E402
 from radartracker.estimation.measurement import convert_plots  # noqa: E402
-from radartracker.tracking.filters import MotionSettings  # noqa: E402
+from radartracker.tracking.filters import MotionConfig  # noqa: E402
 from radartracker.registry import load_motion_model  # noqa: E402
 from radartracker.simulation.simulator import RecordedTrajectory, SimAircraft, SimRadar, Simulator  # noqa: E402
+from radartracker_plugins.motion import AdaptiveConfig, CVConfig, FadingConfig, IMMConfig  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 FULL = ROOT.parent / "shared" / "data" / "real_flights.csv.gz"
@@ -47,14 +48,14 @@ GAP_S, SKIP, TURN_DEG_S = 60.0, 3, 1.0
 # (label, plugin, settings): CV at three densities, IMM with the default (airliner) noises and with
 # ten times the densities and 3× the turn-rate noise, the seed-004 filter (β ≥ 0 and β < 0), fading
 FILTERS = [
-    ("cv q=1", "cv", MotionSettings(q=1.0)),
-    ("cv q=10", "cv", MotionSettings(q=10.0)),
-    ("cv q=100", "cv", MotionSettings(q=100.0)),
-    ("imm", "imm", MotionSettings()),
-    ("imm ×10 noise", "imm", MotionSettings(q=10.0, q_turn=10.0, turn_rate_sd=math.radians(1.5))),
-    ("adaptive", "adaptive", MotionSettings()),
-    ("adaptive β<0 allowed", "adaptive", MotionSettings(params={"allow_negative_beta": True})),
-    ("fading", "fading", MotionSettings()),
+    ("cv q=1", "cv", CVConfig(q=1.0)),
+    ("cv q=10", "cv", CVConfig(q=10.0)),
+    ("cv q=100", "cv", CVConfig(q=100.0)),
+    ("imm", "imm", IMMConfig()),
+    ("imm ×10 noise", "imm", IMMConfig(q=10.0, q_turn=10.0, turn_rate_sd=math.radians(1.5))),
+    ("adaptive", "adaptive", AdaptiveConfig()),
+    ("adaptive β<0 allowed", "adaptive", AdaptiveConfig(allow_negative_beta=True)),
+    ("fading", "fading", FadingConfig()),
 ]
 RAW = "plots (no filter)"
 RADARS = [("T4", -20.0, -15.0, 4.0), ("E8", 40.0, 10.0, 8.0), ("E12", -10.0, 45.0, 12.0)]
@@ -87,7 +88,7 @@ def turn_rate(traj: RecordedTrajectory, t: np.ndarray) -> np.ndarray:
     return np.abs(np.mod(h2 - h1 + np.pi, 2 * np.pi) - np.pi) / 10.0
 
 
-def track(name: str, settings: MotionSettings, m, keep_history: bool = False):
+def track(name: str, settings: MotionConfig, m, keep_history: bool = False):
     """Run one filter over the measurements; (times, positions, NIS, counted mask, seconds, μ_CT)."""
     idx = np.flatnonzero(m.valid)
     f = None

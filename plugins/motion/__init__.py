@@ -6,11 +6,13 @@
 * ``fading`` — the classic fading-memory filter, P̄ = λ A P̂ Aᵀ + Q, λ ≥ 1 (:class:`FadingFilter`).
 
 Every filter keeps χ = [x, y, vx, vy] in the system plane and is fed positions z with covariance R;
-see ``docs/tracking.md`` for the equations and the measured comparison.
+see ``docs/tracking.md`` for the equations and the measured comparison. Each has its own typed
+settings class (``CVConfig``, ``IMMConfig``, ``AdaptiveConfig``, ``FadingConfig``), its ``config_class``.
 """
 
-from radartracker_plugins.motion.adaptive import AdaptiveFilter, FadingFilter
-from radartracker_plugins.motion.cv import CVFilter
-from radartracker_plugins.motion.imm import IMMFilter
+from radartracker_plugins.motion.adaptive import AdaptiveConfig, AdaptiveFilter, FadingConfig, FadingFilter
+from radartracker_plugins.motion.cv import CVConfig, CVFilter
+from radartracker_plugins.motion.imm import CTMode, CVMode, IMMConfig, IMMFilter
 
-__all__ = ["AdaptiveFilter", "CVFilter", "FadingFilter", "IMMFilter"]
+__all__ = ["AdaptiveConfig", "AdaptiveFilter", "CTMode", "CVConfig", "CVFilter", "CVMode", "FadingConfig",
+           "FadingFilter", "IMMConfig", "IMMFilter"]

@@ -24,36 +24,68 @@ P̄ = α P_a − |β| Q_m is positive definite only while |β| Q_m ≺ α P_a. B
 value until P̄ keeps a Cholesky factor with margin (P̄ ⪰ ½ α P_a is what is checked). ``docs/tracking.md`` compares
 this with the fading factor, which inflates P_a without touching Q.
 
-``params`` (both): ``window`` N (5), ``significance`` p (0.05), ``kappa_max`` (100); fixed values
-``alpha`` (adaptive, β = 1 − α) or ``lambda`` (fading) switch the adaptation off.
-adaptive only: ``q_manoeuvre`` q_m (m²/s³, default 400 ≈ a²T for a 3°/s turn at 200 m/s, a ≈ 10 m/s²,
-over a T = 4 s scan), ``beta_min`` (0.02),
-``beta_max`` (1), ``allow_negative_beta`` (False).
+Settings (:class:`AdaptiveConfig`, :class:`FadingConfig`; both: ``window`` N (5), ``significance`` p
+(0.05), ``kappa_max`` (100)); fixed values ``fixed_alpha`` (adaptive, β = 1 − α) or ``fixed_lambda``
+(fading) switch the adaptation off. adaptive only: ``q_manoeuvre`` q_m (m²/s³, default 400 ≈ a²T for
+a 3°/s turn at 200 m/s, a ≈ 10 m/s², over a T = 4 s scan), ``beta_min`` (0.02), ``beta_max`` (1),
+``allow_negative_beta`` (False); fading only: ``q`` (m²/s³, 1).
 """
 
 from __future__ import annotations
 
+import attrs
 import numpy as np
 from scipy.stats import chi2
 
-from radartracker.api import MotionModel, MotionSettings, TrackFilter, symmetrize
-from radartracker_plugins.motion.base import (check_measurement, check_time, max_gap,
-                                               position_update, require_started, start_state)
+from radartracker.api import ConfigurationError, MotionConfig, MotionModel, TrackFilter, symmetrize
+from radartracker_plugins.motion.base import check_measurement, check_time, position_update, require_started, start_state
+
+_v = attrs.validators
+_optional_float = attrs.converters.optional(float)
+
+
+@attrs.frozen
+class ScaledConfig(MotionConfig):
+    """The NIS-window rule shared by ``adaptive`` and ``fading``: window N, two-sided significance p
+    of the χ²(2N) test, and the largest inflation κ_max of the innovation covariance."""
+
+    window: int = attrs.field(default=5, converter=int, validator=_v.ge(1))
+    significance: float = attrs.field(default=0.05, converter=float, validator=[_v.gt(0.0), _v.lt(1.0)])
+    kappa_max: float = attrs.field(default=100.0, converter=float, validator=_v.ge(1.0))
+
+
+@attrs.frozen
+class AdaptiveConfig(ScaledConfig):
+    """Settings of ``adaptive``: P̄ = α P_a + β Q_m with Q_m of density ``q_manoeuvre`` (m²/s³) and
+    β ∈ [``beta_min``, ``beta_max``] (β < 0 allowed by ``allow_negative_beta``); ``fixed_alpha`` fixes α."""
+
+    q_manoeuvre: float = attrs.field(default=400.0, converter=float, validator=_v.ge(0.0))
+    beta_min: float = attrs.field(default=0.02, converter=float)
+    beta_max: float = attrs.field(default=1.0, converter=float)
+    allow_negative_beta: bool = attrs.field(default=False, validator=_v.instance_of(bool))
+    fixed_alpha: float | None = attrs.field(default=None, converter=_optional_float)
+
+    def __attrs_post_init__(self) -> None:
+        if not 0.0 <= self.beta_min <= self.beta_max <= 1.0:
+            raise ConfigurationError(f"AdaptiveConfig: need 0 ≤ beta_min ≤ beta_max ≤ 1, got {self.beta_min}, {self.beta_max}")
+
+
+@attrs.frozen
+class FadingConfig(ScaledConfig):
+    """Settings of ``fading``: P̄ = λ P_a + Q with Q of density ``q`` (m²/s³); ``fixed_lambda`` fixes λ."""
+
+    q: float = attrs.field(default=1.0, converter=float, validator=_v.ge(0.0))
+    fixed_lambda: float | None = attrs.field(default=None, converter=_optional_float)
 
 
 class _ScaledCV(TrackFilter):
     """Constant-velocity Kalman filter whose predicted covariance is scaled from the NIS window."""
 
-    def __init__(self, settings: MotionSettings | None = None) -> None:
-        super().__init__(settings)
-        self.max_gap = max_gap(self.settings)
-        p = self.settings.params
-        self.window = int(p.get("window", 5))
-        if self.window < 1:
-            raise ValueError("params['window']: at least 1")
-        sig = float(p.get("significance", 0.05))
+    def __init__(self, config: ScaledConfig | None = None) -> None:
+        super().__init__(config)
+        self.window, sig = self.config.window, self.config.significance
         self.bounds = (chi2.ppf(sig / 2, 2 * self.window), chi2.ppf(1 - sig / 2, 2 * self.window))
-        self.kappa_max = float(p.get("kappa_max", 100.0))
+        self.kappa_max = self.config.kappa_max
         self.time: float | None = None
         self.x, self.P = np.zeros(4), np.eye(4)
         self.R = np.eye(2)
@@ -98,16 +130,16 @@ class _ScaledCV(TrackFilter):
     # --- TrackFilter -----------------------------------------------------------------------------
     def start(self, time: float, z: np.ndarray, R: np.ndarray) -> None:
         self.time, z, self.R = check_measurement(time, z, R)
-        self.x, self.P = start_state(z, self.R, self.settings.prior_sd_velocity_mps)
+        self.x, self.P = start_state(z, self.R, self.config.prior_sd_velocity_mps)
         self.kappa, self.nis, self.theta = 1.0, [], self.nominal
 
     def predict(self, time: float) -> tuple[np.ndarray, np.ndarray]:
-        x, P, _ = self._prior(check_time(time, self.time, self.max_gap))
+        x, P, _ = self._prior(check_time(time, self.time, self.config.max_gap_s))
         return x, P
 
     def update(self, time: float, z: np.ndarray, R: np.ndarray) -> float:
         time, z, R = check_measurement(time, z, R)
-        check_time(time, self.time, self.max_gap)
+        check_time(time, self.time, self.config.max_gap_s)
         x, P, theta = self._prior(time)
         step = position_update(x, P, z, R)
         self.time, self.x, self.P, self.R, self.theta = time, step.x, step.P, R, theta
@@ -128,22 +160,20 @@ class AdaptiveFilter(_ScaledCV):
     """Seed 004's EUROCAT-X filter: P̄ = α A P̂ Aᵀ + β Q_m, α + β = 1, β from the NIS window."""
 
     name = "adaptive"
+    config_class = AdaptiveConfig
 
-    def __init__(self, settings: MotionSettings | None = None) -> None:
-        s = settings if settings is not None else MotionSettings()
-        p = s.params
-        self.model = MotionModel(float(p.get("q_manoeuvre", 400.0)))
-        self.beta_min = float(p.get("beta_min", 0.02))
-        self.beta_max = float(p.get("beta_max", 1.0))
-        if not 0.0 <= self.beta_min <= self.beta_max <= 1.0:
-            raise ValueError("params: need 0 ≤ beta_min ≤ beta_max ≤ 1")
-        self.negative = bool(p.get("allow_negative_beta", False))
-        self.nominal = self.beta_min
-        super().__init__(settings)
+    def __init__(self, config: AdaptiveConfig | None = None) -> None:
+        super().__init__(config)
+        c = self.config
+        self.model = MotionModel(c.q_manoeuvre)
+        self.beta_min, self.beta_max, self.negative = c.beta_min, c.beta_max, c.allow_negative_beta
+
+    @property
+    def nominal(self) -> float:
+        return self.config.beta_min
 
     def _fixed(self) -> float | None:
-        alpha = self.settings.params.get("alpha")
-        return None if alpha is None else 1.0 - float(alpha)
+        return None if self.config.fixed_alpha is None else 1.0 - self.config.fixed_alpha
 
     def _family(self, Pa: np.ndarray, dt: float, beta: float) -> np.ndarray:
         return (1.0 - beta) * Pa + beta * self.model.transition(dt)[1]
@@ -170,16 +200,15 @@ class FadingFilter(_ScaledCV):
     """Fading-memory filter: P̄ = λ A P̂ Aᵀ + Q, λ ≥ 1 from the NIS window (or fixed)."""
 
     name = "fading"
+    config_class = FadingConfig
     nominal = 1.0
 
-    def __init__(self, settings: MotionSettings | None = None) -> None:
-        s = settings if settings is not None else MotionSettings()
-        self.model = MotionModel(float(s.params.get("q", s.q)))
-        super().__init__(settings)
+    def __init__(self, config: FadingConfig | None = None) -> None:
+        super().__init__(config)
+        self.model = MotionModel(self.config.q)
 
     def _fixed(self) -> float | None:
-        lam = self.settings.params.get("lambda")
-        return None if lam is None else float(lam)
+        return self.config.fixed_lambda
 
     def _family(self, Pa: np.ndarray, dt: float, lam: float) -> np.ndarray:
         return lam * Pa + self.model.transition(dt)[1]

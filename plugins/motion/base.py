@@ -65,14 +65,6 @@ def check_time(time: float, current: float | None, max_gap: float) -> float:
     return time
 
 
-def max_gap(settings) -> float:
-    """``params["max_gap_s"]`` (default one hour): the longest prediction a filter accepts."""
-    gap = float(settings.params.get("max_gap_s", 3600.0))
-    if not gap > 0:
-        raise ValueError(f"params['max_gap_s']: must be positive, got {gap}")
-    return gap
-
-
 def position_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray) -> Step:
     """Kalman correction of (x, P) by position z; the first two state components are x, y."""
     nu = z - x[:2]

@@ -16,87 +16,143 @@ turn rate is unknown when a turn begins); a mode keeps only its own components o
 ``start`` every mode takes the one-point state, the CT mode with ω = 0 ± σ_e.
 The CT mode is an extended Kalman filter (:mod:`radartracker_plugins.motion.ct`).
 
-``params``:
-  ``models`` — list of ``{"kind": "cv", "q": …}`` / ``{"kind": "ct", "q": …, "turn_rate_sd": …}``
-  (default CV with ``settings.q`` and CT with ``settings.q_turn``, ``settings.turn_rate_sd``);
-  ``sojourn_s`` — mean time in each mode (default 120 s CV, 30 s CT): Π(Δt) = exp(G |Δt|) with
-  G_ii = −1/τ_i and the leaving rate shared equally among the other modes, so Π = I at Δt = 0;
-  ``transition`` — instead, a fixed Π applied at every update (FilterPy's ``M``);
-  ``initial_probabilities`` — μ at start (default ∝ τ, the chain's stationary law, or uniform);
-  ``turn_rate_entry_sd`` — σ_e (rad/s, default 2°/s).
+Composition, in the spirit of FilterPy's ``IMMEstimator(filters, mu, M)``: the mode filters are
+:class:`CVMode` / :class:`CTMode` objects (or any object with ``dim`` 4 or 5 and
+``predict(x, P, dt) -> (x̄, P̄)``) passed in :class:`IMMConfig` ``modes`` (default: CV with ``q`` and CT
+with ``q_turn``, ``turn_rate_sd``), with the Markov chain either ``sojourn_s`` — mean time in each mode
+(default 120 s CV, 30 s CT): Π(Δt) = exp(G |Δt|) with G_ii = −1/τ_i and the leaving rate shared
+equally among the other modes, so Π = I at Δt = 0 — or ``transition``, a fixed Π applied at every
+update (FilterPy's ``M``); ``initial_probabilities`` μ at start (default ∝ τ, the chain's stationary
+law, or uniform); ``turn_rate_entry_sd`` σ_e (rad/s, default 2°/s). :meth:`IMMFilter.from_modes`
+builds one from modes and a matrix directly.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import Any
 
+import attrs
 import numpy as np
 
-from radartracker.api import MotionModel, MotionSettings, TrackFilter, symmetrize
-from radartracker_plugins.motion.base import (check_measurement, check_time, max_gap,
-                                               position_update, require_started, start_state)
+from radartracker.api import ConfigurationError, MotionConfig, MotionModel, TrackFilter, symmetrize
+from radartracker_plugins.motion.base import check_measurement, check_time, position_update, require_started, start_state
 from radartracker_plugins.motion.ct import ct_noise, ct_transition
 
+_v = attrs.validators
 
-class _CV:
+
+def _floats(v: Any) -> tuple[float, ...] | None:
+    return None if v is None else tuple(float(x) for x in np.ravel(v))
+
+
+def _matrix(v: Any) -> tuple[tuple[float, ...], ...] | None:
+    return None if v is None else tuple(tuple(float(x) for x in row) for row in np.atleast_2d(np.asarray(v, float)))
+
+
+@attrs.frozen
+class CVMode:
+    """IMM mode filter: constant velocity, χ̄ = A χ, P̄ = A P Aᵀ + Q(Δt) of density ``q`` (m²/s³)."""
+
+    q: float = attrs.field(default=1.0, converter=float, validator=_v.ge(0.0))
     dim = 4
 
-    def __init__(self, q: float) -> None:
-        self.model = MotionModel(q)
-
-    def predict(self, x, P, dt):
-        A, Q = self.model.transition(dt)
+    def predict(self, x: np.ndarray, P: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        A, Q = MotionModel(self.q).transition(dt)
         return A @ x, symmetrize(A @ P @ A.T + Q)
 
 
-class _CT:
+@attrs.frozen
+class CTMode:
+    """IMM mode filter: coordinated turn with unknown rate (EKF on [x, y, vx, vy, ω],
+    :mod:`radartracker_plugins.motion.ct`), densities ``q`` (m²/s³) and ``turn_rate_sd`` (rad/s/√s)."""
+
+    q: float = attrs.field(default=1.0, converter=float, validator=_v.ge(0.0))
+    turn_rate_sd: float = attrs.field(default=math.radians(0.5), converter=float, validator=_v.ge(0.0))
     dim = 5
 
-    def __init__(self, q: float, turn_rate_sd: float) -> None:
-        self.q, self.turn_rate_sd = q, turn_rate_sd
-
-    def predict(self, x, P, dt):
+    def predict(self, x: np.ndarray, P: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         f, F = ct_transition(x, dt)
         return f, symmetrize(F @ P @ F.T + ct_noise(dt, self.q, self.turn_rate_sd))
 
 
-def _make_mode(spec: dict, s: MotionSettings):
-    kind = spec.get("kind")
-    if kind == "cv":
-        return _CV(float(spec.get("q", s.q)))
-    if kind == "ct":
-        return _CT(float(spec.get("q", s.q_turn)), float(spec.get("turn_rate_sd", s.turn_rate_sd)))
-    raise ValueError(f"params['models']: unknown kind {kind!r} (expected 'cv' or 'ct')")
+@attrs.frozen
+class IMMConfig(MotionConfig):
+    """Settings of ``imm`` (module docstring): mode filters and their Markov chain.
+
+    ``modes`` None means (CVMode(``q``), CTMode(``q_turn``, ``turn_rate_sd``)); giving ``modes``
+    together with a non-default ``q``, ``q_turn`` or ``turn_rate_sd`` is refused (they would be unused).
+    """
+
+    q: float = attrs.field(default=1.0, converter=float, validator=_v.ge(0.0))
+    q_turn: float = attrs.field(default=1.0, converter=float, validator=_v.ge(0.0))
+    turn_rate_sd: float = attrs.field(default=math.radians(0.5), converter=float, validator=_v.ge(0.0))
+    modes: tuple[Any, ...] | None = attrs.field(default=None, converter=attrs.converters.optional(tuple))
+    sojourn_s: tuple[float, ...] | None = attrs.field(default=None, converter=_floats)
+    transition: tuple[tuple[float, ...], ...] | None = attrs.field(default=None, converter=_matrix)
+    initial_probabilities: tuple[float, ...] | None = attrs.field(default=None, converter=_floats)
+    turn_rate_entry_sd: float = attrs.field(default=math.radians(2.0), converter=float, validator=_v.ge(0.0))
+
+    def __attrs_post_init__(self) -> None:
+        if self.modes is not None:
+            default = IMMConfig()
+            if (self.q, self.q_turn, self.turn_rate_sd) != (default.q, default.q_turn, default.turn_rate_sd):
+                raise ConfigurationError("IMMConfig: q, q_turn and turn_rate_sd set the default modes; "
+                                         "with 'modes' given, set them in the modes")
+            if not self.modes:
+                raise ConfigurationError("IMMConfig: 'modes': at least one mode is needed")
+            for m in self.modes:
+                if getattr(m, "dim", None) not in (4, 5) or not callable(getattr(m, "predict", None)):
+                    raise ConfigurationError(f"IMMConfig: 'modes': {m!r} is not a mode filter (dim 4 or 5, predict(x, P, dt))")
+        n = len(self.mode_filters())
+        if self.transition is not None:
+            pi = np.asarray(self.transition)
+            if pi.shape != (n, n) or not np.allclose(pi.sum(axis=1), 1.0) or np.any(pi < 0):
+                raise ConfigurationError(f"IMMConfig: 'transition': expected a {n}×{n} matrix of rows summing to 1")
+            if self.sojourn_s is not None:
+                raise ConfigurationError("IMMConfig: give either 'transition' or 'sojourn_s', not both")
+        if self.sojourn_s is not None and (len(self.sojourn_s) != n or min(self.sojourn_s) <= 0):
+            raise ConfigurationError(f"IMMConfig: 'sojourn_s': expected {n} positive times, one per mode")
+        mu = self.initial_probabilities
+        if mu is not None and (len(mu) != n or min(mu) < 0 or sum(mu) <= 0):
+            raise ConfigurationError(f"IMMConfig: 'initial_probabilities': expected {n} non-negative numbers")
+
+    def mode_filters(self) -> tuple[Any, ...]:
+        """The mode filters: ``modes``, or the default CV and CT pair."""
+        if self.modes is not None:
+            return self.modes
+        return CVMode(self.q), CTMode(self.q_turn, self.turn_rate_sd)
 
 
 class IMMFilter(TrackFilter):
-    """IMM of constant-velocity and coordinated-turn Kalman filters, output moment matched."""
+    """IMM of mode filters (default constant velocity and coordinated turn), output moment matched."""
 
     name = "imm"
+    config_class = IMMConfig
 
-    def __init__(self, settings: MotionSettings | None = None) -> None:
-        super().__init__(settings)
-        self.max_gap = max_gap(self.settings)
-        p = self.settings.params
-        specs = p.get("models", [{"kind": "cv"}, {"kind": "ct"}])
-        self.modes = [_make_mode(dict(m), self.settings) for m in specs]
+    @classmethod
+    def from_modes(cls, modes: Sequence[Any], transition: Any = None, initial_probabilities: Any = None,
+                   **settings: Any) -> IMMFilter:
+        """An IMM of ``modes`` with a fixed Markov matrix Π (FilterPy's ``IMMEstimator(filters, mu, M)``)."""
+        return cls(IMMConfig(modes=tuple(modes), transition=transition,
+                             initial_probabilities=initial_probabilities, **settings))
+
+    def __init__(self, config: IMMConfig | None = None) -> None:
+        super().__init__(config)
+        c = self.config
+        self.modes = list(c.mode_filters())
         n = len(self.modes)
-        if n == 0:
-            raise ValueError("params['models']: at least one model is needed")
         self.dim = max(m.dim for m in self.modes)
-        self.entry_sd = float(p.get("turn_rate_entry_sd", math.radians(2.0)))
-        if "transition" in p:
-            self.fixed_pi = np.asarray(p["transition"], float)
-            if self.fixed_pi.shape != (n, n) or not np.allclose(self.fixed_pi.sum(axis=1), 1.0) \
-                    or np.any(self.fixed_pi < 0):
-                raise ValueError("params['transition']: expected an n×n matrix of rows summing to 1")
+        self.entry_sd = c.turn_rate_entry_sd
+        if c.transition is not None:
+            self.fixed_pi = np.asarray(c.transition, float)
             self.expG = None
             default_mu = np.full(n, 1.0 / n)
         else:
             self.fixed_pi = None
-            tau = np.asarray(p.get("sojourn_s", [120.0 if m.dim == 4 else 30.0 for m in self.modes]), float)
-            if tau.shape != (n,) or np.any(tau <= 0):
-                raise ValueError("params['sojourn_s']: expected one positive time per model")
+            tau = np.asarray(c.sojourn_s if c.sojourn_s is not None
+                             else [120.0 if m.dim == 4 else 30.0 for m in self.modes], float)
             # G = D B, D = diag(1/τ), B = (J − n I)/(n − 1) symmetric: exp(G t) through the symmetric
             # D^½ B D^½ = U Λ Uᵀ, exp(G t) = D^½ U e^{Λt} Uᵀ D^-½ (scipy's expm costs ms per call)
             B = (np.ones((n, n)) - n * np.eye(n)) / max(n - 1, 1)
@@ -104,9 +160,7 @@ class IMMFilter(TrackFilter):
             lam, U = np.linalg.eigh(d[:, None] * B * d[None, :])
             self.expG = (np.minimum(lam, 0.0), d[:, None] * U, U.T / d[None, :])
             default_mu = tau / tau.sum()
-        mu0 = np.asarray(p.get("initial_probabilities", default_mu), float)
-        if mu0.shape != (n,) or np.any(mu0 < 0) or mu0.sum() <= 0:
-            raise ValueError("params['initial_probabilities']: expected n non-negative numbers")
+        mu0 = np.asarray(c.initial_probabilities if c.initial_probabilities is not None else default_mu, float)
         self.mu0 = mu0 / mu0.sum()
         self.time: float | None = None
         self.mu = self.mu0.copy()
@@ -152,7 +206,7 @@ class IMMFilter(TrackFilter):
     # --- TrackFilter -----------------------------------------------------------------------------
     def start(self, time: float, z: np.ndarray, R: np.ndarray) -> None:
         self.time, z, R = check_measurement(time, z, R)
-        x, P = start_state(z, R, self.settings.prior_sd_velocity_mps)
+        x, P = start_state(z, R, self.config.prior_sd_velocity_mps)
         self.mu = self.mu0.copy()
         self.xs, self.Ps = [], []
         for mode in self.modes:
@@ -161,13 +215,13 @@ class IMMFilter(TrackFilter):
             self.Ps.append(Pp.copy())
 
     def predict(self, time: float) -> tuple[np.ndarray, np.ndarray]:
-        time = check_time(time, self.time, self.max_gap)
+        time = check_time(time, self.time, self.config.max_gap_s)
         cbar, pred = self._predicted(time)
         return self._combine(cbar, pred)
 
     def update(self, time: float, z: np.ndarray, R: np.ndarray) -> float:
         time, z, R = check_measurement(time, z, R)
-        check_time(time, self.time, self.max_gap)
+        check_time(time, self.time, self.config.max_gap_s)
         cbar, pred = self._predicted(time)
         x_bar, P_bar = self._combine(cbar, pred)
         nis = position_update(x_bar, P_bar, z, R).nis

@@ -22,6 +22,7 @@ import attrs
 import numpy as np
 
 from radartracker.domain import BiasState
+from radartracker.errors import ConfigurationError
 from radartracker.estimation.motion import MotionModel
 
 
@@ -93,12 +94,25 @@ class Estimator(abc.ABC):
     Lifecycle: ``add_radar`` for each radar, ``add_aircraft`` when a track starts (the prior is
     the caller's), ``update`` for each associated measurement in time order, ``remove_aircraft``
     when a track ends. Reads never modify the state.
+
+    A plugin with options names an attrs class in ``options_class`` (its fields' defaults are the
+    defaults); the instance is ``self.options``, built by the registry from ``KEY=VALUE`` strings.
     """
 
     name: ClassVar[str] = "?"
+    options_class: ClassVar[type | None] = None
 
-    def __init__(self, config: EstimatorConfig | None = None) -> None:
+    def __init__(self, config: EstimatorConfig | None = None, options: object | None = None) -> None:
         self.config = config if config is not None else EstimatorConfig()
+        if self.options_class is None:
+            if options is not None:
+                raise ConfigurationError(f"estimator {self.name!r} takes no options")
+            self.options = None
+        else:
+            self.options = options if options is not None else self.options_class()
+            if not isinstance(self.options, self.options_class):
+                raise ConfigurationError(f"estimator {self.name!r} takes a {self.options_class.__name__}, "
+                                         f"not a {type(self.options).__name__}")
 
     @abc.abstractmethod
     def add_radar(self, radar: str) -> None:

@@ -52,13 +52,13 @@ from radartracker.estimation.coupling import CouplingGraph
 from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, ScreeningConfig, judge,
                                                normalised_innovation)
 from radartracker.tracking.admission import ClockConfig, StreamClock
-from radartracker.domain import AdsbReport, Plot, Radar, nacp_sigma_m
+from radartracker.domain import AdsbReport, BiasState, Plot, Radar, nacp_sigma_m
 from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.estimation.kalman import SingularInnovation
 from radartracker.estimation.motion import MotionModel
-from radartracker.estimation.base import EstimatorConfig, PlaneMeasurement
-from radartracker.tracking.filters import MotionSettings, TrackFilter
-from radartracker.registry import load_motion_model, make_estimator
+from radartracker.estimation.base import Estimator, EstimatorConfig, PlaneMeasurement
+from radartracker.tracking.filters import MotionConfig, TrackFilter
+from radartracker.registry import make_estimator, make_filter_factory
 
 log = logging.getLogger(__name__)
 EVENT_KINDS = ("created", "confirmed", "updated", "coasting", "deleted")
@@ -73,7 +73,9 @@ class ManagerConfig:
     # aircraft turn: the estimator's CV model needs process noise, or it explains a turn by biases
     estimator_config: EstimatorConfig = attrs.field(factory=lambda: EstimatorConfig(motion=MotionModel(5.0)))
     motion_model: str = "cv"
-    motion: MotionSettings = attrs.field(factory=lambda: MotionSettings(q=5.0))
+    motion: MotionConfig | None = None  # the motion model's settings; None: its config_class() defaults
+    motion_options: dict[str, str] = attrs.field(factory=dict)  # KEY=VALUE settings applied on top of ``motion``
+    estimator_options: dict[str, str] = attrs.field(factory=dict)  # KEY=VALUE options of the estimator plugin
     gate: float = 13.82  # χ²₂ 99.9 % quantile
     confirm_m: int = 3
     confirm_n: int = 5
@@ -124,18 +126,27 @@ def _finite_position(m: PlaneMeasurement) -> bool:
 
 
 class TrackManager:
-    """Association, track life cycle and estimation for a stream of plots and ADS-B reports."""
+    """Association, track life cycle and estimation for a stream of plots and ADS-B reports.
+
+    ``estimator`` (an instance, given each radar it lacks) and ``filter_factory`` (a callable
+    returning a new :class:`TrackFilter`) replace the plugins named in ``config``.
+    """
 
     def __init__(self, radars: list[Radar], reference: tuple[float, float], config: ManagerConfig | None = None,
-                 on_event: Callable[[TrackEvent], None] | None = None) -> None:
+                 on_event: Callable[[TrackEvent], None] | None = None, *, estimator: Estimator | None = None,
+                 filter_factory: Callable[[], TrackFilter] | None = None) -> None:
         self.config = config or ManagerConfig()
         self.radars = {r.id: r for r in radars}
         self.plane = SystemPlane(*reference)
         self.reference = reference
         self.frames = {r.id: RadarFrame(r.lat, r.lon, r.height_m, self.plane) for r in radars}
         self._north = {rid: self._grid_north(r) for rid, r in self.radars.items()}
-        self.estimator = make_estimator(self.config.estimator, self.config.estimator_config, list(self.radars))
-        self._filter_cls = load_motion_model(self.config.motion_model)
+        cfg = self.config
+        self.estimator = (make_estimator(cfg.estimator, cfg.estimator_config, list(self.radars), cfg.estimator_options)
+                          if estimator is None else make_estimator(estimator, None, list(self.radars)))
+        # the filter factory: factory() a new track filter, factory(config) one with a snapshot's config
+        self._filter_cls = (make_filter_factory(cfg.motion_model, cfg.motion_options, cfg.motion)
+                            if filter_factory is None else make_filter_factory(filter_factory))
         self.coupling = CouplingGraph(list(self.radars))
         self.tracks: dict[int, ManagedTrack] = {}
         self.counts: Counter[str] = Counter()
@@ -204,7 +215,12 @@ class TrackManager:
         out["waiting_in_reorder_window"] = len(self._heap) + len(self._frame_items)
         return {k: v for k, v in out.items() if v}
 
+    def biases(self) -> dict[str, BiasState]:
+        """The current bias estimate [Δr (m), Δθ (rad)] and covariance of every radar, by radar id."""
+        return {rid: self.estimator.bias(rid) for rid in self.radars}
+
     def confirmed_tracks(self) -> list[ManagedTrack]:
+        """The live tracks that are confirmed or coasting (``tracks`` holds every live track by id)."""
         return [t for t in self.tracks.values() if t.status in ("confirmed", "coasting")]
 
     # --- admission and reordering ----------------------------------------------------------------
@@ -409,7 +425,7 @@ class TrackManager:
                 self._delete(tr, src.time)
                 tr = None
         if tr is None:
-            filt = self._filter_cls(self.config.motion)
+            filt = self._filter_cls()
             filt.start(src.time, zc, Rc)
             tr = ManagedTrack(next(self._ids), filt, "tentative", src.time, src.time, mode_s=code,
                               history=deque(maxlen=self.config.confirm_n))
@@ -457,7 +473,8 @@ class TrackManager:
 
     def _confirm(self, tr: ManagedTrack) -> None:
         first = tr.pending[0][0]
-        prior = np.diag([1e8, 1e8, self.config.motion.prior_sd_velocity_mps**2, self.config.motion.prior_sd_velocity_mps**2])
+        sd_v = tr.filter.config.prior_sd_velocity_mps
+        prior = np.diag([1e8, 1e8, sd_v**2, sd_v**2])
         self.estimator.add_aircraft(tr.id, first.time, np.array([*first.z, 0.0, 0.0]), prior)
         self.coupling.add_aircraft(tr.id)
         for m, kind in tr.pending:

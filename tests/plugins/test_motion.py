@@ -11,9 +11,9 @@ from scipy.optimize import brentq
 from scipy.stats import chi2
 
 from radartracker.estimation.motion import MotionModel
-from radartracker.tracking.filters import MotionSettings
 from radartracker.registry import available_motion_models, load_motion_model
-from radartracker_plugins.motion import AdaptiveFilter, CVFilter, FadingFilter, IMMFilter
+from radartracker_plugins.motion import (AdaptiveConfig, AdaptiveFilter, CVConfig, CVFilter, FadingConfig, FadingFilter,
+                                         IMMConfig, IMMFilter)
 
 
 def cv_track(rng, n=60, q=1.0, x0=(1e4, -2e4, 150.0, -80.0)):
@@ -80,14 +80,14 @@ def test_plugins_registered():
 @pytest.mark.parametrize("q", [0.0, 1.0, 25.0])
 def test_cv_equals_filterpy(q):
     t, _, zs, Rs = cv_track(np.random.default_rng(1), q=q)
-    ours = run(CVFilter(MotionSettings(q=q)), t, zs, Rs)
+    ours = run(CVFilter(CVConfig(q=q)), t, zs, Rs)
     assert_close(ours, filterpy_run(t, zs, Rs, q))
 
 
 def test_predict_does_not_change_state_and_matches_update_prior():
     t, _, zs, Rs = cv_track(np.random.default_rng(2), n=10)
     for name in available_motion_models():
-        f = load_motion_model(name)(MotionSettings())
+        f = load_motion_model(name)()
         f.start(t[0], zs[0], Rs[0])
         f.update(t[1], zs[1], Rs[1])
         before = pickle.dumps(f)
@@ -105,16 +105,16 @@ def test_adaptive_fixed_alpha_equals_filterpy(alpha):
     """P̄ = α P_a + (1−α) Q_m is FilterPy's fading-memory predict with alpha² = α and Q = (1−α) Q_m."""
     qm = 40.0
     t, _, zs, Rs = cv_track(np.random.default_rng(3), q=2.0)
-    f = AdaptiveFilter(MotionSettings(params={"alpha": alpha, "q_manoeuvre": qm}))
+    f = AdaptiveFilter(AdaptiveConfig(fixed_alpha=alpha, q_manoeuvre=qm))
     ours = run(f, t, zs, Rs)
     assert_close(ours, filterpy_run(t, zs, Rs, (1 - alpha) * qm, alpha_sq=alpha))
     if alpha == 1.0:  # α = 1, β = 0: constant velocity without process noise
-        assert_close(ours, run(CVFilter(MotionSettings(q=0.0)), t, zs, Rs))
+        assert_close(ours, run(CVFilter(CVConfig(q=0.0)), t, zs, Rs))
 
 
 def test_fading_fixed_lambda_equals_filterpy():
     t, _, zs, Rs = cv_track(np.random.default_rng(4), q=2.0)
-    ours = run(FadingFilter(MotionSettings(q=2.0, params={"lambda": 1.08})), t, zs, Rs)
+    ours = run(FadingFilter(FadingConfig(q=2.0, fixed_lambda=1.08)), t, zs, Rs)
     assert_close(ours, filterpy_run(t, zs, Rs, 2.0, alpha_sq=1.08))
 
 
@@ -179,8 +179,9 @@ def reference_scaled(kind, params, t, zs, Rs, q_nominal):
 def test_window_rule_matches_reference(kind):
     t, _, zs, Rs = manoeuvre_track(np.random.default_rng(5))
     params = {"window": 4, "significance": 0.05, "beta_min": 0.02, "q_manoeuvre": 400.0}
-    s = MotionSettings(q=1.0, params=params)
-    f = AdaptiveFilter(s) if kind == "adaptive" else FadingFilter(s)
+    window = {k: params[k] for k in ("window", "significance")}
+    f = (AdaptiveFilter(AdaptiveConfig(beta_min=params["beta_min"], q_manoeuvre=params["q_manoeuvre"], **window))
+         if kind == "adaptive" else FadingFilter(FadingConfig(q=1.0, **window)))
     f.start(t[0], zs[0], Rs[0])
     thetas, xs = [], []
     for k in range(1, len(t)):
@@ -198,7 +199,7 @@ def test_window_rule_matches_reference(kind):
 def test_negative_beta_keeps_covariance_positive_definite():
     """With β < 0 allowed, inflation comes from α > 1 and P̄ must stay positive definite."""
     t, _, zs, Rs = manoeuvre_track(np.random.default_rng(6))
-    f = AdaptiveFilter(MotionSettings(params={"allow_negative_beta": True, "q_manoeuvre": 5.0, "window": 3}))
+    f = AdaptiveFilter(AdaptiveConfig(allow_negative_beta=True, q_manoeuvre=5.0, window=3))
     f.start(t[0], zs[0], Rs[0])
     betas = []
     for k in range(1, len(t)):
@@ -218,7 +219,7 @@ def nees_nis_runs(runs, n, seed):
         rng = np.random.default_rng([seed, r])
         # the initial velocity is drawn from the filter's prior N(0, σ_v² I), so NEES is χ² from the start
         t, truth, zs, Rs = cv_track(rng, n=n, q=4.0, x0=(1e4, -2e4, *rng.normal(0.0, 300.0, 2)))
-        xs, Ps, ni = run(CVFilter(MotionSettings(q=4.0)), t, zs, Rs)
+        xs, Ps, ni = run(CVFilter(CVConfig(q=4.0)), t, zs, Rs)
         e = xs - truth[1:]
         nees[r] = np.einsum("ni,ni->n", e, np.linalg.solve(Ps, e[..., None])[..., 0])
         nis[r] = ni
@@ -252,7 +253,7 @@ def test_cv_nees_nis_consistent_long():
 def test_hygiene_and_pickle(name):
     """Covariances stay symmetric positive definite and finite; a pickled filter continues identically."""
     t, _, zs, Rs = manoeuvre_track(np.random.default_rng(9))
-    f = load_motion_model(name)(MotionSettings())
+    f = load_motion_model(name)()
     f.start(t[0], zs[0], Rs[0])
     for k in range(1, len(t)):
         if k == len(t) // 2:
@@ -291,7 +292,9 @@ def test_bad_input_raises(name):
 @pytest.mark.parametrize("name", ["cv", "imm", "adaptive", "fading"])
 def test_longest_accepted_gap_keeps_covariance_positive_definite(name):
     """An update max_gap_s (one hour) after the last, then normal updates: P stays PD and finite."""
-    f = load_motion_model(name)(MotionSettings(q=400.0, q_turn=400.0))
+    config = {"cv": CVConfig(q=400.0), "imm": IMMConfig(q=400.0, q_turn=400.0), "adaptive": AdaptiveConfig(),
+              "fading": FadingConfig(q=400.0)}[name]
+    f = load_motion_model(name)(config)
     f.start(0.0, np.zeros(2), 50.0**2 * np.eye(2))
     f.update(4.0, np.array([800.0, 0.0]), 50.0**2 * np.eye(2))
     for t in (3604.0, 3608.0, 3612.0, 7212.0):

@@ -12,9 +12,9 @@ from scipy.linalg import expm
 
 from radartracker.geometry.kinematics import propagate
 from radartracker.estimation.motion import MotionModel
-from radartracker.tracking.filters import MotionSettings
+from radartracker.api import ConfigurationError
 from radartracker.simulation.simulator import KinematicTrajectory, Leg
-from radartracker_plugins.motion import CVFilter, IMMFilter
+from radartracker_plugins.motion import CTMode, CVConfig, CVFilter, CVMode, IMMConfig, IMMFilter
 from radartracker_plugins.motion.ct import ct_noise, ct_transition
 from tests.plugins.test_motion import assert_close, cv_track, manoeuvre_track, run
 
@@ -48,10 +48,9 @@ def test_ct_matches_closed_form_kinematics(w):
 
 def test_imm_single_model_and_identical_models_equal_cv():
     t, _, zs, Rs = cv_track(np.random.default_rng(11), q=3.0)
-    cv = run(CVFilter(MotionSettings(q=3.0)), t, zs, Rs)
-    one = run(IMMFilter(MotionSettings(q=3.0, params={"models": [{"kind": "cv"}]})), t, zs, Rs)
-    two = run(IMMFilter(MotionSettings(q=3.0, params={"models": [{"kind": "cv"}, {"kind": "cv"}],
-                                                      "sojourn_s": [50.0, 20.0]})), t, zs, Rs)
+    cv = run(CVFilter(CVConfig(q=3.0)), t, zs, Rs)
+    one = run(IMMFilter(IMMConfig(modes=(CVMode(3.0),))), t, zs, Rs)
+    two = run(IMMFilter(IMMConfig(modes=(CVMode(3.0), CVMode(3.0)), sojourn_s=(50.0, 20.0))), t, zs, Rs)
     assert_close(one, cv)
     assert_close(two, cv)
 
@@ -96,17 +95,16 @@ def test_imm_equals_filterpy_on_linear_models(switching):
     """Two CV modes (quiet and manoeuvring densities): the IMM recursion itself against FilterPy."""
     t, _, zs, Rs = manoeuvre_track(np.random.default_rng(12))
     qs, mu0 = [0.5, 150.0], [0.7, 0.3]
-    models = [{"kind": "cv", "q": q} for q in qs]
-    if switching == "fixed":
+    modes = [CVMode(q) for q in qs]
+    if switching == "fixed":  # composed as FilterPy's IMMEstimator(filters, mu, M)
         M = np.array([[0.95, 0.05], [0.15, 0.85]])
-        params = {"models": models, "transition": M.tolist(), "initial_probabilities": mu0}
+        f = IMMFilter.from_modes(modes, M, mu0)
         ref = filterpy_imm(t, zs, Rs, qs, mu0, M=M)
     else:
         tau = np.array([90.0, 25.0])
         G = np.array([[-1 / tau[0], 1 / tau[0]], [1 / tau[1], -1 / tau[1]]])
-        params = {"models": models, "sojourn_s": tau.tolist(), "initial_probabilities": mu0}
+        f = IMMFilter(IMMConfig(modes=tuple(modes), sojourn_s=tau, initial_probabilities=mu0))
         ref = filterpy_imm(t, zs, Rs, qs, mu0, G=G)
-    f = IMMFilter(MotionSettings(params=params))
     f.start(t[0], zs[0], Rs[0])
     mus = []
     xs, Ps, nis = [], [], []
@@ -148,20 +146,22 @@ def turn_run(seed: int, filters: dict) -> dict:
 
 def test_imm_beats_cv_on_a_3deg_turn():
     """Against the same CV density (q = 1) and against a CV tuned for the turn (q = 100, a²T ≈ 110)."""
-    res = [turn_run(s, {"cv": CVFilter(MotionSettings(q=1.0)), "cv100": CVFilter(MotionSettings(q=100.0)),
-                        "imm": IMMFilter(MotionSettings(q=1.0))}) for s in range(8)]
+    res = [turn_run(s, {"cv": CVFilter(CVConfig(q=1.0)), "cv100": CVFilter(CVConfig(q=100.0)),
+                        "imm": IMMFilter(IMMConfig(q=1.0))}) for s in range(8)]
     mean = {k: np.mean([r[k] for r in res]) for k in res[0]}
     assert mean["imm"] < 0.3 * mean["cv"], mean
     assert mean["imm"] < mean["cv100"], mean
     assert sum(r["imm"] < r["cv"] for r in res) == len(res)
 
 
-@pytest.mark.parametrize("bad", [{"models": [{"kind": "ca"}]}, {"models": []},
+@pytest.mark.parametrize("bad", [{"modes": ("ca",)}, {"modes": ()}, {"modes": (CVMode(),), "q": 5.0},
                                  {"transition": [[0.5, 0.6], [0.5, 0.5]]}, {"sojourn_s": [10.0]},
+                                 {"transition": [[0.9, 0.1], [0.1, 0.9]], "sojourn_s": [10.0, 10.0]},
                                  {"initial_probabilities": [-1.0, 1.0]}])
-def test_imm_bad_params(bad):
-    with pytest.raises(ValueError, match="params"):
-        IMMFilter(MotionSettings(params=bad))
+def test_imm_bad_config(bad):
+    key = next(k for k in bad if k != "q")
+    with pytest.raises(ConfigurationError, match=key):
+        IMMConfig(**bad)
 
 
 def test_switching_matrix_equals_scipy_expm():
@@ -169,8 +169,7 @@ def test_switching_matrix_equals_scipy_expm():
     from scipy.linalg import expm
 
     tau = np.array([100.0, 30.0, 20.0])
-    f = IMMFilter(MotionSettings(params={"models": [{"kind": "cv"}, {"kind": "ct"}, {"kind": "cv", "q": 50.0}],
-                                         "sojourn_s": tau.tolist()}))
+    f = IMMFilter(IMMConfig(modes=(CVMode(), CTMode(), CVMode(50.0)), sojourn_s=tau))
     G = np.ones((3, 3)) / (2 * tau[:, None])
     np.fill_diagonal(G, -1 / tau)
     for dt in (0.0, 0.7, 7.3, 400.0):
