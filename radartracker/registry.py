@@ -236,3 +236,36 @@ def make_filter_factory(spec: str | type[TrackFilter] | Callable[[], TrackFilter
     if options or config is not None:
         raise ConfigurationError("motion model factory: options and config apply to a plugin name or class")
     return CallableFilterFactory(spec)
+
+
+def plugin_listing() -> str:
+    """What ``radartracker estimators`` prints: every installed plugin by group, with its options."""
+    lines = []
+    for group, title, attr in ((ESTIMATOR_GROUP, "estimators", "options_class"),
+                               (MOTION_GROUP, "motion models", "config_class"),
+                               (RECONSTRUCTOR_GROUP, "reconstructors", None)):
+        lines.append(f"{title}:")
+        for name, ep in sorted(_group(group).items()):
+            lines.append(f"  {name:<16} {ep.value}")
+            if attr is None:
+                continue
+            try:
+                options = describe_options(getattr(ep.load(), attr, None))
+            except Exception as exc:  # a broken plugin must not hide the others
+                lines.append(f"      (not loadable: {type(exc).__name__}: {exc})")
+                continue
+            if options:
+                lines.append("      options: " + ", ".join(f"{k}={_text(v)}" for k, _, v in options))
+    return "\n".join(lines)
+
+
+def _text(value: Any) -> str:
+    """A default as it would be written in KEY=VALUE."""
+    if value is None:
+        return "none"
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, tuple):
+        sep = ";" if value and isinstance(value[0], tuple) else ","
+        return sep.join(_text(v) for v in value)
+    return f"{value:g}" if isinstance(value, float) else str(value)

@@ -58,6 +58,8 @@ from collections.abc import Hashable, Sequence
 
 import numpy as np
 
+import attrs
+
 from radartracker.api import (AircraftEstimate, BiasState, Estimator, EstimatorConfig, Innovation, MotionModel, PlaneMeasurement, SingularInnovation, validated_prior)
 
 from . import _kernels as K
@@ -77,18 +79,30 @@ _WHY = {
 }
 
 
+@attrs.frozen
+class CoupledSparseConfig:
+    """Options of ``coupled-sparse`` (round-off control, module docstring): ``refresh_every`` updates
+    between resets of S⁻¹, ς̂ from S; S is recomputed from the blocks every ``rebuild_factor`` × (n + 1)
+    updates."""
+
+    refresh_every: int = attrs.field(default=256, converter=int, validator=attrs.validators.ge(1))
+    rebuild_factor: int = attrs.field(default=64, converter=int, validator=attrs.validators.ge(1))
+
+
 class CoupledSparseEstimator(Estimator):
     """Dense ``coupled`` filter's estimates from a sparse arrowhead information matrix (module docstring).
 
-    ``refresh_every``: updates between resets of S⁻¹, ς̂ from S; ``rebuild_factor``: S is recomputed
-    from the blocks every ``rebuild_factor`` × (n + 1) updates.
+    Options: :class:`CoupledSparseConfig` (``refresh_every=`` and ``rebuild_factor=`` keywords set them too).
     """
 
     name = "coupled-sparse"
+    options_class = CoupledSparseConfig
 
-    def __init__(self, config: EstimatorConfig | None = None, *, refresh_every: int = 256,
-                 rebuild_factor: int = 64) -> None:
-        super().__init__(config)
+    def __init__(self, config: EstimatorConfig | None = None, options: CoupledSparseConfig | None = None,
+                 **option_values: int) -> None:
+        super().__init__(config, options if options is not None or not option_values
+                         else CoupledSparseConfig(**option_values))
+        refresh_every, rebuild_factor = self.options.refresh_every, self.options.rebuild_factor
         if self.config.bias_drifts:
             raise ValueError("coupled-sparse: drifting biases make the information matrix dense "
                              "(see the module docstring); use the 'coupled' estimator")

@@ -60,17 +60,14 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def register_estimators(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("estimators", help="list the installed estimator and reconstructor plugins")
+    p = sub.add_parser("estimators", help="list the installed estimator, motion-model and reconstructor plugins with their options")
     p.set_defaults(func=_cmd_estimators)
 
 
 def _cmd_estimators(args: argparse.Namespace) -> int:
-    from radartracker.registry import ESTIMATOR_GROUP, RECONSTRUCTOR_GROUP
+    from radartracker.registry import plugin_listing
 
-    for group, title in ((ESTIMATOR_GROUP, "estimators"), (RECONSTRUCTOR_GROUP, "reconstructors")):
-        print(f"{title}:")
-        for ep in sorted(entry_points(group=group), key=lambda e: e.name):
-            print(f"  {ep.name:<16} {ep.value}")
+    print(plugin_listing())
     return 0
 
 
