@@ -1,0 +1,193 @@
+"""Gross errors injected into the built-in ``paris`` scenario, screening off and on (issue 12).
+
+Faults, each at the given rate of its population (independently drawn): radar plots with +20 km
+range; ADS-B reports moved 1° north; plots whose Mode S address is swapped for another aircraft's;
+duplicated inputs (any kind, delivered twice in a row); and one plot whose time stamp is 10 years
+ahead (kept at its place in the stream, as a bad clock delivers it). The stream goes through the
+TrackManager; printed as JSON lines: every radar's final bias error and z-score, position RMSE,
+breaks and false tracks (radartracker.pipeline.evaluate.track_metrics), and the input counts.
+"Screening off" disables innovation screening, ADS-B plausibility and the robust clock.
+
+``--measure-gates`` instead prints the normalised innovations d² of clean runs (gates = ∞) per
+scenario and measurement kind, and those of the gross errors — the table the default gates were
+chosen from (docs/reliability.md, "Gross errors").
+
+Usage: python scripts/fault_injection.py [--duration 1200] [--rates 0.001 0.01 0.05] [--seed 1]
+       python scripts/fault_injection.py --measure-gates [--duration 1200]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+import time
+
+import attrs
+import numpy as np
+
+from radartracker.domain import AdsbReport, Plot
+from radartracker.estimation.screening import ScreeningConfig
+from radartracker.io.tables import ScenarioData
+from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, track_metrics
+from radartracker.simulation.scenarios import build_scenario
+from radartracker.tracking.admission import ClockConfig
+from radartracker.tracking.manager import ManagerConfig, TrackManager
+
+YEARS_10 = 10 * 365.25 * 86400.0
+OFF = dict(screening=ScreeningConfig(enabled=False), clock=ClockConfig(max_ahead_s=math.inf))
+
+
+def clean_items(data: ScenarioData) -> list[Plot | AdsbReport]:
+    """The scenario's plots and ADS-B reports as domain objects in time order (plots first at ties)."""
+    p, a = data.plots, data.adsb
+    items: list = [Plot(float(p.time[i]), p.radar[i], float(p.range_m[i]), float(p.azimuth_rad[i]),
+                        None if math.isnan(p.altitude_m[i]) else float(p.altitude_m[i]), p.mode_s[i], p.mode_3a[i],
+                        p.target[i]) for i in range(len(p))]
+    items += [AdsbReport(float(a.time[i]), a.icao24[i], float(a.lat[i]), float(a.lon[i]),
+                         None if math.isnan(a.altitude_m[i]) else float(a.altitude_m[i]), int(a.nacp[i]))
+              for i in range(len(a))]
+    items.sort(key=lambda x: (x.time, isinstance(x, AdsbReport)))
+    return items
+
+
+def inject(items: list, rate: float, rng: np.random.Generator) -> tuple[list, dict[str, int]]:
+    """A copy of ``items`` with gross errors at ``rate`` per fault type, and how many of each."""
+    out = list(items)
+    plots = [i for i, x in enumerate(out) if isinstance(x, Plot)]
+    adsb = [i for i, x in enumerate(out) if isinstance(x, AdsbReport)]
+    codes = sorted({x.mode_s for x in out if isinstance(x, Plot) and x.mode_s})
+
+    def pick(pop: list[int]) -> list[int]:
+        return [pop[k] for k in np.flatnonzero(rng.random(len(pop)) < rate)]
+
+    n = {}
+    chosen = pick(plots)
+    for i in chosen:
+        out[i] = attrs.evolve(out[i], range_m=out[i].range_m + 20_000.0)
+    n["range_20km"] = len(chosen)
+    chosen = pick(adsb)
+    for i in chosen:
+        out[i] = attrs.evolve(out[i], lat=min(out[i].lat + 1.0, 90.0))
+    n["adsb_1deg"] = len(chosen)
+    chosen = [i for i in pick(plots) if out[i].mode_s]
+    for i in chosen:
+        out[i] = attrs.evolve(out[i], mode_s=str(rng.choice([c for c in codes if c != out[i].mode_s])))
+    n["mode_s_swapped"] = len(chosen)
+    k = plots[len(plots) // 3]
+    out[k] = attrs.evolve(out[k], time=out[k].time + YEARS_10)
+    n["time_10_years_ahead"] = 1
+    dup = set(pick(list(range(len(out)))))
+    n["duplicated"] = len(dup)
+    return [x for i, item in enumerate(out) for x in ((item, item) if i in dup else (item,))], n
+
+
+def run(data: ScenarioData, items: list, config: ManagerConfig) -> tuple[TrackManager, list]:
+    mgr = TrackManager(data.radars, data.reference, config)
+    events = []
+    for item in items:
+        events.extend(mgr.process(item))
+    events.extend(mgr.flush())
+    return mgr, events
+
+
+def tracking(data: ScenarioData, mgr: TrackManager, events: list, grace_s: float = 20.0) -> dict:
+    """Track metrics against the truth (as the track replay evaluates them)."""
+    rows: dict[int, list] = {}
+    for e in events:
+        rows.setdefault(e.track, []).append(e)
+    hist = {}
+    for tid, evs in rows.items():
+        rep = [e for e in evs if e.kind in ("confirmed", "updated", "coasting")]
+        if rep:
+            end = next((e.time for e in evs if e.kind == "deleted"), rep[-1].time)
+            hist[tid] = TrackHistory(np.array([e.time for e in rep]), np.array([e.state for e in rep]), rep[0].time, end)
+    observed = {}
+    for tg in np.unique(data.plots.target[data.plots.target != None].astype(str)):  # noqa: E711
+        t = data.plots.time[data.plots.target == tg]
+        if t.max() - t.min() > grace_s:
+            observed[tg] = (float(t.min()) + grace_s, float(t.max()))
+    grid = np.arange(data.truth.time.min(), data.truth.time.max(), 2.0)
+    return track_metrics(hist, TruthPaths.from_table(data.truth, mgr.plane), observed, grid)
+
+
+def report(data: ScenarioData, mgr: TrackManager, events: list) -> dict:
+    out: dict = {"biases": {}}
+    for rid, (tr, ta) in data.truth_biases.items():
+        b = mgr.estimator.bias(rid)
+        er, ea = b.bias[0] - tr, b.bias[1] - ta
+        out["biases"][rid] = {"err_range_m": round(float(er), 2), "z_range": round(float(er / math.sqrt(b.cov[0, 0])), 2),
+                              "err_azimuth_deg": round(math.degrees(ea), 5),
+                              "z_azimuth": round(float(ea / math.sqrt(b.cov[1, 1])), 2)}
+    m = tracking(data, mgr, events)
+    out.update(position_rmse_m=round(m["position_rmse_m"], 1), breaks=m["breaks"], false_tracks=m["false_tracks"],
+               confirmed_tracks=m["confirmed_tracks"], counts=mgr.accounting())
+    return out
+
+
+def measure_gates(args: argparse.Namespace, base: ManagerConfig) -> None:
+    """d² of every screened measurement in clean runs (gates ∞), and of the gross errors."""
+    import radartracker.tracking.manager as manager_module
+    from radartracker.estimation import screening
+
+    seen: list[tuple[str, float]] = []
+    real = screening.judge
+
+    def recording_judge(config, kind, d2, strikes, identified):
+        seen.append((kind, d2))
+        return real(config, kind, d2, strikes, identified)
+
+    manager_module.judge = recording_judge
+    wide = ScreeningConfig(gate_plots=math.inf, gate_adsb=math.inf, gate_positions=math.inf)
+    for name in ("paris", "manoeuvres", "tracking", "demo"):
+        data = build_scenario(name, seed=args.seed, duration=args.duration).run()
+        for model in args.models:
+            seen.clear()
+            run(data, clean_items(data), attrs.evolve(base, motion_model=model, screening=wide))
+            for kind in ("plots", "adsb"):
+                d = np.array([v for k, v in seen if k == kind])
+                if len(d):
+                    q = np.quantile(d, [0.5, 0.99, 0.999, 0.9999])
+                    print(json.dumps({"scenario": name, "motion_model": model, "kind": kind, "n": len(d),
+                                      "mean": round(float(d.mean()), 2), "median": round(float(q[0]), 2),
+                                      "q99": round(float(q[1]), 1), "q999": round(float(q[2]), 1),
+                                      "q9999": round(float(q[3]), 1), "max": round(float(d.max()), 1)}))
+    data = build_scenario("paris", seed=args.seed, duration=args.duration).run()
+    items, _ = inject(clean_items(data), 0.01, np.random.default_rng(args.seed))
+    seen.clear()
+    run(data, items, attrs.evolve(base, screening=wide))
+    d = np.array([v for _, v in seen])
+    print(json.dumps({"scenario": "paris 1 % gross errors", "n_above_1000": int(np.sum(d > 1000)),
+                      "n_200_1000": int(np.sum((d > 200) & (d <= 1000))), "n_100_200": int(np.sum((d > 100) & (d <= 200)))}))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--duration", type=float, default=1200.0, help="scenario seconds (paris: 3600 in full)")
+    ap.add_argument("--rates", type=float, nargs="+", default=[0.001, 0.01, 0.05])
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--estimator", default="coupled-sparse")
+    ap.add_argument("--models", nargs="+", default=["cv", "imm"], help="motion models for --measure-gates")
+    ap.add_argument("--measure-gates", action="store_true")
+    args = ap.parse_args()
+    logging.disable(logging.WARNING)
+    base = ManagerConfig(estimator=args.estimator)
+    if args.measure_gates:
+        measure_gates(args, base)
+        return
+    data = build_scenario("paris", seed=args.seed, duration=args.duration).run()
+    items = clean_items(data)
+    for rate in [0.0, *args.rates]:
+        faulty, injected = inject(items, rate, np.random.default_rng([args.seed, int(rate * 1e4)])) if rate else (items, {})
+        for screening in ("off", "on"):
+            started = time.perf_counter()
+            cfg = attrs.evolve(base, **OFF) if screening == "off" else base
+            mgr, events = run(data, faulty, cfg)
+            row = {"rate": rate, "screening": screening, "injected": injected, **report(data, mgr, events),
+                   "seconds": round(time.perf_counter() - started, 1)}
+            print(json.dumps(row), flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,153 @@
+"""Innovation screening (issue 12 §1): gross errors are rejected, counted, and pull no bias."""
+
+import math
+
+import attrs
+import numpy as np
+import pytest
+from scipy import stats
+from scipy.spatial.distance import mahalanobis
+
+from radartracker.domain import AdsbReport, Plot
+from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, LabelledScreen,
+                                               ScreeningConfig, judge, normalised_innovation, speed_consistent)
+from radartracker.estimation.base import PlaneMeasurement
+from radartracker.registry import make_estimator
+from radartracker.simulation.scenarios import _icao, build_scenario
+from radartracker.tracking.manager import ManagerConfig, TrackManager
+
+ESTIMATOR = "coupled-sparse"  # consistent covariances: the decoupled filter's σ is too small for a 3σ test
+
+
+def test_normalised_innovation_is_the_mahalanobis_distance_and_chi2_distributed():
+    rng = np.random.default_rng(1)
+    C = np.array([[0.6, -40e3], [0.8, 30e3]])
+    R = np.array([[900.0, 120.0], [120.0, 2500.0]])
+    Pb = np.diag([25.0, 1e-8])
+    Pp = np.array([[400.0, -50.0], [-50.0, 300.0]])
+    bias, pos = np.array([50.0, 1e-3]), np.array([1e4, -2e4])
+    S = Pp + C @ Pb @ C.T + R
+    z = pos + C @ bias + rng.multivariate_normal(np.zeros(2), S, 4000)
+    d2 = np.array([normalised_innovation(zi, C, R, bias, Pb, pos, Pp) for zi in z])
+    ref = np.array([mahalanobis(zi, pos + C @ bias, np.linalg.inv(S)) ** 2 for zi in z[:50]])
+    np.testing.assert_allclose(d2[:50], ref, rtol=1e-9)
+    assert stats.kstest(d2, stats.chi2(2).cdf).pvalue > 1e-3
+    assert normalised_innovation(np.array([np.nan, 0.0]), C, R, bias, Pb, pos, Pp) == math.inf
+    assert normalised_innovation(z[0], C, -R, bias, Pb, pos, -Pp) == math.inf
+
+
+def test_judge_reinitialises_an_identified_aircraft_after_repeated_rejections():
+    cfg = ScreeningConfig(gate_plots=10.0, reinit_after=3)
+    assert judge(cfg, "plots", 9.9, 2, True) == ACCEPT
+    assert [judge(cfg, "plots", 50.0, k, True) for k in range(3)] == [REJECT, REJECT, REINIT]
+    assert judge(cfg, "plots", 50.0, 5, False) == REJECT  # an unidentified track is never re-initialised
+
+
+def test_adsb_plausibility():
+    cfg = ScreeningConfig(adsb_min_nacp=5, adsb_max_speed_mps=600.0, reinit_after=3)
+    chk = AdsbPlausibility(cfg)
+    assert chk.check("abc123", 0.0, np.zeros(2), 40.0, 4) == "adsb_low_nacp"
+    assert chk.check("abc123", 0.0, np.zeros(2), 40.0, 8) is None
+    assert chk.check("abc123", 1.0, np.array([250.0, 0.0]), 40.0, 8) is None
+    # a single 1° jump costs only itself: the next report is judged against the last accepted one
+    assert chk.check("abc123", 2.0, np.array([500.0, 111e3]), 40.0, 8) == "adsb_implausible_speed"
+    assert chk.check("abc123", 3.0, np.array([750.0, 0.0]), 40.0, 8) is None
+    # a wild first report: the reference moves to the truth after reinit_after reports in a row
+    assert chk.check("def456", 0.0, np.array([0.0, 111e3]), 40.0, 8) is None
+    got = [chk.check("def456", t, np.array([250.0 * t, 0.0]), 40.0, 8) for t in (1.0, 2.0, 3.0, 4.0)]
+    assert got == ["adsb_implausible_speed", "adsb_implausible_speed", None, None]
+    assert speed_consistent(cfg, 10.0, np.zeros(2), 30.0, np.array([6000.0, 0.0]), 30.0)
+    assert not speed_consistent(cfg, 10.0, np.zeros(2), 30.0, np.array([6500.0, 0.0]), 30.0)
+
+
+def test_labelled_screen_holds_the_first_measurement_until_a_second_agrees():
+    est = make_estimator(ESTIMATOR, None, ["R1"])
+    scr = LabelledScreen(ScreeningConfig())
+    R = np.eye(2) * 100.0
+    wild = PlaneMeasurement(0.0, "a", None, np.array([0.0, 111e3]), np.zeros((2, 2)), R)
+    good = [PlaneMeasurement(t, "a", None, np.array([200.0 * t, 0.0]), np.zeros((2, 2)), R) for t in (1.0, 2.0, 3.0)]
+    assert scr.screen(est, wild, "positions", known=False) == ("held", [])
+    assert scr.screen(est, good[0], "positions", known=False) == ("replaced", [])
+    verdict, apply = scr.screen(est, good[1], "positions", known=False)
+    assert verdict == ACCEPT and apply == [good[0], good[1]]
+
+
+def _items(data):
+    p, a = data.plots, data.adsb
+    items = [Plot(float(p.time[i]), p.radar[i], float(p.range_m[i]), float(p.azimuth_rad[i]),
+                  None if math.isnan(p.altitude_m[i]) else float(p.altitude_m[i]), p.mode_s[i], p.mode_3a[i])
+             for i in range(len(p))]
+    items += [AdsbReport(float(a.time[i]), a.icao24[i], float(a.lat[i]), float(a.lon[i]),
+                         None if math.isnan(a.altitude_m[i]) else float(a.altitude_m[i]), int(a.nacp[i]))
+              for i in range(len(a))]
+    return sorted(items, key=lambda x: (x.time, isinstance(x, AdsbReport)))
+
+
+@pytest.fixture(scope="module")
+def demo():
+    data = build_scenario("demo", seed=3, duration=360.0).run()
+    items = _items(data)
+
+    def nearest(cls, code, t, radar=None):
+        cand = [i for i, x in enumerate(items) if isinstance(x, cls) and (x.mode_s if cls is Plot else x.icao24) == code
+                and (radar is None or x.radar == radar)]
+        return min(cand, key=lambda i: abs(items[i].time - t))
+
+    bad = {
+        nearest(Plot, _icao(0), 180.0, "R1"): lambda x: attrs.evolve(x, range_m=x.range_m + 20_000.0),
+        nearest(AdsbReport, _icao(1), 120.0): lambda x: attrs.evolve(x, lat=-x.lat, lon=x.lon - 180.0),
+        nearest(AdsbReport, _icao(0), 240.0): lambda x: attrs.evolve(x, lat=x.lat + 1.0),
+    }
+    faulty = [bad[i](x) if i in bad else x for i, x in enumerate(items)]
+    without = [x for i, x in enumerate(items) if i not in bad]
+    return data, faulty, without
+
+
+def _run(data, items, **config):
+    mgr = TrackManager(data.radars, data.reference, ManagerConfig(estimator=ESTIMATOR, **config))
+    mgr.process_many(items)
+    return mgr
+
+
+def test_gross_errors_rejected_biases_within_3_sigma(demo):
+    """One antipodal ADS-B report, one 1° ADS-B shift, one +20 km Mode S plot: each counted, and the
+    estimator ends exactly where the run without those three measurements ends (the oracle)."""
+    data, faulty, without = demo
+    mgr, ref = _run(data, faulty), _run(data, without)
+    counts = mgr.accounting()
+    assert counts["plots_outlier"] == 1
+    assert counts["adsb_implausible_speed"] == 2
+    assert counts["plots_used"] == ref.accounting()["plots_used"]
+    assert counts["adsb_used"] == ref.accounting()["adsb_used"]
+    for rid, (true_r, true_a) in data.truth_biases.items():
+        b, b_ref = mgr.estimator.bias(rid), ref.estimator.bias(rid)
+        np.testing.assert_array_equal(b.bias, b_ref.bias)
+        np.testing.assert_array_equal(b.cov, b_ref.cov)
+        assert abs(b.bias[0] - true_r) < 3 * math.sqrt(b.cov[0, 0])
+        assert abs(b.bias[1] - true_a) < 3 * math.sqrt(b.cov[1, 1])
+
+
+def test_without_screening_the_same_errors_ruin_the_biases(demo):
+    """The test above can fail: unscreened, the same three measurements move a bias far out of 3σ."""
+    data, faulty, _ = demo
+    mgr = _run(data, faulty, screening=ScreeningConfig(enabled=False))
+    z = [abs(mgr.estimator.bias(rid).bias[k] - data.truth_biases[rid][k]) / math.sqrt(mgr.estimator.bias(rid).cov[k, k])
+         for rid in data.truth_biases for k in (0, 1)]
+    assert max(z) > 10.0
+
+
+def test_swapped_address_at_start_does_not_lock_out_the_truth(demo):
+    """A wrong first plot under an aircraft's Mode S address (another aircraft's position) starts its
+    track in the wrong place; the aircraft's own plots are rejected a few times, then the track is
+    re-initialised on them and the aircraft is tracked and used for the biases."""
+    data, _, without = demo
+    code = _icao(2)
+    first = next(i for i, x in enumerate(without) if isinstance(x, Plot) and x.mode_s == code)
+    donor = next(x for x in without[first:] if isinstance(x, Plot) and x.mode_s not in (code, None)
+                 and x.radar == without[first].radar)
+    wrong = attrs.evolve(donor, time=without[first].time - 0.01, mode_s=code)
+    mgr = _run(data, without[:first] + [wrong] + without[first:])
+    counts = mgr.accounting()
+    assert counts["tracks_reinitialised"] >= 1
+    live = [t for t in mgr.tracks.values() if t.mode_s == code]
+    assert len(live) == 1 and live[0].status in ("confirmed", "coasting") and live[0].n_plots > 20
