@@ -17,14 +17,14 @@
    20–90 min, 200–250 m/s, starting and ending all hour long) for one hour. Plots are generated here in
    the flat plane with the same linearised model (the rotating-radar simulator of
    ``radartracker.simulation.simulator`` would need ≈9 min for this traffic), sorted by time, and replayed through
-   ``coupled-sparse`` with ``radartracker.pipeline.replay``'s life cycle: a track starts at its first plot with
-   ``ReplayOptions.prior`` and is marginalised after ``drop_after_s`` without plots (sweeps every second,
+   ``coupled-sparse`` with the labelled replay's life cycle: a track starts at its first plot with
+   ``LabelsConfig``'s prior and is marginalised after ``drop_after_s`` without plots (sweeps every second,
    one ``update_many`` per second of traffic). Reported: plots per wall-clock second and hours of
    traffic per wall-clock second. Estimates are not read back per plot here (the cost of an
    ``aircraft()`` read is reported in part 1).
-3. *Conversion.* For scale: the bulk plot-to-plane conversion (``replay.prepare``, pyproj) timed on
+3. *Conversion.* For scale: the bulk plot-to-plane conversion (``radartracker.estimation.measurement``, pyproj) timed on
    a 5-minute, 100-aircraft run of the real simulator over the same region.
-4. *Replay loop.* ``radartracker.pipeline.replay.replay()`` end to end on the ``paris`` scenario (q = 20) with
+4. *Replay loop.* ``radartracker.pipeline.run.run()`` end to end on the ``paris`` scenario (q = 20) with
    ``coupled`` and ``coupled-sparse``: the per-plot loop of the product, recording every estimate.
 
 One JSON line per measurement (with the 1-minute load average: the machine is shared), then the
@@ -45,7 +45,7 @@ import numpy as np
 from radartracker.estimation.motion import MotionModel
 from radartracker.estimation.base import EstimatorConfig, PlaneMeasurement
 from radartracker.registry import make_estimator
-from radartracker.pipeline.replay import ReplayOptions
+from radartracker.pipeline.config import LabelsConfig, RunConfig
 
 P0 = np.diag([1e4**2, 1e4**2, 300.0**2, 300.0**2])
 SIGMA_R, SIGMA_A = 70.0, math.radians(0.08)
@@ -227,15 +227,16 @@ def time_realtime(n_airborne: int, n_radars: int, duration: float, seed: int = 0
     g0 = time.perf_counter()
     t, a, radar, z, C, R, ids, period, airborne = region_plots(n_airborne, n_radars, duration, seed)
     gen_s = time.perf_counter() - g0
-    options = ReplayOptions(config=EstimatorConfig(motion=MotionModel(1.0)), drop_after_s=3 * period.max() + 30)
-    est = make_estimator("coupled-sparse", options.config, ids)
+    life = LabelsConfig(drop_after_s=3 * period.max() + 30)
+    prior_cov = np.diag([life.prior_sd_position_m**2] * 2 + [life.prior_sd_velocity_mps**2] * 2)
+    est = make_estimator("coupled-sparse", EstimatorConfig(motion=MotionModel(1.0)), ids)
     last_seen: dict = {}
     started = created = removed = 0
     t_start = time.perf_counter()
     i, N = 0, len(t)
     while i < N:
         now = t[i]
-        for k in [k for k, ts in last_seen.items() if now - ts > options.drop_after_s]:
+        for k in [k for k, ts in last_seen.items() if now - ts > life.drop_after_s]:
             est.remove_aircraft(k)
             del last_seen[k]
             removed += 1
@@ -244,7 +245,7 @@ def time_realtime(n_airborne: int, n_radars: int, duration: float, seed: int = 0
         uniq, first = np.unique(keys, return_index=True)
         for k, f in zip(uniq.tolist(), first.tolist()):
             if k not in last_seen:
-                est.add_aircraft(k, t[i + f], *options.prior(z[i + f]))
+                est.add_aircraft(k, t[i + f], np.array([*z[i + f], 0.0, 0.0]), prior_cov)
                 created += 1
         est.update_many(t[i:end], keys, radar[i:end], z[i:end], C[i:end], R[i:end])
         _, last = np.unique(keys[::-1], return_index=True)
@@ -265,7 +266,7 @@ def time_realtime(n_airborne: int, n_radars: int, duration: float, seed: int = 0
 def time_conversion(n_radars: int, seed: int = 0) -> dict:
     from radartracker.domain import Aircraft, Radar
     from radartracker.geometry.plane import SystemPlane
-    from radartracker.pipeline.replay import prepare
+    from radartracker.estimation.measurement import convert_plots, fill_altitudes, plot_keys
     from radartracker.simulation.simulator import KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator
 
     ref = (47.0, 2.5)
@@ -283,19 +284,20 @@ def time_conversion(n_radars: int, seed: int = 0) -> dict:
                 for i in range(100)]
     data = Simulator(ref, radars, aircraft, 0.0, 300.0, seed=seed).run()
     t0 = time.perf_counter()
-    _, meas, _ = prepare(data, ReplayOptions.for_scenario(data))
+    keys = plot_keys(data.plots, True)
+    meas = convert_plots(data.plots, data.radars, plane, keys, fill_altitudes(data.plots, keys, 0.0)[0])
     sec = time.perf_counter() - t0
     return {"bench": "convert", "radars": n_radars, "plots": len(meas), "us_per_plot": 1e6 * sec / len(meas)}
 
 
 # --- 4. the replay loop ----------------------------------------------------------------------------
 def time_replay(name: str, scenario: str = "paris", q: float = 20.0) -> dict:
-    """radartracker.pipeline.replay.replay() end to end (per-plot loop, coupling graph, estimates recorded)."""
-    from radartracker.pipeline.replay import replay
+    """radartracker.pipeline.run.run() end to end (per-plot loop, coupling graph, estimates recorded)."""
+    from radartracker.pipeline.run import run
     from radartracker.simulation.scenarios import build_scenario
 
     data = build_scenario(scenario, seed=1).run()
-    res = replay(data, name, ReplayOptions.for_scenario(data, q=q))
+    res = run(data, RunConfig(estimator=name, q=q), progress=False)
     n = res.counts.get("plots_used", 0) + res.counts.get("adsb_used", 0)
     return {"bench": "replay", "estimator": name, "scenario": scenario, "measurements": n,
             "aircraft": len(data.aircraft), "radars": len(data.radars), "seconds": res.seconds,
@@ -366,10 +368,10 @@ def print_tables(rows: list[dict]) -> None:
                   f"{r['plots_per_wall_s']:.0f} plots/s, {r['traffic_hours_per_wall_s']:.3f} h of traffic per "
                   f"wall-clock second = {r['real_time_factor']:.0f}× real time")
         if r["bench"] == "replay":
-            print(f"  replay() of '{r['scenario']}' ({r['aircraft']} aircraft, {r['radars']} radars, "
+            print(f"  run() of '{r['scenario']}' ({r['aircraft']} aircraft, {r['radars']} radars, "
                   f"{r['measurements']} measurements) with {r['estimator']}: {r['us_per_measurement']:.1f} µs each")
         if r["bench"] == "convert":
-            print(f"  bulk plot conversion (replay.prepare, pyproj): {r['us_per_plot']:.2f} µs/plot "
+            print(f"  bulk plot conversion (radartracker.estimation.measurement, pyproj): {r['us_per_plot']:.2f} µs/plot "
                   f"({r['plots']} simulated plots)")
 
 

@@ -25,7 +25,7 @@ from radartracker.simulation.linsim import make_linear_scenario
 from radartracker.estimation.motion import MotionModel
 from radartracker.estimation.base import EstimatorConfig
 from radartracker.registry import make_estimator
-from radartracker.pipeline.replay import ReplayOptions
+from radartracker.pipeline.config import RunConfig
 from radartracker.simulation.scenarios import build_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -43,7 +43,7 @@ def scenario_tables(seeds: list[int], figures: Path) -> str:
         per_est: dict[str, list] = {e: [] for e in DEFAULT_ESTIMATORS}
         for seed in seeds:
             data = build_scenario(name, seed=seed).run()
-            results = run_comparison(data, DEFAULT_ESTIMATORS, ReplayOptions.for_scenario(data, q=q))
+            results = run_comparison(data, DEFAULT_ESTIMATORS, RunConfig(q=q))
             for e, r in results.items():
                 per_est[e].append(score(r))
             if seed == seeds[0]:

@@ -30,19 +30,20 @@ from radartracker.estimation.coupling import CouplingGraph  # noqa: E402
 from radartracker.estimation.motion import MotionModel  # noqa: E402
 from radartracker.estimation.base import EstimatorConfig  # noqa: E402
 from radartracker.registry import make_estimator  # noqa: E402
-from radartracker.pipeline.replay import ReplayOptions  # noqa: E402
+from radartracker.pipeline.config import LabelsConfig  # noqa: E402
 
 FIG = Path(__file__).resolve().parent.parent / "docs" / "figures"
 
 
 def structure_figure(out: Path) -> None:
     t, a, radar, z, C, R, ids, period, _ = region_plots(10, 6, 600.0, seed=3, max_range=200e3)
-    options = ReplayOptions(config=EstimatorConfig(motion=MotionModel(1.0)))
-    est = make_estimator("coupled-sparse", options.config, ids)
+    life = LabelsConfig()  # the labelled replay's track prior
+    prior_cov = np.diag([life.prior_sd_position_m**2] * 2 + [life.prior_sd_velocity_mps**2] * 2)
+    est = make_estimator("coupled-sparse", EstimatorConfig(motion=MotionModel(1.0)), ids)
     graph = CouplingGraph(ids)
     for i in range(len(t)):
         if a[i] not in est.aircraft_keys:
-            est.add_aircraft(a[i], t[i], *options.prior(z[i]))
+            est.add_aircraft(a[i], t[i], np.array([z[i][0], z[i][1], 0.0, 0.0]), prior_cov)
         est.update_many(t[i:i + 1], a[i:i + 1], radar[i:i + 1], z[i:i + 1], C[i:i + 1], R[i:i + 1])
         graph.observe(f"A{a[i]}", radar[i], t[i])
     info = est.information()

@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from radartracker.pipeline.figures import plot_tracks_over_truth
-from radartracker.tracking.manager import ManagerConfig
 from radartracker.simulation.scenarios import build_scenario
-from radartracker.pipeline.track_replay import track_replay
+from radartracker.pipeline.config import RunConfig
+from radartracker.pipeline.run import run
 
 FIGURES = Path(__file__).resolve().parents[1] / "docs" / "figures"
 
@@ -37,7 +37,7 @@ def main() -> None:
         for model in args.models:
             for est in args.estimators:
                 started = time.perf_counter()
-                result = track_replay(data, ManagerConfig(estimator=est, motion_model=model))
+                result = run(data, RunConfig(association="manager", estimator=est, motion_model=model), progress=False)
                 wall = time.perf_counter() - started
                 s = result.summary()
                 m = s["tracking"]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from radartracker.cli.replay import add_run_options, run_config
 from radartracker.errors import ConfigurationError
 
 
@@ -14,25 +15,26 @@ def register_compare(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--estimators", default="decoupled,blom,coupled",
                    help="comma-separated estimator plugins (default: decoupled,blom,coupled)")
     p.add_argument("--out", type=Path, required=True, help="output folder for comparison.md, scores.json, figures")
-    p.add_argument("--q", type=float, default=None, help="process noise density q (m²/s³); default 0")
-    p.add_argument("--skip-bad", action="store_true", help="skip (and count) malformed input rows")
+    add_run_options(p, estimator_options=False)  # one plugin's options would be unknown to the others
     p.set_defaults(func=_cmd_compare)
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from radartracker.pipeline.compare import run_comparison, write_comparison
+    from radartracker.io.atomic import prepare_output_folder
     from radartracker.io.sources import read_source
+    from radartracker.pipeline.compare import COMPARISON_FILES, run_comparison, write_comparison
     from radartracker.registry import available_estimators
-    from radartracker.pipeline.replay import ReplayOptions
 
     names = [n.strip() for n in args.estimators.split(",") if n.strip()]
     unknown = [n for n in names if n not in available_estimators()]
     if not names or unknown:
         raise ConfigurationError(f"--estimators: unknown {', '.join(unknown) or '(none given)'}; "
-                       f"installed: {', '.join(available_estimators())}")
-    data = read_source(args.scenario, skip_bad=args.skip_bad)
-    results = run_comparison(data, names, ReplayOptions.for_scenario(data, q=args.q))
-    write_comparison(results, args.out)
-    print((args.out / "comparison.md").read_text(), end="")
-    print(f"outputs in {args.out}")
+                                 f"installed: {', '.join(available_estimators())}")
+    config = run_config(args)
+    out = prepare_output_folder(args.out, COMPARISON_FILES, overwrite=args.overwrite)
+    data = read_source(args.scenario, skip_bad=config.skip_bad)
+    results = run_comparison(data, names, config, progress=not getattr(args, "quiet", False))
+    write_comparison(results, out)
+    print((out / "comparison.md").read_text(), end="")
+    print(f"outputs in {out}")
     return 0

@@ -192,20 +192,21 @@ def _write_sites(path: Path, radars: list[Radar], sac_sic: dict[str, tuple[int, 
 
 
 def write_cat062(path: Path | str, result, *, sac: int = 0, sic: int = 100) -> dict:
-    """Write a :class:`~radartracker.replay.ReplayResult`'s track history as CAT062 (raw blocks).
+    """Write a :class:`~radartracker.pipeline.result.RunResult`'s track estimates as CAT062 (raw blocks).
 
-    Track keys become track numbers 1, 2, … in order of first appearance; returns that mapping.
+    Track ids become track numbers 1, 2, … in order of first appearance; returns that mapping.
     """
     path = Path(path)
     if path.exists():
         raise FileExistsError(f"{path} already exists")
     numbers: dict = {}
-    for k in result.track_key.tolist():
+    tracks = result.tracks
+    for k in tracks.track.tolist():
         numbers.setdefault(k, len(numbers) + 1)
-    s = np.asarray(result.track_state, float)
+    s = np.asarray(tracks.state, float)
     if len(s):
         lat, lon = result.plane.to_geodetic(s[:, 0], s[:, 1])
-    recs = (cat062_record(result.track_time[i], sac, sic, numbers[result.track_key[i]], lat[i], lon[i],
+    recs = (cat062_record(tracks.time[i], sac, sic, numbers[tracks.track[i]], lat[i], lon[i],
                           s[i, 0], s[i, 1], s[i, 2], s[i, 3]) for i in range(len(s)))
     with open(path, "wb") as fh:
         fh.writelines(datablocks(CAT062, recs))

@@ -1,6 +1,6 @@
 """Run several estimators on the same scenario and compare them (accuracy, consistency, cost).
 
-Each estimator goes through :func:`radartracker.replay.replay` on the same measurements. Scores:
+Each estimator goes through :func:`radartracker.pipeline.run.run` with the same settings. Scores:
 
 * bias RMSE — over radars, of the final range / azimuth bias error (truth from the scenario);
 * aircraft position / velocity RMSE and mean NEES over every recorded estimate (4 dof, expected 4;
@@ -23,9 +23,12 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from radartracker.pipeline.evaluate import TruthPaths, state_errors  # noqa: E402
+from radartracker.io.atomic import write_text  # noqa: E402
 from radartracker.io.tables import ScenarioData  # noqa: E402
-from radartracker.pipeline.replay import ReplayOptions, ReplayResult, replay  # noqa: E402
+from radartracker.pipeline.config import RunConfig  # noqa: E402
+from radartracker.pipeline.figures import save  # noqa: E402
+from radartracker.pipeline.result import RunResult, strict  # noqa: E402
+from radartracker.pipeline.run import run  # noqa: E402
 
 DEFAULT_ESTIMATORS = ("decoupled", "blom", "coupled")
 
@@ -47,14 +50,14 @@ class Score:
     runs: int = 1
 
 
-def score(result: ReplayResult) -> Score:
-    """Scores of one replay (NaN where the scenario has no truth)."""
+def score(result: RunResult) -> Score:
+    """Scores of one run (NaN where the scenario has no truth)."""
     truth_b = result.data.truth_biases or {}
-    eb = [(b - np.asarray(truth_b[r]), P) for r, (b, P) in result.final_biases.items() if r in truth_b]
+    eb = [(b.bias - np.asarray(truth_b[r]), b.cov) for r, b in result.final_biases.items() if r in truth_b]
     err_b = np.array([e for e, _ in eb]).reshape(-1, 2)
     nees_b = [float(e @ np.linalg.solve(P, e)) for e, P in eb]
     rms = lambda a: float(np.sqrt(np.mean(a**2))) if a.size else math.nan  # noqa: E731
-    metrics = result.truth_metrics() if result.data.truth is not None and len(result.track_time) else {}
+    metrics = result.evaluation["truth"] if result.evaluation else {}
     n_meas = sum(v for k, v in result.counts.items() if k.endswith("_used"))
     return Score(
         estimator=result.estimator_name,
@@ -109,25 +112,27 @@ def markdown_table(scores: list[Score]) -> str:
 
 
 def run_comparison(data: ScenarioData, estimators: list[str] | tuple[str, ...] = DEFAULT_ESTIMATORS,
-                   options: ReplayOptions | None = None) -> dict[str, ReplayResult]:
-    """Replay ``data`` through each estimator with the same options."""
-    options = options or ReplayOptions.for_scenario(data)
-    return {name: replay(data, name, options) for name in estimators}
+                   config: RunConfig | None = None, progress: bool = True) -> dict[str, RunResult]:
+    """Run ``data`` through each estimator with otherwise the same settings."""
+    config = config or RunConfig()
+    return {name: run(data, attrs.evolve(config, estimator=name), progress=progress) for name in estimators}
 
 
-def _bias_error_series(result: ReplayResult, rid: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    idx = result.bias_radar == rid
+def _bias_error_series(result: RunResult, rid: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    b = result.biases
+    idx = b.radar == rid
     truth = np.asarray((result.data.truth_biases or {})[rid])
-    sd = np.sqrt(np.stack([result.bias_cov[idx, 0, 0], result.bias_cov[idx, 1, 1]], axis=-1))
-    return result.bias_time[idx], result.bias_value[idx] - truth, sd
+    sd = np.sqrt(np.stack([b.cov[idx, 0, 0], b.cov[idx, 1, 1]], axis=-1))
+    return b.time[idx], b.value[idx] - truth, sd
 
 
-def plot_bias_errors(results: dict[str, ReplayResult], path: Path | str) -> None:
+def plot_bias_errors(results: dict[str, RunResult], path: Path | str) -> None:
     """Bias error (estimate − truth) of every radar over time, one column per estimator, with ±2σ."""
     names = list(results)
     fig, axes = plt.subplots(2, len(names), figsize=(4.2 * len(names), 6), sharex=True, sharey="row", squeeze=False)
     any_result = results[names[0]]
-    t0 = float(any_result.bias_time[0]) if len(any_result.bias_time) else 0.0
+    bt = any_result.biases.time
+    t0 = float(bt[0]) if len(bt) else 0.0
     radars = [r for r in any_result.final_biases if r in (any_result.data.truth_biases or {})]
     for col, name in enumerate(names):
         for j, rid in enumerate(radars):
@@ -142,7 +147,7 @@ def plot_bias_errors(results: dict[str, ReplayResult], path: Path | str) -> None
     axes[1, 0].set_ylabel("azimuth bias error (deg)")
     for ax in axes.ravel():
         ax.axhline(0.0, color="k", lw=0.6)
-    t_half = t0 + 0.5 * (any_result.bias_time[-1] - t0) if len(any_result.bias_time) else t0
+    t_half = t0 + 0.5 * (bt[-1] - t0) if len(bt) else t0
     for row, scale in enumerate((1.0, math.degrees(1.0))):  # zoom on the second half: the prior spans far more
         late = [np.abs(e[t >= t_half, row]) for r in results.values() for rid in radars
                 for t, e, _ in [_bias_error_series(r, rid)]]
@@ -152,18 +157,16 @@ def plot_bias_errors(results: dict[str, ReplayResult], path: Path | str) -> None
     axes[0, 0].legend(fontsize=8, loc="upper right")
     fig.suptitle(f"{any_result.data.name}: bias estimation error with ±2σ (shaded) per estimator")
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save(fig, path, dpi=100)
 
 
-def rmse_vs_time(result: ReplayResult, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def rmse_vs_time(result: RunResult, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(aircraft position RMSE, bias range RMSE over radars) in each time bin."""
-    paths = TruthPaths.from_table(result.data.truth, result.plane)
-    err, ok = state_errors(paths, result.track_key, result.track_time, result.track_state)
+    err, ok = result.estimate_errors()
     d2 = np.sum(err[:, :2] ** 2, axis=1)
     pos = np.full(len(edges) - 1, np.nan)
     bias = np.full(len(edges) - 1, np.nan)
-    b = np.digitize(result.track_time, edges) - 1
+    b = np.digitize(result.tracks.time, edges) - 1
     radars = [r for r in result.final_biases if r in (result.data.truth_biases or {})]
     for k in range(len(edges) - 1):
         sel = ok & (b == k)
@@ -180,10 +183,10 @@ def rmse_vs_time(result: ReplayResult, edges: np.ndarray) -> tuple[np.ndarray, n
     return pos, bias
 
 
-def plot_rmse_vs_time(results: dict[str, ReplayResult], path: Path | str, bins: int = 40) -> None:
+def plot_rmse_vs_time(results: dict[str, RunResult], path: Path | str, bins: int = 40) -> None:
     """Aircraft position RMSE and bias range RMSE (over radars) against time, one line per estimator."""
     first = next(iter(results.values()))
-    t = first.track_time
+    t = first.tracks.time
     edges = np.linspace(t.min(), t.max() + 1e-9, bins + 1)
     mid = 0.5 * (edges[1:] + edges[:-1]) - edges[0]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
@@ -200,24 +203,27 @@ def plot_rmse_vs_time(results: dict[str, ReplayResult], path: Path | str, bins: 
         ax.legend()
     fig.suptitle(f"{first.data.name}: RMSE vs time")
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save(fig, path, dpi=100)
 
 
-def write_comparison(results: dict[str, ReplayResult], out: Path | str, prefix: str = "") -> list[Score]:
-    """Write ``{prefix}comparison.md``, ``scores.json`` and the two figures into ``out``."""
+COMPARISON_FILES = ("*comparison.md", "*scores.json", "*bias_error.png", "*rmse_vs_time.png")
+
+
+def write_comparison(results: dict[str, RunResult], out: Path | str, prefix: str = "") -> list[Score]:
+    """Write ``{prefix}comparison.md``, ``scores.json`` (strict JSON) and the two figures into ``out``."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     scores = [score(r) for r in results.values()]
-    (out / f"{prefix}comparison.md").write_text(markdown_table(scores) + "\n")
-    (out / f"{prefix}scores.json").write_text(json.dumps([attrs.asdict(s) for s in scores], indent=1))
+    write_text(out / f"{prefix}comparison.md", markdown_table(scores) + "\n")
+    write_text(out / f"{prefix}scores.json",
+               json.dumps(strict([attrs.asdict(s) for s in scores]), indent=1, allow_nan=False) + "\n")
     if _has_truth(results):
         plot_bias_errors(results, out / f"{prefix}bias_error.png")
         plot_rmse_vs_time(results, out / f"{prefix}rmse_vs_time.png")
     return scores
 
 
-def _has_truth(results: dict[str, ReplayResult]) -> bool:
+def _has_truth(results: dict[str, RunResult]) -> bool:
     """Whether the scenario carries the truth the figures need."""
     data = next(iter(results.values())).data
     return data.truth is not None and bool(data.truth_biases)

@@ -58,10 +58,18 @@ from radartracker.estimation.kalman import SingularInnovation
 from radartracker.estimation.motion import MotionModel
 from radartracker.estimation.base import Estimator, EstimatorConfig, PlaneMeasurement
 from radartracker.tracking.filters import MotionConfig, TrackFilter
-from radartracker.registry import make_estimator, make_filter_factory
+from radartracker.registry import available_estimators, make_estimator, make_filter_factory
 
 log = logging.getLogger(__name__)
 EVENT_KINDS = ("created", "confirmed", "updated", "coasting", "deleted")
+# exact estimators first, the scalable one before the dense one (docs/estimators.md); decoupled is a last resort
+PREFERRED_ESTIMATORS = ("coupled-sparse", "coupled", "blom", "decoupled")
+
+
+def default_estimator() -> str:
+    """The best installed estimator plugin: the first of ``PREFERRED_ESTIMATORS`` that is installed."""
+    installed = available_estimators()
+    return next((n for n in PREFERRED_ESTIMATORS if n in installed), installed[0] if installed else PREFERRED_ESTIMATORS[0])
 _ZERO2, _ZERO22 = np.zeros(2), np.zeros((2, 2))
 
 
@@ -69,7 +77,7 @@ _ZERO2, _ZERO22 = np.zeros(2), np.zeros((2, 2))
 class ManagerConfig:
     """Settings of the TrackManager (see the module docstring for what each stage does)."""
 
-    estimator: str = "decoupled"
+    estimator: str = attrs.field(factory=default_estimator)
     # aircraft turn: the estimator's CV model needs process noise, or it explains a turn by biases
     estimator_config: EstimatorConfig = attrs.field(factory=lambda: EstimatorConfig(motion=MotionModel(5.0)))
     motion_model: str = "cv"

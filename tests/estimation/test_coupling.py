@@ -92,11 +92,13 @@ def test_graphml_round_trip(tmp_path):
 
 def test_replay_writes_graphml_and_observability(tmp_path):
     """seed scenario (no ADS-B): radars share aircraft but are not anchored; demo: ADS-B anchors all."""
-    from radartracker.pipeline.replay import replay, write_outputs
+    from radartracker.pipeline.config import RunConfig
+    from radartracker.pipeline.run import run
+    from radartracker.pipeline.writer import write_outputs
     from radartracker.simulation.scenarios import build_scenario
 
     for name, status in (("seed", "relative"), ("demo", "anchored")):
-        result = replay(build_scenario(name, seed=3, duration=120.0).run(), "coupled")
+        result = run(build_scenario(name, seed=3, duration=120.0).run(), RunConfig(estimator="coupled"), progress=False)
         write_outputs(result, tmp_path / name)
         h = nx.read_graphml(tmp_path / name / "coupling.graphml")
         radars = {d["label"] for _, d in h.nodes(data=True) if d["kind"] == "radar"}

@@ -9,7 +9,8 @@ import pytest
 from radartracker.cli import main
 from radartracker.estimation.base import Estimator
 from radartracker.registry import available_estimators, load_estimator
-from radartracker.pipeline.replay import replay
+from radartracker.pipeline.config import RunConfig
+from radartracker.pipeline.run import run
 
 PLUGIN = '''
 import numpy as np
@@ -75,9 +76,9 @@ def test_throwaway_plugin_is_listed_and_used_by_name(throwaway_plugin, demo_data
     assert "frozen" in capsys.readouterr().out
     cls = load_estimator("frozen")
     assert issubclass(cls, Estimator)
-    result = replay(demo_data, "frozen")
+    result = run(demo_data, RunConfig(estimator="frozen"), progress=False)
     assert result.estimator_name == "frozen"
-    assert all(b[0][0] == 42.0 for b in result.final_biases.values())
+    assert all(b.bias[0] == 42.0 for b in result.final_biases.values())
     assert result.counts["plots_used"] == len(demo_data.plots)
 
 

@@ -114,13 +114,14 @@ def test_cat062_from_tracks_decodes(tmp_path):
 
 
 def test_cat062_from_a_replay(tmp_path, scenario):
-    from radartracker.pipeline import replay
-    result = replay.replay(scenario, "decoupled", replay.ReplayOptions.for_scenario(scenario))
+    from radartracker.pipeline.config import RunConfig
+    from radartracker.pipeline.run import run
+    result = run(scenario, RunConfig(association="labels", estimator="decoupled"), progress=False)
     numbers = write_cat062(tmp_path / "tracks.ast", result)
     got = [decode_cat062(r) for _, b in iter_datablocks(tmp_path / "tracks.ast") for r in decode_block(b, "t")[1]]
-    assert len(got) == len(result.track_time) > 0
-    assert [g["track_number"] for g in got] == [numbers[k] for k in result.track_key.tolist()]
-    assert np.all(np.abs(np.array([g["x_m"] for g in got]) - result.track_state[:, 0]) <= 0.25 + 1e-9)
+    assert len(got) == len(result.tracks) > 0
+    assert [g["track_number"] for g in got] == [numbers[k] for k in result.tracks.track.tolist()]
+    assert np.all(np.abs(np.array([g["x_m"] for g in got]) - result.tracks.state[:, 0]) <= 0.25 + 1e-9)
 
 
 def test_pcap_and_final_containers(tmp_path, scenario):

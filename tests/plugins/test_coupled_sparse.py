@@ -295,17 +295,19 @@ def test_invalid_configuration_and_prior_are_refused():
 
 def test_radar_added_after_aircraft_and_replay_matches_dense():
     """Growing the radar set mid-run keeps the blocks; the replay loop gives the dense filter's biases."""
-    from radartracker.pipeline.replay import replay
+    from radartracker.pipeline.config import RunConfig
+    from radartracker.pipeline.run import run
     from radartracker.simulation.scenarios import build_scenario
 
     data = build_scenario("demo", seed=2, duration=240.0).run()
-    res = {name: replay(data, name) for name in ("coupled", "coupled-sparse")}
-    for rid, (b, P) in res["coupled"].final_biases.items():
-        bs, Ps = res["coupled-sparse"].final_biases[rid]
+    res = {name: run(data, RunConfig(estimator=name), progress=False) for name in ("coupled", "coupled-sparse")}
+    for rid, est in res["coupled"].final_biases.items():
+        b, P = est.bias, est.cov
+        bs, Ps = res["coupled-sparse"].final_biases[rid].bias, res["coupled-sparse"].final_biases[rid].cov
         sd = np.sqrt(np.diag(P))
         assert np.all(np.abs(bs - b) < 1e-8 * sd)
         assert_same_cov(P, Ps, 1e-8)
-    np.testing.assert_allclose(res["coupled-sparse"].track_state, res["coupled"].track_state, rtol=0, atol=1e-4)
+    np.testing.assert_allclose(res["coupled-sparse"].tracks.state, res["coupled"].tracks.state, rtol=0, atol=1e-4)
 
     sc = make_linear_scenario(n_aircraft=3, n_radars=3, duration=60.0, rng=4)
     dense = make_estimator("coupled", None, sc.radar_ids[:1])

@@ -9,7 +9,10 @@ from filterpy.kalman import KalmanFilter
 from radartracker.estimation.motion import MotionModel
 from radartracker.estimation.base import EstimatorConfig, PlaneMeasurement
 from radartracker.registry import load_estimator
-from radartracker.pipeline.replay import ReplayOptions, prepare, replay
+from radartracker.estimation.measurement import convert_adsb, convert_plots, fill_altitudes, merge, plot_keys
+from radartracker.geometry.plane import SystemPlane
+from radartracker.pipeline.config import RunConfig
+from radartracker.pipeline.run import run
 
 
 def single_aircraft_measurements(n=120, seed=0):
@@ -75,8 +78,11 @@ def test_replay_beats_raw_plots(demo_data):
     """Tracks are closer to the truth than the converted plots themselves (independent truth)."""
     from radartracker.pipeline.evaluate import TruthPaths, state_errors
 
-    result = replay(demo_data, "decoupled")
-    plane, meas, _ = prepare(demo_data, ReplayOptions.for_scenario(demo_data))
+    result = run(demo_data, RunConfig(estimator="decoupled"), progress=False)
+    plane = SystemPlane(*demo_data.reference)
+    keys = plot_keys(demo_data.plots, True)
+    alt, _ = fill_altitudes(demo_data.plots, keys, 0.0)
+    meas = merge(convert_plots(demo_data.plots, demo_data.radars, plane, keys, alt), convert_adsb(demo_data.adsb, plane))
     paths = TruthPaths.from_table(demo_data.truth, plane)
     raw = np.zeros((len(meas), 4))
     raw[:, :2] = meas.z
@@ -87,6 +93,6 @@ def test_replay_beats_raw_plots(demo_data):
     assert s["truth"]["position_rmse_m"] < 0.6 * raw_rmse
     assert s["counts"]["plots_used"] == len(demo_data.plots)
     assert s["counts"]["adsb_used"] == len(demo_data.adsb)
-    for P in result.track_cov[:: 97]:
+    for P in result.tracks.cov[:: 97]:
         np.testing.assert_array_equal(P, P.T)
         assert np.all(np.isfinite(P))

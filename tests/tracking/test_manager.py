@@ -15,7 +15,9 @@ from radartracker.domain import AdsbReport, Plot
 from radartracker.tracking.manager import ManagerConfig, TrackManager
 from radartracker.estimation.base import PlaneMeasurement
 from radartracker.simulation.scenarios import build_scenario
-from radartracker.pipeline.track_replay import scenario_items, track_replay
+from radartracker.pipeline.config import RunConfig
+from radartracker.pipeline.run import run
+from radartracker.pipeline.stream import scenario_stream
 
 
 @pytest.fixture(scope="module")
@@ -25,7 +27,7 @@ def tracking_data():
 
 @pytest.fixture(scope="module")
 def tracking_result(tracking_data):
-    return track_replay(tracking_data, ManagerConfig(estimator="coupled"))
+    return run(tracking_data, RunConfig(association="manager", estimator="coupled"), progress=False)
 
 
 def test_crossing_parallel_turns_false_plots(tracking_result, tracking_data):
@@ -48,7 +50,7 @@ def test_biases_estimated_while_tracking(tracking_result, tracking_data):
 
 
 def test_every_input_accounted_for(tracking_result, tracking_data):
-    counts = tracking_result.manager.accounting()
+    counts = tracking_result.counts
     assert sum(counts.values()) == len(tracking_data.plots) + len(tracking_data.adsb)
     false_plots = sum(t is None for t in tracking_data.plots.target)
     assert counts["plots_in_dropped_tentative_tracks"] + counts.get("plots_in_tentative_tracks", 0) >= 0.9 * false_plots
@@ -57,7 +59,7 @@ def test_every_input_accounted_for(tracking_result, tracking_data):
 def test_events_returned_and_called_back(tracking_data):
     seen = []
     mgr = TrackManager(tracking_data.radars, tracking_data.reference, ManagerConfig(), on_event=seen.append)
-    items = [i for i in scenario_items(tracking_data) if i.time < 200]
+    items = [i for i in scenario_stream(tracking_data) if i.time < 200]
     returned = mgr.process_many(items)
     assert returned == seen and {e.kind for e in returned} >= {"created", "confirmed", "updated", "deleted"}
     confirmed = {e.track for e in returned if e.kind == "confirmed"}
@@ -65,7 +67,7 @@ def test_events_returned_and_called_back(tracking_data):
 
 
 def test_out_of_order_within_window_late_and_duplicates(tracking_data):
-    items = [i for i in scenario_items(tracking_data) if i.time < 150]
+    items = [i for i in scenario_stream(tracking_data) if i.time < 150]
     ref = TrackManager(tracking_data.radars, tracking_data.reference)
     ref_events = ref.process_many(items)
     rng = random.Random(3)
@@ -95,9 +97,9 @@ def test_snapshot_restore_in_a_fresh_process(tmp_path, tracking_data):
         import pickle, sys
         from radartracker.io.scenario import read_scenario
         from radartracker.tracking.manager import ManagerConfig, TrackManager
-        from radartracker.pipeline.track_replay import scenario_items
+        from radartracker.pipeline.stream import scenario_stream
         data = read_scenario({str(tmp_path / 'scen')!r})
-        items = [i for i in scenario_items(data) if i.time < 400]
+        items = [i for i in scenario_stream(data) if i.time < 400]
         half = len(items) // 2
         if sys.argv[1] == "first":
             mgr = TrackManager(data.radars, data.reference, ManagerConfig(estimator="coupled"))
@@ -133,7 +135,7 @@ def test_snapshot_restore_in_a_fresh_process(tmp_path, tracking_data):
 
 def test_triangulated_position_feeds_a_track(tracking_data):
     """An unbiased position with covariance (e.g. a fix) is associated by gating and used."""
-    items = [i for i in scenario_items(tracking_data) if i.time < 120]
+    items = [i for i in scenario_stream(tracking_data) if i.time < 120]
     mgr = TrackManager(tracking_data.radars, tracking_data.reference)
     mgr.process_many(items)
     tr = next(t for t in mgr.tracks.values() if t.status == "confirmed" and t.mode_s is None)
@@ -159,7 +161,7 @@ def _garbage():
 @settings(max_examples=25, deadline=None)
 @given(_garbage())
 def test_garbage_never_corrupts_state(tracking_data, junk):
-    items = [i for i in scenario_items(tracking_data) if i.time < 60]
+    items = [i for i in scenario_stream(tracking_data) if i.time < 60]
     mgr = TrackManager(tracking_data.radars, tracking_data.reference, ManagerConfig(estimator="coupled"))
     stream = list(items)
     for k, g in enumerate(junk):

@@ -1,0 +1,141 @@
+"""``radartracker replay`` and ``radartracker demo``: one run of the pipeline (radartracker.pipeline.run).
+
+Every option of ``replay`` is either honoured on both associations or refused with a
+ConfigurationError naming it; the effective settings go to ``OUT/config.json``, and
+``replay SCENARIO --config OUT/config.json --out OUT2`` runs the same again (options given on the
+command line override the file's).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import attrs
+
+from radartracker.errors import ConfigurationError
+from radartracker.pipeline.config import ASSOCIATIONS, DEFAULT_Q, RunConfig, check_number
+
+
+def add_run_options(p: argparse.ArgumentParser, *, estimator_options: bool = True) -> None:
+    """The options shared by ``replay`` and ``compare`` (``None`` defaults: the config file's or the default)."""
+    p.add_argument("--q", type=str, default=None,
+                   help=f"aircraft process noise density q (m²/s³) for the estimator and the track filters "
+                        f"(default {DEFAULT_Q:g}; 0 is the seed's noiseless model)")
+    p.add_argument("--association", choices=ASSOCIATIONS, default=None,
+                   help="labels: by truth label / Mode S address (evaluation); manager: the TrackManager; "
+                        "auto (default): labels when every plot carries one")
+    p.add_argument("--manager", action="store_true", help="same as --association manager")
+    p.add_argument("--motion-model", default=None,
+                   help="track filter plugin for --association manager (cv, imm, adaptive, fading; "
+                        "default: ManagerConfig's); refused on the labelled path, which has no track filters")
+    p.add_argument("--motion-option", action="append", default=[], metavar="KEY=VALUE",
+                   help="a setting of the motion model (repeatable; see `radartracker estimators`)")
+    if estimator_options:
+        p.add_argument("--estimator-option", action="append", default=[], metavar="KEY=VALUE",
+                       help="an option of the estimator plugin (repeatable; see `radartracker estimators`)")
+    p.add_argument("--skip-bad", action="store_true", default=None,
+                   help="skip (and count) malformed input rows instead of stopping")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an earlier run's outputs in --out (otherwise a non-empty folder is refused)")
+    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
+                   help="no progress bars, no library logs; errors only")
+
+
+def run_config(args: argparse.Namespace, base: RunConfig | None = None) -> RunConfig:
+    """The RunConfig of the parsed options on top of ``base`` (a config file's, or the defaults)."""
+    from radartracker.registry import parse_key_values
+
+    base = base or RunConfig()
+    changes: dict = {}
+    if args.q is not None:
+        changes["q"] = check_number("--q", args.q, lo=0.0)
+    association = "manager" if args.manager else args.association
+    if args.manager and args.association not in (None, "manager"):
+        raise ConfigurationError(f"--manager contradicts --association {args.association}")
+    if association is not None:
+        changes["association"] = association
+    if args.motion_model is not None:
+        changes["motion_model"] = args.motion_model
+    if args.motion_option:
+        changes["motion_options"] = base.motion_options | parse_key_values(args.motion_option, "--motion-option")
+    if getattr(args, "estimator_option", None):
+        changes["estimator_options"] = base.estimator_options | parse_key_values(args.estimator_option,
+                                                                                 "--estimator-option")
+    if getattr(args, "estimator", None) is not None:
+        if args.estimator != base.estimator and "estimator_options" not in changes:
+            changes["estimator_options"] = {}  # another plugin: the file's options were the other one's
+        changes["estimator"] = args.estimator
+    if args.skip_bad:
+        changes["skip_bad"] = True
+    if changes.get("association", base.association) != base.association:  # drop the other path's settings
+        if changes["association"] == "manager":
+            changes["labels"] = None
+        else:
+            changes.update(manager={})
+            changes.setdefault("motion_model", None)
+            changes.setdefault("motion_options", {})
+    return attrs.evolve(base, **changes)
+
+
+def register_replay(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("replay", help="replay a scenario folder or ASTERIX recording through the pipeline")
+    p.add_argument("scenario", type=Path, help="scenario folder or ASTERIX recording (see docs/formats.md)")
+    p.add_argument("--out", type=Path, required=True, help="output folder (new or empty; see --overwrite)")
+    p.add_argument("--config", type=Path, default=None,
+                   help="settings from an earlier run's config.json (options given here override them)")
+    p.add_argument("--estimator", default=None, help="estimator plugin (default: the best installed, coupled-sparse)")
+    add_run_options(p)
+    p.add_argument("--plots", action="store_true", help="also write figures (biases.png, tracks.png)")
+    p.set_defaults(func=_cmd_replay)
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from radartracker.io.sources import read_source
+    from radartracker.pipeline.config import read_config
+    from radartracker.pipeline.run import run
+    from radartracker.pipeline.writer import prepare, write_outputs
+
+    config = run_config(args, read_config(args.config) if args.config is not None else None)
+    out = prepare(args.out, overwrite=args.overwrite)  # before the computation: fail early, not after it
+    data = read_source(args.scenario, skip_bad=config.skip_bad)
+    result = run(data, config, progress=not getattr(args, "quiet", False))
+    write_outputs(result, out, figures=args.plots)
+    print(f"{result.config.association} association, estimator {result.config.estimator}"
+          + (f", motion model {result.config.motion_model}" if result.config.motion_model else ""))
+    print(result.summary_table())
+    print(f"outputs in {out}")
+    return 0
+
+
+def register_demo(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("demo", help="simulate and replay a built-in scenario; print true vs estimated biases")
+    p.add_argument("--estimator", default=None, help="estimator plugin (default: the best installed)")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--out", type=Path, default=None, help="also keep the scenario and outputs here (new or empty)")
+    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS, help="no progress bars, no library logs")
+    p.set_defaults(func=_cmd_demo)
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    import tempfile
+
+    from radartracker.io.scenario import write_scenario
+    from radartracker.io.sources import read_source
+    from radartracker.pipeline.run import run
+    from radartracker.pipeline.writer import prepare, write_outputs
+    from radartracker.simulation.scenarios import build_scenario
+
+    with tempfile.TemporaryDirectory() as tmp:
+        root = args.out or Path(tmp)
+        out = prepare(root / "replay")
+        scen_dir = root / "scenario"
+        data = build_scenario("demo", seed=args.seed).run()
+        write_scenario(scen_dir, data)
+        data = read_source(scen_dir)  # through the public file format, as a user would
+        result = run(data, RunConfig(estimator=args.estimator), progress=not getattr(args, "quiet", False))
+        print(f"demo: scenario 'demo' ({len(data.radars)} radars, {len(data.plots)} plots, "
+              f"{len(data.adsb)} ADS-B reports), estimator '{result.estimator_name}'")
+        write_outputs(result, out, figures=args.out is not None)
+        print(result.summary_table())
+    return 0

@@ -1,0 +1,215 @@
+"""Every setting of a run, as one value that ``config.json`` records and reads back.
+
+:class:`RunConfig` is what a user chooses (``None`` = "the default"); :func:`resolve` turns it into
+the *effective* configuration for one scenario — association, estimator and motion model named,
+every default filled in — which the run uses and writes to ``config.json``. Reading that file back
+(:func:`read_config`) and running again reproduces the run exactly (docs/formats.md).
+
+Numbers are validated when the configuration is built: a non-finite or out-of-range value raises
+:class:`ConfigurationError` naming the option.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import attrs
+
+from radartracker.errors import ConfigurationError
+from radartracker.estimation.base import EstimatorConfig
+from radartracker.io.tables import ScenarioData
+from radartracker.tracking.manager import ManagerConfig
+
+CONFIG_FORMAT = "radartracker-run-config"
+CONFIG_VERSION = 1
+DEFAULT_Q = 5.0  # m²/s³: real aircraft turn; with the seed's q = 0 a manoeuvre is explained away as bias
+ASSOCIATIONS = ("auto", "labels", "manager")
+
+
+def check_number(option: str, value: Any, *, lo: float | None = None, lo_open: bool = False,
+                 hi: float | None = None, integer: bool = False) -> float | int:
+    """``value`` as a finite number within bounds, or a ConfigurationError naming ``option``."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ConfigurationError(f"{option}: {value!r} is not a number") from None
+    if not math.isfinite(number):
+        raise ConfigurationError(f"{option}: {value!r} is not finite")
+    if integer and number != int(number):
+        raise ConfigurationError(f"{option}: {value!r} is not an integer")
+    if lo is not None and (number <= lo if lo_open else number < lo):
+        raise ConfigurationError(f"{option}: {value!r} must be {'>' if lo_open else '>='} {lo}")
+    if hi is not None and number > hi:
+        raise ConfigurationError(f"{option}: {value!r} must be <= {hi}")
+    return int(number) if integer else number
+
+
+def _str_dict(value: Mapping[str, Any] | None) -> dict[str, str]:
+    return {str(k): str(v) for k, v in (value or {}).items()}
+
+
+def _q(inst: Any, attr: attrs.Attribute, value: float) -> None:
+    check_number("--q", value, lo=0.0)
+
+
+def _optional_positive(option: str):
+    def check(inst: Any, attr: attrs.Attribute, value: float | None) -> None:
+        if value is not None:
+            check_number(option, value, lo=0.0, lo_open=True)
+    return check
+
+
+def _scalar_fields(cls: type, exclude: tuple[str, ...] = ()) -> dict[str, Any]:
+    """Name → default of the scalar (number, text, flag) fields of an attrs class."""
+    out = {}
+    for f in attrs.fields(cls):
+        default = f.default.factory() if isinstance(f.default, attrs.Factory) else f.default
+        if f.name not in exclude and isinstance(default, (int, float, str, bool)):
+            out[f.name] = default
+    return out
+
+
+def _typed_overrides(what: str, defaults: dict[str, Any], given: Mapping[str, Any]) -> dict[str, Any]:
+    """``given`` checked against ``defaults``: known names, numbers finite and ≥ 0, integers where integer."""
+    out = {}
+    for name, value in given.items():
+        if name not in defaults:
+            raise ConfigurationError(f"{what}: unknown setting {name!r}; known: {', '.join(sorted(defaults))}")
+        d = defaults[name]
+        if isinstance(d, bool) or isinstance(d, str):
+            out[name] = type(d)(value)
+        else:
+            out[name] = check_number(f"{what}.{name}", value, lo=0.0, integer=isinstance(d, int))
+    return out
+
+
+MANAGER_SETTINGS = _scalar_fields(ManagerConfig, exclude=("estimator", "motion_model", "primary_altitude_m"))
+ESTIMATOR_SETTINGS = _scalar_fields(EstimatorConfig)
+
+
+@attrs.frozen
+class LabelsConfig:
+    """Track life cycle of the association by truth label / Mode S address (evaluation path).
+
+    A track starts at its first measurement z with the prior N([z, 0, 0], diag(σ_p², σ_p², σ_v², σ_v²))
+    and ends (is marginalised) after ``drop_after_s`` without measurements (``None``: three times the
+    longest antenna period plus 30 s).
+    """
+
+    prior_sd_position_m: float = attrs.field(default=10_000.0, validator=_optional_positive("prior_sd_position_m"))
+    prior_sd_velocity_mps: float = attrs.field(default=300.0, validator=_optional_positive("prior_sd_velocity_mps"))
+    drop_after_s: float | None = attrs.field(default=None, validator=_optional_positive("drop_after_s"))
+
+
+@attrs.frozen
+class RunConfig:
+    """Every setting of one run (``None``: the default, filled in by :func:`resolve`).
+
+    ``association``: ``labels`` (truth labels, else Mode S addresses — for evaluation), ``manager``
+    (the TrackManager) or ``auto`` (labels when every plot carries one). ``estimator`` /
+    ``motion_model``: plugin names with their ``KEY=VALUE`` options. ``q`` (m²/s³): the aircraft
+    white-acceleration density, for the estimator and the track filters alike. ``default_altitude_m``:
+    the altitude assumed for a plot whose aircraft never reports one. ``bias_log_interval_s``: the
+    least time between two rows of one radar in ``biases.csv``. ``estimator_config`` / ``manager``:
+    overrides of :class:`EstimatorConfig` / :class:`ManagerConfig` numbers; ``labels`` the labelled
+    path's track life cycle. Settings of a path not taken are refused, never silently ignored.
+    """
+
+    association: str = attrs.field(default="auto", validator=attrs.validators.in_(ASSOCIATIONS))
+    estimator: str | None = None
+    estimator_options: dict[str, str] = attrs.field(factory=dict, converter=_str_dict)
+    motion_model: str | None = None
+    motion_options: dict[str, str] = attrs.field(factory=dict, converter=_str_dict)
+    q: float = attrs.field(default=DEFAULT_Q, converter=float, validator=_q)
+    default_altitude_m: float | None = attrs.field(default=None)
+    bias_log_interval_s: float = attrs.field(default=1.0, validator=_optional_positive("bias_log_interval_s"))
+    skip_bad: bool = False
+    estimator_config: dict[str, float] = attrs.field(factory=dict)
+    manager: dict[str, Any] = attrs.field(factory=dict)
+    labels: LabelsConfig | None = None
+
+    def __attrs_post_init__(self) -> None:
+        if self.default_altitude_m is not None:
+            check_number("default_altitude_m", self.default_altitude_m)
+        _typed_overrides("estimator_config", ESTIMATOR_SETTINGS, self.estimator_config)
+        _typed_overrides("manager", MANAGER_SETTINGS, self.manager)
+
+    def estimator_settings(self) -> EstimatorConfig:
+        """The :class:`EstimatorConfig` of this run (motion model of density ``q``)."""
+        from radartracker.estimation.motion import MotionModel
+
+        values = _typed_overrides("estimator_config", ESTIMATOR_SETTINGS, self.estimator_config)
+        return EstimatorConfig(motion=MotionModel(self.q), **values)
+
+    def to_json(self) -> str:
+        """``config.json``: format, version and every setting."""
+        return json.dumps({"format": CONFIG_FORMAT, "version": CONFIG_VERSION, "settings": attrs.asdict(self)},
+                          indent=1, allow_nan=False) + "\n"
+
+
+def default_altitude() -> float:
+    """The altitude assumed for plots without one, on both paths (ManagerConfig holds the value)."""
+    return ManagerConfig().primary_altitude_m
+
+
+def resolve(config: RunConfig, data: ScenarioData, estimator_name: str) -> RunConfig:
+    """The effective configuration for ``data``: every choice named, every default written out.
+
+    Settings of the path not taken raise :class:`ConfigurationError` (``--motion-model`` on the
+    labelled path: there the estimator itself carries the aircraft motion, a CV model of density q).
+    """
+    association = config.association
+    if association == "auto":
+        association = "labels" if data.plots.has_truth_labels else "manager"
+    if association == "labels":
+        if config.motion_model is not None or config.motion_options:
+            raise ConfigurationError(
+                "--motion-model/--motion-option: the labelled replay has no track filters (the estimator "
+                "carries the aircraft motion, constant velocity with --q); use --association manager")
+        if config.manager:
+            raise ConfigurationError(f"manager settings {sorted(config.manager)} need --association manager")
+        labels = config.labels or LabelsConfig()
+        if labels.drop_after_s is None:
+            labels = attrs.evolve(labels, drop_after_s=3.0 * max(r.period_s for r in data.radars) + 30.0)
+        manager: dict[str, Any] = {}
+        motion = None
+    else:
+        if config.labels is not None:
+            raise ConfigurationError("labels settings (track prior, drop_after_s) need --association labels")
+        labels = None
+        manager = MANAGER_SETTINGS | _typed_overrides("manager", MANAGER_SETTINGS, config.manager)
+        motion = config.motion_model or ManagerConfig().motion_model
+    return attrs.evolve(
+        config, association=association, estimator=estimator_name, motion_model=motion, labels=labels,
+        manager=manager, default_altitude_m=default_altitude() if config.default_altitude_m is None
+        else float(config.default_altitude_m),
+        estimator_config=ESTIMATOR_SETTINGS | _typed_overrides("estimator_config", ESTIMATOR_SETTINGS,
+                                                               config.estimator_config))
+
+
+def read_config(path: Path | str) -> RunConfig:
+    """A :class:`RunConfig` from a ``config.json`` written by an earlier run."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8-sig"))
+    except json.JSONDecodeError as exc:
+        raise ConfigurationError(f"{path}: not JSON ({exc.msg}, line {exc.lineno})") from None
+    if not isinstance(doc, dict) or doc.get("format") != CONFIG_FORMAT:
+        raise ConfigurationError(f"{path}: not a radartracker run configuration (no \"format\": \"{CONFIG_FORMAT}\")")
+    if doc.get("version") != CONFIG_VERSION:
+        raise ConfigurationError(f"{path}: configuration version {doc.get('version')!r}; this release reads "
+                                 f"{CONFIG_VERSION}")
+    settings = dict(doc.get("settings") or {})
+    known = {f.name for f in attrs.fields(RunConfig)}
+    if unknown := sorted(set(settings) - known):
+        raise ConfigurationError(f"{path}: unknown setting(s) {', '.join(unknown)}")
+    if isinstance(settings.get("labels"), dict):
+        settings["labels"] = LabelsConfig(**settings["labels"])
+    try:
+        return RunConfig(**settings)
+    except (TypeError, ValueError) as exc:
+        raise ConfigurationError(f"{path}: {exc}") from None

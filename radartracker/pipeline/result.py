@@ -1,0 +1,211 @@
+"""What a run produced — one type for both associations — and its evaluation against the truth.
+
+``summary.json`` (docs/formats.md) is :meth:`RunResult.summary`: settings, reference point, input
+accounting, final biases with their errors and z-scores against ``truth_biases.csv``, the estimates'
+errors against ``truth.csv`` (RMSE, NEES) and the track metrics (continuity, breaks, swaps, false
+tracks, GOSPA; :func:`radartracker.pipeline.evaluate.track_metrics`), and a consistency check:
+
+* mean NEES of the track estimates against the truth (4 degrees of freedom: expected 4);
+* mean NIS of the estimator's innovations (2 degrees of freedom: expected 2; labelled path).
+
+Consecutive estimates of one aircraft are strongly correlated, so a χ² bound on the mean would be
+far too tight; a mean more than :data:`CONSISTENCY_FACTOR` times off its expectation (either way)
+gives a warning in the log and in ``summary.json``.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import math
+
+import attrs
+import numpy as np
+
+from radartracker.domain import BiasState
+from radartracker.estimation.coupling import CouplingGraph
+from radartracker.geometry.plane import SystemPlane
+from radartracker.io.tables import ScenarioData
+from radartracker.pipeline.config import RunConfig
+from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, nees, state_errors, track_metrics
+from radartracker.pipeline.recorder import BiasLog, Events
+
+log = logging.getLogger(__name__)
+CONSISTENCY_FACTOR = 2.0
+GRACE_S = 20.0  # a target counts as observed this long after its first plot (M-of-N confirmation)
+
+
+def strict(value):
+    """``value`` with every non-finite float replaced by ``None`` (strict JSON: null, never NaN)."""
+    if isinstance(value, dict):
+        return {str(k): strict(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [strict(v) for v in value]
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
+
+
+def _fmt(value: float | None, spec: str) -> str:
+    return "-".rjust(int(spec.split(".")[0] or 0)) if value is None else format(value, spec)
+
+
+@attrs.define
+class RunResult:
+    """A run's events (track estimates among them), bias history, final biases, counts and timing.
+
+    ``config`` is the effective configuration (what ``config.json`` holds); ``plugins`` the estimator's
+    and motion model's effective typed settings.
+    """
+
+    data: ScenarioData
+    config: RunConfig
+    plane: SystemPlane
+    events: Events
+    biases: BiasLog
+    final_biases: dict[str, BiasState]
+    counts: dict[str, int]
+    seconds: float
+    nis: np.ndarray
+    coupling: CouplingGraph
+    plugins: dict = attrs.field(factory=dict)
+
+    @property
+    def estimator_name(self) -> str:
+        return str(self.config.estimator)
+
+    @functools.cached_property
+    def tracks(self) -> Events:
+        """The track estimates (events ``confirmed`` and ``updated``), as in ``tracks.csv``."""
+        return self.events.estimates()
+
+    def histories(self) -> dict[int, TrackHistory]:
+        """Each track's estimates and life span (created to deleted, or to its last estimate)."""
+        ev, est = self.events, self.tracks
+        out = {}
+        for tid in np.unique(est.track):
+            sel = est.track == tid
+            dead = ev.time[(ev.track == tid) & (ev.kind == "deleted")]
+            t = est.time[sel]
+            out[int(tid)] = TrackHistory(t, est.state[sel], float(t[0]), float(dead[0]) if len(dead) else float(t[-1]))
+        return out
+
+    @functools.cached_property
+    def _assessment(self) -> tuple[dict, np.ndarray, np.ndarray] | None:
+        d, est = self.data, self.tracks
+        if d.truth is None or not len(est):
+            return None
+        paths = TruthPaths.from_table(d.truth, self.plane)
+        labelled = np.array([t is not None for t in d.plots.target], bool)
+        spans = ({tg: d.plots.time[d.plots.target == tg] for tg in np.unique(d.plots.target[labelled].astype(str))}
+                 if labelled.any() else {tg: p[0] for tg, p in paths.paths.items()})
+        observed = {tg: (float(t.min()) + GRACE_S, float(t.max())) for tg, t in spans.items() if t.max() - t.min() > GRACE_S}
+        grid = np.arange(d.truth.time.min(), d.truth.time.max(), 2.0)
+        tracking = track_metrics(self.histories(), paths, observed, grid)
+        tracking.pop("gospa")
+        # the target of each estimate: its truth label, else the target its track was assigned to
+        owner = {v["right_track"]: tg for tg, v in tracking["per_target"].items() if v["right_track"] >= 0}
+        target = np.array([str(tg) if tg is not None else owner.get(int(k), "") for tg, k in zip(est.target, est.track)],
+                          object)
+        err, ok = state_errors(paths, target, est.time, est.state)
+        return tracking, err, ok
+
+    def estimate_errors(self) -> tuple[np.ndarray, np.ndarray]:
+        """Estimate − truth (N, 4) of each track estimate and the mask of those with a truth to compare."""
+        a = self._assessment
+        n = len(self.tracks)
+        return (a[1], a[2]) if a else (np.full((n, 4), np.nan), np.zeros(n, bool))
+
+    @functools.cached_property
+    def evaluation(self) -> dict | None:
+        """``{"truth": …, "tracking": …}`` against ``truth.csv``; ``None`` without truth or estimates."""
+        if self._assessment is None:
+            return None
+        tracking, err, ok = self._assessment
+        e, cov = err[ok], self.tracks.cov[ok]
+        finite = np.isfinite(cov).all(axis=(1, 2))
+        truth = {
+            "estimates_compared": int(ok.sum()),
+            "position_rmse_m": float(np.sqrt(np.mean(np.sum(e[:, :2] ** 2, axis=1)))) if len(e) else math.nan,
+            "velocity_rmse_mps": float(np.sqrt(np.mean(np.sum(e[:, 2:] ** 2, axis=1)))) if len(e) else math.nan,
+            "mean_nees": float(np.mean(nees(e[finite], cov[finite]))) if finite.any() else math.nan,
+        }
+        return {"truth": truth, "tracking": tracking}
+
+    def consistency(self) -> dict:
+        """Mean NEES and NIS against their expectations, with warnings when far off (module docstring)."""
+        ev = self.evaluation
+        out = {"mean_nees": ev["truth"]["mean_nees"] if ev else math.nan, "expected_nees": 4.0,
+               "mean_nis": float(np.mean(self.nis)) if len(self.nis) else math.nan, "expected_nis": 2.0,
+               "warnings": []}
+        for what, dof in (("nees", 4.0), ("nis", 2.0)):
+            value = out[f"mean_{what}"]
+            if math.isfinite(value) and not dof / CONSISTENCY_FACTOR <= value <= dof * CONSISTENCY_FACTOR:
+                out["warnings"].append(
+                    f"mean {what.upper()} {value:.2f} against {dof:.0f} expected: the "
+                    f"{'filter is optimistic (covariance too small; raise q?)' if value > dof else 'filter is pessimistic'}")
+        return out
+
+    def bias_entry(self, rid: str) -> dict:
+        """One radar's final bias, its σ and, with ``truth_biases.csv``, the truth, error and z-score."""
+        b = self.final_biases[rid]
+        entry = {"range_bias_m": b.range_m, "azimuth_bias_deg": math.degrees(b.azimuth_rad),
+                 "sd_range_m": b.sd_range_m, "sd_azimuth_deg": math.degrees(b.sd_azimuth_rad),
+                 "true_range_bias_m": None, "true_azimuth_bias_deg": None, "error_range_m": None,
+                 "error_azimuth_deg": None, "z_range": None, "z_azimuth": None}
+        if rid in (self.data.truth_biases or {}):
+            tr, ta = self.data.truth_biases[rid]
+            entry.update({"true_range_bias_m": tr, "true_azimuth_bias_deg": math.degrees(ta),
+                          "error_range_m": b.range_m - tr, "error_azimuth_deg": math.degrees(b.azimuth_rad - ta),
+                          "z_range": (b.range_m - tr) / b.sd_range_m if b.sd_range_m else math.nan,
+                          "z_azimuth": (b.azimuth_rad - ta) / b.sd_azimuth_rad if b.sd_azimuth_rad else math.nan})
+        return entry
+
+    def summary(self) -> dict:
+        """The contents of ``summary.json`` (docs/formats.md); strict JSON values."""
+        n_meas = sum(v for k, v in self.counts.items() if k.endswith("_used"))
+        ev = self.evaluation
+        c = self.config
+        return strict({
+            "scenario": self.data.name,
+            "association": c.association,
+            "estimator": c.estimator,
+            "motion_model": c.motion_model,
+            "q": c.q,
+            "reference": {"lat": self.data.reference[0], "lon": self.data.reference[1]},
+            "counts": dict(self.counts),
+            "skipped_input_rows": dict(self.data.skipped),
+            "seconds": self.seconds,
+            "seconds_per_measurement": self.seconds / max(n_meas, 1),
+            "tracks": int(len(np.unique(self.tracks.track))),
+            "consistency": self.consistency(),
+            "biases": {rid: self.bias_entry(rid) for rid in self.final_biases},
+            "truth": ev["truth"] if ev else None,
+            "tracking": ev["tracking"] if ev else None,
+            "observability": self.coupling.report(),
+        })
+
+    def summary_table(self) -> str:
+        """Biases (true, estimated, σ, z) and the evaluation as text."""
+        s = self.summary()
+        f = _fmt
+        lines = [f"{'radar':<8} {'range bias m':>30} {'azimuth bias deg':>34}",
+                 f"{'':<8} {'true':>8} {'est':>8} {'±σ':>6} {'z':>5} {'true':>8} {'est':>9} {'±σ':>7} {'z':>6}"]
+        for rid, b in s["biases"].items():
+            lines.append(f"{rid:<8} {f(b['true_range_bias_m'], '8.1f')} {f(b['range_bias_m'], '8.1f')} "
+                         f"{f(b['sd_range_m'], '6.1f')} {f(b['z_range'], '5.2f')} {f(b['true_azimuth_bias_deg'], '8.3f')} "
+                         f"{f(b['azimuth_bias_deg'], '9.4f')} {f(b['sd_azimuth_deg'], '7.4f')} {f(b['z_azimuth'], '6.2f')}")
+        if s["truth"]:
+            tm, tk = s["truth"], s["tracking"]
+            lines.append(f"position RMSE {f(tm['position_rmse_m'], '.1f')} m, velocity RMSE "
+                         f"{f(tm['velocity_rmse_mps'], '.2f')} m/s, mean NEES {f(tm['mean_nees'], '.2f')} (4 expected); "
+                         f"{s['tracks']} tracks, {tk['breaks']} breaks, {tk['swaps']} swaps, "
+                         f"{tk['false_tracks']} false tracks")
+        lines += [f"warning: {w}" for w in s["consistency"]["warnings"]]
+        c = s["counts"]
+        lines.append(f"{c.get('plots_used', 0)} plots and {c.get('adsb_used', 0)} ADS-B reports used in "
+                     f"{s['seconds']:.2f} s; not used: "
+                     + (", ".join(f"{k} {v}" for k, v in c.items() if not k.endswith('_used')) or "none"))
+        return "\n".join(lines)

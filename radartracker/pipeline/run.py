@@ -1,0 +1,203 @@
+"""One pipeline: a scenario through an association, a bias estimator and (with the TrackManager)
+track filters, into one recorder and one result (:class:`RunResult`).
+
+What differs between evaluation and operation is the *association*, a component chosen in
+:class:`RunConfig`:
+
+* ``labels`` — each plot goes to the aircraft named by its truth label (simulated data), else by its
+  Mode S address; ADS-B by its address. A track starts at its first measurement with a wide prior
+  and ends ``drop_after_s`` after its last. Plots and ADS-B reports are converted to the plane in
+  bulk (:mod:`radartracker.estimation.measurement`) and handed to the estimator in time order.
+* ``manager`` — the :class:`TrackManager`: admission, reordering, gating and assignment, M-of-N
+  confirmation, track filters of the chosen motion model; the estimator gets the measurements of
+  confirmed tracks.
+
+Both feed the same :class:`Recorder` (track events with state, covariance and identity; biases over
+time) and give the same :class:`RunResult`, written by :func:`radartracker.pipeline.writer.write_outputs`.
+Every input is used or counted under a named reason.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import math
+import time as _time
+from collections import Counter
+
+import attrs
+import numpy as np
+from tqdm import tqdm
+
+from radartracker.errors import ConfigurationError
+from radartracker.estimation.base import Estimator, PlaneMeasurement
+from radartracker.estimation.coupling import CouplingGraph
+from radartracker.estimation.kalman import SingularInnovation
+from radartracker.estimation.measurement import convert_adsb, convert_plots, fill_altitudes, merge, plot_keys
+from radartracker.geometry.plane import SystemPlane
+from radartracker.io.tables import ScenarioData
+from radartracker.pipeline.config import RunConfig, resolve
+from radartracker.pipeline.recorder import Recorder
+from radartracker.pipeline.result import RunResult
+from radartracker.pipeline.stream import scenario_stream
+from radartracker.registry import FilterFactory, load_motion_model, make_estimator, make_filter_factory, option_fields
+from radartracker.tracking.manager import ManagerConfig, TrackEvent, TrackManager, default_estimator
+
+log = logging.getLogger(__name__)
+
+
+def run(data: ScenarioData, config: RunConfig | None = None, *, estimator: Estimator | None = None,
+        progress: bool = True) -> RunResult:
+    """Run ``data`` through the association, estimator and motion model of ``config``.
+
+    ``estimator`` replaces the plugin named in ``config``: it is given every radar of ``data``, and its
+    own configuration must use the run's process noise ``q`` (a mismatch is refused, not ignored).
+    """
+    config = config or RunConfig()
+    name = type(estimator).name if estimator is not None else (config.estimator or default_estimator())
+    cfg = resolve(config, data, name)
+    radar_ids = [r.id for r in data.radars]
+    if estimator is not None:
+        if config.estimator_options:
+            raise ConfigurationError("estimator options apply to a plugin name, not to an estimator instance")
+        q_inst = getattr(getattr(estimator.config, "motion", None), "q", None)
+        if q_inst != cfg.q:
+            raise ConfigurationError(f"estimator instance {name!r} uses q = {q_inst} but the run uses q = {cfg.q}: "
+                                     "build it with EstimatorConfig(motion=MotionModel(q)) or set the run's q")
+        est = make_estimator(estimator, None, radar_ids)
+    else:
+        est = make_estimator(name, cfg.estimator_settings(), radar_ids, cfg.estimator_options)
+    factory = motion_factory(cfg) if cfg.motion_model is not None else None
+    plugins = {"estimator": attrs.asdict(est.options) if getattr(est, "options", None) is not None else {},
+               "motion_model": attrs.asdict(factory.config) if factory is not None else None}
+    rec = Recorder(cfg.bias_log_interval_s)
+    started = _time.perf_counter()
+    if cfg.association == "labels":
+        counts, coupling = _by_labels(data, cfg, est, rec, progress)
+    else:
+        counts, coupling = _by_manager(data, cfg, est, factory, rec, progress)
+    seconds = _time.perf_counter() - started
+    return RunResult(data=data, config=cfg, plane=SystemPlane(*data.reference), events=rec.events(),
+                     biases=rec.biases(), final_biases={r: est.bias(r) for r in radar_ids}, counts=dict(counts),
+                     seconds=seconds, nis=np.asarray(rec.nis, float), coupling=coupling, plugins=plugins)
+
+
+def _by_labels(data: ScenarioData, cfg: RunConfig, est: Estimator, rec: Recorder,
+               progress: bool) -> tuple[Counter, CouplingGraph]:
+    """Association by truth label (else Mode S address); tracks end ``drop_after_s`` after their last update."""
+    plane = SystemPlane(*data.reference)
+    counts: Counter[str] = Counter()
+    p, a = data.plots, data.adsb
+    keys = plot_keys(p, p.has_truth_labels)
+    alt, defaulted = fill_altitudes(p, keys, cfg.default_altitude_m)
+    if defaulted:
+        counts["plots_altitude_assumed"] = defaulted
+    meas = merge(convert_plots(p, data.radars, plane, keys, alt), convert_adsb(a, plane))
+    # identity columns in the same (stable, time) order as ``merge``
+    order = np.argsort(np.concatenate([p.time, a.time]), kind="stable")
+    reported = np.concatenate([p.altitude_m, a.altitude_m])[order]
+    mode_s = np.concatenate([p.mode_s, a.icao24])[order]
+    mode_3a = np.concatenate([p.mode_3a, np.full(len(a), None, object)])[order]
+    labels = np.concatenate([p.target if p.has_truth_labels else np.full(len(p), None, object),
+                             np.full(len(a), None, object)])[order]
+
+    life = cfg.labels
+    prior_cov = np.diag([life.prior_sd_position_m**2] * 2 + [life.prior_sd_velocity_mps**2] * 2)
+    coupling = CouplingGraph(est.radars)
+    ids = itertools.count(1)
+    track: dict[object, int] = {}  # aircraft key → live track id
+    last_seen: dict[object, float] = {}
+    ident: dict[int, list] = {}  # track id → [altitude, mode_s, mode_3a, label]
+    next_sweep = -math.inf
+    for i in tqdm(range(len(meas)), desc=f"replay {cfg.estimator}", unit="meas", delay=2.0, mininterval=1.0,
+                  disable=not progress):
+        t, radar, key = float(meas.time[i]), meas.radar[i], meas.key[i]
+        kind = "plots" if radar is not None else "adsb"
+        if key is None:
+            counts[f"{kind}_unassociated"] += 1
+            continue
+        if not meas.valid[i]:
+            counts[f"{kind}_impossible_geometry"] += 1
+            continue
+        if t >= next_sweep:  # end the tracks unseen for drop_after_s
+            for k in [k for k, ts in last_seen.items() if t - ts > life.drop_after_s]:
+                tid = track.pop(k)
+                del last_seen[k]
+                x = est.aircraft(tid)
+                rec.event(t, tid, "deleted", "deleted", _extrapolate(x.state, t - x.time), None, *ident.pop(tid))
+                est.remove_aircraft(tid)
+                coupling.remove_aircraft(tid)
+            next_sweep = t + 1.0
+        new = key not in track
+        tid = next(ids) if new else track[key]
+        if new:
+            est.add_aircraft(tid, t, np.array([meas.z[i][0], meas.z[i][1], 0.0, 0.0]), prior_cov)
+            coupling.add_aircraft(tid)
+            ident[tid] = [None, None, None, labels[i] if labels[i] is not None else None]
+        try:
+            innov = est.update(PlaneMeasurement(t, tid, radar, meas.z[i], meas.C[i], meas.R[i]))
+        except SingularInnovation as exc:
+            counts[f"{kind}_singular"] += 1
+            log.warning("measurement at t=%s of %s not used: %s", t, key, exc)
+            if new:
+                est.remove_aircraft(tid)
+                coupling.remove_aircraft(tid)
+                del ident[tid]
+            continue
+        track[key], last_seen[key] = tid, t
+        coupling.observe(tid, radar, t)
+        counts[f"{kind}_used"] += 1
+        rec.nis.append(innov.nis)
+        idt = ident[tid]
+        idt[0] = reported[i] if not math.isnan(reported[i]) else idt[0]
+        idt[1], idt[2] = mode_s[i] or idt[1], mode_3a[i] or idt[2]
+        x = est.aircraft(tid)
+        if new:
+            rec.event(t, tid, "created", "confirmed", x.state, x.cov, *idt)
+        rec.event(t, tid, "confirmed" if new else "updated", "confirmed", x.state, x.cov, *idt)
+        if radar is not None:
+            rec.bias(t, est.bias(radar))
+    return counts, coupling
+
+
+def _extrapolate(state: np.ndarray, dt: float) -> np.ndarray:
+    return np.concatenate([state[:2] + state[2:] * max(dt, 0.0), state[2:]])
+
+
+def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: FilterFactory, rec: Recorder,
+                progress: bool) -> tuple[Counter, CouplingGraph]:
+    """Association by the TrackManager; events carry the track filter's state and covariance."""
+    mcfg = ManagerConfig(estimator=cfg.estimator, estimator_config=cfg.estimator_settings(),
+                         motion_model=cfg.motion_model, primary_altitude_m=cfg.default_altitude_m, **cfg.manager)
+    ident: dict[int, tuple] = {}  # identity of each track at its last event (deleted tracks are gone from mgr)
+
+    def on_event(ev: TrackEvent) -> None:
+        tr = mgr.tracks.get(ev.track)
+        cov = None
+        if tr is not None:
+            ident[ev.track] = (tr.altitude_m, tr.mode_s, tr.mode_3a)
+            t0, _, P = tr.filter.estimate()
+            cov = P if t0 == ev.time else None
+        rec.event(ev.time, ev.track, ev.kind, ev.status, np.asarray(ev.state), cov, *ident.get(ev.track, (None,) * 3))
+        if ev.kind == "deleted":
+            ident.pop(ev.track, None)
+
+    mgr = TrackManager(data.radars, data.reference, mcfg, on_event, estimator=est, filter_factory=factory)
+    for item in tqdm(scenario_stream(data), desc=f"track {cfg.estimator}/{cfg.motion_model}", unit="item",
+                     delay=2.0, mininterval=1.0, disable=not progress):
+        mgr.process(item)
+        rid = getattr(item, "radar", None)
+        if rid is not None:
+            rec.bias(item.time, est.bias(rid))
+    mgr.flush()
+    return Counter(mgr.accounting()), mgr.coupling
+
+
+def motion_factory(cfg: RunConfig) -> FilterFactory:
+    """The track-filter factory of ``cfg``: its motion model, with ``q`` set from the run unless the
+    motion options set it (when the model has a ``q`` setting)."""
+    cls = load_motion_model(cfg.motion_model)
+    options = dict(cfg.motion_options)
+    if "q" in option_fields(cls.config_class) and "q" not in options:
+        options["q"] = repr(cfg.q)
+    return make_filter_factory(cfg.motion_model, options)

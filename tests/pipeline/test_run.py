@@ -1,0 +1,142 @@
+"""One pipeline, two associations: the same schema, every option honoured or refused, config.json
+reproduces a run byte for byte, estimator instances get their radars and the run's q."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import attrs
+import numpy as np
+import pytest
+
+from radartracker.cli import main
+from radartracker.errors import ConfigurationError
+from radartracker.estimation.base import EstimatorConfig
+from radartracker.estimation.motion import MotionModel
+from radartracker.io.scenario import write_scenario
+from radartracker.pipeline.config import RunConfig
+from radartracker.pipeline.run import run
+from radartracker.pipeline.stream import scenario_stream
+from radartracker.pipeline.writer import BIAS_COLUMNS, EVENT_COLUMNS, TRACK_COLUMNS
+from radartracker.registry import load_estimator
+from radartracker.simulation.scenarios import build_scenario
+
+
+@pytest.fixture(scope="module")
+def labelled():
+    return build_scenario("demo", seed=2, duration=150.0).run()
+
+
+@pytest.fixture(scope="module")
+def unlabelled():
+    return build_scenario("tracking", seed=5, duration=150.0).run()
+
+
+@pytest.fixture(scope="module")
+def folders(tmp_path_factory, labelled, unlabelled):
+    root = tmp_path_factory.mktemp("scen")
+    write_scenario(root / "labels", labelled)
+    write_scenario(root / "manager", unlabelled)
+    return {"labels": root / "labels", "manager": root / "manager"}
+
+
+def _header(path):
+    with path.open() as f:
+        return next(csv.reader(f))
+
+
+def _no_nan(text: str) -> dict:
+    def refuse(name):
+        raise AssertionError(f"non-JSON constant {name} in summary.json")
+    return json.loads(text, parse_constant=refuse)
+
+
+@pytest.mark.parametrize("association", ["labels", "manager"])
+def test_q_changes_estimates_and_config_reproduces_the_run(tmp_path, folders, association):
+    scen = str(folders[association])
+    out = {q: tmp_path / f"q{q}" for q in ("5", "50")}
+    for q, o in out.items():
+        assert main(["--quiet", "replay", scen, "--out", str(o), "--q", q, "--estimator", "coupled"]) == 0
+    for name in ("tracks.csv", "biases.csv"):
+        assert (out["5"] / name).read_bytes() != (out["50"] / name).read_bytes()
+    cfg = json.loads((out["50"] / "config.json").read_text())["settings"]
+    assert cfg["q"] == 50.0 and cfg["association"] == association and cfg["estimator"] == "coupled"
+    again = tmp_path / "again"
+    assert main(["--quiet", "replay", scen, "--config", str(out["50"] / "config.json"), "--out", str(again)]) == 0
+    for name in ("tracks.csv", "biases.csv", "events.csv", "config.json"):
+        assert (again / name).read_bytes() == (out["50"] / name).read_bytes(), name
+    # the schema, identical on both paths
+    assert _header(again / "tracks.csv") == list(TRACK_COLUMNS)
+    assert _header(again / "events.csv") == list(EVENT_COLUMNS)
+    assert _header(again / "biases.csv") == list(BIAS_COLUMNS)
+    summary = _no_nan((again / "summary.json").read_text())
+    assert summary["reference"] and summary["association"] == association
+    assert all(b["z_range"] is not None and b["error_range_m"] is not None for b in summary["biases"].values())
+    with (again / "tracks.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert all(r["sd_x_m"] and r["sd_y_m"] for r in rows)  # covariances on both paths
+    assert any(r["mode_s"] and r["altitude_m"] for r in rows)
+    assert all(r["track"].isdigit() for r in rows)  # track ids: integers on both paths
+
+
+def test_both_paths_give_the_same_summary_keys(tmp_path, folders):
+    keys = []
+    for assoc, scen in folders.items():
+        o = tmp_path / assoc
+        assert main(["--quiet", "replay", str(scen), "--out", str(o)]) == 0
+        s = _no_nan((o / "summary.json").read_text())
+        keys.append((set(s), set(s["truth"]), set(s["tracking"]), set(next(iter(s["biases"].values())))))
+        assert s["estimator"] == "coupled-sparse"  # the default: the best installed exact estimator
+    assert keys[0] == keys[1]
+
+
+def test_motion_model_on_the_labelled_path_is_refused(tmp_path, folders, capsys):
+    rc = main(["replay", str(folders["labels"]), "--out", str(tmp_path / "o"), "--motion-model", "imm"])
+    assert rc == 2 and "--motion-model" in capsys.readouterr().err
+    assert main(["--quiet", "replay", str(folders["labels"]), "--out", str(tmp_path / "m"), "--manager",
+                 "--motion-model", "imm", "--motion-option", "q_turn=20"]) == 0
+    cfg = json.loads((tmp_path / "m" / "config.json").read_text())
+    assert cfg["settings"]["motion_options"] == {"q_turn": "20"} and cfg["plugins"]["motion_model"]["q_turn"] == 20.0
+
+
+@pytest.mark.parametrize("argv, option", [
+    (["--q", "nan"], "--q"), (["--q", "-1"], "--q"), (["--q", "inf"], "--q"), (["--q", "x"], "--q"),
+    (["--motion-option", "q=nan"], "q"), (["--motion-option", "nosuch=1"], "nosuch"),
+    (["--estimator-option", "nosuch=1"], "nosuch"), (["--estimator", "nosuch"], "nosuch"),
+])
+def test_bad_options_name_themselves_before_any_work(tmp_path, folders, capsys, monkeypatch, argv, option):
+    monkeypatch.setattr("radartracker.pipeline.run._by_manager", None)  # must fail before any computation
+    monkeypatch.setattr("radartracker.pipeline.run._by_labels", None)
+    assert main(["replay", str(folders["manager"]), "--out", str(tmp_path / "o"), *argv]) == 2
+    err = capsys.readouterr().err
+    assert option in err and "Traceback" not in err
+
+
+def test_estimator_instance_gets_radars_and_the_runs_q(labelled):
+    by_name = run(labelled, RunConfig(estimator="coupled"), progress=False)
+    inst = load_estimator("coupled")(EstimatorConfig(motion=MotionModel(5.0)))
+    by_inst = run(labelled, RunConfig(), estimator=inst, progress=False)
+    np.testing.assert_array_equal(by_inst.tracks.state, by_name.tracks.state)
+    assert by_inst.estimator_name == "coupled"
+    with pytest.raises(ConfigurationError, match="q = 0.0 but the run uses q = 5.0"):
+        run(labelled, RunConfig(), estimator=load_estimator("coupled")(), progress=False)
+
+
+def test_consistency_warning_when_nis_is_far_off(labelled):
+    result = run(labelled, RunConfig(estimator="decoupled"), progress=False)
+    assert 0.5 * 2 < np.mean(result.nis) < 2 * 2 and not any("NIS" in w for w in result.consistency()["warnings"])
+    bad = attrs.evolve(result, nis=result.nis * 10)
+    assert any("mean NIS" in w for w in bad.consistency()["warnings"])
+
+
+def test_scenario_stream_is_time_ordered_and_complete(unlabelled):
+    items = scenario_stream(unlabelled)
+    assert len(items) == len(unlabelled.plots) + len(unlabelled.adsb)
+    assert all(a.time <= b.time for a, b in zip(items, items[1:]))
+
+
+def test_compare_help_states_the_real_default_q(capsys):
+    with pytest.raises(SystemExit):
+        main(["compare", "--help"])
+    assert "default 5" in capsys.readouterr().out.replace("\n", " ")
