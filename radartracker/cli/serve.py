@@ -1,0 +1,95 @@
+"""CLI commands ``serve`` (the live surveillance service, docs/service.md) and ``send`` (a recording
+replayed onto the network) — registered through ``radartracker.commands`` entry points."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+import threading
+from pathlib import Path
+
+from radartracker.errors import ConfigurationError
+
+
+def _host_port(text: str) -> tuple[str, int]:
+    host, _, port = text.rpartition(":")
+    if not host or not port.isdigit():
+        raise argparse.ArgumentTypeError(f"expected HOST:PORT, got {text!r}")
+    return host, int(port)
+
+
+def register_serve(sub: argparse._SubParsersAction) -> None:
+    from radartracker.cli.convert import _day_start
+
+    p = sub.add_parser("serve", help="live service: ASTERIX CAT048/CAT021 over UDP in, CAT062 system tracks out")
+    p.add_argument("--radars", type=Path, required=True,
+                   help="radar sites CSV with sac and sic columns (as asterix-export writes beside its file)")
+    p.add_argument("--listen", action="append", required=True, metavar="udp://HOST:PORT",
+                   help="where CAT048/CAT021 datagrams arrive (a multicast group is joined); repeatable")
+    p.add_argument("--publish", required=True, metavar="udp://HOST:PORT", help="where CAT062 system tracks go")
+    p.add_argument("--state", type=Path, required=True, metavar="DIR",
+                   help="checkpoints, biases.json, summary.json; resumes from its latest checkpoint")
+    p.add_argument("--http", type=_host_port, default=None, metavar="HOST:PORT",
+                   help="serve /health, /tracks, /biases and /metrics (Prometheus) here")
+    p.add_argument("--estimator", default=None, help="estimator plugin (default: the best installed exact one, "
+                                                     "coupled-sparse; on resume: the checkpoint's)")
+    p.add_argument("--motion-model", default=None, help="track motion model plugin (default cv; on resume: the checkpoint's)")
+    p.add_argument("--period", type=float, default=4.0, help="seconds between CAT062 publications (default 4)")
+    p.add_argument("--checkpoint-s", type=float, default=60.0, help="seconds between checkpoints (default 60)")
+    p.add_argument("--queue", type=int, default=50_000, help="datagrams the queue holds before dropping (default 50000)")
+    p.add_argument("--day-start", type=_day_start, default=None, metavar="DATE|SECONDS",
+                   help="UTC day of the first record, for a replayed recording (default: the receive clock)")
+    p.add_argument("--sac", type=int, default=0, help="SAC of this tracker in CAT062 I010 (default 0)")
+    p.add_argument("--sic", type=int, default=100, help="SIC of this tracker in CAT062 I010 (default 100)")
+    p.add_argument("--interface", default="0.0.0.0", help="IPv4 address of the interface joining multicast groups")
+    p.set_defaults(func=_cmd_serve)
+
+
+def _cmd_serve(args: argparse.Namespace) -> int:
+    from radartracker.io.asterix import read_sites
+    from radartracker.service import Service, ServiceConfig, parse_endpoint
+
+    radars, sites = read_sites(args.radars)
+    if not radars:
+        raise ConfigurationError(f"{args.radars}: no radar")
+    try:
+        config = ServiceConfig(tuple(parse_endpoint(e) for e in args.listen), parse_endpoint(args.publish), args.state,
+                               args.http, args.period, args.checkpoint_s, args.queue, args.day_start, args.sac,
+                               args.sic, args.interface)
+    except ValueError as exc:
+        raise ConfigurationError(f"bad option: {exc}") from None
+    service = Service(config, radars, sites, estimator=args.estimator, motion_model=args.motion_model)
+    stop = threading.Event()
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(sig, lambda *_: stop.set())
+    print(json.dumps({"serving": [str(e) for e in config.listen], "publish": str(config.publish),
+                      "estimator": service.manager.config.estimator, "resumed_from": service.resumed_from}),
+          file=sys.stderr, flush=True)
+    summary = service.run(stop)
+    print(json.dumps({k: summary[k] for k in ("datagrams", "records", "tracker", "published", "last_checkpoint")}))
+    return 0
+
+
+def register_send(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("send", help="replay an ASTERIX recording onto the network with its original timing")
+    p.add_argument("recording", type=Path, help="raw ASTERIX blocks (.ast), FINAL format or pcap")
+    p.add_argument("--to", required=True, metavar="udp://HOST:PORT", help="destination (unicast or multicast)")
+    p.add_argument("--speed", type=float, default=1.0,
+                   help="time scale: 1 real time, 10 ten times faster, 0 as fast as possible (default 1)")
+    p.set_defaults(func=_cmd_send)
+
+
+def _cmd_send(args: argparse.Namespace) -> int:
+    from radartracker.service import parse_endpoint
+    from radartracker.service.sender import send
+
+    if args.speed < 0:
+        raise ConfigurationError("--speed must be >= 0 (0: as fast as possible)")
+    try:
+        sent = send(args.recording, parse_endpoint(args.to), args.speed)
+    except ValueError as exc:  # a malformed recording: the reader names file and byte offset
+        raise ConfigurationError(str(exc)) from None
+    print(json.dumps(sent))
+    return 0

@@ -1,0 +1,74 @@
+"""The socket reader: datagrams from every listening socket into one bounded queue.
+
+The reader never waits for the tracker: when the queue is full the datagram is dropped and counted
+(``datagrams_dropped_queue_full``), so a slow tracker costs data, never the kernel's buffers
+overflowing unseen. Each queued entry is ``(receive time (s since 1970), monotonic receive time,
+listening endpoint, payload)``.
+"""
+
+from __future__ import annotations
+
+import queue
+import selectors
+import socket
+import threading
+import time
+from collections import Counter
+
+from radartracker.service.endpoints import Endpoint
+
+MAX_DATAGRAM = 65_535
+SO_RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40)  # Linux: each datagram carries the socket's drop count
+
+
+class Receiver(threading.Thread):
+    """Reads every socket until :meth:`stop`; counts datagrams received and dropped.
+
+    Drops are counted where they happen: ``datagrams_dropped_queue_full`` here, and
+    ``datagrams_dropped_kernel`` — datagrams the kernel discarded because the socket buffer was
+    full — from the counter Linux attaches to each datagram (``SO_RXQ_OVFL``).
+    """
+
+    def __init__(self, sockets: dict[Endpoint, socket.socket], out: queue.Queue) -> None:
+        super().__init__(name="radartracker-receiver", daemon=True)
+        self.sockets, self.out = sockets, out
+        self.counts: Counter[str] = Counter()
+        self._halt = threading.Event()
+        self._cmsg = socket.CMSG_SPACE(4)
+        self._kernel_drops: dict[Endpoint, int] = {}
+
+    def stop(self) -> None:
+        """Stop reading (returns at once; :meth:`join` waits for the thread)."""
+        self._halt.set()
+
+    def run(self) -> None:
+        sel = selectors.DefaultSelector()
+        for ep, sock in self.sockets.items():
+            try:
+                sock.setsockopt(socket.SOL_SOCKET, SO_RXQ_OVFL, 1)
+            except OSError:  # not Linux: kernel drops are not visible
+                pass
+            sel.register(sock, selectors.EVENT_READ, ep)
+        try:
+            while not self._halt.is_set():
+                for key, _ in sel.select(timeout=0.1):
+                    self._drain(key.fileobj, key.data)
+        finally:
+            sel.close()
+
+    def _drain(self, sock: socket.socket, ep: Endpoint) -> None:
+        while True:
+            try:
+                data, anc, _, _ = sock.recvmsg(MAX_DATAGRAM, self._cmsg)
+            except (BlockingIOError, InterruptedError):
+                return
+            for level, kind, value in anc:
+                if level == socket.SOL_SOCKET and kind == SO_RXQ_OVFL and len(value) >= 4:
+                    self._kernel_drops[ep] = int.from_bytes(value[:4], "little")
+                    self.counts["datagrams_dropped_kernel"] = sum(self._kernel_drops.values())
+            entry = (time.time(), time.monotonic(), ep, data)
+            self.counts["datagrams_received"] += 1
+            try:
+                self.out.put_nowait(entry)
+            except queue.Full:
+                self.counts["datagrams_dropped_queue_full"] += 1

@@ -1,0 +1,269 @@
+"""The tracker loop: queue → decoder → TrackManager → CAT062 every period, checkpoints, summary.
+
+One thread (the caller's) owns the manager. The :class:`~radartracker.service.receiver.Receiver`
+thread only fills the bounded queue; the HTTP thread only reads the views this loop replaces whole
+(:attr:`Service.view`, :attr:`Service.tracks_json`, :attr:`Service.biases_json`).
+
+Accounting (``summary.json``, the same rule as a replay: every input used or counted under a
+reason): datagrams received = dropped_queue_full + decoded + malformed; CAT048 + CAT021 records =
+records_to_tracker + the per-reason rejections; records_to_tracker = the sum of the manager's
+accounting (used, late, duplicate, in tentative tracks, …). A checkpoint stores these counters
+together with the manager, so after a restart they continue from the checkpoint; what arrived
+between the last checkpoint and a crash is in neither (docs/service.md measures it).
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import threading
+import time
+from collections import Counter
+from pathlib import Path
+
+import attrs
+import numpy as np
+
+from radartracker.domain import Radar
+from radartracker.errors import ConfigurationError
+from radartracker.registry import make_estimator
+from radartracker.service.checkpoints import checkpoints, read_checkpoint, write_checkpoint, write_json_atomic
+from radartracker.service.decoder import DayClock, Decoder, ReceiveClock
+from radartracker.service.endpoints import Endpoint, open_receiver, open_sender
+from radartracker.service.metrics import ServiceMetrics
+from radartracker.service.publisher import Publisher, track_number
+from radartracker.service.receiver import Receiver
+from radartracker.tracking.manager import ManagerConfig, TrackEvent, TrackManager, default_estimator
+
+def build_manager(radars: list[Radar], estimator: str | None = None, motion_model: str | None = None) -> TrackManager:
+    """A TrackManager set up as ``radartracker replay --association manager`` sets up its own
+    (:func:`radartracker.pipeline.run.run`): same settings, estimator and motion-model factory, so the
+    service's tracks are the replay's; the system plane is centred on the radars' mean position."""
+    from radartracker.pipeline.config import RunConfig, resolve
+    from radartracker.pipeline.run import motion_factory
+
+    name = estimator or default_estimator()
+    # with the association named, resolve() reads nothing of the scenario
+    cfg = resolve(RunConfig(association="manager", estimator=name, motion_model=motion_model), None, name)
+    mcfg = ManagerConfig(estimator=cfg.estimator, estimator_config=cfg.estimator_settings(),
+                         motion_model=cfg.motion_model, primary_altitude_m=cfg.default_altitude_m, **cfg.manager)
+    est = make_estimator(name, cfg.estimator_settings(), [r.id for r in radars], cfg.estimator_options)
+    ref = (float(np.mean([r.lat for r in radars])), float(np.mean([r.lon for r in radars])))
+    return TrackManager(radars, ref, mcfg, estimator=est, filter_factory=motion_factory(cfg))
+
+
+@attrs.frozen
+class ServiceConfig:
+    """Where the service listens and publishes, and its periods (s)."""
+
+    listen: tuple[Endpoint, ...]
+    publish: Endpoint
+    state_dir: Path
+    http: tuple[str, int] | None = None
+    period_s: float = attrs.field(default=4.0, validator=attrs.validators.gt(0))
+    checkpoint_s: float = attrs.field(default=60.0, validator=attrs.validators.gt(0))
+    queue_size: int = attrs.field(default=50_000, validator=attrs.validators.gt(0))
+    day_start: float | None = None  # None: the receive clock gives the day (live data)
+    sac: int = 0
+    sic: int = 100
+    interface: str = "0.0.0.0"
+
+
+class Service:
+    """A running surveillance service (see the module notes); :meth:`run` until ``stop`` is set."""
+
+    def __init__(self, config: ServiceConfig, radars: list[Radar], sites: dict[tuple[int, int], str], *,
+                 estimator: str | None = None, motion_model: str | None = None) -> None:
+        self.config = config
+        config.state_dir.mkdir(parents=True, exist_ok=True)
+        self.base: Counter[str] = Counter()  # counters carried over from the checkpoint resumed
+        self.checkpoint_seq, self.resumed_from = 0, None
+        found = checkpoints(config.state_dir)
+        if found:
+            self.checkpoint_seq, folder = found[-1]
+            self.manager, state = read_checkpoint(folder)
+            self._check_resume(folder, radars, estimator, motion_model)
+            self.base.update(state["counts"])
+            self.resumed_from = folder.name
+        else:
+            self.manager = build_manager(radars, estimator, motion_model)
+        self.queue: queue.Queue = queue.Queue(config.queue_size)
+        clock = ReceiveClock() if config.day_start is None else DayClock(config.day_start)
+        self.decoder = Decoder(sites, clock)
+        self.sockets = {ep: open_receiver(ep, config.interface) for ep in config.listen}
+        self.receiver = Receiver(self.sockets, self.queue)
+        self.publisher = Publisher(open_sender(config.publish), config.sac, config.sic)
+        self.checkpoints_written = 0
+        self.started = time.time()
+        self.last_datagram: float | None = None
+        self._ended: list[TrackEvent] = []
+        self.tracks_json: dict = {"tracks": []}
+        self.biases_json: dict = {}
+        self.view: dict = {}
+        self._refresh_view()
+        self.metrics = ServiceMetrics(self)
+        self.http = None
+        if config.http is not None:
+            from radartracker.service.http import serve_http
+
+            self.http = serve_http(self, *config.http)
+
+    def _check_resume(self, folder: Path, radars: list[Radar], estimator: str | None, motion_model: str | None) -> None:
+        mc = self.manager.config
+        if {r.id: r for r in radars} != self.manager.radars:
+            raise ConfigurationError(f"{folder}: the checkpoint's radars differ from --radars; "
+                                     "use the same radars file or a new state folder")
+        for name, given, saved in (("estimator", estimator, mc.estimator), ("motion model", motion_model, mc.motion_model)):
+            if given is not None and given != saved:
+                raise ConfigurationError(f"{folder}: the checkpoint was made with {name} {saved!r}, not {given!r}; "
+                                         "omit the option to resume, or use a new state folder")
+
+    # --- the loop ----------------------------------------------------------------------------------
+    def run(self, stop: threading.Event) -> dict:
+        """Receive, track and publish until ``stop`` is set; then drain, flush, checkpoint and
+        write ``summary.json``, which is returned."""
+        cfg = self.config
+        self.receiver.start()
+        now = time.monotonic()
+        next_pub, next_ckpt, next_view = now + cfg.period_s, now + cfg.checkpoint_s, now + 0.5
+        try:
+            while not stop.is_set():
+                self._take(block=True)
+                now = time.monotonic()
+                if now >= next_pub:
+                    self._publish()
+                    next_pub = max(next_pub + cfg.period_s, now + 0.1 * cfg.period_s)
+                if now >= next_ckpt:
+                    self._checkpoint()
+                    next_ckpt = now + cfg.checkpoint_s
+                if now >= next_view:
+                    self._refresh_view()
+                    next_view = now + 0.5
+        finally:
+            self.receiver.stop()
+            self.receiver.join()
+            for sock in self.sockets.values():
+                sock.close()
+        while self._take(block=False):  # what was received before the stop
+            pass
+        self._collect(self.manager.flush())
+        self._publish()
+        self._checkpoint()
+        summary = self.summary()
+        write_json_atomic(cfg.state_dir / "summary.json", summary)
+        if self.http is not None:
+            self.http.shutdown()
+        self.publisher.sock.close()
+        return summary
+
+    def _take(self, block: bool, batch: int = 64) -> int:
+        """Process up to ``batch`` queued datagrams (waiting up to 50 ms for the first if ``block``)."""
+        n = 0
+        try:
+            entry = self.queue.get(timeout=0.05) if block else self.queue.get_nowait()
+            while True:
+                self._handle(*entry)
+                n += 1
+                if n >= batch:
+                    break
+                entry = self.queue.get_nowait()
+        except queue.Empty:
+            pass
+        return n
+
+    def _handle(self, received: float, received_mono: float, ep: Endpoint, payload: bytes) -> None:
+        process = self.manager.process
+        for item in self.decoder.decode(payload, received):
+            self._collect(process(item))
+        self.last_datagram = received
+        self.metrics.latency.observe(time.monotonic() - received_mono)
+
+    def _collect(self, events: list[TrackEvent]) -> None:
+        self._ended += [e for e in events if e.kind == "deleted"]
+
+    # --- outputs -----------------------------------------------------------------------------------
+    def _publish(self) -> None:
+        mgr = self.manager
+        self.publisher.publish(mgr, self._ended)
+        self._ended = []
+        tracks = []
+        for tr in mgr.confirmed_tracks():
+            t, x, P = tr.filter.estimate()
+            lat, lon = mgr.plane.to_geodetic(x[0], x[1])
+            tracks.append({"track_number": track_number(tr.id), "id": tr.id, "status": tr.status, "time": t,
+                           "lat": float(lat), "lon": float(lon), "x_m": x[0], "y_m": x[1], "vx_mps": x[2],
+                           "vy_mps": x[3], "sd_x_m": math.sqrt(P[0, 0]), "sd_y_m": math.sqrt(P[1, 1]),
+                           "altitude_m": tr.altitude_m, "mode_3a": tr.mode_3a, "mode_s": tr.mode_s})
+        self.tracks_json = {"published": time.time(), "tracks": tracks}
+        self.biases_json = self._biases()
+        write_json_atomic(self.config.state_dir / "biases.json", self.biases_json)
+        self._refresh_view()
+
+    def _biases(self) -> dict:
+        mgr = self.manager
+        obs = mgr.coupling.report()
+        radars = {}
+        for rid in mgr.estimator.radars:
+            b = mgr.estimator.bias(rid)
+            o = obs["radars"].get(rid, {})
+            radars[rid] = {"range_bias_m": b.range_m, "sd_range_m": b.sd_range_m,
+                           "azimuth_bias_deg": math.degrees(b.azimuth_rad),
+                           "sd_azimuth_deg": math.degrees(b.sd_azimuth_rad),
+                           "observability": o.get("status"), "adsb_reference": o.get("adsb_reference"),
+                           "shares_aircraft_with": o.get("shares_aircraft_with"),
+                           "aircraft_now": o.get("aircraft_now")}
+        return {"published": time.time(), "estimator": mgr.config.estimator, "radars": radars,
+                "components": obs.get("components")}
+
+    def _checkpoint(self) -> None:
+        self.checkpoint_seq += 1
+        write_checkpoint(self.config.state_dir, self.checkpoint_seq, self.manager, {"counts": dict(self._counts(False))})
+        self.checkpoints_written += 1
+
+    def _counts(self, live: bool) -> Counter[str]:
+        """All service counters (carried-over base + this run). Not ``live``: datagrams received are
+        those already processed or dropped, so the counters match the manager's state exactly."""
+        c = self.base + self.decoder.counts + self.publisher.counts
+        r = self.receiver.counts
+        c["datagrams_dropped_queue_full"] += r["datagrams_dropped_queue_full"]
+        c["datagrams_dropped_kernel"] += r["datagrams_dropped_kernel"]
+        if live:
+            c["datagrams_received"] += r["datagrams_received"]
+        else:
+            c["datagrams_received"] = (c["datagrams_decoded"] + c["datagrams_malformed"]
+                                       + c["datagrams_dropped_queue_full"])
+        return c
+
+    def _refresh_view(self) -> None:
+        c = self._counts(True)
+        groups: dict[str, dict] = {"datagrams": {}, "blocks": {}, "records": {}, "published": {}}
+        for k, v in c.items():
+            if k.startswith("datagrams_"):
+                groups["datagrams"][k.removeprefix("datagrams_")] = v
+            elif k.startswith("blocks_"):
+                groups["blocks"][k.removeprefix("blocks_")] = v
+            elif k.startswith(("cat062_", "publications")):
+                groups["published"][k.removeprefix("cat062_")] = v
+            else:
+                groups["records"][k] = v
+        statuses = Counter(t.status for t in self.manager.tracks.values())
+        self.view = groups | {"tracker": self.manager.accounting(), "checkpoints": self.checkpoints_written,
+                              "tracks_by_status": {s: statuses.get(s, 0) for s in ("tentative", "confirmed", "coasting")}}
+
+    def health(self) -> dict:
+        """``/health``: alive, how long since the last datagram, queue depth, tracks."""
+        now = time.time()
+        return {"status": "ok", "uptime_s": now - self.started,
+                "last_datagram_age_s": None if self.last_datagram is None else now - self.last_datagram,
+                "queue_depth": self.queue.qsize(), "datagrams": self.view["datagrams"],
+                "tracks": self.view["tracks_by_status"],
+                "checkpoints_written": self.checkpoints_written, "resumed_from": self.resumed_from}
+
+    def summary(self) -> dict:
+        """The run's accounting (module notes), estimator, final biases and checkpoints."""
+        self._refresh_view()
+        mc = self.manager.config
+        return self.view | {"estimator": mc.estimator, "motion_model": mc.motion_model,
+                            "started": self.started, "stopped": time.time(), "resumed_from": self.resumed_from,
+                            "last_checkpoint": f"checkpoint-{self.checkpoint_seq:06d}",
+                            "last_publication_records": self.publisher.last_records, "biases": self.biases_json}

@@ -1,0 +1,217 @@
+"""End to end on loopback (127.0.0.1): a scenario exported with ``asterix-export``, sent with
+``send``, tracked by ``serve``, its CAT062 received by a test listener and decoded by an independent
+decoder (``asterix4py``), compared with the replay of the same recording.
+
+"Match" (docs/service.md, "What the output is checked against"), with the CAT062 resolutions
+(I070 1/128 s, I100 0.5 m, I185 0.25 m/s) as tolerances (half a unit):
+
+1. every published update of track n equals a state the replay's track n reported (a *confirmed*
+   or *updated* event) at the same time;
+2. the final publication (after SIGTERM) holds exactly the replay's confirmed and coasting tracks
+   at its end, each with the replay's final estimate, CST set exactly for the coasting ones;
+3. every track published as ended (TSE) was deleted by the replay at that time.
+
+Accounting: every datagram and record sent is in ``summary.json``, each record used or counted under
+a reason, and the manager's reasons add up to the records handed to it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+import urllib.request
+from pathlib import Path
+
+import asterix4py  # the independent decoder (test dependency)
+import pytest
+
+from radartracker.cli import main
+from radartracker.io.asterix import read_asterix, read_cat062, read_sites
+from radartracker.io.scenario import write_scenario
+from radartracker.pipeline.config import RunConfig
+from radartracker.pipeline.run import run
+from radartracker.service import Service, ServiceConfig, parse_endpoint
+
+T_TOL, XY_TOL, V_TOL = 1 / 256 + 1e-9, 0.25 + 1e-6, 0.125 + 1e-6
+DEADLINE_S = 180.0  # the machine may be shared: generous, but every wait is bounded
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory) -> Path:
+    from radartracker.simulation.scenarios import build_scenario
+
+    d = tmp_path_factory.mktemp("e2e")
+    write_scenario(d / "sc", build_scenario("tracking", seed=2, duration=120).run())
+    assert main(["asterix-export", str(d / "sc"), "--out", str(d / "rec.ast")]) == 0
+    return d / "rec.ast"
+
+
+class Listener(threading.Thread):
+    """Collects every datagram arriving on a loopback port until stopped."""
+
+    def __init__(self) -> None:
+        super().__init__(daemon=True)
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.settimeout(0.1)
+        self.port = self.sock.getsockname()[1]
+        self.datagrams: list[bytes] = []
+        self.halt = threading.Event()
+
+    def run(self) -> None:
+        while not self.halt.is_set():
+            try:
+                self.datagrams.append(self.sock.recv(65535))
+            except TimeoutError:
+                pass
+
+    def finish(self) -> list[bytes]:
+        time.sleep(0.3)
+        self.halt.set()
+        self.join(5)
+        self.sock.close()
+        return self.datagrams
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def wait_for(cond, what: str, limit_s: float = DEADLINE_S) -> None:
+    end = time.monotonic() + limit_s
+    while not cond():
+        if time.monotonic() > end:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.1)
+
+
+def send(recording: Path, port: int, capsys) -> dict:
+    capsys.readouterr()
+    assert main(["send", str(recording), "--to", f"udp://127.0.0.1:{port}", "--speed", "60"]) == 0
+    return json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+
+
+def check_against_replay(recording: Path, summary: dict, datagrams: list[bytes], sent: dict) -> None:
+    # accounting: nothing lost, every record used or counted under a reason
+    dg, rec = summary["datagrams"], summary["records"]
+    assert dg["received"] == sent["datagrams"] == dg["decoded"]
+    assert dg.get("dropped_queue_full", 0) == dg.get("dropped_kernel", 0) == dg.get("malformed", 0) == 0
+    assert rec["cat048_records"] + rec["cat021_records"] == sent["records"]
+    rejected = sum(v for k, v in rec.items() if k not in ("cat048_records", "cat021_records", "records_to_tracker"))
+    assert rec["records_to_tracker"] + rejected == sent["records"]
+    assert sum(summary["tracker"].values()) == rec["records_to_tracker"]
+
+    data = read_asterix(recording, day_start=0.0)
+    assert sum(1 for a in data.aircraft if a.mode_3a) > 0  # Mode 3/A kept by the import
+    replay = run(data, RunConfig(association="manager", estimator=summary["estimator"],
+                                 motion_model=summary["motion_model"]), progress=False)
+    assert summary["tracker"] == replay.counts
+
+    records = [r for d in datagrams for r in asterix4py.AsterixParser(d).get_result().values()]
+    assert all(r["cat"] == 62 for r in records)
+    assert len(records) == summary["published"]["records"] > 0
+    ev = replay.events
+    reported: dict[int, list] = {}
+    deleted: dict[int, float] = {}
+    last: dict[int, tuple] = {}  # track -> (time, state) of its last estimate, status of its last event
+    for i in range(len(ev.time)):
+        n, kind = int(ev.track[i]), ev.kind[i]
+        if kind in ("confirmed", "updated"):
+            reported.setdefault(n, []).append((ev.time[i], ev.state[i]))
+        elif kind == "deleted":
+            deleted[n] = ev.time[i]
+        if n in reported:
+            last[n] = (*reported[n][-1], ev.status[i])
+    live = {n: v for n, v in last.items() if n not in deleted}
+
+    def same(r, t, x) -> bool:
+        return (abs(r["070"]["ToT"] - t) <= T_TOL and abs(r["100"]["X"] - x[0]) <= XY_TOL
+                and abs(r["100"]["Y"] - x[1]) <= XY_TOL and abs(r["185"]["Vx"] - x[2]) <= V_TOL
+                and abs(r["185"]["Vy"] - x[3]) <= V_TOL)
+
+    for r in records:  # 1 and 3
+        n = r["040"]["TrkN"]
+        if r["080"].get("TSE"):
+            assert abs(deleted[n] - r["070"]["ToT"]) <= T_TOL
+        else:
+            assert any(same(r, t, x) for t, x in reported.get(n, ())), f"track {n} at {r['070']['ToT']}: not in the replay"
+    final = [r for r in records[len(records) - summary["last_publication_records"]:] if not r["080"].get("TSE")]
+    assert sorted(r["040"]["TrkN"] for r in final) == sorted(live) and live  # 2
+    for r in final:
+        t, x, status = live[r["040"]["TrkN"]]
+        assert same(r, t, x)
+        assert bool(r["080"].get("CST")) == (status == "coasting")
+
+
+def test_serve_in_a_thread_matches_the_replay(recording, tmp_path, capsys):
+    radars, sites = read_sites(Path(str(recording) + ".radars.csv"))
+    listener = Listener()
+    listener.start()
+    port = free_port()
+    cfg = ServiceConfig((parse_endpoint(f"udp://127.0.0.1:{port}"),), parse_endpoint(f"udp://127.0.0.1:{listener.port}"),
+                        tmp_path / "state", period_s=0.5, checkpoint_s=1.0, day_start=0.0)
+    service = Service(cfg, radars, sites)
+    stop, out = threading.Event(), {}
+    th = threading.Thread(target=lambda: out.update(service.run(stop)), daemon=True)
+    th.start()
+    sent = send(recording, port, capsys)
+    wait_for(lambda: service.view["datagrams"].get("decoded", 0) >= sent["datagrams"], "the service to read everything")
+    stop.set()
+    th.join(DEADLINE_S)
+    assert not th.is_alive()
+    datagrams = listener.finish()
+    summary = json.loads((tmp_path / "state" / "summary.json").read_text())
+    assert summary["datagrams"] == out["datagrams"]
+    check_against_replay(recording, summary, datagrams, sent)
+    # the service's output read back by our own reader agrees with the independent decoder
+    (tmp_path / "out.ast").write_bytes(b"".join(datagrams))
+    ours = read_cat062(tmp_path / "out.ast")
+    theirs = [r for d in datagrams for r in asterix4py.AsterixParser(d).get_result().values()]
+    assert [(o["track_number"], o["x_m"], o["coasting"], o["ended"]) for o in ours] == \
+        [(r["040"]["TrkN"], r["100"]["X"], bool(r["080"].get("CST")), bool(r["080"].get("TSE"))) for r in theirs]
+    biases = json.loads((tmp_path / "state" / "biases.json").read_text())
+    assert set(biases["radars"]) == {r.id for r in radars}
+
+
+@pytest.mark.slow
+def test_serve_command_stops_on_sigterm_and_matches_the_replay(recording, tmp_path, capsys):
+    listener = Listener()
+    listener.start()
+    port, http = free_port(), free_port()
+    cmd = [sys.executable, "-c", "import sys; from radartracker.cli import main; sys.exit(main())", "serve",
+           "--radars", f"{recording}.radars.csv", "--listen", f"udp://127.0.0.1:{port}",
+           "--publish", f"udp://127.0.0.1:{listener.port}", "--state", str(tmp_path / "state"),
+           "--http", f"127.0.0.1:{http}", "--period", "0.5", "--checkpoint-s", "1", "--day-start", "1970-01-01"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        def health() -> dict | None:
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{http}/health", timeout=2) as r:
+                    return json.loads(r.read())
+            except OSError:
+                assert proc.poll() is None, proc.stderr.read()
+                return None
+
+        wait_for(lambda: health() is not None, "the service to start")
+        sent = send(recording, port, capsys)
+        wait_for(lambda: health()["datagrams"].get("decoded", 0) >= sent["datagrams"], "the service to read everything")
+        with urllib.request.urlopen(f"http://127.0.0.1:{http}/metrics", timeout=5) as r:
+            metrics = r.read().decode()
+        assert f'radartracker_datagrams_total{{outcome="received"}} {float(sent["datagrams"])}' in metrics
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=DEADLINE_S)
+    finally:
+        if proc.poll() is None:
+            os.kill(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 0, err
+    summary = json.loads((tmp_path / "state" / "summary.json").read_text())
+    check_against_replay(recording, summary, listener.finish(), sent)
