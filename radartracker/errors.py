@@ -40,3 +40,11 @@ class NumericalError(RadarTrackerError, ValueError):
 
 class PluginError(RadarTrackerError):
     """A plugin failed; the message names the plugin, the aircraft or radar and the time."""
+
+
+class SnapshotError(InputError):
+    """A snapshot that cannot be restored (truncated, corrupted, foreign, newer): names the file."""
+
+    def __init__(self, file: str, message: str):
+        super().__init__(f"{file}: {message}")
+        self.file = file

@@ -24,6 +24,7 @@ import numpy as np
 from radartracker.domain import BiasState
 from radartracker.errors import ConfigurationError
 from radartracker.estimation.motion import MotionModel
+from radartracker.estimation.state import default_load_state_dict, default_state_dict
 
 
 @attrs.frozen
@@ -113,6 +114,14 @@ class Estimator(abc.ABC):
             if not isinstance(self.options, self.options_class):
                 raise ConfigurationError(f"estimator {self.name!r} takes a {self.options_class.__name__}, "
                                          f"not a {type(self.options).__name__}")
+
+    def state_dict(self) -> dict:
+        """The state as plain values, for snapshots (default: :mod:`radartracker.estimation.state`)."""
+        return default_state_dict(self)
+
+    def load_state_dict(self, state: dict) -> None:
+        """Take back a :meth:`state_dict` into an estimator built with the same config and radars."""
+        default_load_state_dict(self, state)
 
     @abc.abstractmethod
     def add_radar(self, radar: str) -> None:

@@ -82,6 +82,24 @@ class CouplingGraph:
                 data["last_time"] = max(data["last_time"], t)
         self.graph.remove_node(a)
 
+    # --- snapshots ---------------------------------------------------------------------------------
+    def state_dict(self) -> dict:
+        """Nodes and adjacency as plain values, in the graph's own order (for snapshots)."""
+        g = self.graph
+        return {"nodes": [(n, dict(d)) for n, d in g.nodes(data=True)],
+                "adj": [(u, [(v, dict(d)) for v, d in nbrs.items()]) for u, nbrs in g.adj.items()]}
+
+    def load_state_dict(self, state: dict) -> None:
+        """Rebuild the graph of :meth:`state_dict`, with each node's neighbours in their saved order."""
+        g = nx.Graph()
+        g.add_nodes_from(state["nodes"])
+        edges: dict[frozenset, dict] = {}
+        for u, nbrs in state["adj"]:
+            for v, d in nbrs:
+                # one attribute dict shared by both directions, as networkx keeps it
+                g._adj[u][v] = edges.setdefault(frozenset((u, v)), dict(d))
+        self.graph = g
+
     # --- diagnostics -------------------------------------------------------------------------------
     def components(self) -> list[set[str]]:
         """Connected components (node names), largest first; independent blocks of the joint filter."""

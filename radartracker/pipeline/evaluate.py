@@ -24,8 +24,7 @@ class TruthPaths:
     def from_table(cls, truth: TruthTable, plane: SystemPlane) -> TruthPaths:
         x, y = plane.to_plane(truth.lat, truth.lon)
         paths = {}
-        for target in np.unique(truth.target.astype(str)):
-            idx = np.flatnonzero(truth.target == target)
+        for target, idx in _groups(truth.target):
             idx = idx[np.argsort(truth.time[idx], kind="stable")]
             t = truth.time[idx]
             p = np.stack([x[idx], y[idx]], axis=-1)
@@ -49,12 +48,21 @@ def state_errors(paths: TruthPaths, keys: np.ndarray, times: np.ndarray, states:
     """Estimate − truth (N, 4) for each recorded estimate, and the mask where truth exists."""
     err = np.full(states.shape, np.nan)
     ok = np.zeros(len(times), bool)
-    for key in np.unique(keys.astype(str)):
-        idx = np.flatnonzero(keys.astype(str) == key)
+    for key, idx in _groups(keys):
         truth, inside = paths.state_at(key, times[idx])
         err[idx] = states[idx] - truth
         ok[idx] = inside
     return err, ok
+
+
+def _groups(keys: np.ndarray) -> list[tuple[str, np.ndarray]]:
+    """(key, ascending row indices) for each distinct ``str(key)``, keys sorted: one pass, not one per key."""
+    if not len(keys):
+        return []
+    names, inverse = np.unique(np.asarray(keys).astype(str), return_inverse=True)
+    order = np.argsort(inverse, kind="stable")
+    bounds = np.cumsum(np.bincount(inverse, minlength=len(names)))[:-1]
+    return list(zip(names.tolist(), np.split(order, bounds)))
 
 
 def nees(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
@@ -101,42 +109,56 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
 
     targets = sorted(observed)
     tids = sorted(tracks)
-    assigned = {tg: np.full(len(grid), -1) for tg in targets}
-    t_alive = {tid: 0 for tid in tids}
-    t_assigned = {tid: 0 for tid in tids}
-    track_targets: dict[int, set[str]] = {tid: set() for tid in tids}
-    g, sq = np.zeros(len(grid)), []
-    tpos = {tid: tracks[tid].at(grid) for tid in tids}
-    truth = {tg: paths.state_at(tg, grid) for tg in targets}
-    for k, t in enumerate(grid):
-        live_t = [tg for tg in targets if observed[tg][0] <= t <= observed[tg][1] and truth[tg][1][k]]
-        live_k = [tid for tid in tids if tpos[tid][1][k]]
-        for tid in live_k:
-            t_alive[tid] += 1
-        if not live_t and not live_k:
+    n_g, c2 = len(grid), c * c
+    # truths (targets × grid) and tracks (tracks × grid): positions and where they count
+    tru_pos = np.zeros((len(targets), n_g, 2))
+    tru_live = np.zeros((len(targets), n_g), bool)
+    for r, tg in enumerate(targets):
+        state, inside = paths.state_at(tg, grid)
+        tru_pos[r], tru_live[r] = state[:, :2], inside & (grid >= observed[tg][0]) & (grid <= observed[tg][1])
+    trk_pos = np.zeros((len(tids), n_g, 2))
+    trk_live = np.zeros((len(tids), n_g), bool)
+    for q, tid in enumerate(tids):
+        trk_pos[q], trk_live[q] = tracks[tid].at(grid)
+    assigned = np.full((len(targets), n_g), -1)  # track index held by each target
+    t_assigned = np.zeros(len(tids), int)
+    track_targets: list[set[int]] = [set() for _ in tids]
+    g, sq = np.zeros(n_g), []
+    for k in range(n_g):
+        live_t = np.flatnonzero(tru_live[:, k])
+        live_k = np.flatnonzero(trk_live[:, k])
+        if not len(live_t) and not len(live_k):
             continue
-        P = np.array([truth[tg][0][k, :2] for tg in live_t]).reshape(-1, 2)
-        Q = np.array([tpos[tid][0][k] for tid in live_k]).reshape(-1, 2)
-        D2 = np.sum((P[:, None, :] - Q[None, :, :]) ** 2, axis=-1)
-        pairs = [(r, q) for r, tg in enumerate(live_t) for q, tid in enumerate(live_k)
-                 if k and assigned[tg][k - 1] == tid and D2[r, q] < c * c]
-        free_r = [r for r in range(len(live_t)) if all(r != a for a, _ in pairs)]
-        free_q = [q for q in range(len(live_k)) if all(q != b for _, b in pairs)]
-        if free_r and free_q:
-            sub = D2[np.ix_(free_r, free_q)]
-            rows, cols = linear_sum_assignment(np.minimum(sub, c * c))
-            pairs += [(free_r[r], free_q[q]) for r, q in zip(rows, cols) if sub[r, q] < c * c]
-        d2 = np.array([D2[r, q] for r, q in pairs])
-        g[k] = gospa(d2, len(live_t) - len(pairs), len(live_k) - len(pairs), c)
+        # a target keeps the track it had at the previous time while it stays within c
+        prev = assigned[live_t, k - 1] if k else np.full(len(live_t), -1)
+        keep = prev >= 0
+        keep[keep] &= trk_live[prev[keep], k]
+        d_keep = np.sum((tru_pos[live_t[keep], k] - trk_pos[prev[keep], k]) ** 2, axis=-1)
+        keep[np.flatnonzero(keep)[d_keep >= c2]] = False
+        rows, cols = list(live_t[keep]), list(prev[keep])
+        d2 = list(np.sum((tru_pos[live_t[keep], k] - trk_pos[prev[keep], k]) ** 2, axis=-1))
+        free_r = live_t[~keep]
+        free_q = live_k[~np.isin(live_k, prev[keep])]
+        if len(free_r) and len(free_q):
+            sub = np.sum((tru_pos[free_r, k][:, None, :] - trk_pos[free_q, k][None, :, :]) ** 2, axis=-1)
+            a, b = linear_sum_assignment(np.minimum(sub, c2))
+            ok = sub[a, b] < c2
+            rows += list(free_r[a[ok]])
+            cols += list(free_q[b[ok]])
+            d2 += list(sub[a[ok], b[ok]])
+        g[k] = gospa(np.array(d2), len(live_t) - len(rows), len(live_k) - len(rows), c)
         sq.extend(d2)
-        for r, q in pairs:
-            assigned[live_t[r]][k] = live_k[q]
-            t_assigned[live_k[q]] += 1
-            track_targets[live_k[q]].add(live_t[r])
+        assigned[rows, k] = cols
+        np.add.at(t_assigned, np.asarray(cols, int), 1)
+        for r, q in zip(rows, cols):
+            track_targets[q].add(r)
+    t_alive = trk_live.sum(axis=1)
+    tid_of = np.array(tids + [-1])  # index -1 stays -1
+    assigned = tid_of[assigned]
     per_target = {}
-    for tg in targets:
-        a = assigned[tg]
-        inside = (grid >= observed[tg][0]) & (grid <= observed[tg][1]) & truth[tg][1]
+    for r, tg in enumerate(targets):
+        a = assigned[r]
+        inside = tru_live[r]
         held = a[inside & (a >= 0)]
         right = int(np.bincount(held).argmax()) if len(held) else -1
         seq = a[inside & (a >= 0)]
@@ -148,9 +170,9 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
     return {
         "per_target": per_target,
         "continuity_min": min((v["continuity"] for v in per_target.values()), default=float("nan")),
-        "swaps": sum(len(s) > 1 for s in track_targets.values()),
+        "swaps": sum(len(s) > 1 for s in track_targets),
         "breaks": sum(v["breaks"] for v in per_target.values()),
-        "false_tracks": sum(1 for tid in tids if t_alive[tid] and t_assigned[tid] < 0.5 * t_alive[tid]),
+        "false_tracks": int(np.sum((t_alive > 0) & (t_assigned < 0.5 * t_alive))),
         "confirmed_tracks": len(tids),
         "position_rmse_m": float(np.sqrt(np.mean(sq))) if sq else float("nan"),
         "gospa_mean_m": float(np.mean(g)),

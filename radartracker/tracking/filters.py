@@ -13,6 +13,7 @@ import attrs
 import numpy as np
 
 from radartracker.errors import ConfigurationError
+from radartracker.estimation.state import default_load_state_dict, default_state_dict
 
 _positive = attrs.validators.gt(0.0)
 
@@ -48,6 +49,14 @@ class TrackFilter(abc.ABC):
             raise ConfigurationError(f"motion model {self.name!r} takes a {self.config_class.__name__}, "
                                      f"not a {type(config).__name__}")
         self.config = config
+
+    def state_dict(self) -> dict:
+        """The filter's state as plain values, for snapshots (default: :mod:`radartracker.estimation.state`)."""
+        return default_state_dict(self)
+
+    def load_state_dict(self, state: dict) -> None:
+        """Take back a :meth:`state_dict` into a filter built with the same config."""
+        default_load_state_dict(self, state)
 
     @abc.abstractmethod
     def start(self, time: float, z: np.ndarray, R: np.ndarray) -> None:

@@ -1,0 +1,157 @@
+"""Snapshots: bit-for-bit continuation with every built-in plugin; bad files refused, never executed."""
+
+import hashlib
+import os
+import pickle
+import struct
+
+import msgpack
+import numpy as np
+import pytest
+
+from radartracker.domain import AdsbReport, Plot
+from radartracker.errors import SnapshotError
+from radartracker.simulation.scenarios import build_scenario
+from radartracker.tracking import snapshot
+from radartracker.tracking.manager import ManagerConfig, TrackManager
+
+
+def _opt(v):
+    return None if v != v else float(v)
+
+
+@pytest.fixture(scope="module")
+def items_and_data():
+    data = build_scenario("tracking", seed=11, duration=150.0).run()
+    p, a = data.plots, data.adsb
+    items = [Plot(float(p.time[i]), p.radar[i], float(p.range_m[i]), float(p.azimuth_rad[i]), _opt(p.altitude_m[i]),
+                  p.mode_s[i], p.mode_3a[i]) for i in range(len(p))]
+    items += [AdsbReport(float(a.time[i]), a.icao24[i], float(a.lat[i]), float(a.lon[i]), _opt(a.altitude_m[i]),
+                         int(a.nacp[i])) for i in range(len(a))]
+    return sorted(items, key=lambda i: i.time), data
+
+
+def _state(mgr, events):
+    ests = {k: (e.time, e.state.tolist(), e.cov.tolist()) for k in mgr.estimator.aircraft_keys
+            for e in [mgr.estimator.aircraft(k)]}
+    biases = {r: (mgr.estimator.bias(r).bias.tolist(), mgr.estimator.bias(r).cov.tolist()) for r in mgr.estimator.radars}
+    filters = {i: (t.filter.estimate()[0], t.filter.estimate()[1].tolist(), t.filter.estimate()[2].tolist())
+               for i, t in mgr.tracks.items()}
+    return events, ests, biases, filters, mgr.accounting(), mgr.coupling.report()
+
+
+@pytest.mark.parametrize("estimator,motion", [("decoupled", "cv"), ("coupled", "cv"), ("blom", "cv"),
+                                              ("coupled-sparse", "cv"), ("decoupled", "imm"),
+                                              ("decoupled", "adaptive"), ("decoupled", "fading")])
+def test_restore_continues_bit_for_bit(tmp_path, items_and_data, estimator, motion):
+    """Half, snapshot, restore, rest == uninterrupted, exactly (every built-in estimator and motion model)."""
+    items, data = items_and_data
+    cfg = ManagerConfig(estimator=estimator, motion_model=motion)
+    whole = TrackManager(data.radars, data.reference, cfg)
+    ev_whole = whole.process_many(items)
+    half = len(items) // 2
+    first = TrackManager(data.radars, data.reference, cfg)
+    ev = [e for i in items[:half] for e in first.process(i)]
+    first.snapshot(tmp_path / "snap")
+    second = TrackManager.restore(tmp_path / "snap")
+    ev += second.process_many(items[half:])
+    assert len(ev_whole) > 50
+    assert _state(second, ev) == _state(whole, ev_whole)
+
+
+@pytest.fixture
+def saved(tmp_path, items_and_data):
+    items, data = items_and_data
+    mgr = TrackManager(data.radars, data.reference)
+    for i in items[:500]:
+        mgr.process(i)
+    path = tmp_path / "snap"
+    mgr.snapshot(path)
+    return mgr, path
+
+
+def _rewrite(path, payload, version=snapshot.FORMAT_VERSION):
+    path.write_bytes(struct.pack(">8sIQ32s", snapshot.MAGIC, version, len(payload), hashlib.sha256(payload).digest())
+                     + payload)
+
+
+@pytest.mark.parametrize("damage,message", [
+    (lambda b: b[: len(b) // 2], "truncated"),
+    (lambda b: b[:30], "truncated"),
+    (lambda b: b[:100] + bytes([b[100] ^ 0x01]) + b[101:], "corrupted"),
+    (lambda b: b + b"\0", "padded"),
+    (lambda b: b"PK\x03\x04" + b[4:], "not a radartracker snapshot"),
+    (lambda b: pickle.dumps({"x": 1}), "not a radartracker snapshot"),
+    (lambda b: b[:8] + struct.pack(">I", 2) + b[12:], "newer"),
+    (lambda b: b"", "not a radartracker snapshot"),
+])
+def test_bad_files_are_refused_naming_them(saved, damage, message):
+    _, path = saved
+    path.write_bytes(damage(path.read_bytes()))
+    with pytest.raises(SnapshotError, match=message) as err:
+        TrackManager.restore(path)
+    assert str(path) in str(err.value)
+
+
+def _craft(path, meta, state):
+    _rewrite(path, msgpack.packb([meta, msgpack.packb(state, use_bin_type=True)], use_bin_type=True))
+
+
+@pytest.mark.parametrize("meta", [
+    {"t": "attrs", "v": ["os", "system", [["command", "touch pwned"]]]},  # not radartracker: not even looked up
+    {"t": "attrs", "v": ["radartracker.nonexistent", "X", []]},  # not imported: nothing is imported
+    {"t": "pickle", "v": b"cos\nsystem\n(S'touch pwned'\ntR."},  # no such tag
+    {"kind": "TrackManager"},  # a bare map is not a value
+    [1, 2, 3],
+])
+def test_crafted_payloads_are_refused_and_never_executed(tmp_path, meta, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    path = tmp_path / "snap"
+    _craft(path, meta, {"t": "dict", "v": []})
+    with pytest.raises(SnapshotError, match="cannot restore"):
+        TrackManager.restore(path)
+    assert not (tmp_path / "pwned").exists()
+
+
+def test_crafted_state_cannot_set_methods(saved):
+    """A state dict may change numbers, not behaviour: a key naming a method is refused."""
+    mgr, path = saved
+    meta, _ = msgpack.unpackb(snapshot.read_snapshot_file(path), raw=False, strict_map_key=False)
+    state = {"t": "dict", "v": [["estimator", {"t": "state", "v": {"t": "dict", "v": [["update", 1]]}}]]}
+    _craft(path, meta, state)
+    with pytest.raises(SnapshotError, match="update"):
+        TrackManager.restore(path)
+
+
+def test_failed_snapshot_leaves_the_previous_one(saved, monkeypatch):
+    mgr, path = saved
+    good = path.read_bytes()
+    mgr.counts["x"] += 1
+    mgr._unsaveable = object()  # a state the format cannot hold
+    with pytest.raises(SnapshotError, match="_unsaveable"):
+        mgr.snapshot(path)
+    del mgr._unsaveable
+
+    def full_disk(*a):
+        raise OSError(28, "No space left on device")
+    monkeypatch.setattr(snapshot.os, "fsync", full_disk)
+    with pytest.raises(OSError):
+        mgr.snapshot(path)
+    assert path.read_bytes() == good
+    assert os.listdir(path.parent) == [path.name]
+    TrackManager.restore(path)
+
+
+def test_arrays_and_types_round_trip():
+    """The codec keeps types exactly: tuples, keys, NumPy scalars, Fortran order, counters."""
+    from collections import Counter, deque
+    import itertools
+
+    value = {(1, "a"): [np.float32(1.5), np.asfortranarray(np.arange(6.0).reshape(2, 3)), 2 + 3j],
+             7: deque([True, None], maxlen=3), "c": Counter(a=2), "n": itertools.count(5), "s": {1.0}}
+    out = msgpack.unpackb(msgpack.packb(snapshot._enc(value, "v"), use_bin_type=True),
+                          object_hook=snapshot._hook(None), raw=False, strict_map_key=False)
+    assert list(out) == list(value) and type(out[(1, "a")][0]) is np.float32
+    assert out[(1, "a")][1].flags.f_contiguous and (out[(1, "a")][1] == value[(1, "a")][1]).all()
+    assert out[7].maxlen == 3 and list(out[7]) == [True, None] and out["c"] == Counter(a=2)
+    assert next(out["n"]) == 5 and out["s"] == {1.0} and out[(1, "a")][2] == 2 + 3j
