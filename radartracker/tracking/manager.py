@@ -30,7 +30,8 @@ triangulated fix; associated by its ``aircraft`` key if that is a Mode S address
 
 Every input is either used or counted under a named reason (:attr:`TrackManager.counts`).
 :meth:`snapshot` / :meth:`restore` save and load the whole state (tracks, estimator, coupling
-graph, queues) with pickle, so a restored manager continues bit for bit.
+graph, queues) in a versioned, checksummed msgpack file (no pickle), so a restored manager continues
+bit for bit.
 """
 
 from __future__ import annotations
@@ -39,7 +40,6 @@ import heapq
 import itertools
 import logging
 import math
-import pickle
 from collections import Counter, deque
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -58,6 +58,7 @@ from radartracker.estimation.kalman import SingularInnovation
 from radartracker.estimation.motion import MotionModel
 from radartracker.estimation.base import Estimator, EstimatorConfig, PlaneMeasurement
 from radartracker.tracking.filters import MotionConfig, TrackFilter
+from radartracker.tracking.snapshot import load_manager, save_manager
 from radartracker.registry import available_estimators, make_estimator, make_filter_factory
 
 log = logging.getLogger(__name__)
@@ -200,18 +201,14 @@ class TrackManager:
         return self._events
 
     def snapshot(self, path: Path | str) -> None:
-        """Save the whole state (tracks, estimator, coupling graph, queues) to ``path``."""
-        state = dict(self.__dict__)
-        state["on_event"] = None
-        Path(path).write_bytes(pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL))
+        """Save the whole state (tracks, estimator, coupling graph, queues) to ``path``, atomically
+        (format: :mod:`radartracker.tracking.snapshot`)."""
+        save_manager(self, path)
 
     @classmethod
     def restore(cls, path: Path | str, on_event: Callable[[TrackEvent], None] | None = None) -> TrackManager:
-        """A manager continuing exactly where :meth:`snapshot` left off."""
-        obj = cls.__new__(cls)
-        obj.__dict__.update(pickle.loads(Path(path).read_bytes()))
-        obj.on_event = on_event
-        return obj
+        """A manager continuing exactly where :meth:`snapshot` left off (SnapshotError for a bad file)."""
+        return load_manager(cls, path, on_event)
 
     def accounting(self) -> dict[str, int]:
         """Counts by reason, including measurements still held by tentative tracks."""
