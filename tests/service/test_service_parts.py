@@ -1,0 +1,117 @@
+"""The service's parts: time of day to absolute time, the decoder's accounting, the bounded queue,
+checkpoints and resume, endpoints; and ``asterix-import --day-start``."""
+
+from __future__ import annotations
+
+import json
+import math
+import queue
+import socket
+import threading
+import time
+
+import pytest
+
+from radartracker.cli import main
+from radartracker.errors import ConfigurationError
+from radartracker.io.asterix import CAT048, CAT062, DAY, cat048_record, cat062_record, datablocks, read_asterix
+from radartracker.io.scenario import read_scenario, write_scenario
+from radartracker.service import parse_endpoint
+from radartracker.service.checkpoints import checkpoints, read_checkpoint, write_checkpoint
+from radartracker.service.decoder import DayClock, Decoder, ReceiveClock
+from radartracker.service.endpoints import open_receiver
+from radartracker.service.receiver import Receiver
+from radartracker.service.service import build_manager
+
+
+@pytest.mark.parametrize("received, tod, expected", [
+    (10 * DAY + 3600.0, 3599.5, 10 * DAY + 3599.5),          # same day
+    (10 * DAY + 0.4, DAY - 0.3, 10 * DAY - 0.3),              # record just before midnight, received after
+    (10 * DAY - 0.2, 0.1, 10 * DAY + 0.1),                    # receive clock a little behind the sensor's
+])
+def test_receive_clock_picks_the_nearest_day(received, tod, expected):
+    assert ReceiveClock()(tod, received) == pytest.approx(expected, abs=1e-6)
+
+
+def test_day_clock_adds_a_day_at_the_wrap():
+    clock = DayClock(5 * DAY)
+    assert [clock(t, 0.0) for t in (DAY - 2.0, DAY - 1.0, 0.5)] == [6 * DAY - 2.0, 6 * DAY - 1.0, 6 * DAY + 0.5]
+
+
+def test_decoder_counts_every_datagram_and_record():
+    good = next(datablocks(CAT048, [cat048_record(10.0, 0, 1, 50_000.0, 1.0, 9000.0, "abc123", "1234"),
+                                    cat048_record(10.5, 0, 9, 60_000.0, 2.0)]))  # SIC 9: no such radar
+    d = Decoder({(0, 1): "A"}, DayClock(0.0))
+    items = d.decode(good, 0.0)
+    assert len(items) == 1 and items[0].radar == "A" and items[0].mode_3a == "1234" and items[0].mode_s == "abc123"
+    assert math.isclose(items[0].range_m, 50_000.0, abs_tol=1852 / 512)
+    assert d.decode(good[:-3], 0.0) == []  # length field says more than there is
+    other = next(datablocks(CAT062, [cat062_record(1.0, 0, 1, 1, 48.0, 2.0, 0.0, 0.0, 0.0, 0.0)]))
+    assert d.decode(other + good, 0.0) == items  # two blocks in one datagram
+    assert dict(d.counts) == {"datagrams_decoded": 2, "datagrams_malformed": 1, "cat048_records": 4,
+                              "cat048_unknown_sac_sic": 2, "records_to_tracker": 2, "blocks_other_category": 1}
+
+
+def test_full_queue_drops_are_counted_and_never_block_the_reader():
+    ep = parse_endpoint("udp://127.0.0.1:0")
+    sock = open_receiver(ep)
+    port = sock.getsockname()[1]
+    q: queue.Queue = queue.Queue(maxsize=3)
+    rx = Receiver({ep: sock}, q)
+    rx.start()
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
+        for k in range(20):
+            tx.sendto(bytes([k]), ("127.0.0.1", port))
+    end = time.monotonic() + 30
+    while rx.counts["datagrams_received"] < 20 and time.monotonic() < end:
+        time.sleep(0.05)
+    rx.stop()
+    rx.join(5)
+    sock.close()
+    assert rx.counts["datagrams_received"] == 20 and rx.counts["datagrams_dropped_queue_full"] == 17
+    assert [q.get_nowait()[3] for _ in range(3)] == [b"\x00", b"\x01", b"\x02"]  # the first ones kept, in order
+
+
+def test_endpoints_are_checked():
+    assert parse_endpoint("udp://239.1.2.3:8600").multicast
+    assert not parse_endpoint("udp://127.0.0.1:8600").multicast
+    for bad in ("tcp://127.0.0.1:1", "udp://127.0.0.1", "127.0.0.1:80", "udp://127.0.0.1:99999"):
+        with pytest.raises(ConfigurationError):
+            parse_endpoint(bad)
+
+
+def test_checkpoints_are_whole_and_the_newest_two_kept(tmp_path):
+    from radartracker.simulation.scenarios import build_scenario
+    from radartracker.pipeline.stream import scenario_stream
+
+    data = build_scenario("tracking", seed=1, duration=60).run()
+    mgr = build_manager(data.radars)
+    items = scenario_stream(data)
+    for it in items[: len(items) // 2]:
+        mgr.process(it)
+    for seq in (1, 2, 3):
+        write_checkpoint(tmp_path, seq, mgr, {"counts": {"records_to_tracker": seq}})
+    (tmp_path / ".checkpoint-000004.partial").mkdir()  # a crash while writing the 4th
+    assert [n for n, _ in checkpoints(tmp_path)] == [2, 3]
+    back, state = read_checkpoint(checkpoints(tmp_path)[-1][1])
+    assert state == {"counts": {"records_to_tracker": 3}}
+    rest = items[len(items) // 2:]
+    ev_a = [e for it in rest for e in mgr.process(it)] + mgr.flush()
+    ev_b = [e for it in rest for e in back.process(it)] + back.flush()
+    assert ev_a == ev_b and len(ev_a) > 0  # the restored manager continues exactly
+
+
+def test_asterix_import_day_start(tmp_path, capsys):
+    from radartracker.simulation.scenarios import build_scenario
+
+    write_scenario(tmp_path / "sc", build_scenario("tracking", seed=1, duration=30).run())
+    assert main(["asterix-export", str(tmp_path / "sc"), "--out", str(tmp_path / "r.ast")]) == 0
+    assert main(["asterix-import", str(tmp_path / "r.ast"), "--out", str(tmp_path / "back"),
+                 "--day-start", "2026-12-01"]) == 0
+    day = 1_796_083_200.0  # 2026-12-01 00:00 UTC
+    back, ref = read_scenario(tmp_path / "back"), read_asterix(tmp_path / "r.ast")
+    assert back.plots.time == pytest.approx(ref.plots.time + day, abs=1e-3)
+    assert any(a.mode_3a for a in back.aircraft)
+    assert {a.icao24: a.mode_3a for a in back.aircraft} == {a.icao24: a.mode_3a for a in ref.aircraft}
+    with pytest.raises(SystemExit):  # argparse: one line naming the option
+        main(["asterix-import", str(tmp_path / "r.ast"), "--out", str(tmp_path / "x"), "--day-start", "tomorrow"])
