@@ -206,9 +206,11 @@ class TrackManager:
         save_manager(self, path)
 
     @classmethod
-    def restore(cls, path: Path | str, on_event: Callable[[TrackEvent], None] | None = None) -> TrackManager:
-        """A manager continuing exactly where :meth:`snapshot` left off (SnapshotError for a bad file)."""
-        return load_manager(cls, path, on_event)
+    def restore(cls, path: Path | str, on_event: Callable[[TrackEvent], None] | None = None, *,
+                estimator: Estimator | None = None, filter_factory: Callable[[], TrackFilter] | None = None) -> TrackManager:
+        """A manager continuing exactly where :meth:`snapshot` left off (SnapshotError for a bad file);
+        a manager given its plugins as objects is restored with new objects of the same classes."""
+        return load_manager(cls, path, on_event, estimator=estimator, filter_factory=filter_factory)
 
     def accounting(self) -> dict[str, int]:
         """Counts by reason, including measurements still held by tentative tracks."""

@@ -17,9 +17,10 @@ else — with the tags: ``tuple``, ``set``, ``frozenset``, ``dict`` and ``counte
 pairs, in order), ``deque`` ([maxlen, items]), ``complex`` ([re, im]), ``nd`` ([dtype, shape,
 order, bytes]; numeric dtypes only), ``np`` ([dtype, bytes]: a NumPy scalar), ``count``
 ([next, step]: an ``itertools.count``), ``attrs`` ([module, class, [[field, value]…]]: an attrs
-class of radartracker or its plugins, already imported), ``filter`` ([config, state dict]: a
-track filter of the manager's motion model) and ``state`` (a state dict loaded into the object
-the restored manager builds, i.e. the estimator and the coupling graph).
+class of radartracker or its plugins, already imported), ``filter`` ([class, config, state dict]: a
+track filter made by the manager's filter factory, which must make that class) and ``state`` (a
+state dict loaded into the object the restored manager builds: estimator, coupling graph, clock).
+``meta`` also names the estimator's class, which the restored manager must have.
 
 Reading never executes anything from the file: no pickle, no import; it only builds the listed
 types, and attrs classes that are already loaded, through their validating constructors. A file
@@ -68,6 +69,10 @@ class _LoadInto:
 
 # --- encoding --------------------------------------------------------------------------------------
 
+def _class_name(obj: object) -> str:
+    return f"{type(obj).__module__}.{type(obj).__qualname__}"
+
+
 def _tag(tag: str, value: Any) -> dict:
     return {"t": tag, "v": value}
 
@@ -99,7 +104,8 @@ def _enc(obj: Any, where: str) -> Any:
             raise TypeError(f"{where}: cannot save {obj!r} (integer counters only)")
         return _tag("count", [int(m[1]), int(m[2] or 1)])
     if isinstance(obj, TrackFilter):
-        return _tag("filter", [_enc(obj.config, f"{where}.config"), _enc(obj.state_dict(), f"{where} state")])
+        return _tag("filter", [_class_name(obj), _enc(obj.config, f"{where}.config"),
+                               _enc(obj.state_dict(), f"{where} state")])
     if callable(getattr(obj, "state_dict", None)):
         return _tag("state", _enc(obj.state_dict(), f"{where} state"))
     cls = type(obj)
@@ -170,8 +176,10 @@ def _hook(make_filter: Callable[[Any], TrackFilter] | None) -> Callable[[dict], 
         if t == "attrs":
             return _build(_attrs_class(v[0], v[1]), v[2])
         if t == "filter" and make_filter is not None:
-            f = make_filter(v[0])
-            f.load_state_dict(v[1])
+            f = make_filter(v[1])
+            if _class_name(f) != v[0]:
+                raise ValueError(f"the track filters were {v[0]}, this manager makes {_class_name(f)}")
+            f.load_state_dict(v[2])
             return f
         if t == "state":
             return _LoadInto(v)
@@ -230,7 +238,7 @@ def read_snapshot_file(path: Path | str) -> bytes:
 def save_manager(mgr: Any, path: Path | str) -> None:
     """Write ``mgr``'s whole state to ``path`` (see the module docstring)."""
     meta = {"kind": "TrackManager", "radars": list(mgr.radars.values()), "reference": tuple(mgr.reference),
-            "config": mgr.config}
+            "config": mgr.config, "estimator": _class_name(mgr.estimator)}
     state = {k: v for k, v in vars(mgr).items() if k not in _REBUILT}
     try:
         blob = msgpack.packb(_enc(state, "manager"), use_bin_type=True)
@@ -240,14 +248,21 @@ def save_manager(mgr: Any, path: Path | str) -> None:
     write_snapshot_file(path, payload)
 
 
-def load_manager(cls: type, path: Path | str, on_event: Callable | None = None) -> Any:
-    """A ``cls`` (TrackManager) rebuilt from its meta and filled with the saved state."""
+def load_manager(cls: type, path: Path | str, on_event: Callable | None = None, **plugins: Any) -> Any:
+    """A ``cls`` (TrackManager) rebuilt from its meta and filled with the saved state.
+
+    ``plugins`` (``estimator=``, ``filter_factory=``) rebuild a manager that was given its plugins
+    as objects; they must be of the classes the snapshot was made with.
+    """
     payload = read_snapshot_file(path)
     try:
         meta, blob = _unpack(payload, None)
         if not isinstance(meta, dict) or meta.get("kind") != "TrackManager" or not isinstance(blob, bytes):
             raise ValueError("the payload is not a TrackManager snapshot")
-        mgr = cls(meta["radars"], meta["reference"], meta["config"], on_event=on_event)
+        mgr = cls(meta["radars"], meta["reference"], meta["config"], on_event=on_event, **plugins)
+        if _class_name(mgr.estimator) != meta["estimator"]:
+            raise ValueError(f"the estimator was {meta['estimator']}, this manager makes {_class_name(mgr.estimator)} "
+                             "(pass the estimator it was made with)")
         state = _unpack(blob, mgr._filter_cls)
         if not isinstance(state, dict) or set(state) - set(vars(mgr)):
             raise ValueError(f"state attribute(s) {sorted(set(state) - set(vars(mgr)))} unknown to this release")

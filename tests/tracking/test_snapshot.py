@@ -155,3 +155,15 @@ def test_arrays_and_types_round_trip():
     assert out[(1, "a")][1].flags.f_contiguous and (out[(1, "a")][1] == value[(1, "a")][1]).all()
     assert out[7].maxlen == 3 and list(out[7]) == [True, None] and out["c"] == Counter(a=2)
     assert next(out["n"]) == 5 and out["s"] == {1.0} and out[(1, "a")][2] == 2 + 3j
+
+
+def test_restore_with_another_estimator_is_refused(saved):
+    """A manager given its estimator as an object is restored only with one of the same class."""
+    from radartracker.registry import make_estimator
+
+    mgr, path = saved
+    other = "blom" if type(mgr.estimator).__name__ != "BlomEstimator" else "decoupled"
+    with pytest.raises(SnapshotError, match="estimator was"):
+        TrackManager.restore(path, estimator=make_estimator(other, None, []))
+    assert type(TrackManager.restore(path, estimator=make_estimator(mgr.config.estimator, None, [])).estimator) \
+        is type(mgr.estimator)
