@@ -21,6 +21,7 @@ from radartracker.io.scenario import read_radars, read_scenario
 from radartracker.io.tables import ScenarioData
 from radartracker.simulation.simulator import SimAircraft, SimRadar, Simulator
 from radartracker.tracking.filters import MotionConfig, TrackFilter
+from radartracker.tracking import kernels  # compiled CV/CT predictions and position update (numba)
 
 __all__ = [
     "AdsbReport", "Aircraft", "AircraftEstimate", "BiasState", "ConfigurationError", "Estimator", "EstimatorConfig",
@@ -28,5 +29,5 @@ __all__ = [
     "PlaneMeasurement", "Plot", "PluginError", "Radar", "RadarFrame", "RadarTrackerError", "ScenarioData",
     "SimAircraft", "SimRadar", "Simulator", "SingularInnovation", "SystemPlane", "TrackFilter", "TrackPoints",
     "convert_plots", "correct", "fill_altitudes", "gain", "nacp_sigma_m", "nis", "plot_keys", "propagate",
-    "read_new4", "read_radars", "read_scenario", "symmetrize", "validated_prior", "write_plt",
+    "read_new4", "read_radars", "read_scenario", "symmetrize", "validated_prior", "write_plt", "kernels",
 ]

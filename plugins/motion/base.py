@@ -11,7 +11,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from radartracker.api import correct
+from radartracker.api import SingularInnovation, kernels
 
 
 class Step(NamedTuple):
@@ -30,6 +30,8 @@ def check_measurement(time: float, z: np.ndarray, R: np.ndarray) -> tuple[float,
     time = float(time)
     z = np.asarray(z, float)
     R = np.asarray(R, float)
+    if z.ndim == 1 and R.ndim == 2 and kernels.measurement_ok(time, z, R) == 0:  # compiled checks, else the messages
+        return time, z, R
     if not math.isfinite(time):
         raise ValueError(f"time: not finite ({time})")
     if z.shape != (2,) or not np.all(np.isfinite(z)):
@@ -66,16 +68,12 @@ def check_time(time: float, current: float | None, max_gap: float) -> float:
 
 
 def position_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray) -> Step:
-    """Kalman correction of (x, P) by position z; the first two state components are x, y."""
-    nu = z - x[:2]
-    K = P[:, :2]
-    S = P[:2, :2] + R
-    x_new, P_new = correct(x, P, K, S, nu)
-    L = np.linalg.cholesky(S)
-    w = np.linalg.solve(L, nu)
-    nis = float(w @ w)
-    loglik = -0.5 * nis - float(np.log(np.diag(L)).sum()) - math.log(2 * math.pi)
-    return Step(x_new, P_new, nu, S, nis, loglik)
+    """Kalman correction of (x, P) by position z; the first two state components are x, y
+    (:func:`radartracker.tracking.kernels.position_update`, compiled)."""
+    x_new, P_new, nu, S, nis, loglik, ok = kernels.position_update(x, P, z, R)
+    if not ok:
+        raise SingularInnovation(f"innovation covariance not positive definite: {S.tolist()}")
+    return Step(x_new, P_new, nu, S, float(nis), float(loglik))
 
 
 def start_state(z: np.ndarray, R: np.ndarray, sd_velocity: float) -> tuple[np.ndarray, np.ndarray]:

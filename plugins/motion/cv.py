@@ -1,6 +1,7 @@
 """Constant-velocity track filter (plugin ``cv``).
 
 χ̄ = A(Δt) χ̂,  P̄ = A P̂ Aᵀ + Q(Δt)  with A, Q of :class:`radartracker.api.MotionModel`
+(computed by the compiled :func:`radartracker.api.kernels.cv_predict`)
 (white acceleration of density q: Q = q [[Δt³/3 I, Δt²/2 I], [Δt²/2 I, Δt I]]), then the position
 correction of :func:`radartracker_plugins.motion.base.position_update`.
 """
@@ -10,7 +11,7 @@ from __future__ import annotations
 import attrs
 import numpy as np
 
-from radartracker.api import MotionConfig, MotionModel, TrackFilter
+from radartracker.api import MotionConfig, TrackFilter, kernels
 from radartracker_plugins.motion.base import check_measurement, check_time, position_update, require_started, start_state
 
 
@@ -29,7 +30,6 @@ class CVFilter(TrackFilter):
 
     def __init__(self, config: CVConfig | None = None) -> None:
         super().__init__(config)
-        self.model = MotionModel(self.config.q)
         self.time: float | None = None
         self.x = np.zeros(4)
         self.P = np.eye(4)
@@ -40,8 +40,7 @@ class CVFilter(TrackFilter):
 
     def predict(self, time: float) -> tuple[np.ndarray, np.ndarray]:
         time = check_time(time, self.time, self.config.max_gap_s)
-        A, Q = self.model.transition(time - self.time)
-        return A @ self.x, A @ self.P @ A.T + Q
+        return kernels.cv_predict(self.x, self.P, time - self.time, self.config.q)
 
     def update(self, time: float, z: np.ndarray, R: np.ndarray) -> float:
         time, z, R = check_measurement(time, z, R)

@@ -36,9 +36,8 @@ from typing import Any
 import attrs
 import numpy as np
 
-from radartracker.api import ConfigurationError, MotionConfig, MotionModel, TrackFilter, symmetrize
+from radartracker.api import ConfigurationError, MotionConfig, TrackFilter, kernels, symmetrize
 from radartracker_plugins.motion.base import check_measurement, check_time, position_update, require_started, start_state
-from radartracker_plugins.motion.ct import ct_noise, ct_transition
 
 _v = attrs.validators
 
@@ -59,8 +58,7 @@ class CVMode:
     dim = 4
 
     def predict(self, x: np.ndarray, P: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        A, Q = MotionModel(self.q).transition(dt)
-        return A @ x, symmetrize(A @ P @ A.T + Q)
+        return kernels.cv_predict(x, P, float(dt), self.q)
 
 
 @attrs.frozen
@@ -73,8 +71,7 @@ class CTMode:
     dim = 5
 
     def predict(self, x: np.ndarray, P: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        f, F = ct_transition(x, dt)
-        return f, symmetrize(F @ P @ F.T + ct_noise(dt, self.q, self.turn_rate_sd))
+        return kernels.ct_predict(x, P, float(dt), self.q, self.turn_rate_sd)
 
 
 @attrs.frozen

@@ -3,10 +3,10 @@
 The equations are those of the numpy code they replace, written out for the small fixed sizes
 (4-state CV, 5-state CT) so that one call does what took a dozen numpy calls:
 
-* :func:`cv_predict` — χ̄ = A(Δt) χ̂, P̄ = A P̂ Aᵀ + Q(Δt), A = [[I, Δt I], [0, I]],
+* :func:`cv_predict` — χ̄ = A(Δt) χ̂, P̄ = sym(A P̂ Aᵀ + Q(Δt)), A = [[I, Δt I], [0, I]],
   Q = q [[|Δt|³/3 I, Δt²/2 I], [Δt²/2 I, |Δt| I]] (:class:`radartracker.estimation.motion.MotionModel`).
 * :func:`ct_predict` — the extended-Kalman coordinated-turn prediction f(ξ), F P Fᵀ + Q of
-  ``radartracker_plugins.motion.ct`` (Taylor series below |ωT| = 10⁻⁴).
+  ``radartracker_plugins.motion.ct`` (Taylor series below |ωT| = 10⁻⁴), symmetrised.
 * :func:`position_update` — correction by a position z (H = [I₂ 0]): ν = z − Hχ̄, Λ = H P̄ Hᵀ + R,
   G = P̄ Hᵀ Λ⁻¹ (closed-form 2×2 inverse), χ̂ = χ̄ + G ν, P̂ = sym(P̄ − G H P̄), with
   NIS = νᵀΛ⁻¹ν and log N(ν; 0, Λ) from the Cholesky factor of Λ; ``ok`` is False when Λ is not
@@ -27,6 +27,16 @@ _SMALL = 1e-4  # |ωT| below which the CT Taylor series are used (as plugins/mot
 
 
 @njit(cache=True)
+def _symmetrize(P: np.ndarray) -> None:
+    n = P.shape[0]
+    for i in range(n):
+        for j in range(i + 1, n):
+            m = 0.5 * (P[i, j] + P[j, i])
+            P[i, j] = m
+            P[j, i] = m
+
+
+@njit(cache=True)
 def measurement_ok(time: float, z: np.ndarray, R: np.ndarray) -> int:
     """0 if (time, z, R) is a valid position measurement, else 1 (time), 2 (z) or 3 (R)."""
     if not math.isfinite(time):
@@ -39,7 +49,8 @@ def measurement_ok(time: float, z: np.ndarray, R: np.ndarray) -> int:
         for j in range(2):
             if not math.isfinite(R[i, j]):
                 return 3
-    if abs(R[0, 1] - R[1, 0]) > 1e-8 + 1e-5 * abs(R[1, 0]):
+    d = abs(R[0, 1] - R[1, 0])  # numpy.allclose(R, R.T) checks both orders
+    if d > 1e-8 + 1e-5 * abs(R[1, 0]) or d > 1e-8 + 1e-5 * abs(R[0, 1]):
         return 3
     a = R[0, 0]
     if not a > 0.0:
@@ -71,6 +82,7 @@ def cv_predict(x: np.ndarray, P: np.ndarray, dt: float, q: float) -> tuple[np.nd
             Pp[k, k + 2] += q2
             Pp[k + 2, k] += q2
             Pp[k + 2, k + 2] += q1
+    _symmetrize(Pp)
     return xp, Pp
 
 
@@ -124,6 +136,7 @@ def ct_predict(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_sd: f
             Pp[k + 2, k] += q2
             Pp[k + 2, k + 2] += q1
     Pp[4, 4] += turn_rate_sd**2 * abs(T)
+    _symmetrize(Pp)
     return xp, Pp
 
 
@@ -153,11 +166,7 @@ def position_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray):
     for i in range(n):
         for j in range(n):
             Pn[i, j] = P[i, j] - (G[i, 0] * P[j, 0] + G[i, 1] * P[j, 1])
-    for i in range(n):
-        for j in range(i + 1, n):
-            m = 0.5 * (Pn[i, j] + Pn[j, i])
-            Pn[i, j] = m
-            Pn[j, i] = m
+    _symmetrize(Pn)
     # NIS and log-likelihood from the Cholesky factor of Λ (lower triangle, as numpy.linalg.cholesky)
     l00 = math.sqrt(S[0, 0])
     l10 = S[1, 0] / l00
