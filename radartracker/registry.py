@@ -87,7 +87,7 @@ def parse_key_values(items: Iterable[str], what: str = "option") -> dict[str, st
     return out
 
 
-def _parse_value(text: str, tp: Any) -> Any:
+def parse_value(text: str, tp: Any) -> Any:
     """``text`` converted to the annotation ``tp`` (see the module docstring); TypeError if unsupported."""
     origin, args = typing.get_origin(tp), typing.get_args(tp)
     if origin in (typing.Union, types.UnionType):
@@ -96,7 +96,7 @@ def _parse_value(text: str, tp: Any) -> Any:
         rest = [a for a in args if a is not type(None)]
         if len(rest) != 1:
             raise TypeError(f"cannot read {tp} from text")
-        return _parse_value(text, rest[0])
+        return parse_value(text, rest[0])
     if tp is bool:
         low = text.strip().lower()
         if low in ("true", "yes", "on", "1"):
@@ -108,7 +108,7 @@ def _parse_value(text: str, tp: Any) -> Any:
         return tp(text.strip()) if tp is not str else text
     if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
         sep = ";" if typing.get_origin(args[0]) is tuple else ","
-        return tuple(_parse_value(part, args[0]) for part in text.split(sep) if part.strip())
+        return tuple(parse_value(part, args[0]) for part in text.split(sep) if part.strip())
     raise TypeError(f"cannot read {tp} from text")
 
 
@@ -129,7 +129,7 @@ def parse_options(owner: str, cls: type, options: Mapping[str, str] | None, base
         if key not in fields:
             raise ConfigurationError(f"{owner}: unknown option {key!r}; valid options: {valid}")
         try:
-            values[key] = _parse_value(str(text), fields[key].type)
+            values[key] = parse_value(str(text), fields[key].type)
         except (TypeError, ValueError) as exc:
             raise ConfigurationError(f"{owner}: option {key}={text!r}: {exc} (valid options: {valid})") from None
     try:

@@ -53,6 +53,7 @@ from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlaus
                                                normalised_innovation)
 from radartracker.tracking.admission import ClockConfig, StreamClock
 from radartracker.domain import AdsbReport, BiasState, Plot, Radar, nacp_sigma_m
+from radartracker.errors import PluginError
 from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.estimation.kalman import SingularInnovation
 from radartracker.estimation.motion import MotionModel
@@ -63,6 +64,7 @@ from radartracker.registry import available_estimators, make_estimator, make_fil
 
 log = logging.getLogger(__name__)
 EVENT_KINDS = ("created", "confirmed", "updated", "coasting", "deleted")
+_ZERO2, _ZERO22 = np.zeros(2), np.zeros((2, 2))
 # exact estimators first, the scalable one before the dense one (docs/estimators.md); decoupled is a last resort
 PREFERRED_ESTIMATORS = ("coupled-sparse", "coupled", "blom", "decoupled")
 
@@ -71,7 +73,6 @@ def default_estimator() -> str:
     """The best installed estimator plugin: the first of ``PREFERRED_ESTIMATORS`` that is installed."""
     installed = available_estimators()
     return next((n for n in PREFERRED_ESTIMATORS if n in installed), installed[0] if installed else PREFERRED_ESTIMATORS[0])
-_ZERO2, _ZERO22 = np.zeros(2), np.zeros((2, 2))
 
 
 @attrs.frozen
@@ -433,7 +434,10 @@ class TrackManager:
                 tr = None
         if tr is None:
             filt = self._filter_cls()
-            filt.start(src.time, zc, Rc)
+            try:
+                filt.start(src.time, zc, Rc)
+            except Exception as exc:
+                raise self._plugin_failed(f"motion model {self._filter_cls.name!r}", None, src.time, exc) from exc
             tr = ManagedTrack(next(self._ids), filt, "tentative", src.time, src.time, mode_s=code,
                               history=deque(maxlen=self.config.confirm_n))
             self.tracks[tr.id] = tr
@@ -445,6 +449,8 @@ class TrackManager:
                 self.counts["plots_refused_by_filter" if radar else "unbiased_refused_by_filter"] += 1
                 log.warning("track %s refused a measurement at t=%s: %s", tr.id, src.time, exc)
                 return
+            except Exception as exc:
+                raise self._plugin_failed(f"motion model {self._filter_cls.name!r}", tr.id, src.time, exc) from exc
         tr.last_update = src.time
         if isinstance(src, Plot):
             tr.n_plots += 1
@@ -482,7 +488,10 @@ class TrackManager:
         first = tr.pending[0][0]
         sd_v = tr.filter.config.prior_sd_velocity_mps
         prior = np.diag([1e8, 1e8, sd_v**2, sd_v**2])
-        self.estimator.add_aircraft(tr.id, first.time, np.array([*first.z, 0.0, 0.0]), prior)
+        try:
+            self.estimator.add_aircraft(tr.id, first.time, np.array([*first.z, 0.0, 0.0]), prior)
+        except Exception as exc:
+            raise self._plugin_failed(f"estimator {self.estimator.name!r}", tr.id, first.time, exc) from exc
         self.coupling.add_aircraft(tr.id)
         for m, kind in tr.pending:
             self._estimate(m, kind)
@@ -497,6 +506,8 @@ class TrackManager:
             self.counts[f"{kind}_singular"] += 1
             log.warning("estimator refused a measurement of track %s: %s", m.aircraft, exc)
             return
+        except Exception as exc:
+            raise self._plugin_failed(f"estimator {self.estimator.name!r}", m.aircraft, m.time, exc) from exc
         self.coupling.observe(m.aircraft, m.radar, m.time)
         self.counts[f"{kind}_used"] += 1
 
@@ -543,10 +554,19 @@ class TrackManager:
             for _, kind in tr.pending:
                 self.counts[f"{kind}_in_dropped_tentative_tracks"] += 1
         else:
-            self.estimator.remove_aircraft(tr.id)
+            try:
+                self.estimator.remove_aircraft(tr.id)
+            except Exception as exc:
+                raise self._plugin_failed(f"estimator {self.estimator.name!r}", tr.id, now, exc) from exc
             self.coupling.remove_aircraft(tr.id)
         tr.status = "deleted"
         self._emit(now, tr, "deleted")
+
+    def _plugin_failed(self, plugin: str, track: int | None, time: float, exc: Exception) -> PluginError:
+        """The error a run ends with when a plugin raises: names the plugin, the aircraft and the time."""
+        tr = self.tracks.get(track) if track is not None else None
+        who = "a new track" if track is None else f"track {track}" + (f" (Mode S {tr.mode_s})" if tr and tr.mode_s else "")
+        return PluginError(f"{plugin} failed on {who} at t={time:.3f} s: {type(exc).__name__}: {exc}")
 
     def _emit(self, time: float, tr: ManagedTrack, kind: str) -> None:
         t0, x, _ = tr.filter.estimate()
