@@ -15,12 +15,17 @@ gross errors of scripts/fault_injection.py: see docs/reliability.md, section "Gr
 labelled key) mean the track, not the measurements, is wrong — it started on a wild measurement or
 a swapped address: the track is re-initialised from the newest measurement instead of being frozen.
 
-A new track has a diffuse prior, so its first measurement passes trivially. What protects the
-biases from a wild *first* measurement is that a new aircraft reaches the bias estimator only once
-a second, consistent measurement exists: in the TrackManager the tentative stage (its M-of-N hits
-are screened measurements, so a wild start collects rejections and is re-initialised or dropped
-before confirmation); on the labelled path :class:`LabelledScreen` holds the first measurement
-until the next one of that aircraft agrees with it (implied speed, :func:`speed_consistent`).
+A new track has a diffuse prior, so its first measurement passes trivially. A wild *first*
+measurement is handled so: in the TrackManager a track reaches the bias estimator only when
+confirmed, and its M-of-N hits are screened measurements — a wild start rejects the aircraft's
+good measurements (the second one is judged with the start's position and the diffuse velocity
+prior, i.e. an implied-speed test) and is re-initialised after ``reinit_after`` of them, its wild
+measurement dropped with the tentative track before it reached the estimator. On the labelled path
+(:class:`LabelledScreen`) the estimator holds the aircraft from its first measurement with a wide
+prior centred on it: the wild start lands in the aircraft state, not the biases (the prior
+variance, ~10⁸ m², dwarfs the bias variance, so the bias gain on the next innovation is ~P_ς/10⁸),
+the following good measurements disagree with the state fitted through it and after
+``reinit_after`` rejections the aircraft is started again from a good one.
 
 ADS-B must also be plausible before it may anchor a bias (:class:`AdsbPlausibility`): NACp at or
 above a floor (the report carries no NIC in this domain model), and an implied speed from the last
@@ -46,16 +51,18 @@ ACCEPT, REJECT, REINIT = "accept", "reject", "reinit"
 class ScreeningConfig:
     """Gates (on d², χ²₂-distributed for good measurements) and plausibility limits.
 
-    ``gate_*`` per measurement kind; ``reinit_after`` consecutive rejections re-initialise an
+    ``gate_*`` per measurement kind — 600, about twice the largest d² of a good measurement in clean
+    runs of the built-in scenarios (309: a 3°/s turn under the CV model; 28 under IMM) and a third of
+    the smallest d² of a gross error (1 805: a +20 km range error); ``reinit_after`` consecutive rejections re-initialise an
     identified aircraft's track; ``adsb_min_nacp`` is the lowest NACp that may be used;
     ``adsb_max_speed_mps`` the fastest implied speed between reports of one address, allowing
     ``speed_sigmas`` standard deviations of the two positions' noise on top.
     """
 
     enabled: bool = True
-    gate_plots: float = attrs.field(default=40.0, validator=attrs.validators.gt(0.0))
-    gate_adsb: float = attrs.field(default=40.0, validator=attrs.validators.gt(0.0))
-    gate_positions: float = attrs.field(default=40.0, validator=attrs.validators.gt(0.0))
+    gate_plots: float = attrs.field(default=600.0, validator=attrs.validators.gt(0.0))
+    gate_adsb: float = attrs.field(default=600.0, validator=attrs.validators.gt(0.0))
+    gate_positions: float = attrs.field(default=600.0, validator=attrs.validators.gt(0.0))
     reinit_after: int = attrs.field(default=3, validator=attrs.validators.ge(1))
     adsb_min_nacp: int = attrs.field(default=5, validator=attrs.validators.in_(range(1, 12)))
     adsb_max_speed_mps: float = attrs.field(default=600.0, validator=attrs.validators.gt(0.0))
@@ -137,59 +144,32 @@ class LabelledScreen:
     """Screening for the labelled replay, where the estimator is the only model of each aircraft.
 
     A measurement of a known aircraft is tested against the estimator's own prediction
-    (:meth:`Estimator.predict`) and the radar's bias (S as in the module docstring). A new aircraft's
-    first measurement is held back until a second one agrees with it (:func:`speed_consistent`,
-    σ = √(largest eigenvalue of R)); a disagreeing pair drops the older one (counted as an
-    outlier) and holds the newer. ``reinit_after`` consecutive rejections remove the aircraft from
-    the estimator and start it again from the newest measurement.
+    (:meth:`Estimator.predict`) and the radar's bias (S as in the module docstring), with
+    ``reinit_after`` consecutive rejections asking for the aircraft to be started again.
     """
 
     def __init__(self, config: ScreeningConfig) -> None:
         self.config = config
         self.adsb = AdsbPlausibility(config)
-        self._held: dict[Hashable, PlaneMeasurement] = {}
         self._strikes: dict[Hashable, int] = {}
 
-    def screen(self, est: Estimator, m: PlaneMeasurement, kind: str, known: bool) -> tuple[str, list[PlaneMeasurement]]:
-        """(verdict, measurements to apply in order) for measurement ``m`` of aircraft ``m.aircraft``.
-
-        ``known``: the estimator has this aircraft. Verdicts: ACCEPT (apply the list), REJECT
-        (count ``m`` as an outlier), REINIT (remove the aircraft, then start it from the list),
-        "held" (a new aircraft's first measurement, nothing to apply yet), "replaced" (the held one
-        was dropped as an outlier and ``m`` is held instead).
-        """
-        key = m.aircraft
-        if not known:
-            held = self._held.pop(key, None)
-            if held is None:
-                self._held[key] = m
-                return "held", []
-            if speed_consistent(self.config, m.time - held.time, held.z, _sd(held.R), m.z, _sd(m.R)):
-                return ACCEPT, [held, m]
-            self._held[key] = m
-            return "replaced", []
-        pred = est.predict(key, m.time)
+    def screen(self, est: Estimator, m: PlaneMeasurement, kind: str) -> str:
+        """ACCEPT, REJECT or REINIT for measurement ``m`` of aircraft ``m.aircraft`` (known to ``est``)."""
+        pred = est.predict(m.aircraft, m.time)
         if m.radar is not None:
             b = est.bias(m.radar)
             bias, bias_cov = b.bias, b.cov
         else:
             bias, bias_cov = np.zeros(2), np.zeros((2, 2))
         d2 = normalised_innovation(m.z, m.C, m.R, bias, bias_cov, pred.state[:2], pred.cov[:2, :2])
-        verdict = judge(self.config, kind, d2, self._strikes.get(key, 0), identified=True)
+        strikes = self._strikes.pop(m.aircraft, 0)
+        verdict = judge(self.config, kind, d2, strikes, identified=True)
         if verdict == REJECT:
-            self._strikes[key] = self._strikes.get(key, 0) + 1
-            return REJECT, []
-        self._strikes.pop(key, None)
-        return verdict, [m]
-
-    def pending(self) -> list[PlaneMeasurement]:
-        """Measurements still held at the end (each the only one of its aircraft)."""
-        return list(self._held.values())
+            self._strikes[m.aircraft] = strikes + 1
+        return verdict
 
     def forget(self, key: Hashable) -> None:
-        """Aircraft ``key`` was removed from the estimator (not seen for a while)."""
+        """Aircraft ``key`` left the estimator."""
         self._strikes.pop(key, None)
 
 
-def _sd(R: np.ndarray) -> float:
-    return math.sqrt(float(np.linalg.eigvalsh(R)[-1]))

@@ -34,6 +34,7 @@ from radartracker.estimation.base import Estimator, PlaneMeasurement
 from radartracker.estimation.coupling import CouplingGraph
 from radartracker.estimation.kalman import SingularInnovation
 from radartracker.estimation.measurement import convert_adsb, convert_plots, fill_altitudes, merge, plot_keys
+from radartracker.estimation.screening import REINIT, REJECT, LabelledScreen, ScreeningConfig
 from radartracker.geometry.plane import SystemPlane
 from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.config import RunConfig, resolve
@@ -41,6 +42,7 @@ from radartracker.pipeline.recorder import Recorder
 from radartracker.pipeline.result import RunResult
 from radartracker.pipeline.stream import scenario_stream
 from radartracker.registry import FilterFactory, load_motion_model, make_estimator, make_filter_factory, option_fields
+from radartracker.tracking.admission import StreamClock
 from radartracker.tracking.manager import ManagerConfig, TrackEvent, TrackManager, default_estimator
 
 log = logging.getLogger(__name__)
@@ -97,6 +99,7 @@ def _by_labels(data: ScenarioData, cfg: RunConfig, est: Estimator, rec: Recorder
     order = np.argsort(np.concatenate([p.time, a.time]), kind="stable")
     reported = np.concatenate([p.altitude_m, a.altitude_m])[order]
     mode_s = np.concatenate([p.mode_s, a.icao24])[order]
+    nacp = np.concatenate([np.full(len(p), 11), a.nacp.astype(int)])[order]
     mode_3a = np.concatenate([p.mode_3a, np.full(len(a), None, object)])[order]
     labels = np.concatenate([p.target if p.has_truth_labels else np.full(len(p), None, object),
                              np.full(len(a), None, object)])[order]
@@ -109,10 +112,25 @@ def _by_labels(data: ScenarioData, cfg: RunConfig, est: Estimator, rec: Recorder
     last_seen: dict[object, float] = {}
     ident: dict[int, list] = {}  # track id → [altitude, mode_s, mode_3a, label]
     next_sweep = -math.inf
+    # the TrackManager's admission and screening rules (radartracker.tracking.admission, estimation.screening)
+    clock, screen = StreamClock(), LabelledScreen(ScreeningConfig())
+
+    def end(k: object, t: float) -> None:
+        tid = track.pop(k)
+        del last_seen[k]
+        x = est.aircraft(tid)
+        rec.event(t, tid, "deleted", "deleted", _extrapolate(x.state, t - x.time), None, *ident.pop(tid))
+        est.remove_aircraft(tid)
+        coupling.remove_aircraft(tid)
+        screen.forget(tid)
+
     for i in tqdm(range(len(meas)), desc=f"replay {cfg.estimator}", unit="meas", delay=2.0, mininterval=1.0,
                   disable=not progress):
         t, radar, key = float(meas.time[i]), meas.radar[i], meas.key[i]
         kind = "plots" if radar is not None else "adsb"
+        if not clock.admit(t):
+            counts[f"{kind}_time_jump"] += 1
+            continue
         if key is None:
             counts[f"{kind}_unassociated"] += 1
             continue
@@ -121,13 +139,19 @@ def _by_labels(data: ScenarioData, cfg: RunConfig, est: Estimator, rec: Recorder
             continue
         if t >= next_sweep:  # end the tracks unseen for drop_after_s
             for k in [k for k, ts in last_seen.items() if t - ts > life.drop_after_s]:
-                tid = track.pop(k)
-                del last_seen[k]
-                x = est.aircraft(tid)
-                rec.event(t, tid, "deleted", "deleted", _extrapolate(x.state, t - x.time), None, *ident.pop(tid))
-                est.remove_aircraft(tid)
-                coupling.remove_aircraft(tid)
+                end(k, t)
             next_sweep = t + 1.0
+        if radar is None and (why := screen.adsb.check(key, t, meas.z[i], math.sqrt(meas.R[i][0, 0]), nacp[i])):
+            counts[why] += 1
+            continue
+        if key in track:
+            verdict = screen.screen(est, PlaneMeasurement(t, track[key], radar, meas.z[i], meas.C[i], meas.R[i]), kind)
+            if verdict == REJECT:
+                counts[f"{kind}_outlier"] += 1
+                continue
+            if verdict == REINIT:  # the aircraft's state, not its measurements, is wrong: start it again
+                counts["tracks_reinitialised"] += 1
+                end(key, t)
         new = key not in track
         tid = next(ids) if new else track[key]
         if new:

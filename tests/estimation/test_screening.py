@@ -9,10 +9,10 @@ from scipy import stats
 from scipy.spatial.distance import mahalanobis
 
 from radartracker.domain import AdsbReport, Plot
-from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, LabelledScreen,
-                                               ScreeningConfig, judge, normalised_innovation, speed_consistent)
-from radartracker.estimation.base import PlaneMeasurement
-from radartracker.registry import make_estimator
+from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, ScreeningConfig, judge,
+                                               normalised_innovation, speed_consistent)
+from radartracker.pipeline.config import RunConfig
+from radartracker.pipeline.run import run
 from radartracker.simulation.scenarios import _icao, build_scenario
 from radartracker.tracking.manager import ManagerConfig, TrackManager
 
@@ -58,18 +58,6 @@ def test_adsb_plausibility():
     assert got == ["adsb_implausible_speed", "adsb_implausible_speed", None, None]
     assert speed_consistent(cfg, 10.0, np.zeros(2), 30.0, np.array([6000.0, 0.0]), 30.0)
     assert not speed_consistent(cfg, 10.0, np.zeros(2), 30.0, np.array([6500.0, 0.0]), 30.0)
-
-
-def test_labelled_screen_holds_the_first_measurement_until_a_second_agrees():
-    est = make_estimator(ESTIMATOR, None, ["R1"])
-    scr = LabelledScreen(ScreeningConfig())
-    R = np.eye(2) * 100.0
-    wild = PlaneMeasurement(0.0, "a", None, np.array([0.0, 111e3]), np.zeros((2, 2)), R)
-    good = [PlaneMeasurement(t, "a", None, np.array([200.0 * t, 0.0]), np.zeros((2, 2)), R) for t in (1.0, 2.0, 3.0)]
-    assert scr.screen(est, wild, "positions", known=False) == ("held", [])
-    assert scr.screen(est, good[0], "positions", known=False) == ("replaced", [])
-    verdict, apply = scr.screen(est, good[1], "positions", known=False)
-    assert verdict == ACCEPT and apply == [good[0], good[1]]
 
 
 def _items(data):
@@ -151,3 +139,63 @@ def test_swapped_address_at_start_does_not_lock_out_the_truth(demo):
     assert counts["tracks_reinitialised"] >= 1
     live = [t for t in mgr.tracks.values() if t.mode_s == code]
     assert len(live) == 1 and live[0].status in ("confirmed", "coasting") and live[0].n_plots > 20
+
+
+def _tables(data, plot_fix=None, adsb_fix=None, drop=()):
+    """A copy of ``data`` with plot/ADS-B columns changed in place of rows, or rows dropped."""
+    plots, adsb = data.plots, data.adsb
+    if plot_fix:
+        rng = plots.range_m.copy()
+        for i, dr in plot_fix.items():
+            rng[i] += dr
+        plots = attrs.evolve(plots, range_m=rng)
+    if adsb_fix:
+        lat, lon = adsb.lat.copy(), adsb.lon.copy()
+        for i, (la, lo) in adsb_fix.items():
+            lat[i], lon[i] = la, lo
+        adsb = attrs.evolve(adsb, lat=lat, lon=lon)
+    for kind, idx in drop:
+        keep = np.setdiff1d(np.arange(len(plots if kind == "plot" else adsb)), idx)
+        if kind == "plot":
+            plots = plots.take(keep)
+        else:
+            adsb = attrs.evolve(adsb, **{f.name: getattr(adsb, f.name)[keep] for f in attrs.fields(type(adsb))})
+    return attrs.evolve(data, plots=plots, adsb=adsb)
+
+
+def _nearest(times, mask, t):
+    idx = np.flatnonzero(mask)
+    return int(idx[np.argmin(np.abs(times[idx] - t))])
+
+
+def test_labelled_path_screens_the_same_gross_errors(demo):
+    """The labelled replay (truth labels) with the same three gross errors ends exactly where it ends
+    without them, within 3σ of the true biases."""
+    data = demo[0]
+    p, a = data.plots, data.adsb
+    ip = _nearest(p.time, (p.mode_s == _icao(0)) & (p.radar == "R1"), 180.0)
+    ia1, ia0 = _nearest(a.time, a.icao24 == _icao(1), 120.0), _nearest(a.time, a.icao24 == _icao(0), 240.0)
+    faulty = _tables(data, {ip: 20_000.0}, {ia1: (-a.lat[ia1], a.lon[ia1] - 180.0), ia0: (a.lat[ia0] + 1.0, a.lon[ia0])})
+    without = _tables(data, drop=[("plot", [ip]), ("adsb", [ia1, ia0])])
+    cfg = RunConfig(association="labels", estimator=ESTIMATOR)
+    res, ref = run(faulty, cfg, progress=False), run(without, cfg, progress=False)
+    assert res.counts["plots_outlier"] == 1 and res.counts["adsb_implausible_speed"] == 2
+    for rid, (true_r, true_a) in data.truth_biases.items():
+        b = res.final_biases[rid]
+        np.testing.assert_array_equal(b.bias, ref.final_biases[rid].bias)
+        assert abs(b.bias[0] - true_r) < 3 * math.sqrt(b.cov[0, 0])
+        assert abs(b.bias[1] - true_a) < 3 * math.sqrt(b.cov[1, 1])
+
+
+def test_labelled_path_wild_first_measurement(demo):
+    """A +20 km first plot of an aircraft: absorbed by the diffuse prior, the aircraft is started again
+    after its good plots disagree, and the biases stay within 3σ."""
+    data = demo[0]
+    p = data.plots
+    first = int(np.flatnonzero(p.target == _icao(3))[0])
+    res = run(_tables(data, {first: 20_000.0}), RunConfig(association="labels", estimator=ESTIMATOR), progress=False)
+    assert res.counts["tracks_reinitialised"] == 1
+    for rid, (true_r, true_a) in data.truth_biases.items():
+        b = res.final_biases[rid]
+        assert abs(b.bias[0] - true_r) < 3 * math.sqrt(b.cov[0, 0])
+        assert abs(b.bias[1] - true_a) < 3 * math.sqrt(b.cov[1, 1])
