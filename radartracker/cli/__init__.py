@@ -111,10 +111,16 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from radartracker.io.scenario import write_scenario
     from radartracker.simulation.scenarios import build_scenario
 
+    from radartracker.pipeline.config import check_number
+
     if args.out.exists():
         raise ConfigurationError(f"{args.out} already exists; choose a new folder")
-    options = {k: getattr(args, k) for k in ("aircraft", "radars", "adsb_share", "primary_share")
-               if getattr(args, k) is not None}
+    if args.duration is not None:  # a week of traffic at most: beyond that, a typo, not a scenario
+        check_number("--duration", args.duration, lo=0.0, lo_open=True, hi=7 * 86400.0)
+    bounds = {"aircraft": (1, None), "radars": (1, None), "adsb_share": (0.0, 1.0), "primary_share": (0.0, 1.0)}
+    options = {k: getattr(args, k) for k in bounds if getattr(args, k) is not None}
+    for k, v in options.items():
+        check_number(f"--{k.replace('_', '-')}", v, lo=bounds[k][0], hi=bounds[k][1])
     if args.scenario == "traffic":
         from radartracker.simulation.traffic import traffic_scenario
 

@@ -56,6 +56,11 @@ def _q(inst: Any, attr: attrs.Attribute, value: float) -> None:
     check_number("--q", value, lo=0.0)
 
 
+def _association(inst: Any, attr: attrs.Attribute, value: str) -> None:
+    if value not in ASSOCIATIONS:
+        raise ConfigurationError(f"association: {value!r} is not one of {', '.join(ASSOCIATIONS)}")
+
+
 def _optional_positive(option: str):
     def check(inst: Any, attr: attrs.Attribute, value: float | None) -> None:
         if value is not None:
@@ -63,32 +68,59 @@ def _optional_positive(option: str):
     return check
 
 
-def _scalar_fields(cls: type, exclude: tuple[str, ...] = ()) -> dict[str, Any]:
-    """Name → default of the scalar (number, text, flag) fields of an attrs class."""
-    out = {}
-    for f in attrs.fields(cls):
-        default = f.default.factory() if isinstance(f.default, attrs.Factory) else f.default
-        if f.name not in exclude and isinstance(default, (int, float, str, bool)):
-            out[f.name] = default
+def _values(obj: Any, exclude: tuple[str, ...] = ()) -> dict[str, Any]:
+    """The settings of an attrs config as plain values: numbers, text, flags, and nested configs as dicts."""
+    out: dict[str, Any] = {}
+    for f in attrs.fields(type(obj)):
+        v = getattr(obj, f.name)
+        if f.name in exclude or not f.init:
+            continue
+        if isinstance(v, (bool, int, float, str)):
+            out[f.name] = v
+        elif attrs.has(type(v)) and (nested := _values(v)):
+            out[f.name] = nested
     return out
 
 
 def _typed_overrides(what: str, defaults: dict[str, Any], given: Mapping[str, Any]) -> dict[str, Any]:
-    """``given`` checked against ``defaults``: known names, numbers finite and ≥ 0, integers where integer."""
-    out = {}
+    """``given`` checked against ``defaults``: known names, the default's type, numbers finite and ≥ 0."""
+    out: dict[str, Any] = {}
     for name, value in given.items():
         if name not in defaults:
             raise ConfigurationError(f"{what}: unknown setting {name!r}; known: {', '.join(sorted(defaults))}")
         d = defaults[name]
-        if isinstance(d, bool) or isinstance(d, str):
-            out[name] = type(d)(value)
+        if isinstance(d, dict):
+            if not isinstance(value, Mapping):
+                raise ConfigurationError(f"{what}.{name}: expected a mapping of settings, got {value!r}")
+            out[name] = _typed_overrides(f"{what}.{name}", d, value)
+        elif isinstance(d, bool):
+            if not isinstance(value, bool):
+                raise ConfigurationError(f"{what}.{name}: expected true or false, got {value!r}")
+            out[name] = value
+        elif isinstance(d, str):
+            out[name] = str(value)
         else:
             out[name] = check_number(f"{what}.{name}", value, lo=0.0, integer=isinstance(d, int))
     return out
 
 
-MANAGER_SETTINGS = _scalar_fields(ManagerConfig, exclude=("estimator", "motion_model", "primary_altitude_m"))
-ESTIMATOR_SETTINGS = _scalar_fields(EstimatorConfig)
+def _merged(defaults: dict[str, Any], given: dict[str, Any]) -> dict[str, Any]:
+    return {k: _merged(v, given.get(k, {})) if isinstance(v, dict) else given.get(k, v) for k, v in defaults.items()}
+
+
+def _evolved(what: str, obj: Any, values: dict[str, Any]) -> Any:
+    """``obj`` with ``values`` (nested dicts for nested configs); a refused value is a ConfigurationError."""
+    changes = {k: _evolved(f"{what}.{k}", getattr(obj, k), v) if isinstance(v, dict) else v for k, v in values.items()}
+    try:
+        return attrs.evolve(obj, **changes)
+    except (TypeError, ValueError) as exc:
+        raise ConfigurationError(f"{what}: {exc}") from None
+
+
+_FROM_RUN = ("estimator", "estimator_config", "motion_model", "motion", "motion_options", "estimator_options",
+             "primary_altitude_m")  # set from the run's own settings, not from ``manager``
+MANAGER_SETTINGS = _values(ManagerConfig(), exclude=_FROM_RUN)
+ESTIMATOR_SETTINGS = _values(EstimatorConfig(), exclude=("motion",))
 
 
 @attrs.frozen
@@ -119,7 +151,7 @@ class RunConfig:
     path's track life cycle. Settings of a path not taken are refused, never silently ignored.
     """
 
-    association: str = attrs.field(default="auto", validator=attrs.validators.in_(ASSOCIATIONS))
+    association: str = attrs.field(default="auto", validator=_association)
     estimator: str | None = None
     estimator_options: dict[str, str] = attrs.field(factory=dict, converter=_str_dict)
     motion_model: str | None = None
@@ -143,7 +175,17 @@ class RunConfig:
         from radartracker.estimation.motion import MotionModel
 
         values = _typed_overrides("estimator_config", ESTIMATOR_SETTINGS, self.estimator_config)
-        return EstimatorConfig(motion=MotionModel(self.q), **values)
+        return _evolved("estimator_config", EstimatorConfig(motion=MotionModel(self.q)), values)
+
+    def manager_settings(self) -> ManagerConfig:
+        """The :class:`ManagerConfig` of this run (estimator and motion model are passed as built objects)."""
+        values = _typed_overrides("manager", MANAGER_SETTINGS, self.manager)
+        base = ManagerConfig(estimator=self.estimator or ManagerConfig().estimator,
+                             estimator_config=self.estimator_settings(),
+                             motion_model=self.motion_model or ManagerConfig().motion_model,
+                             primary_altitude_m=default_altitude() if self.default_altitude_m is None
+                             else self.default_altitude_m)
+        return _evolved("manager", base, values)
 
     def to_json(self) -> str:
         """``config.json``: format, version and every setting."""
@@ -181,14 +223,14 @@ def resolve(config: RunConfig, data: ScenarioData, estimator_name: str) -> RunCo
         if config.labels is not None:
             raise ConfigurationError("labels settings (track prior, drop_after_s) need --association labels")
         labels = None
-        manager = MANAGER_SETTINGS | _typed_overrides("manager", MANAGER_SETTINGS, config.manager)
+        manager = _merged(MANAGER_SETTINGS, _typed_overrides("manager", MANAGER_SETTINGS, config.manager))
         motion = config.motion_model or ManagerConfig().motion_model
     return attrs.evolve(
         config, association=association, estimator=estimator_name, motion_model=motion, labels=labels,
         manager=manager, default_altitude_m=default_altitude() if config.default_altitude_m is None
         else float(config.default_altitude_m),
-        estimator_config=ESTIMATOR_SETTINGS | _typed_overrides("estimator_config", ESTIMATOR_SETTINGS,
-                                                               config.estimator_config))
+        estimator_config=_merged(ESTIMATOR_SETTINGS, _typed_overrides("estimator_config", ESTIMATOR_SETTINGS,
+                                                                      config.estimator_config)))
 
 
 def read_config(path: Path | str) -> RunConfig:

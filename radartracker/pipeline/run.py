@@ -43,7 +43,7 @@ from radartracker.pipeline.result import RunResult
 from radartracker.pipeline.stream import scenario_stream
 from radartracker.registry import FilterFactory, load_motion_model, make_estimator, make_filter_factory, option_fields
 from radartracker.tracking.admission import StreamClock
-from radartracker.tracking.manager import ManagerConfig, TrackEvent, TrackManager, default_estimator
+from radartracker.tracking.manager import TrackEvent, TrackManager, default_estimator
 
 log = logging.getLogger(__name__)
 
@@ -191,8 +191,7 @@ def _extrapolate(state: np.ndarray, dt: float) -> np.ndarray:
 def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: FilterFactory, rec: Recorder,
                 progress: bool) -> tuple[Counter, CouplingGraph]:
     """Association by the TrackManager; events carry the track filter's state and covariance."""
-    mcfg = ManagerConfig(estimator=cfg.estimator, estimator_config=cfg.estimator_settings(),
-                         motion_model=cfg.motion_model, primary_altitude_m=cfg.default_altitude_m, **cfg.manager)
+    mcfg = cfg.manager_settings()
     ident: dict[int, tuple] = {}  # identity of each track at its last event (deleted tracks are gone from mgr)
 
     def on_event(ev: TrackEvent) -> None:

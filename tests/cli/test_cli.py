@@ -61,3 +61,26 @@ def test_replay_without_truth_labels_uses_the_track_manager(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["association"] == "manager" and summary["tracking"]["false_tracks"] == 0
     assert (out / "tracks.png").stat().st_size > 10_000 and (out / "coupling.graphml").exists()
+
+
+@pytest.mark.parametrize("argv, option", [
+    (["--duration", "inf"], "--duration"), (["--duration", "nan"], "--duration"), (["--duration", "-5"], "--duration"),
+    (["--scenario", "traffic", "--adsb-share", "2"], "--adsb-share"), (["--scenario", "traffic", "--radars", "0"], "--radars"),
+])
+def test_simulate_numeric_options_are_validated(tmp_path, capsys, argv, option):
+    assert main(["simulate", str(tmp_path / "s"), *argv]) == 2
+    assert option in capsys.readouterr().err and not (tmp_path / "s").exists()
+
+
+def test_estimator_option_reaches_the_plugin_on_both_paths(tmp_path):
+    scen = tmp_path / "scen"
+    assert main(["simulate", str(scen), "--scenario", "demo", "--duration", "120"]) == 0
+    for assoc in ("labels", "manager"):
+        out = tmp_path / assoc
+        assert main(["--quiet", "replay", str(scen), "--out", str(out), "--association", assoc,
+                     "--estimator", "coupled-sparse", "--estimator-option", "refresh_every=7"]) == 0
+        cfg = json.loads((out / "config.json").read_text())
+        assert cfg["settings"]["estimator_options"] == {"refresh_every": "7"}
+        assert cfg["plugins"]["estimator"]["refresh_every"] == 7
+    assert main(["replay", str(scen), "--out", str(tmp_path / "bad"), "--estimator", "coupled-sparse",
+                 "--estimator-option", "refresh_every=-1"]) == 2

@@ -140,3 +140,17 @@ def test_compare_help_states_the_real_default_q(capsys):
     with pytest.raises(SystemExit):
         main(["compare", "--help"])
     assert "default 5" in capsys.readouterr().out.replace("\n", " ")
+
+
+@pytest.mark.parametrize("settings, match", [
+    (dict(association="manager", manager={"screening": {"gate_plots": -1}}), "gate_plots"),
+    (dict(association="manager", manager={"nosuch": 1}), "nosuch"),
+    (dict(association="manager", manager={"confirm_m": 2.5}), "confirm_m"),
+    (dict(association="labels", manager={"gate": 9.0}), "association manager"),
+    (dict(association="labels", motion_model="imm"), "--motion-model"),
+    (dict(q=float("nan")), "--q"),
+    (dict(association="sideways"), "association"),
+])
+def test_settings_of_the_wrong_kind_or_path_are_refused(unlabelled, settings, match):
+    with pytest.raises(ConfigurationError, match=match):
+        run(unlabelled, RunConfig(**settings), progress=False)
