@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import sys
 from pathlib import Path
 
@@ -39,73 +40,128 @@ def register_reconstruct(sub: argparse._SubParsersAction) -> None:
                    help="skip the multiple-shooting refinement (about 3x faster, less accurate on long flights)")
     p.add_argument("--truth-biases", action="store_true",
                    help="scenario input: remove the radar biases of truth_biases.csv from the plots")
+    p.add_argument("--biases", type=Path, default=None, metavar="BIASES_CSV",
+                   help="remove the radar biases of a replay's biases.csv (last row per radar; its sd inflates R)")
+    p.add_argument("--estimate-biases", action="store_true",
+                   help="scenario input: estimate the radar biases jointly with every flight's trajectory")
+    p.add_argument("--radars", type=Path, default=None, metavar="RADARS_CSV",
+                   help=".new4 input: radars.csv (scenario format); <radar>_r.new4 plots then get R from the "
+                        "radar's range/azimuth sigma, and the plots of all radars of one folder are fused")
+    p.add_argument("--flights", default=None, metavar="ID,...", help="reconstruct only these aircraft keys")
+    p.add_argument("--jump-sd", type=float, default=0.0, metavar="MPS2",
+                   help="prior sd of each control jump (m/s², MAP fit); 0: no prior (default)")
     p.add_argument("--no-figures", action="store_true", help="skip the per-aircraft figures")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, no Dask logs")
     p.set_defaults(func=_cmd_reconstruct)
 
 
-def _load(inputs: list[Path], sigma: float, min_plots: int):
-    """(tracks, plane per key, truth per key, skipped counts, truth biases or None)."""
-    from radartracker.api import read_scenario
-    from radartracker_plugins.reconstruction.tracks import new4_track, scenario_tracks, scenario_truth
+def _load(inputs: list[Path], sigma: float, min_plots: int, radars_csv: Path | None = None):
+    """(tracks, plane per key, truth per key, skipped counts, truth biases or None, radar ids or None)."""
+    from radartracker.api import read_radars, read_scenario
+    from radartracker_plugins.reconstruction.tracks import new4_set_tracks, scenario_tracks, scenario_truth
 
     for p in inputs:
         if not p.exists():
             raise ConfigurationError(f"{p}: no such file or folder")
     if len(inputs) == 1 and inputs[0].is_dir():
+        if radars_csv:
+            raise ConfigurationError("--radars: only for .new4 input (a scenario folder has its radars.csv)")
         data = read_scenario(inputs[0])
         tracks, plane, skipped = scenario_tracks(data, min_plots)
-        return tracks, {t.key: plane for t in tracks}, scenario_truth(data, plane), dict(skipped), data.truth_biases
+        return (tracks, {t.key: plane for t in tracks}, scenario_truth(data, plane), dict(skipped), data.truth_biases,
+                {r.id for r in data.radars})
     if any(p.is_dir() or p.suffix != ".new4" for p in inputs):
         raise ConfigurationError("give either one scenario folder or .new4 files")
-    tracks, planes, skipped = [], {}, {}
-    for p in inputs:
-        pt, plane = new4_track(p, sigma)
-        if len(pt) < min_plots:
-            skipped[f"tracks with < {min_plots} points"] = skipped.get(f"tracks with < {min_plots} points", 0) + 1
-            continue
-        if pt.key in planes:
-            raise ConfigurationError(f"{p}: two inputs map to the same aircraft key {pt.key!r}")
-        tracks.append(pt)
-        planes[pt.key] = plane
-    return tracks, planes, {}, skipped, None
+    radars = read_radars(radars_csv) if radars_csv else []
+    tracks, planes, skipped = new4_set_tracks(inputs, radars, sigma)
+    keys = [t.key for t in tracks]
+    if len(set(keys)) < len(keys):
+        dup = sorted({k for k in keys if keys.count(k) > 1})
+        raise ConfigurationError(f"two inputs map to the same aircraft key: {', '.join(dup)}")
+    short = [t for t in tracks if len(t) < min_plots]
+    if short:
+        skipped[f"tracks with < {min_plots} points"] = len(short)
+    tracks = [t for t in tracks if len(t) >= min_plots]
+    return tracks, planes, {}, dict(skipped), None, ({r.id for r in radars} or None)
+
+
+def _select(tracks, flights: str | None):
+    """The tracks named by ``--flights ID,...`` (all when None); an unknown ID is an error."""
+    if not flights:
+        return tracks
+    want = [f.strip() for f in flights.split(",") if f.strip()]
+    have = {t.key for t in tracks}
+    missing = [f for f in want if f not in have]
+    if missing:
+        raise ConfigurationError(f"--flights: no aircraft {', '.join(missing)} in the input "
+                                 f"(have: {', '.join(sorted(have)[:20])}{' ...' if len(have) > 20 else ''})")
+    return [t for t in tracks if t.key in set(want)]
 
 
 def _cmd_reconstruct(args: argparse.Namespace) -> int:
     from radartracker_plugins.reconstruction import ReconstructionConfig
+    from radartracker_plugins.reconstruction.biases import debias, read_biases
     from radartracker_plugins.reconstruction.engine import Failure, executor, run_many
     from radartracker_plugins.reconstruction.output import write_reconstruction
+    from radartracker_plugins.reconstruction.quality import assess, truth_error
 
     if args.out.exists() and any(args.out.iterdir()):
         raise ConfigurationError(f"{args.out} exists and is not empty; choose a new folder")
     if args.sigma <= 0:
         raise ConfigurationError(f"--sigma: must be > 0, got {args.sigma}")
+    if sum(map(bool, (args.truth_biases, args.biases, args.estimate_biases))) > 1:
+        raise ConfigurationError("give at most one of --truth-biases, --biases, --estimate-biases")
     try:
-        cfg = ReconstructionConfig(max_u=args.max_u, max_w=args.max_w, loss=args.loss,
-                                   hypotheses=args.hypotheses, grid_dt=args.grid, shooting=not args.no_shooting)
+        cfg = ReconstructionConfig(max_u=args.max_u, max_w=args.max_w, loss=args.loss, hypotheses=args.hypotheses,
+                                   grid_dt=args.grid, shooting=not args.no_shooting, jump_sd=args.jump_sd)
     except (ValueError, TypeError) as exc:
         raise ConfigurationError(str(exc)) from None
-    tracks, planes, truth, skipped, truth_biases = _load(args.inputs, args.sigma, args.min_plots)
+    if args.quiet:
+        for name in ("distributed", "dask"):
+            logging.getLogger(name).setLevel(logging.ERROR)
+    tracks, planes, truth, skipped, truth_biases, radar_ids = _load(args.inputs, args.sigma, args.min_plots, args.radars)
+    tracks = _select(tracks, args.flights)
     if args.truth_biases and not truth_biases:
         raise ConfigurationError("--truth-biases: the input has no truth biases")
-    biases = truth_biases if args.truth_biases else None
+    biases = truth_biases if args.truth_biases else read_biases(args.biases, radar_ids) if args.biases else None
     if not tracks:
         raise ConfigurationError("no aircraft with enough plots to reconstruct")
     engine = "dask" if args.scheduler else args.engine
     args.out.mkdir(parents=True, exist_ok=True)
     summary = {"flights": len(tracks), "skipped_plots": skipped, "reconstructed": [], "failed": {}}
-    with executor(engine, args.workers, args.scheduler) as ex:
-        for res in run_many(tracks, cfg, ex, args.batch_plots, not args.quiet, biases):
+    if biases:
+        tracks = [debias(t, biases) for t in tracks]
+        summary["biases_removed"] = "truth_biases.csv" if args.truth_biases else str(args.biases)
+    with executor(engine, args.workers, args.scheduler, quiet=args.quiet) as ex:
+        if args.estimate_biases:
+            from radartracker_plugins.reconstruction.joint import estimate_jointly
+
+            results, joint = estimate_jointly(tracks, cfg, ex, args.batch_plots, not args.quiet)
+            summary["joint_biases"] = joint
+        else:
+            results = run_many(tracks, cfg, ex, args.batch_plots, not args.quiet)
+        for res in results:
             if isinstance(res, Failure):
                 summary["failed"][res.key] = res.reason
                 print(f"reconstruct: {res.key}: {res.reason}", file=sys.stderr)
                 continue
-            write_reconstruction(res, planes[res.key], args.out, truth.get(res.key), not args.no_figures)
-            summary["reconstructed"].append({"key": res.key, "plots": len(res.plots),
-                                             "segments": len(res.control), "weight": res.best.weight,
-                                             "score": res.best.score})
+            write_reconstruction(res, planes[res.key], args.out, truth.get(res.key), not args.no_figures, cfg)
+            q = assess(res, cfg)
+            for w in q.pop("warnings"):
+                print(f"reconstruct: warning: {w}", file=sys.stderr)
+            row = {"key": res.key, "plots": len(res.plots), "segments": len(res.control), "weight": res.best.weight,
+                   "score": res.best.score, "quality": q}
+            if res.key in truth:
+                row["truth_error"] = truth_error(res, truth[res.key])
+            summary["reconstructed"].append(row)
     summary["reconstructed"].sort(key=lambda r: r["key"])
-    (args.out / "summary.json").write_text(json.dumps(summary, indent=1))
+    bad = [r["key"] for r in summary["reconstructed"] if not r["quality"]["plausible"]]
+    summary["implausible"] = bad
+    tmp = args.out / "summary.json.tmp"
+    tmp.write_text(json.dumps(summary, indent=1))
+    tmp.replace(args.out / "summary.json")
+    n_ok = len(summary["reconstructed"]) - len(bad)
     print(f"reconstructed {len(summary['reconstructed'])} of {len(tracks)} aircraft into {args.out}"
-          + (f"; {len(summary['failed'])} failed" if summary["failed"] else ""))
-    return 0
+          + (f"; {len(summary['failed'])} failed" if summary["failed"] else "")
+          + (f"; {len(bad)} implausible ({', '.join(bad)}): see summary.json" if bad else ""))
+    return 0 if n_ok else 1

@@ -14,6 +14,7 @@ reconstructed (e.g. shorter than dt_min) is reported as a failure, not a crash.
 from __future__ import annotations
 
 import contextlib
+import logging
 from collections.abc import Iterable, Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 
@@ -60,8 +61,9 @@ def batches(tracks: Iterable[PlotTrack], batch_plots: int) -> list[list[PlotTrac
 
 
 @contextlib.contextmanager
-def executor(engine: str = "process", workers: int | None = None, scheduler: str | None = None) -> Iterator[Executor | None]:
-    """The executor of ``engine`` (None for ``serial``), shut down on exit."""
+def executor(engine: str = "process", workers: int | None = None, scheduler: str | None = None,
+             quiet: bool = False) -> Iterator[Executor | None]:
+    """The executor of ``engine`` (None for ``serial``), shut down on exit; ``quiet``: Dask logs errors only."""
     if engine not in ENGINES:
         raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
     if engine == "serial":
@@ -76,8 +78,9 @@ def executor(engine: str = "process", workers: int | None = None, scheduler: str
             with Client(scheduler) as client:
                 yield client.get_executor()
         else:
-            with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                              dashboard_address=None) as cluster, Client(cluster) as client:
+            with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                              silence_logs=logging.ERROR if quiet else logging.WARNING) as cluster, \
+                    Client(cluster) as client:
                 yield client.get_executor()
 
 

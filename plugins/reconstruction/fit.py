@@ -99,13 +99,19 @@ class ControlObjective:
             state = (x[-1], y[-1], phi[-1], v[-1])
         return p, w_eff, viol
 
+    def prior_residuals(self, u: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Control jumps over their prior sd, (Δu, Δw)/jump_sd (empty when the prior is off)."""
+        if not self.cfg.jump_sd or self.K < 2:
+            return np.empty(0)
+        return np.concatenate([np.diff(u), np.diff(w)]) / self.cfg.jump_sd
+
     def residuals(self, theta: np.ndarray) -> np.ndarray:
-        """Whitened residuals L⁻¹(z − p) of every plot (flattened) and √(2·penalty·violation):
-        half their sum of squares is the Gaussian f(θ)."""
+        """Whitened residuals L⁻¹(z − p) of every plot (flattened), the control-jump prior's
+        (:meth:`prior_residuals`) and √(2·penalty·violation): half their sum of squares is the Gaussian f(θ)."""
         init, u, w, bounds, viol = self.unpack(theta)
         p, _, v2 = self.positions(init, u, w, bounds)
         r = np.einsum("nij,nj->ni", self.weight.Linv, self.weight.z - p).ravel()
-        return np.append(r, np.sqrt(2 * self.cfg.penalty * (viol + v2)))
+        return np.concatenate([r, self.prior_residuals(u, w), [np.sqrt(2 * self.cfg.penalty * (viol + v2))]])
 
     def jacobian(self, theta: np.ndarray) -> np.ndarray:
         """∂ residuals / ∂θ by the chain rule along the segments (the penalty row is zero).
@@ -156,6 +162,11 @@ class ControlObjective:
         J = -np.einsum("nij,njp->nip", self.weight.Linv, dp).reshape(2 * len(times), len(theta))
         # a coordinate the projection holds at a constraint does not move the track
         # (active set: also a control on its bound that the descent direction pushes outwards)
+        if self.cfg.jump_sd and K > 1:  # prior rows: ∂(u_k − u_{k−1})/∂u = ±1/jump_sd
+            D = (np.eye(K, k=1) - np.eye(K))[:-1] / self.cfg.jump_sd
+            P = np.zeros((2 * (K - 1), len(theta)))
+            P[:K - 1, n0:n0 + K], P[K - 1:, n0 + K:n0 + 2 * K] = D, D
+            J = np.vstack([J, P])
         g = J.T @ self.residuals(theta)[:-1]
         held = np.zeros(len(theta), bool)
         for sl, cap in ((slice(n0, n0 + K), self.cfg.max_u), (slice(n0 + K, n0 + 2 * K), self.cfg.max_w)):
@@ -178,7 +189,7 @@ class ControlObjective:
     def __call__(self, theta: np.ndarray) -> float:
         init, u, w, bounds, viol = self.unpack(theta)
         p, _, v2 = self.positions(init, u, w, bounds)
-        return self.weight(p) + self.cfg.penalty * (viol + v2)
+        return self.weight(p) + 0.5 * float(np.sum(self.prior_residuals(u, w) ** 2)) + self.cfg.penalty * (viol + v2)
 
     def control_track(self, theta: np.ndarray) -> ControlTrack:
         """The (feasible) control track of θ."""
@@ -186,6 +197,17 @@ class ControlObjective:
         _, w_eff, _ = self.positions(init, u, w, bounds)
         start = GeoPoint(self.t0, init[0], init[1], init[2], init[3])
         return ControlTrack(start, [ControlSegment(u[k], w_eff[k], bounds[k], bounds[k + 1]) for k in range(self.K)])
+
+
+def jump_prior(ct: ControlTrack, cfg: ReconstructionConfig) -> float:
+    """−log prior of the control jumps (up to a constant): ½ Σ_k (Δu_k² + Δw_k²) / jump_sd².
+
+    Piecewise-constant-acceleration process noise: at each switch the controls jump by a
+    N(0, jump_sd²) amount; with it the fit is a MAP fit and extra segments must buy their jumps.
+    """
+    if not cfg.jump_sd:
+        return 0.0
+    return 0.5 * float(np.sum(np.diff(ct.u) ** 2) + np.sum(np.diff(ct.w) ** 2)) / cfg.jump_sd**2
 
 
 def _state_after(init, u, w, bounds, k: int) -> tuple[float, float, float, float]:

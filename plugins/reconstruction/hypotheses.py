@@ -7,15 +7,15 @@
    (u, w) with segments ≥ dt_min is found exactly by dynamic programming (Bellman 1961; Jackson
    et al. 2005). The starting count K₀ minimises a noise-aware BIC of the signal
    (:func:`noise_aware_count`: whitened by a robust noise estimate, with the effective number of
-   independent samples). Starts: always 1, 2 and 3 segments, then K₀, K₀/1.5 and 1.5·K₀ (switch
-   times, and (u, w) as the pieces' means).
+   independent samples). Starts: K₀, always 1, 2 and 3 segments (whatever the budget), K₀/1.5 and
+   1.5·K₀ (switch times, and (u, w) as the pieces' means).
    Then moves from the best hypothesis by score that has one left: a **split** of its
    worst-fitting segments to 1.5× as many (the same track; if the window pass loses the start's
    fit, the start is refined by least squares alone, so the weight never rises) — climbing on
    from the child while its weight drops by at least a quarter of what BIC charges for its new
    parameters — or a **merge** of its most alike neighbours to 1/1.5 as many (refitted). Split is
    tried first when the hypothesis's normalised χ² exceeds 1. The search stops after two moves in
-   a row that do not improve the best score, or at ``hypotheses`` fits in all.
+   a row that do not improve the best score, or at ``hypotheses`` fits in all (1–3 segments aside).
 3. **Optimisation** of each hypothesis by Hooke–Jeeves and a least-squares refinement (:mod:`.fit`).
 4. **Selection** by the Bayesian information criterion on the plots:
    score = 2·weight + complexity · p · ln n, with p = 3K + 3 parameters (initial x, y, φ, v;
@@ -27,8 +27,9 @@ from __future__ import annotations
 import attrs
 import numpy as np
 
+from radartracker_plugins.reconstruction.biases import debias
 from radartracker_plugins.reconstruction.config import ReconstructionConfig
-from radartracker_plugins.reconstruction.fit import fit_hypothesis
+from radartracker_plugins.reconstruction.fit import fit_hypothesis, jump_prior
 from radartracker_plugins.reconstruction.integrate import geo_track, sample
 from radartracker_plugins.reconstruction.objects import (
     ControlSegment, ControlTrack, GeoPoint, GeoTrack, PlotTrack)
@@ -56,7 +57,8 @@ class Hypothesis:
 class Reconstruction:
     """A flight's reconstruction: the selected hypothesis, all hypotheses ranked by score,
     the geometric track of the best one, the tuned smoother's q (m²/s³), the starting count K₀
-    and its criterion per K (:func:`noise_aware_count`), and the radar biases removed."""
+    and its criterion per K (:func:`noise_aware_count`). ``plots`` are the plots fitted (known
+    radar biases already removed)."""
 
     key: str
     plots: PlotTrack
@@ -233,24 +235,30 @@ def height_profile(plots: PlotTrack):
 
 
 def reconstruct(plots: PlotTrack, cfg: ReconstructionConfig | None = None, biases=None) -> Reconstruction:
-    """Reconstruct one flight from its plots (see the module docstring)."""
+    """Reconstruct one flight from its plots (see the module docstring); ``biases``: radar id →
+    known bias [Δr, Δθ] or :class:`~.biases.BiasEstimate`, removed first (:func:`~.biases.debias`)."""
     cfg = cfg or ReconstructionConfig()
     if plots.duration < cfg.dt_min:
         raise ValueError(f"{plots.key}: flight of {plots.duration:.1f} s is shorter than dt_min")
-    weight = TrackWeight(plots, cfg.loss, cfg.loss_c, biases)
+    if biases:
+        plots = debias(plots, biases)
+    weight = TrackWeight(plots, cfg.loss, cfg.loss_c)
     t0 = float(plots.t[0])  # fit in time since the first plot: epoch seconds would swamp the steps
     rel = attrs.evolve(plots, t=plots.t - t0)
     start, k0, k_max, q, crit = hypothesis_starts(rel, cfg)
     found: list[tuple[Hypothesis, ControlTrack]] = []  # with the track in time since the first plot
     n = len(plots)
 
+    def objective(ct: ControlTrack) -> float:  # the plots' NLL, plus the jump prior's when it is on (MAP)
+        return weight(sample(ct, rel.t)[:, :2]) + jump_prior(ct, cfg)
+
     def run(ct: ControlTrack, origin: str, floor: float = np.inf) -> Hypothesis:
         best, _, nfev = fit_hypothesis(ct, rel.t, weight, cfg)
-        wgt = weight(sample(best, rel.t)[:, :2])
+        wgt = objective(best)
         if wgt > floor and cfg.refine:  # the window pass lost the start's fit: refine the start alone
             alt, _, n2 = fit_hypothesis(ct, rel.t, weight, cfg, windows=False)
             nfev += n2
-            if (w2 := weight(sample(alt, rel.t)[:, :2])) < wgt:
+            if (w2 := objective(alt)) < wgt:
                 best, wgt = alt, w2
         n_par = 3 * len(best) + 3
         chi2 = float(np.sum(weight.distances2(sample(best, rel.t)[:, :2]))) / max(2 * n - n_par, 1)
@@ -258,9 +266,9 @@ def reconstruct(plots: PlotTrack, cfg: ReconstructionConfig | None = None, biase
         found.append((hyp, best))
         return hyp
 
-    # starts: always the simple answers (1–3 segments), then K₀ and its neighbours
-    for K in dict.fromkeys([1, 2, 3, k0, round(k0 / 1.5), round(k0 * 1.5)]):
-        if 1 <= K <= k_max and len(found) < cfg.hypotheses:
+    # starts: K₀, the simple answers (1–3 segments, always, outside the budget), K₀'s neighbours
+    for K in dict.fromkeys([k0, 1, 2, 3, round(k0 / 1.5), round(k0 * 1.5)]):
+        if 1 <= K <= k_max and (K <= 3 or len(found) < cfg.hypotheses):
             run(start(K), "segmentation")
     # moves from the best hypothesis by score that still has one untried: split its worst-fitting
     # segments to 1.5× as many (the same track, so the weight can only drop) or merge the most alike
@@ -311,6 +319,21 @@ def reconstruct(plots: PlotTrack, cfg: ReconstructionConfig | None = None, biase
     return Reconstruction(plots.key, plots, tuple(hyps), geo, q, k0, tuple(float(c) for c in crit))
 
 
+def refit(rec: Reconstruction, plots: PlotTrack, cfg: ReconstructionConfig) -> Reconstruction:
+    """``rec`` with its selected hypothesis refitted by least squares alone to ``plots`` (the same
+    flight's plots, e.g. corrected with new bias estimates); the other hypotheses are dropped."""
+    t0 = float(plots.t[0])
+    rel = attrs.evolve(plots, t=plots.t - t0)
+    weight = TrackWeight(rel, cfg.loss, cfg.loss_c)
+    best, _, nfev = fit_hypothesis(rec.control.shifted(-t0), rel.t, weight, cfg, windows=False)
+    n, n_par = len(plots), 3 * len(best) + 3
+    wgt = weight(sample(best, rel.t)[:, :2]) + jump_prior(best, cfg)
+    chi2 = float(np.sum(weight.distances2(sample(best, rel.t)[:, :2]))) / max(2 * n - n_par, 1)
+    hyp = Hypothesis(best.shifted(t0), wgt, 2 * wgt + cfg.complexity * n_par * np.log(n), n_par, nfev, "refit", chi2)
+    geo = geo_track(hyp.control, cfg.grid_dt, height_profile(plots))
+    return Reconstruction(plots.key, plots, (hyp,), geo, rec.smoother_q, rec.k0, rec.count_criterion)
+
+
 __all__ = ["Hypothesis", "Reconstruction", "reconstruct", "hypothesis_starts",
            "segmentations", "control_signals", "height_profile", "split", "merge",
-           "noise_aware_count"]
+           "noise_aware_count", "refit"]

@@ -3,11 +3,13 @@
 Folder ``<out>/<key>/``:
 
 * ``track.csv`` — the geometric track: time (s UTC), x, y (m, system plane), lat, lon (deg),
-  altitude (m), heading (deg clockwise from north), speed (m/s), segment index;
+  altitude (m), heading (deg clockwise from north), speed (m/s), segment index, and the quality
+  flags of the point's segment (:mod:`.quality`): ``segment_chi2`` (Σ d² / 2n of its plots) and
+  ``pinned`` (``u``, ``w``, ``uw`` when its control sits at a bound, else empty);
 * ``track.plt`` — the same track for OziExplorer (:func:`radartracker.recording.write_plt`);
 * ``segments.csv`` — the control track: segment, t_start, t_end, u, w (m/s²), first/last grid point;
-* ``hypotheses.csv`` — every hypothesis ranked: rank, segments, weight (NLL), score (BIC), parameters,
-  evaluations, origin (segmentation or split);
+* ``hypotheses.csv`` — every hypothesis ranked: rank, segments, weight (NLL), score (BIC), normalised
+  χ², parameters, evaluations, origin (segmentation, split or merge);
 * ``figure.png`` — plots, reconstruction and truth (when known) in the plane; u and w over time.
 """
 
@@ -19,7 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from radartracker.api import SystemPlane, TrackPoints, write_plt
+from radartracker_plugins.reconstruction.config import ReconstructionConfig
 from radartracker_plugins.reconstruction.hypotheses import Reconstruction
+from radartracker_plugins.reconstruction.quality import pinned_segments, segment_chi2
+from radartracker_plugins.reconstruction.weight import TrackWeight
 
 
 def _safe(key: str) -> str:
@@ -27,18 +32,23 @@ def _safe(key: str) -> str:
 
 
 def write_reconstruction(rec: Reconstruction, plane: SystemPlane, out: Path, truth=None,
-                         figure: bool = True) -> Path:
-    """Write ``rec`` into ``out/<key>/`` and return that folder."""
+                         figure: bool = True, cfg: ReconstructionConfig | None = None) -> Path:
+    """Write ``rec`` into ``out/<key>/`` and return that folder (``cfg``: the bounds for the pinned flags)."""
     folder = Path(out) / _safe(rec.key)
     folder.mkdir(parents=True, exist_ok=False)
     g = rec.geo
     lat, lon = plane.to_geodetic(g.x, g.y)
+    chi2 = segment_chi2(rec, TrackWeight(rec.plots))
+    pins = pinned_segments(rec, cfg or ReconstructionConfig())
+    pin = ["u" * int(a) + "w" * int(b) for a, b in zip(pins["u"], pins["w"])]
     with open(folder / "track.csv", "w", newline="") as f:
         wr = csv.writer(f)
-        wr.writerow(["time", "x_m", "y_m", "lat", "lon", "altitude_m", "heading_deg", "speed_mps", "segment"])
+        wr.writerow(["time", "x_m", "y_m", "lat", "lon", "altitude_m", "heading_deg", "speed_mps", "segment",
+                     "segment_chi2", "pinned"])
         for row in zip(g.time, g.x, g.y, lat, lon, g.h, np.degrees(np.mod(g.phi, 2 * np.pi)), g.v, g.segment):
+            k = int(row[8])
             wr.writerow([f"{row[0]:.3f}", f"{row[1]:.2f}", f"{row[2]:.2f}", f"{row[3]:.7f}", f"{row[4]:.7f}",
-                         f"{row[5]:.1f}", f"{row[6]:.3f}", f"{row[7]:.3f}", int(row[8])])
+                         f"{row[5]:.1f}", f"{row[6]:.3f}", f"{row[7]:.3f}", k, f"{chi2[k]:.3f}", pin[k]])
     write_plt(folder / "track.plt", TrackPoints(g.time, lat, lon, g.h), name=rec.key)
     with open(folder / "segments.csv", "w", newline="") as f:
         wr = csv.writer(f)
@@ -48,9 +58,10 @@ def write_reconstruction(rec: Reconstruction, plane: SystemPlane, out: Path, tru
                          s.geo_span.start, s.geo_span.stop - 1])
     with open(folder / "hypotheses.csv", "w", newline="") as f:
         wr = csv.writer(f)
-        wr.writerow(["rank", "segments", "weight", "score", "parameters", "evaluations", "origin"])
+        wr.writerow(["rank", "segments", "weight", "score", "chi2", "parameters", "evaluations", "origin"])
         for r, h in enumerate(rec.hypotheses, 1):
-            wr.writerow([r, len(h.control), f"{h.weight:.3f}", f"{h.score:.3f}", h.n_params, h.nfev, h.origin])
+            wr.writerow([r, len(h.control), f"{h.weight:.3f}", f"{h.score:.3f}", f"{h.chi2:.4f}", h.n_params, h.nfev,
+                         h.origin])
     if figure:
         plot_reconstruction(rec, folder / "figure.png", truth)
     return folder
