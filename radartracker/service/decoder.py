@@ -3,7 +3,8 @@
 A datagram holds one or more ASTERIX data blocks. A datagram whose block lengths do not add up is
 rejected whole (``datagrams_malformed``: its records cannot be counted); a block that does not
 decode is ``blocks_undecodable``; blocks of categories other than 048 and 021 are
-``blocks_other_category``. Each CAT048/CAT021 record becomes a :class:`Plot` / :class:`AdsbReport`
+``blocks_other_category``. Blocks are read by :mod:`radartracker.service.codec` when their layout
+allows, else by libasterix (the same values either way). Each CAT048/CAT021 record becomes a :class:`Plot` / :class:`AdsbReport`
 or is counted under ``cat048_unknown_sac_sic``, ``cat048_invalid`` or ``cat021_invalid``.
 
 Time: ASTERIX carries the UTC time of day only. Live data take the day from the receive clock —
@@ -19,6 +20,7 @@ from collections import Counter
 
 from radartracker.domain import AdsbReport, Plot
 from radartracker.io.asterix import DAY, _blocks_in, _Clock, decode_block, decode_cat021, decode_cat048
+from radartracker.service.codec import decode_block_fast
 
 
 class ReceiveClock:
@@ -61,25 +63,31 @@ class Decoder:
         c["datagrams_decoded"] += 1
         out: list[Plot | AdsbReport] = []
         for block in blocks:
-            try:
-                cat, recs = decode_block(block, "datagram")
-            except ValueError:
-                c["blocks_undecodable"] += 1
-                continue
+            fast = decode_block_fast(block)
+            if fast is not None:
+                cat, dicts = fast
+                recs = [(d, None) for d in dicts]
+            else:
+                try:
+                    cat, raw = decode_block(block, "datagram")
+                except ValueError:
+                    c["blocks_undecodable"] += 1
+                    continue
+                recs = [(None, r) for r in raw]
             if cat == 48:
                 c["cat048_records"] += len(recs)
-                out += filter(None, (self._plot(r, received) for r in recs))
+                out += filter(None, (self._plot(d, r, received) for d, r in recs))
             elif cat == 21:
                 c["cat021_records"] += len(recs)
-                out += filter(None, (self._report(r, received) for r in recs))
+                out += filter(None, (self._report(d, r, received) for d, r in recs))
             else:
                 c["blocks_other_category"] += 1
         c["records_to_tracker"] += len(out)
         return out
 
-    def _plot(self, rec, received: float) -> Plot | None:
+    def _plot(self, d: dict | None, rec, received: float) -> Plot | None:
         try:
-            d = decode_cat048(rec)
+            d = d or decode_cat048(rec)
             radar = self.sites.get((d["sac"], d["sic"]))
             if radar is None:
                 self.counts["cat048_unknown_sac_sic"] += 1
@@ -91,9 +99,9 @@ class Decoder:
             self.counts["cat048_invalid"] += 1
             return None
 
-    def _report(self, rec, received: float) -> AdsbReport | None:
+    def _report(self, d: dict | None, rec, received: float) -> AdsbReport | None:
         try:
-            d = decode_cat021(rec)
+            d = d or decode_cat021(rec)
             alt = d["altitude_m"]
             return AdsbReport(self.clock(d["tod"], received), d["icao24"], d["lat"], d["lon"],
                               None if math.isnan(alt) else alt, 8 if d["nacp"] is None else d["nacp"])

@@ -13,7 +13,7 @@ from __future__ import annotations
 import socket
 from collections import Counter
 
-from radartracker.io.asterix import CAT062, cat062_record, datablocks
+from radartracker.service.codec import blocks, cat062_bytes
 from radartracker.tracking.manager import ManagedTrack, TrackEvent, TrackManager
 
 UDP_PAYLOAD = 1472  # an Ethernet frame's UDP payload (1500 − IP and UDP headers): no IP fragments
@@ -40,7 +40,7 @@ class Publisher:
                 self._published.discard(ev.track)
                 recs.append(self._end_record(mgr, ev))
         self._published |= {tr.id for tr in mgr.confirmed_tracks()}
-        for block in datablocks(CAT062, recs, self.max_datagram - 3):
+        for block in blocks(62, recs, self.max_datagram):
             try:
                 self.sock.send(block)
                 self.counts["cat062_datagrams_sent"] += 1
@@ -54,11 +54,11 @@ class Publisher:
     def _record(self, mgr: TrackManager, tr: ManagedTrack):
         t, x, _ = tr.filter.estimate()
         lat, lon = mgr.plane.to_geodetic(x[0], x[1])
-        return cat062_record(t, self.sac, self.sic, track_number(tr.id), float(lat), float(lon), x[0], x[1], x[2], x[3],
+        return cat062_bytes(t, self.sac, self.sic, track_number(tr.id), float(lat), float(lon), x[0], x[1], x[2], x[3],
                              tr.altitude_m, mode_3a=tr.mode_3a, mode_s=tr.mode_s, coasting=tr.status == "coasting")
 
     def _end_record(self, mgr: TrackManager, ev: TrackEvent):
         x = ev.state
         lat, lon = mgr.plane.to_geodetic(x[0], x[1])
-        return cat062_record(ev.time, self.sac, self.sic, track_number(ev.track), float(lat), float(lon), *x,
+        return cat062_bytes(ev.time, self.sac, self.sic, track_number(ev.track), float(lat), float(lon), *x,
                              ended=True)
