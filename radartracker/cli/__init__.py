@@ -42,6 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 QUIET_ENV = {"TQDM_DISABLE": "1", "DASK_LOGGING__DISTRIBUTED": "error"}  # progress bars, Dask's own loggers
+QUIET_LOGGERS = ("", "distributed", "dask", "bokeh", "tornado", "asyncio", "py.warnings")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -50,10 +51,11 @@ def main(argv: list[str] | None = None) -> int:
         level=logging.ERROR if args.quiet else logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
     )
-    saved = {k: os.environ.get(k) for k in QUIET_ENV}
-    if args.quiet:
+    saved_env = {k: os.environ.get(k) for k in QUIET_ENV}
+    saved_levels = {name: logging.getLogger(name).level for name in QUIET_LOGGERS}
+    if args.quiet:  # the environment reaches libraries imported later and Dask's worker processes
         os.environ.update(QUIET_ENV)
-        for name in ("", "distributed", "dask", "bokeh", "tornado", "asyncio", "py.warnings"):
+        for name in QUIET_LOGGERS:
             logging.getLogger(name).setLevel(logging.ERROR)
         logging.captureWarnings(True)
     try:
@@ -66,13 +68,16 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print(f"radartracker {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    finally:
+    finally:  # main() may be called again in the same process (tests, embedding): leave no trace
         if args.quiet:
-            for k, v in saved.items():
+            for k, v in saved_env.items():
                 if v is None:
                     os.environ.pop(k, None)
                 else:
                     os.environ[k] = v
+            for name, level in saved_levels.items():
+                logging.getLogger(name).setLevel(level)
+            logging.captureWarnings(False)
 
 
 # --- built-in commands -------------------------------------------------------------------------

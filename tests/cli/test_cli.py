@@ -84,3 +84,21 @@ def test_estimator_option_reaches_the_plugin_on_both_paths(tmp_path):
         assert cfg["plugins"]["estimator"]["refresh_every"] == 7
     assert main(["replay", str(scen), "--out", str(tmp_path / "bad"), "--estimator", "coupled-sparse",
                  "--estimator-option", "refresh_every=-1"]) == 2
+
+
+def test_quiet_silences_progress_and_library_logs_then_restores(monkeypatch):
+    import logging
+    import os
+
+    seen = {}
+
+    def fake(args):
+        seen["env"] = os.environ.get("TQDM_DISABLE"), os.environ.get("DASK_LOGGING__DISTRIBUTED")
+        seen["dask"] = logging.getLogger("distributed").getEffectiveLevel()
+        return 0
+
+    monkeypatch.delenv("TQDM_DISABLE", raising=False)
+    monkeypatch.setattr("radartracker.cli._cmd_estimators", fake)
+    assert main(["--quiet", "estimators"]) == 0
+    assert seen == {"env": ("1", "error"), "dask": logging.ERROR}
+    assert "TQDM_DISABLE" not in os.environ
