@@ -1,0 +1,172 @@
+"""A throw-away third-party estimator with an option, installed from this test as a distribution with an
+entry point (nothing in the core touched): it passes check_estimator, and its option set on the command
+line reaches the plugin on the labelled replay and on the TrackManager path."""
+
+import json
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from radartracker.cli import main
+from radartracker.errors import ConfigurationError
+from radartracker.io.scenario import write_scenario
+from radartracker.pipeline.stream import scenario_stream
+from radartracker.registry import load_estimator, make_estimator
+from radartracker.simulation.scenarios import build_scenario
+from radartracker.testing import ESTIMATOR_CHECKS, check_estimator
+from radartracker.tracking.manager import ManagerConfig, TrackManager
+
+PLUGIN = '''
+"""Decoupled aircraft and bias filters with a bias forgetting factor (a third party's estimator)."""
+import attrs
+import numpy as np
+from radartracker.api import AircraftEstimate, BiasState, Estimator, Innovation, correct, validated_prior
+
+BUILT = []  # the options of every instance built: the test reads what reached the plugin
+
+
+@attrs.frozen
+class ForgettingConfig:
+    """``bias_forgetting`` λ ≥ 1: the bias covariance is inflated, P_s ← λ P_s, before each radar update."""
+
+    bias_forgetting: float = attrs.field(default=1.0, converter=float, validator=attrs.validators.ge(1.0))
+
+
+class Forgetting(Estimator):
+    """Per-aircraft and per-radar Kalman filters sharing the innovation ν = z − C_x χ̄ − C_s ς̄."""
+
+    name = "thirdparty"
+    options_class = ForgettingConfig
+
+    def __init__(self, config=None, options=None):
+        super().__init__(config, options)
+        BUILT.append(self.options)
+        self._x, self._s = {}, {}
+
+    def add_radar(self, radar):
+        if radar in self._s:
+            raise ValueError(f"radar {radar!r} already added")
+        self._s[radar] = [float("nan"), np.zeros(2), self.config.bias_prior()]
+
+    def add_aircraft(self, key, time, state, cov):
+        if key in self._x:
+            raise ValueError(f"aircraft {key!r} already estimated")
+        self._x[key] = [float(time), *validated_prior(key, state, cov)]
+
+    def remove_aircraft(self, key):
+        del self._x[key]
+
+    def update(self, m):
+        t, x, P = self._x[m.aircraft]
+        A, Q = self.config.motion.transition(m.time - t)
+        x, P = A @ x, A @ P @ A.T + Q
+        nu, S = m.z - x[:2], P[:2, :2] + m.R
+        if m.radar is not None:
+            _, s, Ps = self._s[m.radar]
+            Ps = self.options.bias_forgetting * Ps
+            nu = nu - m.C @ s
+            Ks = Ps @ m.C.T
+            self._s[m.radar] = [float(m.time), *correct(s, Ps, Ks, m.C @ Ks + m.R, nu)]
+        self._x[m.aircraft] = [float(m.time), *correct(x, P, P[:, :2], S, nu)]
+        return Innovation(nu, S, float(nu @ np.linalg.solve(S, nu)))
+
+    def aircraft(self, key):
+        t, x, P = self._x[key]
+        return AircraftEstimate(t, x.copy(), P.copy())
+
+    def bias(self, radar):
+        t, s, P = self._s[radar]
+        return BiasState(radar, t, s.copy(), P.copy())
+
+    @property
+    def aircraft_keys(self):
+        return list(self._x)
+
+    @property
+    def radars(self):
+        return list(self._s)
+'''
+
+
+@pytest.fixture()
+def thirdparty(tmp_path, monkeypatch):
+    """Install the plugin the way pip would: a package and a dist-info with entry_points.txt on sys.path."""
+    pkg = tmp_path / "site" / "rt_kit_thirdparty"
+    pkg.mkdir(parents=True)
+    (pkg / "__init__.py").write_text(textwrap.dedent(PLUGIN))
+    dist = tmp_path / "site" / "rt_kit_thirdparty-0.1.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: rt-kit-thirdparty\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text("[radartracker.estimators]\nthirdparty = rt_kit_thirdparty:Forgetting\n")
+    monkeypatch.syspath_prepend(str(tmp_path / "site"))
+    yield sys.modules.get("rt_kit_thirdparty") or __import__("rt_kit_thirdparty")
+    sys.modules.pop("rt_kit_thirdparty", None)
+
+
+@pytest.fixture(scope="module")
+def short_demo():
+    return build_scenario("demo", seed=3, duration=150.0).run()
+
+
+@pytest.fixture(scope="module")
+def scenario(tmp_path_factory, short_demo):
+    folder = tmp_path_factory.mktemp("kit") / "demo"
+    write_scenario(folder, short_demo)
+    return folder
+
+
+def test_thirdparty_passes_check_estimator(thirdparty):
+    cls = load_estimator("thirdparty")
+    assert cls is thirdparty.Forgetting
+    assert check_estimator(cls, bias_forgetting="1.02") == list(ESTIMATOR_CHECKS)
+    assert thirdparty.BUILT[-1].bias_forgetting == 1.02
+
+
+def test_option_reaches_the_plugin_from_the_cli_on_both_paths(thirdparty, scenario, tmp_path, capsys):
+    biases = {}
+    for association in ("labels", "manager"):
+        for value in ("1.0", "1.05"):
+            out = tmp_path / f"{association}-{value}"
+            thirdparty.BUILT.clear()
+            argv = ["replay", str(scenario), "--out", str(out), "--association", association,
+                    "--estimator", "thirdparty", "--estimator-option", f"bias_forgetting={value}", "--quiet"]
+            assert main(argv) == 0, capsys.readouterr().err
+            assert [o.bias_forgetting for o in thirdparty.BUILT] == [float(value)]
+            config = json.loads((out / "config.json").read_text())
+            settings = config["settings"]
+            assert settings["estimator"] == "thirdparty" and settings["estimator_options"] == {"bias_forgetting": value}
+            assert config["plugins"]["estimator"] == {"bias_forgetting": float(value)}
+            biases[association, value] = (out / "biases.csv").read_text()
+        # the option changes what the plugin computes, on this path too
+        assert biases[association, "1.0"] != biases[association, "1.05"]
+
+
+def test_bad_option_from_the_cli_names_plugin_key_and_valid_keys(thirdparty, scenario, tmp_path, capsys):
+    argv = ["replay", str(scenario), "--out", str(tmp_path / "o"), "--estimator", "thirdparty",
+            "--estimator-option", "forgetting=2"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "'thirdparty'" in err and "'forgetting'" in err and "bias_forgetting" in err
+    assert main(argv[:-1] + ["bias_forgetting=0.5"]) == 2  # the plugin's own validator: λ ≥ 1
+    assert "bias_forgetting" in capsys.readouterr().err
+
+
+def test_thirdparty_in_the_track_manager(thirdparty, short_demo):
+    """By name with its options (as the CLI sets them), and as an instance."""
+    mgr = TrackManager(short_demo.radars, short_demo.reference,
+                       ManagerConfig(estimator="thirdparty", estimator_options={"bias_forgetting": "1.05"}))
+    assert mgr.estimator.options.bias_forgetting == 1.05
+    items = scenario_stream(short_demo)
+    mgr.process_many(items)
+    assert mgr.accounting().get("plots_used", 0) > 0
+    assert set(mgr.biases()) == {r.id for r in short_demo.radars}
+    inst = make_estimator("thirdparty", mgr.config.estimator_config, [], {"bias_forgetting": "1.05"})
+    mgr2 = TrackManager(short_demo.radars, short_demo.reference, ManagerConfig(), estimator=inst)
+    assert mgr2.estimator is inst and sorted(inst.radars) == sorted(r.id for r in short_demo.radars)
+    mgr2.process_many(items)
+    for rid, b in mgr2.biases().items():
+        np.testing.assert_array_equal(b.bias, mgr.biases()[rid].bias)  # same plugin, same options, same data
+    with pytest.raises(ConfigurationError, match="options apply to a plugin name"):
+        make_estimator(inst, None, [], {"bias_forgetting": "2"})
