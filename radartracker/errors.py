@@ -18,12 +18,13 @@ class InputError(RadarTrackerError, ValueError):
 
 
 class FormatError(InputError):
-    """A row or record of an input file that cannot be used: says file, line, field and why."""
+    """A row or record of an input file that cannot be used: says file, line, field and why
+    (``line`` None where lines mean nothing, as in a JSON document: the field path says where)."""
 
-    def __init__(self, file: str, line: int, field: str | None, message: str, reason: str = "malformed"):
-        where = f"{file} line {line}" + (f", field '{field}'" if field else "")
+    def __init__(self, file: str, line: int | None, field: str | None, message: str, reason: str = "malformed"):
+        where = file + (f" line {line}" if line is not None else "") + (f", field '{field}'" if field else "")
         super().__init__(f"{where}: {message}")
-        self.file, self.line, self.field, self.reason = file, line, field, reason
+        self.file, self.line, self.field, self.reason, self.message = file, line, field, reason, message
 
 
 class ConfigurationError(RadarTrackerError, ValueError):

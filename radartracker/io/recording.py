@@ -253,25 +253,40 @@ def _bad(path: Path, line: int, field: str, text: str) -> FormatError:
     return FormatError(str(path), line, field, text)
 
 
+_NEW4_RANGE = {"lat": (-90.0, 90.0), "lon": (-180.0, 180.0)}
+
+
+def _text_lines(path: Path, errors: str = "strict") -> list[str]:
+    """Lines of a UTF-8 file (a byte-order mark is skipped); a FormatError names the line of a bad byte."""
+    data = path.read_bytes()
+    try:
+        return data.decode("utf-8-sig", errors).splitlines()
+    except UnicodeDecodeError as exc:
+        raise _bad(path, data[:exc.start].count(b"\n") + 1, "line",
+                   f"not UTF-8 text (byte {exc.start} is {data[exc.start]:#04x})") from None
+
+
 def read_new4(path: Path | str) -> TrackPoints:
-    """Read a ``.new4`` file; a clear ``ValueError`` (file, line, field) on a bad line."""
+    """Read a ``.new4`` file; a FormatError (file, line, field) on a bad line (lat/lon out of range too)."""
     path = Path(path)
     cols: list[list[float]] = [[], [], [], []]
-    with open(path, encoding="utf-8", newline=None) as fh:
-        for n, line in enumerate(fh, 1):
-            if not line.strip():
-                continue
-            parts = line.rstrip("\n").split("\t")
-            if len(parts) != 4:
-                raise _bad(path, n, "line", f"expected 4 tab-separated fields, got {len(parts)}")
-            for c, (field, text) in enumerate(zip(("time", "lat", "lon", "altitude_m"), parts)):
-                try:
-                    v = float(text)
-                except ValueError:
-                    raise _bad(path, n, field, f"not a number: {text!r}") from None
-                if c < 3 and not math.isfinite(v):
-                    raise _bad(path, n, field, f"must be finite, got {text!r}")
-                cols[c].append(v)
+    for n, line in enumerate(_text_lines(path), 1):
+        if not line.strip():
+            continue
+        parts = line.split("\t")
+        if len(parts) != 4:
+            raise _bad(path, n, "line", f"expected 4 tab-separated fields, got {len(parts)}")
+        for c, (field, text) in enumerate(zip(("time", "lat", "lon", "altitude_m"), parts)):
+            try:
+                v = float(text)
+            except ValueError:
+                raise _bad(path, n, field, f"not a number: {text!r}") from None
+            if c < 3 and not math.isfinite(v):
+                raise _bad(path, n, field, f"must be finite, got {text!r}")
+            lo, hi = _NEW4_RANGE.get(field, (-math.inf, math.inf))
+            if not lo <= v <= hi and c < 3:
+                raise _bad(path, n, field, f"{v!r} outside [{lo:g}, {hi:g}]")
+            cols[c].append(v)
     return TrackPoints(*(np.asarray(c, float) for c in cols))
 
 
@@ -279,30 +294,29 @@ def read_plt(path: Path | str) -> TrackPoints:
     """Read an OziExplorer ``.plt`` track (time from the days field; altitude feet → metres)."""
     path = Path(path)
     cols: list[list[float]] = [[], [], [], []]
-    with open(path, encoding="utf-8", errors="replace", newline=None) as fh:
-        lines = iter(enumerate(fh, 1))
-        first = next(lines, (1, ""))[1]
-        if not first.startswith("OziExplorer Track Point File"):
-            raise _bad(path, 1, "header", "not an OziExplorer track file")
-        for _ in range(5):
-            if next(lines, None) is None:
-                raise _bad(path, 1, "header", "truncated: fewer than six header lines")
-        for n, line in lines:
-            if not line.strip():
-                continue
-            parts = [p.strip() for p in line.split(",")]
-            if len(parts) < 5:
-                raise _bad(path, n, "line", f"expected at least 5 comma-separated fields, got {len(parts)}")
-            try:
-                lat, lon, alt_ft, days = float(parts[0]), float(parts[1]), float(parts[3]), float(parts[4])
-            except ValueError:
-                raise _bad(path, n, "line", f"bad number in {line.strip()!r}") from None
-            if not (-90 <= lat <= 90 and -180 <= lon <= 180):
-                raise _bad(path, n, "lat/lon", f"out of range: {lat}, {lon}")
-            cols[0].append((days - _UNIX_EPOCH_DAYS) * 86400.0)
-            cols[1].append(lat)
-            cols[2].append(lon)
-            cols[3].append(math.nan if alt_ft == -777 else alt_ft * FEET)
+    lines = iter(enumerate(_text_lines(path, "replace"), 1))  # names may be in a Windows code page
+    first = next(lines, (1, ""))[1]
+    if not first.startswith("OziExplorer Track Point File"):
+        raise _bad(path, 1, "header", "not an OziExplorer track file")
+    for _ in range(5):
+        if next(lines, None) is None:
+            raise _bad(path, 1, "header", "truncated: fewer than six header lines")
+    for n, line in lines:
+        if not line.strip():
+            continue
+        parts = [p.strip() for p in line.split(",")]
+        if len(parts) < 5:
+            raise _bad(path, n, "line", f"expected at least 5 comma-separated fields, got {len(parts)}")
+        try:
+            lat, lon, alt_ft, days = float(parts[0]), float(parts[1]), float(parts[3]), float(parts[4])
+        except ValueError:
+            raise _bad(path, n, "line", f"bad number in {line.strip()!r}") from None
+        if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+            raise _bad(path, n, "lat/lon", f"out of range: {lat}, {lon}")
+        cols[0].append((days - _UNIX_EPOCH_DAYS) * 86400.0)
+        cols[1].append(lat)
+        cols[2].append(lon)
+        cols[3].append(math.nan if alt_ft == -777 else alt_ft * FEET)
     return TrackPoints(*(np.asarray(c, float) for c in cols))
 
 

@@ -11,6 +11,7 @@ field; with ``skip_bad=True`` it is skipped instead and counted under its reason
 from __future__ import annotations
 
 import csv
+import io
 import json
 import logging
 import math
@@ -34,34 +35,71 @@ log = logging.getLogger(__name__)
 # --- reading ----------------------------------------------------------------------------------
 
 
-class _Rows:
-    """Iterate a CSV file's rows with line numbers; parse fields with errors naming the place."""
+def read_text(path: Path) -> str:
+    """A file's text: UTF-8 with or without a byte-order mark; a FormatError names the line of a bad byte."""
+    data = path.read_bytes()
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise FormatError(path.name, line, None, f"not UTF-8 text (byte {exc.start} is {data[exc.start]:#04x})",
+                          "encoding") from None
 
-    def __init__(self, path: Path, required: tuple[str, ...]):
+
+class _Rows:
+    """Iterate a CSV file's rows with line numbers; parse fields with errors naming the place.
+
+    The header must name each column once. A row with the wrong number of fields goes to ``skip``
+    (reason ``wrong_field_count``, or ``truncated_last_line`` for a last line without its newline).
+    """
+
+    def __init__(self, path: Path, required: tuple[str, ...], skip: _Skipper | None = None):
         self.path, self.name = path, path.name
-        self._f = path.open(newline="", encoding="utf-8")
-        self._reader = csv.DictReader(self._f)
-        header = self._reader.fieldnames
-        if header is None:
-            self._f.close()
+        self.skip = skip if skip is not None else _Skipper(False)
+        text = read_text(path)
+        # a last line without its newline may have been cut short: its errors say so
+        self.cut_line = None if not text or text.endswith(("\n", "\r")) else text.count("\n") + 1
+        self._reader = csv.reader(io.StringIO(text, newline=""))
+        try:
+            header = next(self._reader, None)
+        except csv.Error as exc:
+            raise FormatError(self.name, 1, None, f"bad header: {exc}") from None
+        if not header:
             raise FormatError(self.name, 1, None, "empty file: expected a header line")
+        header = [h.strip() for h in header]
+        twice = sorted({h for h in header if header.count(h) > 1})
+        if twice:
+            raise FormatError(self.name, 1, None, f"column(s) {', '.join(map(repr, twice))} appear more than once")
         missing = [c for c in required if c not in header]
         if missing:
-            self._f.close()
             raise FormatError(self.name, 1, None, f"missing column(s) {', '.join(missing)}; header is {header}")
+        self.header = header
         self.optional = set(header)
 
     def __iter__(self):
-        try:
-            for row in self._reader:
-                line = self._reader.line_num
-                if None in row:
-                    raise FormatError(self.name, line, None, f"{len(row) - 1 + len(row[None])} fields, header has {len(row) - 1}")
-                if any(v is None for v in row.values()):
-                    raise FormatError(self.name, line, None, "too few fields")
-                yield line, row
-        finally:
-            self._f.close()
+        n, reader = len(self.header), self._reader
+        while True:
+            try:
+                fields = next(reader, None)
+            except csv.Error as exc:  # e.g. a quote left open at the end of the file
+                fields = exc
+            if fields is None:
+                return
+            line = reader.line_num
+            if isinstance(fields, csv.Error) or len(fields) != n:
+                got = f"unreadable ({fields})" if isinstance(fields, csv.Error) else f"{len(fields)} fields"
+                self.reject(FormatError(self.name, line, None, f"{got}, header has {n}", "wrong_field_count"))
+                continue
+            if not any(f.strip() for f in fields):
+                continue  # a blank line
+            yield line, dict(zip(self.header, fields))
+
+    def reject(self, err: FormatError) -> None:
+        """Raise ``err``, or skip and count it (skip_bad); on a cut last line, under ``truncated_last_line``."""
+        if err.line is not None and err.line == self.cut_line:
+            err = FormatError(err.file, err.line, err.field, f"{err.message} (the file ends in the middle of this "
+                              "line: cut short?)", "truncated_last_line")
+        self.skip(err)
 
     def number(self, row: dict, line: int, field: str, *, optional: bool = False,
                check: Callable[[float], str | None] | None = None) -> float:
@@ -116,14 +154,14 @@ _HEX, _OCT = "0123456789abcdef", "01234567"
 
 def read_radars(path: Path) -> list[Radar]:
     rows = _Rows(path, RADAR_COLUMNS)
-    radars: list[Radar] = []
+    radars: dict[str, tuple[Radar, int]] = {}
     for line, row in rows:
         rid = rows.text(row, "radar")
         if rid is None:
             raise FormatError(rows.name, line, "radar", "empty")
-        if any(r.id == rid for r in radars):
-            raise FormatError(rows.name, line, "radar", f"duplicate radar id {rid!r}")
-        radars.append(Radar(
+        if rid in radars:
+            raise FormatError(rows.name, line, "radar", f"duplicate radar id {rid!r} (first on line {radars[rid][1]})")
+        radars[rid] = (Radar(
             id=rid,
             lat=rows.number(row, line, "lat", check=_range(-90, 90)),
             lon=rows.number(row, line, "lon", check=_range(-180, 180)),
@@ -132,14 +170,14 @@ def read_radars(path: Path) -> list[Radar]:
             sigma_azimuth_rad=math.radians(rows.number(row, line, "sigma_azimuth_deg", check=_nonneg)),
             period_s=rows.number(row, line, "period_s", check=_positive),
             max_range_m=rows.number(row, line, "max_range_m", check=_positive),
-        ))
+        ), line)
     if not radars:
         raise FormatError(rows.name, 2, None, "no radars")
-    return radars
+    return [r for r, _ in radars.values()]
 
 
 class _Skipper:
-    """Raise, or count and log, bad rows."""
+    """Raise, or count and log, bad rows; count duplicate rows (always used once)."""
 
     def __init__(self, skip_bad: bool):
         self.skip_bad = skip_bad
@@ -148,17 +186,25 @@ class _Skipper:
     def __call__(self, err: FormatError) -> None:
         if not self.skip_bad:
             raise err
-        key = f"{err.file}:{err.reason}"
+        self.count(err.file, err.reason, err)
+
+    def count(self, file: str, reason: str, what: object) -> None:
+        key = f"{file}:{reason}"
         if self.counts[key] < 5:
-            log.warning("skipped %s", err)
+            log.warning("skipped (%s) %s", reason, what)
         self.counts[key] += 1
 
 
+def _key(row: dict) -> tuple[str, ...]:
+    return tuple(v.strip() for v in row.values())
+
+
 def read_plots(path: Path, radar_ids: set[str], skip: _Skipper) -> PlotTable:
-    rows = _Rows(path, PLOT_COLUMNS)
+    rows = _Rows(path, PLOT_COLUMNS, skip)
     has_target = "target" in rows.optional
     cols: dict[str, list] = {k: [] for k in ("time", "radar", "range_m", "azimuth_rad", "altitude_m", "mode_s", "mode_3a", "target")}
     last_time: dict[str, tuple[float, int]] = {}
+    same_time: dict[str, set[tuple[str, ...]]] = {}  # rows of a radar at its latest time: duplicates are among them
     clock = StreamClock()
     for line, row in rows:
         try:
@@ -166,6 +212,9 @@ def read_plots(path: Path, radar_ids: set[str], skip: _Skipper) -> PlotTable:
             rid = rows.text(row, "radar")
             if rid not in radar_ids:
                 raise FormatError(rows.name, line, "radar", f"unknown radar {rid!r} (radars.csv has {sorted(radar_ids)})", "unknown_radar")
+            if rid in last_time and t == last_time[rid][0] and _key(row) in same_time[rid]:
+                skip.count(rows.name, "duplicate_row", f"{rows.name} line {line}")
+                continue
             if rid in last_time and t < last_time[rid][0]:
                 raise FormatError(rows.name, line, "time",
                                   f"{t} is earlier than {last_time[rid][0]} on line {last_time[rid][1]} of the same radar",
@@ -179,19 +228,27 @@ def read_plots(path: Path, radar_ids: set[str], skip: _Skipper) -> PlotTable:
             ms = _code(rows, row, line, "mode_s", _HEX, 6)
             m3a = _code(rows, row, line, "mode_3a", _OCT, 4)
         except FormatError as err:
-            skip(err)
+            rows.reject(err)
             continue
+        if rid not in last_time or t > last_time[rid][0]:
+            same_time[rid] = set()
+        same_time[rid].add(_key(row))
         last_time[rid] = (t, line)
         for k, v in (("time", t), ("radar", rid), ("range_m", rng), ("azimuth_rad", math.radians(az)),
                      ("altitude_m", alt), ("mode_s", ms), ("mode_3a", m3a),
                      ("target", rows.text(row, "target") if has_target else None)):
             cols[k].append(v)
+    if not cols["time"]:
+        bad = sum(n for k, n in skip.counts.items() if k.startswith(f"{rows.name}:"))
+        raise FormatError(rows.name, None, None, "no usable plot rows" + (f" ({bad} skipped)" if bad else
+                          " after the header") + ": nothing to track", "empty")
     return PlotTable.from_columns(**cols)
 
 
 def read_adsb(path: Path, skip: _Skipper) -> AdsbTable:
-    rows = _Rows(path, ADSB_COLUMNS)
+    rows = _Rows(path, ADSB_COLUMNS, skip)
     cols: dict[str, list] = {k: [] for k in ADSB_COLUMNS}
+    seen: set[tuple[str, ...]] = set()
     for line, row in rows:
         try:
             rec = {
@@ -207,58 +264,115 @@ def read_adsb(path: Path, skip: _Skipper) -> AdsbTable:
             if rec["nacp"] != int(rec["nacp"]):
                 raise FormatError(rows.name, line, "nacp", f"{rec['nacp']!r} is not an integer")
         except FormatError as err:
-            skip(err)
+            rows.reject(err)
             continue
+        if (key := _key(row)) in seen:
+            skip.count(rows.name, "duplicate_row", f"{rows.name} line {line}")
+            continue
+        seen.add(key)
         for k, v in rec.items():
             cols[k].append(v)
     return AdsbTable.from_columns(**cols)
 
 
-def read_truth(path: Path) -> TruthTable:
+def read_truth(path: Path, skip: _Skipper) -> TruthTable:
     rows = _Rows(path, TRUTH_COLUMNS)
     cols: dict[str, list] = {k: [] for k in TRUTH_COLUMNS}
+    seen: set[tuple[str, ...]] = set()
     for line, row in rows:
-        cols["time"].append(rows.number(row, line, "time"))
-        cols["target"].append(rows.text(row, "target"))
-        cols["lat"].append(rows.number(row, line, "lat", check=_range(-90, 90)))
-        cols["lon"].append(rows.number(row, line, "lon", check=_range(-180, 180)))
-        cols["altitude_m"].append(rows.number(row, line, "altitude_m"))
+        rec = (rows.number(row, line, "time"), rows.text(row, "target"),
+               rows.number(row, line, "lat", check=_range(-90, 90)),
+               rows.number(row, line, "lon", check=_range(-180, 180)), rows.number(row, line, "altitude_m"))
+        if (key := _key(row)) in seen:
+            skip.count(rows.name, "duplicate_row", f"{rows.name} line {line}")
+            continue
+        seen.add(key)
+        for k, v in zip(TRUTH_COLUMNS, rec):
+            cols[k].append(v)
     return TruthTable.from_columns(**cols)
 
 
 def read_truth_biases(path: Path, radar_ids: set[str]) -> dict[str, tuple[float, float]]:
     rows = _Rows(path, BIAS_COLUMNS)
-    out = {}
+    out: dict[str, tuple[float, float]] = {}
+    first: dict[str, int] = {}
     for line, row in rows:
         rid = rows.text(row, "radar")
         if rid not in radar_ids:
             raise FormatError(rows.name, line, "radar", f"unknown radar {rid!r}")
+        if rid in first:
+            raise FormatError(rows.name, line, "radar", f"radar {rid!r} appears twice (first on line {first[rid]})")
+        first[rid] = line
         out[rid] = (rows.number(row, line, "range_bias_m"),
                     math.radians(rows.number(row, line, "azimuth_bias_deg")))
     return out
 
 
+def _json_number(file: str, obj: dict, field: str, lo: float, hi: float) -> float:
+    v = obj.get(field.rsplit(".", 1)[-1])
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise FormatError(file, None, field, f"expected a number, got {json.dumps(v)}")
+    if not lo <= v <= hi:  # also refuses NaN and ±Infinity
+        raise FormatError(file, None, field, f"{v!r} outside [{lo}, {hi}]")
+    return float(v)
+
+
+def read_meta(path: Path) -> dict[str, Any]:
+    """``scenario.json``: ``name``, ``reference`` (lat, lon) and ``aircraft``, each checked; errors name the field."""
+    name = path.name
+    try:
+        meta = json.loads(read_text(path))
+    except json.JSONDecodeError as exc:
+        raise FormatError(name, exc.lineno, None, f"not JSON: {exc.msg} (column {exc.colno})") from None
+    if not isinstance(meta, dict):
+        raise FormatError(name, None, None, f"expected a JSON object, got {type(meta).__name__}")
+    out: dict[str, Any] = {}
+    if "name" in meta:
+        if not isinstance(meta["name"], str):
+            raise FormatError(name, None, "name", f"expected a string, got {json.dumps(meta['name'])}")
+        out["name"] = meta["name"]
+    if "reference" in meta:
+        ref = meta["reference"]
+        if not isinstance(ref, dict):
+            raise FormatError(name, None, "reference", f'expected {{"lat": …, "lon": …}}, got {json.dumps(ref)}')
+        out["reference"] = (_json_number(name, ref, "reference.lat", -90, 90),
+                            _json_number(name, ref, "reference.lon", -180, 180))
+    aircraft = meta.get("aircraft", [])
+    if not isinstance(aircraft, list):
+        raise FormatError(name, None, "aircraft", f"expected a list, got {type(aircraft).__name__}")
+    out["aircraft"] = []
+    for i, a in enumerate(aircraft):
+        try:
+            if not isinstance(a, dict):
+                raise TypeError(f"expected an object, got {json.dumps(a)}")
+            out["aircraft"].append(Aircraft(**a))
+        except (TypeError, ValueError) as exc:  # an unknown key, or a value the Aircraft validators refuse
+            raise FormatError(name, None, f"aircraft[{i}]", str(exc)) from None
+    return out
+
+
 def read_scenario(folder: Path | str, *, skip_bad: bool = False) -> ScenarioData:
-    """Read and validate a scenario folder (see docs/formats.md)."""
+    """Read and validate a scenario folder (see docs/formats.md).
+
+    Exact duplicate rows of plots, ADS-B and truth are used once and counted under
+    ``<file>:duplicate_row``; a ``plots.csv`` without a usable row is an error (nothing to track).
+    """
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"scenario folder {folder} does not exist")
+    meta = read_meta(folder / "scenario.json") if (folder / "scenario.json").exists() else {}
     radars = read_radars(folder / "radars.csv")
     ids = {r.id for r in radars}
     skip = _Skipper(skip_bad)
     plots = read_plots(folder / "plots.csv", ids, skip)
     adsb = read_adsb(folder / "adsb.csv", skip) if (folder / "adsb.csv").exists() else AdsbTable.from_columns(
         **{k: [] for k in ADSB_COLUMNS})
-    truth = read_truth(folder / "truth.csv") if (folder / "truth.csv").exists() else None
+    truth = read_truth(folder / "truth.csv", skip) if (folder / "truth.csv").exists() else None
     tb = read_truth_biases(folder / "truth_biases.csv", ids) if (folder / "truth_biases.csv").exists() else None
-    meta = json.loads((folder / "scenario.json").read_text()) if (folder / "scenario.json").exists() else {}
-    if "reference" in meta:
-        reference = (float(meta["reference"]["lat"]), float(meta["reference"]["lon"]))
-    else:  # documented default: the centroid of the radar sites
-        reference = (float(np.mean([r.lat for r in radars])), float(np.mean([r.lon for r in radars])))
-    aircraft = [Aircraft(**a) for a in meta.get("aircraft", [])]
+    # documented default reference: the centroid of the radar sites
+    reference = meta.get("reference") or (float(np.mean([r.lat for r in radars])), float(np.mean([r.lon for r in radars])))
     return ScenarioData(reference=reference, radars=radars, plots=plots, adsb=adsb, truth=truth,
-                        truth_biases=tb, aircraft=aircraft, name=meta.get("name", folder.name),
+                        truth_biases=tb, aircraft=meta.get("aircraft", []), name=meta.get("name", folder.name),
                         skipped=dict(skip.counts))
 
 

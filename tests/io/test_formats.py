@@ -73,7 +73,7 @@ def test_bad_rows_skipped_and_counted_on_request(folder, demo_data):
 
 def test_short_row_and_missing_column_and_empty_file(folder):
     _edit_line(folder / "plots.csv", 5, lambda line: ",".join(line.split(",")[:3]) + "\n")
-    with pytest.raises(FormatError, match="plots.csv line 5: too few fields"):
+    with pytest.raises(FormatError, match="plots.csv line 5: 3 fields, header has 8"):
         read_scenario(folder)
     (folder / "plots.csv").write_text("time,radar,range_m\n1,R1,5\n")
     with pytest.raises(FormatError, match="plots.csv line 1: missing column\\(s\\) azimuth_deg"):

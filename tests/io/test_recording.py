@@ -69,7 +69,7 @@ def test_new4_round_trip_and_crlf(tmp_path):
 def test_new4_bad_line_names_file_line_field(tmp_path, bad, field):
     path = tmp_path / "b.new4"
     path.write_text("0.0\t56.0\t37.0\t100.0\n" + bad + "\n")
-    with pytest.raises(ValueError, match=rf"b\.new4: line 2: field {field}"):
+    with pytest.raises(ValueError, match=rf"b\.new4 line 2, field .{field}."):
         read_new4(path)
 
 
