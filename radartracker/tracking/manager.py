@@ -171,6 +171,7 @@ class TrackManager:
         self._frame_items: list = []
         self._phase: dict[str, complex] = {}
         self._events: list[TrackEvent] = []
+        self._codes: dict[str, int] = {}  # Mode S address → track id, kept lazily (_track_with_code)
         self.clock = StreamClock(self.config.clock)
         self.adsb_check = AdsbPlausibility(self.config.screening)
 
@@ -310,7 +311,11 @@ class TrackManager:
         for i, tr in enumerate(live):
             t0, x, _ = tr.filter.estimate()
             pos[i] = x[:2] + x[2:] * max(t - t0, 0.0)
-        return {"pos": pos, "t": t, "exact": {}}
+        # identities are fixed while a frame is associated: index them once per frame, not per radar
+        index = {t.mode_s: i for i, t in enumerate(live) if t.mode_s}
+        codes = np.array([t.mode_3a for t in live], object)
+        return {"pos": pos, "t": t, "exact": {}, "index": index, "codes": codes,
+                "mode_s": np.array([t.mode_s is not None for t in live], bool)}
 
     @staticmethod
     def _exact(live: list[ManagedTrack], pred: dict, idx: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -327,7 +332,7 @@ class TrackManager:
         return tuple(np.array([cache[i][k] for i in idx]) for k in range(3))
 
     def _convert(self, rid: str, plots: list[Plot], live: list[ManagedTrack]) -> tuple[np.ndarray, ...]:
-        by_code = {t.mode_s: t for t in live if t.mode_s}
+        by_code = {t.mode_s: t for t in live if t.mode_s} if any(p.altitude_m is None and p.mode_s for p in plots) else {}
         alt = np.array([p.altitude_m if p.altitude_m is not None else
                         (by_code[p.mode_s].altitude_m if p.mode_s in by_code and by_code[p.mode_s].altitude_m
                          is not None else self.config.primary_altitude_m) for p in plots])
@@ -341,7 +346,7 @@ class TrackManager:
 
     def _associate(self, rid: str, plots: list[Plot], live: list[ManagedTrack], pred: dict, updates: list) -> set[int]:
         z, C, R, ok = self._convert(rid, plots, live)
-        index = {t.mode_s: i for i, t in enumerate(live) if t.mode_s}
+        index = pred["index"]
         taken: set[int] = set()
         rest: list[int] = []
         for k, p in enumerate(plots):
@@ -357,8 +362,9 @@ class TrackManager:
             else:
                 rest.append(k)
         if rest:
-            free = np.array([i not in taken and live[i].mode_s is None for i in range(len(live))], bool)
-            codes = np.array([t.mode_3a for t in live], object)
+            free = ~pred["mode_s"]
+            free[list(taken)] = False
+            codes = pred["codes"]
             allowed = np.array([free & ((codes == None) | (codes == plots[k].mode_3a) | (plots[k].mode_3a is None))  # noqa: E711
                                 for k in rest]).reshape(len(rest), len(live))
             zr = z[rest]
@@ -382,8 +388,22 @@ class TrackManager:
     def _adsb_measurement(self, rep: AdsbReport) -> tuple:
         x, y = self.plane.to_plane(rep.lat, rep.lon)
         sd = nacp_sigma_m(rep.nacp)
-        tr = next((t for t in self.tracks.values() if t.mode_s == rep.icao24), None)
+        tr = self._track_with_code(rep.icao24)
         return (rep.time, next(self._seq), tr, (np.array([float(x), float(y)]), np.zeros((2, 2)), np.eye(2) * sd * sd), rep)
+
+    def _track_with_code(self, code: str | None) -> ManagedTrack | None:
+        """The live track with Mode S address ``code`` (at most one: a code's track is looked up before
+        one is started). An index of ids, checked on use and rebuilt from a scan when stale or missing."""
+        if code is None:
+            return None
+        tr = self.tracks.get(self._codes.get(code, -1))
+        if tr is None or tr.mode_s != code:
+            tr = next((t for t in self.tracks.values() if t.mode_s == code), None)
+            if tr is not None:
+                self._codes[code] = tr.id
+            else:
+                self._codes.pop(code, None)
+        return tr
 
     def _position_measurement(self, m: PlaneMeasurement, live: list[ManagedTrack], pred: dict) -> tuple:
         """An unbiased position (e.g. a triangulated fix): its track by identity, else by gating."""
@@ -415,7 +435,7 @@ class TrackManager:
         if tr is not None and tr.id not in self.tracks:  # re-initialised earlier in this frame
             tr = None
         if tr is None:  # an ADS-B report may find the track a plot of this frame just started
-            tr = next((t for t in self.tracks.values() if code is not None and t.mode_s == code), None)
+            tr = self._track_with_code(code)
         kind = "plots" if radar is not None else ("adsb" if isinstance(src, AdsbReport) else "positions")
         if self.config.screening.enabled:
             why = (self.adsb_check.check(src.icao24, src.time, z, math.sqrt(R[0, 0]), src.nacp)
