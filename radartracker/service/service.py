@@ -33,7 +33,7 @@ from radartracker.service.endpoints import Endpoint, open_receiver, open_sender
 from radartracker.service.metrics import ServiceMetrics
 from radartracker.service.publisher import Publisher, track_number
 from radartracker.service.receiver import Receiver
-from radartracker.tracking.manager import ManagerConfig, TrackEvent, TrackManager, default_estimator
+from radartracker.tracking.manager import TrackEvent, TrackManager, default_estimator
 
 def build_manager(radars: list[Radar], estimator: str | None = None, motion_model: str | None = None) -> TrackManager:
     """A TrackManager set up as ``radartracker replay --association manager`` sets up its own
@@ -45,8 +45,7 @@ def build_manager(radars: list[Radar], estimator: str | None = None, motion_mode
     name = estimator or default_estimator()
     # with the association named, resolve() reads nothing of the scenario
     cfg = resolve(RunConfig(association="manager", estimator=name, motion_model=motion_model), None, name)
-    mcfg = ManagerConfig(estimator=cfg.estimator, estimator_config=cfg.estimator_settings(),
-                         motion_model=cfg.motion_model, primary_altitude_m=cfg.default_altitude_m, **cfg.manager)
+    mcfg = cfg.manager_settings()
     est = make_estimator(name, cfg.estimator_settings(), [r.id for r in radars], cfg.estimator_options)
     ref = (float(np.mean([r.lat for r in radars])), float(np.mean([r.lon for r in radars])))
     return TrackManager(radars, ref, mcfg, estimator=est, filter_factory=motion_factory(cfg))
