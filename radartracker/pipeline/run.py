@@ -29,7 +29,7 @@ import attrs
 import numpy as np
 from tqdm import tqdm
 
-from radartracker.errors import ConfigurationError
+from radartracker.errors import ConfigurationError, PluginError
 from radartracker.estimation.base import Estimator, PlaneMeasurement
 from radartracker.estimation.coupling import CouplingGraph
 from radartracker.estimation.kalman import SingularInnovation
@@ -168,6 +168,9 @@ def _by_labels(data: ScenarioData, cfg: RunConfig, est: Estimator, rec: Recorder
                 coupling.remove_aircraft(tid)
                 del ident[tid]
             continue
+        except Exception as exc:  # a plugin's bug or refusal: say which plugin, aircraft and time
+            raise PluginError(f"estimator {cfg.estimator!r} failed on aircraft {key} (track {tid}) at t={t:.3f} s: "
+                              f"{type(exc).__name__}: {exc}") from exc
         track[key], last_seen[key] = tid, t
         coupling.observe(tid, radar, t)
         counts[f"{kind}_used"] += 1

@@ -154,3 +154,21 @@ def test_compare_help_states_the_real_default_q(capsys):
 def test_settings_of_the_wrong_kind_or_path_are_refused(unlabelled, settings, match):
     with pytest.raises(ConfigurationError, match=match):
         run(unlabelled, RunConfig(**settings), progress=False)
+
+
+def test_a_failing_estimator_is_named_with_aircraft_and_time(labelled, monkeypatch):
+    from radartracker.errors import PluginError
+
+    est = load_estimator("decoupled")(EstimatorConfig(motion=MotionModel(5.0)))
+    calls = []
+
+    def update(m):
+        calls.append(m)
+        if len(calls) == 50:
+            raise ValueError("boom")
+        return type(est).update(est, m)
+
+    monkeypatch.setattr(est, "update", update)
+    with pytest.raises(PluginError, match=r"estimator 'decoupled' failed on aircraft \S+ \(track \d+\) at t=[\d.]+ s: "
+                                          r"ValueError: boom"):
+        run(labelled, RunConfig(), estimator=est, progress=False)
