@@ -202,3 +202,25 @@ def test_monte_carlo_recovery_short():
 @pytest.mark.slow
 def test_monte_carlo_recovery():
     _monte_carlo(10, seed=12)
+
+
+def test_jump_prior_jacobian_and_weight(flight):
+    from scipy.optimize._numdiff import approx_derivative
+
+    from radartracker_plugins.reconstruction.fit import jump_prior
+
+    pt, _ = flight
+    t = pt.t - pt.t[0]
+    cfg = ReconstructionConfig(jump_sd=0.5)
+    ct = ControlTrack(GeoPoint(0.0, *pt.z[0], 1.1, 165.0),
+                      [ControlSegment(0.3, 0.1, 0, 140), ControlSegment(2.5, -0.2, 140, 230), ControlSegment(-1.0, 0.5, 230, t[-1])])
+    obj = ControlObjective(TrackWeight(pt), t, 0.0, t[-1], len(ct), cfg)
+    theta = obj.pack((ct.initial.x, ct.initial.y, ct.initial.phi, ct.initial.v), ct.u, ct.w,
+                     np.array([s.t_start for s in ct] + [t[-1]]))
+    num = approx_derivative(obj.residuals, theta, method="3-point")
+    np.testing.assert_allclose(obj.jacobian(theta), num, rtol=1e-5, atol=1e-6 * np.abs(num).max())
+    # the objective is the plots' NLL plus ½ Σ (jump / sd)², computed here from the controls
+    jumps = np.concatenate([np.diff(ct.u), np.diff(ct.w)])
+    plain = ControlObjective(TrackWeight(pt), t, 0.0, t[-1], len(ct), ReconstructionConfig())
+    assert obj(theta) == pytest.approx(plain(theta) + 0.5 * np.sum((jumps / 0.5) ** 2), rel=1e-12)
+    assert jump_prior(ct, cfg) == pytest.approx(0.5 * np.sum((jumps / 0.5) ** 2))
