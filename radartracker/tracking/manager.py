@@ -58,6 +58,7 @@ from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.estimation.kalman import SingularInnovation
 from radartracker.estimation.motion import MotionModel
 from radartracker.estimation.base import Estimator, EstimatorConfig, PlaneMeasurement
+from radartracker.tracking.prepared import PreparedPlot, prepare
 from radartracker.tracking.filters import MotionConfig, TrackFilter
 from radartracker.tracking.snapshot import load_manager, save_manager
 from radartracker.registry import available_estimators, make_estimator, make_filter_factory
@@ -282,6 +283,8 @@ class TrackManager:
         fs = self.config.frame_s
         t_a, t_b = frame * fs, (frame + 1) * fs
         items, self._frame_items = self._frame_items, []
+        if any(type(i) is Plot for i in items):  # convert everything waiting at once (tracking.prepared)
+            items = self._prepare_waiting(items)
         live = list(self.tracks.values())
         pred = self._predict(live, 0.5 * (t_a + t_b))
         updates: list[tuple] = []  # (time, seq, track or None, measurement, plot-or-report)
@@ -336,6 +339,10 @@ class TrackManager:
         alt = np.array([p.altitude_m if p.altitude_m is not None else
                         (by_code[p.mode_s].altitude_m if p.mode_s in by_code and by_code[p.mode_s].altitude_m
                          is not None else self.config.primary_altitude_m) for p in plots])
+        if all(isinstance(p, PreparedPlot) and p.assumed_altitude_m == a for p, a in zip(plots, alt)):
+            # converted ahead in bulk at the same altitude (radartracker.tracking.prepared)
+            return (np.array([p.z for p in plots]), np.array([p.C for p in plots]), np.array([p.R for p in plots]),
+                    np.array([p.valid for p in plots], bool))
         rho = np.array([p.range_m for p in plots])
         theta = np.array([p.azimuth_rad for p in plots])
         frame = self.frames[rid]
@@ -390,6 +397,15 @@ class TrackManager:
         sd = nacp_sigma_m(rep.nacp)
         tr = self._track_with_code(rep.icao24)
         return (rep.time, next(self._seq), tr, (np.array([float(x), float(y)]), np.zeros((2, 2)), np.eye(2) * sd * sd), rep)
+
+    def _prepare_waiting(self, items: list) -> list:
+        """``items`` with their plots, and the plots waiting in the reorder heap, converted in one call per radar."""
+        waiting = [k for k, e in enumerate(self._heap) if type(e[2]) is Plot]
+        done = prepare(items + [self._heap[k][2] for k in waiting], self.frames, self.radars,
+                       self.config.primary_altitude_m)
+        for k, p in zip(waiting, done[len(items):]):
+            self._heap[k] = (*self._heap[k][:2], p)
+        return done[:len(items)]
 
     def _track_with_code(self, code: str | None) -> ManagedTrack | None:
         """The live track with Mode S address ``code`` (at most one: a code's track is looked up before
