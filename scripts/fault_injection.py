@@ -8,9 +8,9 @@ TrackManager; printed as JSON lines: every radar's final bias error and z-score,
 breaks and false tracks (radartracker.pipeline.evaluate.track_metrics), and the input counts.
 "Screening off" disables innovation screening, ADS-B plausibility and the robust clock.
 
-``--measure-gates`` instead prints the normalised innovations d² of clean runs (gates = ∞) per
-scenario and measurement kind, and those of the gross errors — the table the default gates were
-chosen from (docs/reliability.md, "Gross errors").
+``--measure-gates`` instead prints the normalised innovations d² of clean runs per scenario, motion
+model and measurement kind (with how many the default gates reject), and those of the gross errors
+— the table the default gates were chosen from (docs/reliability.md, "Gross errors").
 
 Usage: python scripts/fault_injection.py [--duration 1200] [--rates 0.001 0.01 0.05] [--seed 1]
        python scripts/fault_injection.py --measure-gates [--duration 1200]
@@ -127,7 +127,8 @@ def report(data: ScenarioData, mgr: TrackManager, events: list) -> dict:
 
 
 def measure_gates(args: argparse.Namespace, base: ManagerConfig) -> None:
-    """d² of every screened measurement in clean runs (gates ∞), and of the gross errors."""
+    """d² of every screened measurement in clean runs and how many the default gates reject; the
+    gross errors' d²."""
     import radartracker.tracking.manager as manager_module
     from radartracker.estimation import screening
 
@@ -135,9 +136,9 @@ def measure_gates(args: argparse.Namespace, base: ManagerConfig) -> None:
     current: list = [None]
     real_judge, real_apply = screening.judge, manager_module.TrackManager._apply
 
-    def recording_judge(config, kind, d2, strikes, identified):
+    def recording_judge(config, kind, d2, *args, **kwargs):
         seen.append((kind, d2, current[0]))
-        return real_judge(config, kind, d2, strikes, identified)
+        return real_judge(config, kind, d2, *args, **kwargs)
 
     def recording_apply(self, tr, meas, src):
         current[0] = src
@@ -145,12 +146,12 @@ def measure_gates(args: argparse.Namespace, base: ManagerConfig) -> None:
 
     manager_module.judge = recording_judge
     manager_module.TrackManager._apply = recording_apply
-    wide = ScreeningConfig(gate_plots=math.inf, gate_adsb=math.inf, gate_positions=math.inf)
     for name in args.scenarios:
         data = build_scenario(name, seed=args.seed, duration=args.duration).run()
         for model in args.models:
             seen.clear()
-            run(data, clean_items(data), attrs.evolve(base, motion_model=model, screening=wide))
+            mgr, _ = run(data, clean_items(data), attrs.evolve(base, motion_model=model))
+            counts = mgr.accounting()
             for kind in ("plots", "adsb"):
                 d = np.array([v for k, v, _ in seen if k == kind])
                 if len(d):
@@ -158,7 +159,9 @@ def measure_gates(args: argparse.Namespace, base: ManagerConfig) -> None:
                     print(json.dumps({"scenario": name, "motion_model": model, "kind": kind, "n": len(d),
                                       "mean": round(float(d.mean()), 2), "median": round(float(q[0]), 2),
                                       "q99": round(float(q[1]), 1), "q999": round(float(q[2]), 1),
-                                      "q9999": round(float(q[3]), 1), "max": round(float(d.max()), 1)}))
+                                      "q9999": round(float(q[3]), 1), "max": round(float(d.max()), 1),
+                                      "rejected": counts.get(f"{kind}_outlier", 0),
+                                      "tracks_reinitialised": counts.get("tracks_reinitialised", 0)}))
     # the gross errors' d² against healthy tracks: a run screened with the default gates, recording
     # the d² of each injected measurement by the fault it carries
     data = build_scenario("paris", seed=args.seed, duration=args.duration).run()

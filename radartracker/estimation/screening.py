@@ -12,7 +12,7 @@ A measurement with d² above its kind's gate is rejected and counted (``plots_ou
 gross errors of scripts/fault_injection.py: see docs/reliability.md, section "Gross errors".
 
 ``reinit_after`` consecutive rejections of one identified aircraft (Mode S address, ADS-B address,
-labelled key) mean the track, not the measurements, is wrong — it started on a wild measurement or
+labelled key) that agree with each other (:func:`extend_run`) mean the track, not the measurements, is wrong — it started on a wild measurement or
 a swapped address: the track is re-initialised from the newest measurement instead of being frozen.
 
 A new track has a diffuse prior, so its first measurement passes trivially. A wild *first*
@@ -53,9 +53,12 @@ class ScreeningConfig:
 
     ``gate_*`` per measurement kind — 600, about twice the largest d² of a good measurement in clean
     runs of the built-in scenarios (309: a 3°/s turn under the CV model; 28 under IMM) and a third of
-    the smallest d² of a gross error (1 805: a +20 km range error); ``reinit_after`` consecutive rejections re-initialise an
-    identified aircraft's track; ``adsb_min_nacp`` is the lowest NACp that may be used;
-    ``adsb_max_speed_mps`` the fastest implied speed between reports of one address, allowing
+    the smallest d² of a gross error (1 805: a +20 km range error); ``gate_tentative`` for a
+    tentative track, χ²₂'s 99.99 % quantile: its prediction is its diffuse start (no model mismatch
+    has built up yet), so the second measurement meets an implied-speed test of about
+    √18.4 × ``prior_sd_velocity_mps`` (1 300 m/s with 300 m/s) and a wild one cannot confirm it;
+    ``reinit_after`` consecutive, mutually consistent rejections re-initialise an identified
+    aircraft's track; ``adsb_min_nacp`` is the lowest NACp that may be used; ``adsb_max_speed_mps`` the fastest implied speed between reports of one address, allowing
     ``speed_sigmas`` standard deviations of the two positions' noise on top.
     """
 
@@ -63,6 +66,7 @@ class ScreeningConfig:
     gate_plots: float = attrs.field(default=600.0, validator=attrs.validators.gt(0.0))
     gate_adsb: float = attrs.field(default=600.0, validator=attrs.validators.gt(0.0))
     gate_positions: float = attrs.field(default=600.0, validator=attrs.validators.gt(0.0))
+    gate_tentative: float = attrs.field(default=18.42, validator=attrs.validators.gt(0.0))
     reinit_after: int = attrs.field(default=3, validator=attrs.validators.ge(1))
     adsb_min_nacp: int = attrs.field(default=5, validator=attrs.validators.in_(range(1, 12)))
     adsb_max_speed_mps: float = attrs.field(default=600.0, validator=attrs.validators.gt(0.0))
@@ -86,12 +90,30 @@ def normalised_innovation(z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.
     return d2 if math.isfinite(d2) else math.inf
 
 
-def judge(config: ScreeningConfig, kind: str, d2: float, strikes: int, identified: bool) -> str:
-    """ACCEPT when d² ≤ gate; else REINIT on the ``reinit_after``-th consecutive rejection of an
-    identified aircraft (``strikes`` counts the rejections before this one), else REJECT."""
-    if d2 <= config.gate(kind):
+Rejected = list[tuple[float, np.ndarray, float]]  # (time, position, σ) of consecutive rejected measurements
+
+
+def judge(config: ScreeningConfig, kind: str, d2: float, run: int, identified: bool, tentative: bool = False) -> str:
+    """ACCEPT when d² ≤ the gate (``gate_tentative`` for a tentative track); else REINIT when this
+    rejection makes ``run`` ≥ ``reinit_after`` consecutive, mutually consistent rejections of an
+    identified aircraft (``run`` counts this one, see :func:`extend_run`), else REJECT."""
+    if d2 <= (config.gate_tentative if tentative else config.gate(kind)):
         return ACCEPT
-    return REINIT if identified and strikes + 1 >= config.reinit_after else REJECT
+    return REINIT if identified and run >= config.reinit_after else REJECT
+
+
+def extend_run(config: ScreeningConfig, run: Rejected, time: float, z: np.ndarray, R: np.ndarray) -> Rejected:
+    """The run of consecutive rejections with this measurement added — restarted at it when it
+    disagrees with the previous one (:func:`speed_consistent`, σ = √ of R's largest eigenvalue).
+
+    Only a run of measurements that agree with each other says the *track* is wrong; scattered
+    gross errors between good measurements never make such a run, so they never re-initialise it.
+    """
+    sd = math.sqrt(max(float(np.linalg.eigvalsh(R)[-1]), 0.0))
+    if run and not speed_consistent(config, time - run[-1][0], run[-1][1], run[-1][2], z, sd):
+        run = []
+    keep = config.reinit_after - 1  # the run never needs more than reinit_after entries
+    return [*run[len(run) - keep:], (time, np.asarray(z, float), sd)] if keep else [(time, np.asarray(z, float), sd)]
 
 
 def speed_consistent(config: ScreeningConfig, dt: float, a: np.ndarray, sd_a: float, b: np.ndarray, sd_b: float) -> bool:
@@ -151,7 +173,7 @@ class LabelledScreen:
     def __init__(self, config: ScreeningConfig) -> None:
         self.config = config
         self.adsb = AdsbPlausibility(config)
-        self._strikes: dict[Hashable, int] = {}
+        self._runs: dict[Hashable, Rejected] = {}
 
     def screen(self, est: Estimator, m: PlaneMeasurement, kind: str) -> str:
         """ACCEPT, REJECT or REINIT for measurement ``m`` of aircraft ``m.aircraft`` (known to ``est``)."""
@@ -162,14 +184,14 @@ class LabelledScreen:
         else:
             bias, bias_cov = np.zeros(2), np.zeros((2, 2))
         d2 = normalised_innovation(m.z, m.C, m.R, bias, bias_cov, pred.state[:2], pred.cov[:2, :2])
-        strikes = self._strikes.pop(m.aircraft, 0)
-        verdict = judge(self.config, kind, d2, strikes, identified=True)
+        run = extend_run(self.config, self._runs.pop(m.aircraft, []), m.time, m.z - m.C @ bias, m.R)
+        verdict = judge(self.config, kind, d2, len(run), identified=True)
         if verdict == REJECT:
-            self._strikes[m.aircraft] = strikes + 1
+            self._runs[m.aircraft] = run
         return verdict
 
     def forget(self, key: Hashable) -> None:
         """Aircraft ``key`` left the estimator."""
-        self._strikes.pop(key, None)
+        self._runs.pop(key, None)
 
 

@@ -49,8 +49,8 @@ import numpy as np
 
 from radartracker.tracking.association import assign, candidate_pairs, gate_costs
 from radartracker.estimation.coupling import CouplingGraph
-from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, ScreeningConfig, judge,
-                                               normalised_innovation)
+from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, ScreeningConfig,
+                                               extend_run, judge, normalised_innovation)
 from radartracker.tracking.admission import ClockConfig, StreamClock
 from radartracker.domain import AdsbReport, BiasState, Plot, Radar, nacp_sigma_m
 from radartracker.errors import PluginError
@@ -127,7 +127,7 @@ class ManagedTrack:
     pending: list[tuple[PlaneMeasurement, str]] = attrs.field(factory=list)  # (measurement, kind)
     n_plots: int = 0
     n_adsb: int = 0
-    strikes: int = 0  # consecutive measurements rejected by innovation screening
+    rejected: list = attrs.field(factory=list)  # consecutive consistent screening rejections (screening.extend_run)
 
 
 def _finite_position(m: PlaneMeasurement) -> bool:
@@ -514,8 +514,10 @@ class TrackManager:
         except ValueError:  # the filter refuses this step; its update refuses it too and counts it
             return ACCEPT
         d2 = normalised_innovation(zc, _ZERO22, Rc, _ZERO2, _ZERO22, x[:2], P[:2, :2])
-        verdict = judge(self.config.screening, kind, d2, tr.strikes, identified=tr.mode_s is not None)
-        tr.strikes = tr.strikes + 1 if verdict == REJECT else 0
+        run = extend_run(self.config.screening, tr.rejected, t, zc, Rc)
+        verdict = judge(self.config.screening, kind, d2, len(run), identified=tr.mode_s is not None,
+                        tentative=tr.status == "tentative")
+        tr.rejected = run if verdict == REJECT else []
         if verdict == REJECT:
             self.counts[f"{kind}_outlier"] += 1
         return verdict

@@ -9,8 +9,8 @@ from scipy import stats
 from scipy.spatial.distance import mahalanobis
 
 from radartracker.domain import AdsbReport, Plot
-from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, ScreeningConfig, judge,
-                                               normalised_innovation, speed_consistent)
+from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, ScreeningConfig,
+                                               extend_run, judge, normalised_innovation, speed_consistent)
 from radartracker.pipeline.config import RunConfig
 from radartracker.pipeline.run import run
 from radartracker.simulation.scenarios import _icao, build_scenario
@@ -36,11 +36,20 @@ def test_normalised_innovation_is_the_mahalanobis_distance_and_chi2_distributed(
     assert normalised_innovation(z[0], C, -R, bias, Pb, pos, -Pp) == math.inf
 
 
-def test_judge_reinitialises_an_identified_aircraft_after_repeated_rejections():
-    cfg = ScreeningConfig(gate_plots=10.0, reinit_after=3)
-    assert judge(cfg, "plots", 9.9, 2, True) == ACCEPT
-    assert [judge(cfg, "plots", 50.0, k, True) for k in range(3)] == [REJECT, REJECT, REINIT]
+def test_judge_reinitialises_after_a_run_of_consistent_rejections():
+    cfg = ScreeningConfig(gate_plots=10.0, gate_tentative=5.0, reinit_after=3)
+    assert judge(cfg, "plots", 9.9, 0, True) == ACCEPT
+    assert judge(cfg, "plots", 9.9, 1, True, tentative=True) == REJECT
+    assert [judge(cfg, "plots", 50.0, k, True) for k in (1, 2, 3)] == [REJECT, REJECT, REINIT]
     assert judge(cfg, "plots", 50.0, 5, False) == REJECT  # an unidentified track is never re-initialised
+    R = np.eye(2) * 100.0
+    run = []
+    for t in (0.0, 4.0, 8.0):  # an aircraft flying at 250 m/s: one consistent run
+        run = extend_run(cfg, run, t, np.array([250.0 * t, 0.0]), R)
+    assert len(run) == 3
+    # scattered gross errors between good measurements: a 20 km jump restarts the run
+    assert len(extend_run(cfg, run, 12.0, np.array([3000.0 + 20e3, 0.0]), R)) == 1
+    assert len(extend_run(ScreeningConfig(reinit_after=1), run, 12.0, np.array([3000.0, 0.0]), R)) == 1
 
 
 def test_adsb_plausibility():
