@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from radartracker.errors import ConfigurationError
@@ -59,6 +60,8 @@ def register_asterix_import(sub: argparse._SubParsersAction) -> None:
                    help="UTC day of the first record (YYYY-MM-DD or seconds since 1970 of its midnight); "
                         "ASTERIX carries only the time of day (default 0: times are seconds of the day; "
                         "pcap files take the day from their packet time stamps)")
+    p.add_argument("--skip-bad", action="store_true",
+                   help="skip (and count) unreadable framing and plots of SAC/SIC the sidecar lacks")
     p.set_defaults(func=_cmd_asterix_import)
 
 
@@ -66,9 +69,13 @@ def _day_start(text: str) -> float:
     from datetime import date, datetime, timezone
 
     try:
-        return float(text)
+        value = float(text)
     except ValueError:
         pass
+    else:
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"not a finite number of seconds: {text!r}")
+        return value
     try:
         d = date.fromisoformat(text)
     except ValueError:
@@ -82,10 +89,10 @@ def _cmd_asterix_import(args: argparse.Namespace) -> int:
 
     if args.out.exists():
         raise ConfigurationError(f"{args.out} already exists; choose a new folder")
-    data = read_asterix(args.recording, day_start=args.day_start)
+    data = read_asterix(args.recording, day_start=args.day_start, skip_bad=args.skip_bad)
     write_scenario(args.out, data)
     print(f"wrote {args.out}: {len(data.radars)} radars, {len(data.plots)} plots, "
-          f"{len(data.adsb)} ADS-B reports")
+          f"{len(data.adsb)} ADS-B reports" + "".join(f"; {n} {k}" for k, n in sorted(data.skipped.items())))
     return 0
 
 

@@ -24,6 +24,7 @@ IPv4, UDP); pcapng is refused with a clear message.
 from __future__ import annotations
 
 import csv
+import logging
 import math
 import struct
 from collections import Counter
@@ -35,12 +36,14 @@ from asterix.base import Bits, RawDatablock
 import asterix.generated as gen
 
 from radartracker.domain import Aircraft, Radar
+from radartracker.errors import FormatError, InputError
 from radartracker.io.tables import RADAR_COLUMNS, AdsbTable, PlotTable, ScenarioData
 
 CAT048, CAT021, CAT062 = gen.Cat_048_1_32, gen.Cat_021_2_6, gen.Cat_062_1_21
 NM, FT = 1852.0, 0.3048
 FL_M = 100 * FT
 DAY = 86400.0
+log = logging.getLogger(__name__)
 MAX_BLOCK = 60_000  # bytes of records per data block (the length field allows 65535)
 
 
@@ -215,17 +218,27 @@ def write_cat062(path: Path | str, result, *, sac: int = 0, sic: int = 100) -> d
 
 # --- containers ------------------------------------------------------------------------------------
 
-def _blocks_in(buf: bytes, where: str) -> Iterator[bytes]:
-    """Split concatenated data blocks, checking every length field."""
+def _blocks_in(buf: bytes, where: str, bad: Counter | None = None) -> Iterator[bytes]:
+    """Split concatenated data blocks, checking every length field.
+
+    A length that does not fit is an :class:`InputError`; with ``bad`` (skip_bad) the rest of
+    ``buf`` is counted under ``asterix_unreadable_tails`` instead (no block boundary to resume at).
+    """
     off = 0
     while off < len(buf):
+        why = None
         if len(buf) - off < 3:
-            raise ValueError(f"{where}: byte {off}: truncated data block header ({len(buf) - off} bytes left)")
-        n = int.from_bytes(buf[off + 1: off + 3], "big")
-        if n < 3:
-            raise ValueError(f"{where}: byte {off}: data block length {n} < 3 (not ASTERIX?)")
-        if off + n > len(buf):
-            raise ValueError(f"{where}: byte {off}: truncated data block (length {n}, {len(buf) - off} bytes left)")
+            why = f"truncated data block header ({len(buf) - off} bytes left)"
+        elif (n := int.from_bytes(buf[off + 1: off + 3], "big")) < 3:
+            why = f"data block length {n} < 3 (not ASTERIX?)"
+        elif off + n > len(buf):
+            why = f"truncated data block (length {n}, {len(buf) - off} bytes left)"
+        if why is not None:
+            if bad is None:
+                raise InputError(f"{where}: byte {off}: {why}")
+            bad["asterix_unreadable_tails"] += 1
+            log.warning("%s: byte %d: %s; skipped the %d bytes from there", where, off, why, len(buf) - off)
+            return
         yield buf[off: off + n]
         off += n
 
@@ -235,18 +248,21 @@ def _is_final(buf: bytes) -> bool:
     return 12 < n <= len(buf) and buf[n - 4: n] == b"\xa5" * 4
 
 
-def read_final(buf: bytes, where: str) -> Iterator[tuple[float | None, bytes]]:
+def read_final(buf: bytes, where: str, bad: Counter | None = None) -> Iterator[tuple[float | None, bytes]]:
     """(None, data block) of a FINAL-format file (its 10 ms time of day is not needed: I140 has it)."""
     off = 0
     while off < len(buf):
-        if len(buf) - off < 12:
-            raise ValueError(f"{where}: byte {off}: truncated FINAL record header")
         n = int.from_bytes(buf[off: off + 2], "big")
-        if n < 12 or off + n > len(buf):
-            raise ValueError(f"{where}: byte {off}: truncated or bad FINAL record (byte count {n})")
-        if buf[off + n - 4: off + n] != b"\xa5" * 4:
-            raise ValueError(f"{where}: byte {off}: FINAL record without its A5A5A5A5 padding")
-        for block in _blocks_in(buf[off + 8: off + n - 4], f"{where}: FINAL record at byte {off}"):
+        why = ("truncated FINAL record header" if len(buf) - off < 12 else
+               f"truncated or bad FINAL record (byte count {n})" if n < 12 or off + n > len(buf) else
+               "FINAL record without its A5A5A5A5 padding" if buf[off + n - 4: off + n] != b"\xa5" * 4 else None)
+        if why is not None:
+            if bad is None:
+                raise InputError(f"{where}: byte {off}: {why}")
+            bad["asterix_unreadable_tails"] += 1
+            log.warning("%s: byte %d: %s; skipped the %d bytes from there", where, off, why, len(buf) - off)
+            return
+        for block in _blocks_in(buf[off + 8: off + n - 4], f"{where}: FINAL record at byte {off}", bad):
             yield None, block
         off += n
 
@@ -255,28 +271,33 @@ _PCAP_MAGIC = {b"\xd4\xc3\xb2\xa1": ("<", 1e-6), b"\xa1\xb2\xc3\xd4": (">", 1e-6
                b"\x4d\x3c\xb2\xa1": ("<", 1e-9), b"\xa1\xb2\x3c\x4d": (">", 1e-9)}
 
 
-def read_pcap(buf: bytes, where: str) -> Iterator[tuple[float, bytes]]:
-    """(packet time, data block) of the UDP payloads of a classic pcap file."""
+def read_pcap(buf: bytes, where: str, bad: Counter | None = None) -> Iterator[tuple[float, bytes]]:
+    """(packet time, data block) of the UDP payloads of a classic pcap file (with ``bad``: a packet
+    whose payload is not whole data blocks is skipped and counted, a cut last packet counted)."""
     endian, unit = _PCAP_MAGIC[buf[:4]]
     if len(buf) < 24:
-        raise ValueError(f"{where}: truncated pcap header")
+        raise InputError(f"{where}: truncated pcap header")
     link = struct.unpack(endian + "I", buf[20:24])[0]
     off = 24
     while off < len(buf):
-        if len(buf) - off < 16:
-            raise ValueError(f"{where}: byte {off}: truncated pcap packet header")
-        sec, frac, incl, _ = struct.unpack(endian + "IIII", buf[off: off + 16])
+        sec, frac, incl, _ = struct.unpack(endian + "IIII", buf[off: off + 16].ljust(16, b"\0"))
         pkt = buf[off + 16: off + 16 + incl]
-        if len(pkt) < incl:
-            raise ValueError(f"{where}: byte {off}: truncated pcap packet ({incl} bytes announced)")
-        payload = _udp_payload(pkt, link)
+        if len(buf) - off < 16 or len(pkt) < incl:
+            if bad is None:
+                raise InputError(f"{where}: byte {off}: truncated pcap packet ({len(buf) - off} bytes left)")
+            bad["asterix_unreadable_tails"] += 1
+            return
+        payload = _udp_payload(pkt, link, where)
         if payload:
-            for block in _blocks_in(payload, f"{where}: packet at byte {off}"):
+            blocks = list(_blocks_in(payload, f"{where}: packet at byte {off}", None if bad is None else Counter()))
+            if bad is not None and len(b"".join(blocks)) < len(payload):
+                bad["asterix_malformed_packets"] += 1
+            for block in blocks:
                 yield sec + frac * unit, block
         off += 16 + incl
 
 
-def _udp_payload(pkt: bytes, link: int) -> bytes | None:
+def _udp_payload(pkt: bytes, link: int, where: str) -> bytes | None:
     if link == 1:  # Ethernet, optionally 802.1Q tagged
         ethertype, ip = int.from_bytes(pkt[12:14], "big"), 14
         while ethertype == 0x8100:
@@ -286,7 +307,7 @@ def _udp_payload(pkt: bytes, link: int) -> bytes | None:
     elif link in (101, 228):  # raw IPv4
         ethertype, ip = 0x0800, 0
     else:
-        raise ValueError(f"pcap link type {link} not supported (Ethernet, Linux SLL or raw IPv4)")
+        raise InputError(f"{where}: pcap link type {link} not supported (Ethernet, Linux SLL or raw IPv4)")
     if ethertype != 0x0800 or len(pkt) < ip + 20 or pkt[ip + 9] != 17:
         return None  # not IPv4/UDP: not ASTERIX
     if int.from_bytes(pkt[ip + 6: ip + 8], "big") & 0x3FFF:
@@ -314,22 +335,38 @@ def write_pcap(path: Path | str, packets: Iterable[tuple[float, bytes]], *, dst:
             fh.write(frame)
 
 
-def iter_datablocks(path: Path | str) -> Iterator[tuple[float | None, bytes]]:
-    """(packet time or None, data block) of a raw, FINAL or pcap ASTERIX file."""
+def iter_datablocks(path: Path | str, bad: Counter | None = None) -> Iterator[tuple[float | None, bytes]]:
+    """(packet time or None, data block) of a raw, FINAL or pcap ASTERIX file; with ``bad``
+    (skip_bad), unreadable framing is counted there instead of raising :class:`InputError`."""
     path = Path(path)
     buf = path.read_bytes()
     if not buf:
-        raise ValueError(f"{path}: empty file")
+        raise InputError(f"{path}: empty file")
     if buf[:4] == b"\x0a\x0d\x0d\x0a":
-        raise ValueError(f"{path}: pcapng is not supported; convert it with 'editcap -F pcap'")
+        raise InputError(f"{path}: pcapng is not supported; convert it with 'editcap -F pcap'")
     if buf[:4] in _PCAP_MAGIC:
-        return read_pcap(buf, str(path))
+        return read_pcap(buf, str(path), bad)
     if _is_final(buf):
-        return read_final(buf, str(path))
-    return ((None, b) for b in _blocks_in(buf, str(path)))
+        return read_final(buf, str(path), bad)
+    return ((None, b) for b in _blocks_in(buf, str(path), bad))
 
 
 # --- decoding --------------------------------------------------------------------------------------
+
+class MissingItem(InputError):
+    """A record without an item we need (e.g. a CAT048 track-only report without I040)."""
+
+    def __init__(self, item: str) -> None:
+        super().__init__(f"no I{item}")
+        self.item = item
+
+
+def _need(rec, item: str):
+    i = rec.get_item(item)
+    if i is None:
+        raise MissingItem(item)
+    return i.variation
+
 
 def _q(rec, item: str, sub: str | None, unit: str) -> float | None:
     i = rec.get_item(item)
@@ -340,22 +377,32 @@ def _q(rec, item: str, sub: str | None, unit: str) -> float | None:
 
 
 def decode_block(block: bytes, where: str) -> tuple[int, list]:
-    """(category, decoded records) of one data block; categories other than 021/048/062: no records."""
-    raw = RawDatablock.parse(Bits.from_bytes(block))
-    if isinstance(raw, ValueError):
-        raise ValueError(f"{where}: {raw}")
-    cat = raw[0].get_category()
-    spec = {48: CAT048, 21: CAT021, 62: CAT062}.get(cat)
-    if spec is None:
-        return cat, []
-    recs = spec.cv_uap.parse(raw[0].get_raw_records())
+    """(category, decoded records) of one data block; categories other than 021/048/062: no records.
+
+    A block the library cannot decode (another edition, damaged bytes) is an :class:`InputError`.
+    """
+    try:
+        raw = RawDatablock.parse(Bits.from_bytes(block))
+        if isinstance(raw, ValueError):
+            raise InputError(f"{where}: {raw}")
+        cat = raw[0].get_category()
+        spec = {48: CAT048, 21: CAT021, 62: CAT062}.get(cat)
+        if spec is None:
+            return cat, []
+        recs = spec.cv_uap.parse(raw[0].get_raw_records())
+    except InputError:
+        raise
+    except Exception as exc:  # the decoder of untrusted bytes may fail in any way: the block is unusable
+        raise InputError(f"{where}: block does not decode: {type(exc).__name__}: {exc}") from None
     if isinstance(recs, ValueError):
-        raise ValueError(f"{where}: CAT{cat:03d} block does not decode: {recs}")
+        raise InputError(f"{where}: CAT{cat:03d} block does not decode: {recs}")
     return cat, recs
 
 
 def decode_cat048(rec) -> dict:
-    i010 = rec.get_item("010").variation
+    """Our fields of one CAT048 record; :class:`MissingItem` without I010, I140 or I040."""
+    i010 = _need(rec, "010")
+    _need(rec, "140"), _need(rec, "040")
     fl = _q(rec, "090", "FL", "FL")
     i070, i220 = rec.get_item("070"), rec.get_item("220")
     return {
@@ -370,6 +417,12 @@ def decode_cat048(rec) -> dict:
 
 
 def decode_cat021(rec) -> dict:
+    """Our fields of one CAT021 record; :class:`MissingItem` without I080, a time or a position."""
+    _need(rec, "080")
+    if rec.get_item("131") is None:
+        _need(rec, "130")
+    if rec.get_item("071") is None:
+        _need(rec, "073")
     fl = _q(rec, "145", None, "FL")
     tod = _q(rec, "071", None, "s")
     i090 = rec.get_item("090")
@@ -388,6 +441,9 @@ def decode_cat021(rec) -> dict:
 
 
 def decode_cat062(rec) -> dict:
+    """Our fields of one CAT062 record; :class:`MissingItem` without I010, I040, I070 or I080."""
+    for item in ("010", "040", "070", "080"):
+        _need(rec, item)
     fl = _q(rec, "136", None, "FL")
     i060, i380, i080 = rec.get_item("060"), rec.get_item("380"), rec.get_item("080").variation
     adr = None if i380 is None else i380.variation.get_item("ADR")
@@ -420,45 +476,74 @@ class _Clock:
 
 
 def read_sites(path: Path) -> tuple[list[Radar], dict[tuple[int, int], str]]:
-    """Radar sites and the SAC/SIC → radar id map of a ``.radars.csv`` sidecar."""
-    from radartracker.io.scenario import read_radars
+    """Radar sites and the SAC/SIC → radar id map of a ``.radars.csv`` sidecar (each SAC/SIC once)."""
+    from radartracker.io.scenario import _Rows, _range, read_radars
 
     radars = read_radars(path)
-    with open(path, newline="", encoding="utf-8") as f:
-        rows = list(csv.DictReader(f))
-    if rows and not {"sac", "sic"} <= set(rows[0]):
-        raise ValueError(f"{path}: line 1: columns sac and sic are needed to match CAT048 plots to radars")
-    ids = {}
-    for n, row in enumerate(rows, 2):
-        try:
-            ids[(int(row["sac"]), int(row["sic"]))] = row["radar"].strip()
-        except ValueError:
-            raise ValueError(f"{path}: line {n}: field sac/sic: not an integer") from None
+    rows = _Rows(path, RADAR_COLUMNS + ("sac", "sic"))
+    ids: dict[tuple[int, int], str] = {}
+    first: dict[tuple[int, int], int] = {}
+    for line, row in rows:
+        key = tuple(int(rows.number(row, line, f, check=_byte)) for f in ("sac", "sic"))
+        if key in ids:
+            raise FormatError(rows.name, line, "sac/sic", f"SAC/SIC {key[0]}/{key[1]} already belongs to radar "
+                              f"{ids[key]!r} on line {first[key]}")
+        ids[key], first[key] = rows.text(row, "radar"), line
     return radars, ids
 
 
-def read_asterix(path: Path | str, *, radars: Path | str | None = None, day_start: float = 0.0) -> ScenarioData:
+def _byte(v: float) -> str | None:
+    return None if v == int(v) and 0 <= v <= 255 else "is not an integer 0..255"
+
+
+def _records(cat: int, recs: list, decode, skipped: Counter) -> Iterator[dict]:
+    """Decoded records; those without an item we need are skipped and counted by item."""
+    for r in recs:
+        try:
+            yield decode(r)
+        except MissingItem as exc:
+            key = f"asterix_cat{cat:03d}_records_without_I{exc.item}"
+            if not skipped[key]:
+                log.warning("skipping CAT%03d records without I%s (counted under %s)", cat, exc.item, key)
+            skipped[key] += 1
+
+
+def read_asterix(path: Path | str, *, radars: Path | str | None = None, day_start: float = 0.0,
+                 skip_bad: bool = False) -> ScenarioData:
     """Read a CAT048/CAT021 recording (raw, FINAL or pcap) as a scenario (see the module notes).
 
-    Records of other categories are counted in ``skipped``; a malformed or truncated block is a
-    ``ValueError`` naming the file and byte offset.
+    Skipped and counted in ``skipped`` (never an error): blocks of other categories, blocks the
+    library cannot decode (other editions, damaged bytes), records without an item we need (e.g. a
+    CAT048 track-only report without I040), ADS-B reports with an impossible position. With
+    ``skip_bad`` also framing that cannot be read (the rest of the file, or one pcap packet) and
+    plots whose SAC/SIC the sidecar lacks; without it those are :class:`InputError` naming the file
+    and byte. A recording with nothing usable is an error.
     """
     path = Path(path)
     sites_path = Path(radars) if radars is not None else Path(str(path) + ".radars.csv")
     plots, adsb, skipped = [], [], Counter()
     clock = None
-    for k, (stamp, block) in enumerate(iter_datablocks(path)):
+    for k, (stamp, block) in enumerate(iter_datablocks(path, skipped if skip_bad else None)):
         if clock is None:
             clock = _Clock(math.floor(stamp / DAY) * DAY if stamp is not None else day_start)
-        cat, recs = decode_block(block, f"{path}: data block {k}")
+        try:
+            cat, recs = decode_block(block, f"{path}: data block {k}")
+        except InputError as exc:
+            if not skipped["asterix_undecodable_blocks"]:
+                log.warning("skipping blocks that do not decode (counted): %s", exc)
+            skipped["asterix_undecodable_blocks"] += 1
+            continue
         if cat == 48:
-            plots += [decode_cat048(r) for r in recs]
-            for p in plots[len(plots) - len(recs):]:
+            for p in _records(48, recs, decode_cat048, skipped):
                 p["time"] = clock(p["tod"])
+                plots.append(p)
         elif cat == 21:
-            adsb += [decode_cat021(r) for r in recs]
-            for a in adsb[len(adsb) - len(recs):]:
+            for a in _records(21, recs, decode_cat021, skipped):
+                if not (-90.0 <= a["lat"] <= 90.0 and -180.0 <= a["lon"] <= 180.0):
+                    skipped["asterix_cat021_impossible_positions"] += 1
+                    continue
                 a["time"] = clock(a["tod"])
+                adsb.append(a)
         else:
             skipped[f"asterix_cat{cat:03d}_blocks"] += 1
     seen = sorted({(p["sac"], p["sic"]) for p in plots})
@@ -468,8 +553,16 @@ def read_asterix(path: Path | str, *, radars: Path | str | None = None, day_star
             f"write {sites_path} (columns {', '.join(RADAR_COLUMNS)}, sac, sic)")
     site_list, ids = read_sites(sites_path) if sites_path.exists() else ([], {})
     unknown = [f"{a}/{b}" for a, b in seen if (a, b) not in ids]
+    if unknown and not skip_bad:
+        raise FormatError(sites_path.name, None, "sac/sic", f"no radar with SAC/SIC {', '.join(unknown)} "
+                          "(CAT048 plots carry them; --skip-bad skips and counts those plots)")
     if unknown:
-        raise ValueError(f"{sites_path}: no radar with SAC/SIC {', '.join(unknown)}")
+        kept = [p for p in plots if (p["sac"], p["sic"]) in ids]
+        skipped["asterix_cat048_unknown_sac_sic"] += len(plots) - len(kept)
+        plots = kept
+    if not plots and not adsb:
+        raise InputError(f"{path}: no usable CAT048 plot or CAT021 report"
+                         + (f" (skipped: {dict(sorted(skipped.items()))})" if skipped else ""))
     icaos = sorted({a["icao24"] for a in adsb} | {p["mode_s"] for p in plots if p["mode_s"]})
     equipped = {a["icao24"] for a in adsb}
     squawks: dict[str, Counter] = {}  # an aircraft's Mode 3/A code: the one its plots carry most often
@@ -500,7 +593,7 @@ def read_asterix(path: Path | str, *, radars: Path | str | None = None, day_star
 def read_cat062(path: Path | str, *, day_start: float = 0.0) -> list[dict]:
     """The CAT062 system track updates of a recording (raw, FINAL or pcap), in file order, as
     :func:`decode_cat062` dicts with absolute ``time`` (see the module notes on time of day);
-    records of other categories are skipped."""
+    records of other categories, and records without I010, I040, I070 or I080, are skipped."""
     out: list[dict] = []
     clock = None
     for k, (stamp, block) in enumerate(iter_datablocks(path)):
@@ -508,8 +601,7 @@ def read_cat062(path: Path | str, *, day_start: float = 0.0) -> list[dict]:
             clock = _Clock(math.floor(stamp / DAY) * DAY if stamp is not None else day_start)
         cat, recs = decode_block(block, f"{path}: data block {k}")
         if cat == 62:
-            for r in recs:
-                d = decode_cat062(r)
+            for d in _records(62, recs, decode_cat062, Counter()):
                 d["time"] = clock(d["tod"])
                 out.append(d)
     return out

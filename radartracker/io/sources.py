@@ -15,5 +15,5 @@ def read_source(path: Path | str, *, skip_bad: bool = False) -> ScenarioData:
     """Read a scenario folder (docs/formats.md) or an ASTERIX recording file."""
     path = Path(path)
     if path.suffix.lower() in ASTERIX_SUFFIXES:
-        return read_asterix(path)
+        return read_asterix(path, skip_bad=skip_bad)
     return read_scenario(path, skip_bad=skip_bad)
