@@ -6,7 +6,8 @@ import pytest
 
 from radartracker.api import AircraftEstimate, ConfigurationError
 from radartracker.registry import available_estimators, available_motion_models, load_estimator, load_motion_model
-from radartracker.testing import ESTIMATOR_CHECKS, MOTION_CHECKS, CheckFailed, check_estimator, check_motion_model
+from radartracker.testing import (ESTIMATOR_CHECKS, EXACT_CHECKS, MOTION_CHECKS, CheckFailed, check_estimator,
+                                  check_motion_model)
 from radartracker_plugins.decoupled import DecoupledEstimator
 from radartracker_plugins.motion import CVFilter, IMMFilter
 
@@ -16,8 +17,17 @@ BUILT_IN_MOTION = ["cv", "imm", "adaptive", "fading"]
 
 @pytest.mark.parametrize("name", BUILT_IN_ESTIMATORS)
 def test_built_in_estimators_pass(name):
+    """The exact joint filters also pass the χ² checks on biased measurements (joint_consistency)."""
     assert name in available_estimators()
-    assert check_estimator(load_estimator(name)) == list(ESTIMATOR_CHECKS)
+    checks = EXACT_CHECKS if name in ("coupled", "coupled-sparse") else ESTIMATOR_CHECKS
+    assert check_estimator(load_estimator(name), checks=checks) == list(checks)
+
+
+@pytest.mark.parametrize("name", ["decoupled", "blom"])
+def test_filters_ignoring_cross_covariances_fail_joint_consistency(name):
+    """Their optimistic covariances (docs/estimators.md) are what the joint χ² check is for."""
+    with pytest.raises(CheckFailed, match="'joint_consistency' failed: summed NIS"):
+        check_estimator(load_estimator(name), checks=["joint_consistency"])
 
 
 def test_estimator_options_are_checked_too():

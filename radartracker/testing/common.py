@@ -1,0 +1,57 @@
+"""Shared pieces of the conformance checks: the failure type, comparisons and noise draws."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from scipy.stats import chi2
+
+TOL = 1e-9
+H = np.hstack([np.eye(2), np.zeros((2, 2))])  # position observation of χ = [x, y, vx, vy]
+
+
+class CheckFailed(AssertionError):
+    """A plugin failed a conformance check; the message names the plugin, the check and the fault."""
+
+
+def fail(owner: str, check: str, message: str) -> CheckFailed:
+    return CheckFailed(f"{owner}: check '{check}' failed: {message}")
+
+
+def close(a: Any, b: Any, tol: float = TOL) -> bool:
+    """a ≈ b elementwise, relative to the largest magnitude of b (same shape required)."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return a.shape == b.shape and bool(np.allclose(a, b, rtol=tol, atol=tol * max(1.0, float(np.max(np.abs(b), initial=0.0)))))
+
+
+def identical(a: list[np.ndarray], b: list[np.ndarray]) -> bool:
+    """Bit-for-bit equality of two lists of arrays (NaN equals NaN)."""
+    return len(a) == len(b) and all(np.array_equal(x, y, equal_nan=True) for x, y in zip(a, b))
+
+
+def noise_cov(rng: np.random.Generator, sd: float = 60.0) -> np.ndarray:
+    """A random, well-conditioned 2×2 position noise covariance of about ``sd`` metres."""
+    L = rng.normal(0.0, sd, (2, 2))
+    return L @ L.T + (0.5 * sd) ** 2 * np.eye(2)
+
+
+def chi2_inside(total: float, dof: int, p: float = 1e-3) -> tuple[bool, float, float]:
+    """Whether ``total`` is inside the two-sided 1 − p interval of χ²(dof), and the interval."""
+    lo, hi = chi2.ppf(p / 2, dof), chi2.ppf(1 - p / 2, dof)
+    return lo <= total <= hi, lo, hi
+
+
+def run_checks(owner: str, runners: dict, checks: list[str], *args: Any) -> list[str]:
+    """Run the named checks in order; an exception inside the plugin becomes a CheckFailed naming the check."""
+    unknown = set(checks) - set(runners)
+    if unknown:
+        raise ValueError(f"unknown checks {sorted(unknown)}; known: {', '.join(runners)}")
+    for name in checks:
+        try:
+            runners[name](*args, owner)
+        except CheckFailed:
+            raise
+        except Exception as exc:
+            raise fail(owner, name, f"raised {type(exc).__name__}: {exc}") from exc
+    return list(checks)
