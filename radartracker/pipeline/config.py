@@ -137,6 +137,13 @@ class LabelsConfig:
     drop_after_s: float | None = attrs.field(default=None, validator=_optional_positive("drop_after_s"))
 
 
+def _labels(value: LabelsConfig | Mapping[str, Any] | None) -> LabelsConfig | None:
+    try:
+        return LabelsConfig(**value) if isinstance(value, Mapping) else value
+    except TypeError as exc:
+        raise ConfigurationError(f"labels: {exc}") from None
+
+
 @attrs.frozen
 class RunConfig:
     """Every setting of one run (``None``: the default, filled in by :func:`resolve`).
@@ -162,7 +169,7 @@ class RunConfig:
     skip_bad: bool = False
     estimator_config: dict[str, float] = attrs.field(factory=dict)
     manager: dict[str, Any] = attrs.field(factory=dict)
-    labels: LabelsConfig | None = None
+    labels: LabelsConfig | None = attrs.field(default=None, converter=lambda v: _labels(v))
 
     def __attrs_post_init__(self) -> None:
         if self.default_altitude_m is not None:
@@ -249,8 +256,6 @@ def read_config(path: Path | str) -> RunConfig:
     known = {f.name for f in attrs.fields(RunConfig)}
     if unknown := sorted(set(settings) - known):
         raise ConfigurationError(f"{path}: unknown setting(s) {', '.join(unknown)}")
-    if isinstance(settings.get("labels"), dict):
-        settings["labels"] = LabelsConfig(**settings["labels"])
     try:
         return RunConfig(**settings)
     except (TypeError, ValueError) as exc:
