@@ -40,7 +40,7 @@ from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.config import RunConfig, resolve
 from radartracker.pipeline.recorder import Recorder
 from radartracker.pipeline.result import RunResult
-from radartracker.pipeline.stream import scenario_stream
+from radartracker.pipeline.stream import iter_scenario
 from radartracker.registry import FilterFactory, load_motion_model, make_estimator, make_filter_factory, option_fields
 from radartracker.tracking.admission import StreamClock
 from radartracker.tracking.manager import TrackEvent, TrackManager, default_estimator
@@ -209,7 +209,8 @@ def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: Fil
             ident.pop(ev.track, None)
 
     mgr = TrackManager(data.radars, data.reference, mcfg, on_event, estimator=est, filter_factory=factory)
-    for item in tqdm(scenario_stream(data), desc=f"track {cfg.estimator}/{cfg.motion_model}", unit="item",
+    for item in tqdm(iter_scenario(data), total=len(data.plots) + len(data.adsb),
+                     desc=f"track {cfg.estimator}/{cfg.motion_model}", unit="item",
                      delay=2.0, mininterval=1.0, disable=not progress):
         mgr.process(item)
         rid = getattr(item, "radar", None)
