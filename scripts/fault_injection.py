@@ -167,20 +167,43 @@ def measure_gates(args: argparse.Namespace, base: ManagerConfig) -> None:
     data = build_scenario("paris", seed=args.seed, duration=args.duration).run()
     clean = clean_items(data)
     faulty, _ = inject(clean, 0.01, np.random.default_rng(args.seed))
-    originals = {id(x) for x in clean}
+    def key(x, dr=0.0):  # values, not identity: the manager hands on converted copies of plots
+        return (x.time, x.icao24, x.lat, x.lon) if isinstance(x, AdsbReport) else (
+            x.time, x.radar, x.range_m - dr, x.azimuth_rad, x.mode_s)
+
+    originals = {key(x) for x in clean}
     seen.clear()
     run(data, faulty, base)
     by_fault: dict[str, list[float]] = {}
     for _, d2, src in seen:
-        if id(src) not in originals:
+        if key(src) not in originals:
             fault = ("adsb_1deg" if isinstance(src, AdsbReport) else
-                     "range_20km" if src.mode_s == src.target else "mode_s_swapped")
+                     "range_20km" if key(src, 20_000.0) in originals else "mode_s_swapped")
             by_fault.setdefault(fault, []).append(d2)
     for fault, d in sorted(by_fault.items()):
         d = np.array(d)
         print(json.dumps({"scenario": "paris, 1 % gross errors", "fault": fault, "n_screened": len(d),
                           "min": round(float(d.min()), 1), "q01": round(float(np.quantile(d, 0.01)), 1),
                           "median": round(float(np.median(d)), 1)}))
+
+
+def markdown(rows: list[dict]) -> str:
+    """The rows as the Markdown table of docs/reliability.md."""
+    radars = list(rows[0]["biases"])
+    head = ["rate", "screening", *[f"{r} Δr err m (z) / Δθ err mdeg (z)" for r in radars], "position RMSE m",
+            "breaks", "false tracks", "rejected (outlier / implausible ADS-B / time jump)"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for row in rows:
+        c = row["counts"]
+        cells = [f"{row['rate'] * 100:g} %", row["screening"]]
+        for r in radars:
+            b = row["biases"][r]
+            cells.append(f"{b['err_range_m']:.1f} ({b['z_range']:.1f}) / {b['err_azimuth_deg'] * 1e3:.1f} ({b['z_azimuth']:.1f})")
+        cells += [f"{row['position_rmse_m']:.1f}", str(row["breaks"]), str(row["false_tracks"]),
+                  f"{c.get('plots_outlier', 0) + c.get('adsb_outlier', 0)} / {c.get('adsb_implausible_speed', 0)} / "
+                  f"{c.get('plots_time_jump', 0) + c.get('adsb_time_jump', 0)}"]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def main() -> None:
@@ -201,6 +224,7 @@ def main() -> None:
         return
     data = build_scenario("paris", seed=args.seed, duration=args.duration).run()
     items = clean_items(data)
+    rows = []
     for rate in [0.0, *args.rates]:
         faulty, injected = inject(items, rate, np.random.default_rng([args.seed, int(rate * 1e4)])) if rate else (items, {})
         for screening in ("off", "on"):
@@ -210,6 +234,9 @@ def main() -> None:
             row = {"rate": rate, "screening": screening, "injected": injected, **report(data, mgr, events),
                    "seconds": round(time.perf_counter() - started, 1)}
             print(json.dumps(row), flush=True)
+            rows.append(row)
+    print()
+    print(markdown(rows))
 
 
 if __name__ == "__main__":
