@@ -61,3 +61,24 @@ def assign(pairs: np.ndarray, d2: np.ndarray, cost: np.ndarray, gate: float) -> 
     M[np.arange(n_p), n_t + np.arange(n_p)] = gate + log_det
     rows, cols = linear_sum_assignment(M)
     return [(int(plots[r]), int(tracks[c])) for r, c in zip(rows, cols) if c < n_t and M[r, c] < _INADMISSIBLE]
+
+
+def assign_tiers(pairs: np.ndarray, d2: np.ndarray, cost: np.ndarray, gate: float, tier: np.ndarray,
+                 exclusion: float | None = None) -> tuple[dict[int, int], np.ndarray]:
+    """GNN in priority tiers: tracks of tier 0 (confirmed, coasting) are assigned the plots they gate
+    first; tracks of tier 1 (tentative) compete only for the plots outside every tier-0 gate.
+
+    ``tier`` holds one value per *track index*. Returns {plot: track} and, per plot index up to the
+    largest in ``pairs``, whether it lies within d² ≤ ``exclusion`` (default: the gate) of a tier-0
+    track: such a plot must not start or feed a tentative track, it belongs to an established
+    aircraft whose prediction has fallen behind (a manoeuvre) or is a split plot of it.
+    """
+    exclusion = gate if exclusion is None else max(exclusion, gate)
+    n_plots = int(pairs[:, 0].max()) + 1 if len(pairs) else 0
+    first = tier[pairs[:, 1]] == 0 if len(pairs) else np.zeros(0, bool)
+    in_gate = np.zeros(n_plots, bool)
+    in_gate[pairs[first & (d2 <= exclusion), 0]] = True
+    matches = dict(assign(pairs[first], d2[first], cost[first], gate))
+    rest = ~first & ~in_gate[pairs[:, 0]] if len(pairs) else first
+    matches.update(assign(pairs[rest], d2[rest], cost[rest], gate))
+    return matches, in_gate

@@ -47,7 +47,7 @@ from pathlib import Path
 import attrs
 import numpy as np
 
-from radartracker.tracking.association import assign, candidate_pairs, gate_costs
+from radartracker.tracking.association import assign, assign_tiers, candidate_pairs, gate_costs
 from radartracker.estimation.coupling import CouplingGraph
 from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, ScreeningConfig,
                                                extend_run, judge, normalised_innovation)
@@ -96,6 +96,7 @@ class ManagerConfig:
     max_time_jump_s: float = 3600.0
     primary_altitude_m: float = 6000.0
     search_radius_m: float = 25_000.0
+    new_track_exclusion: float = 27.63  # χ²₂ 1 − 10⁻⁶: no tentative track this close to a confirmed one
     screening: ScreeningConfig = attrs.field(factory=ScreeningConfig)
     clock: ClockConfig = attrs.field(factory=ClockConfig)
 
@@ -382,13 +383,17 @@ class TrackManager:
                 dt = np.array([plots[rest[k]].time for k in pairs[:, 0]]) - pred["t"]
                 d2, cost = gate_costs(zr[pairs[:, 0]], C[rest][pairs[:, 0]], R[rest][pairs[:, 0]], b.bias, b.cov,
                                       pos + vel * dt[:, None], cov)
-                matches = dict(assign(pairs, d2, cost, self.config.gate))
+                tier = np.array([t.status == "tentative" for t in live], int)
+                matches, in_gate = assign_tiers(pairs, d2, cost, self.config.gate, tier, self.config.new_track_exclusion)
             else:
-                matches = {}
+                matches, in_gate = {}, np.zeros(0, bool)
             for j, k in enumerate(rest):
                 tr = live[matches[j]] if j in matches else None
                 if tr is not None:
                     taken.add(matches[j])
+                elif j < len(in_gate) and in_gate[j]:  # near a confirmed track, not its plot: no new track
+                    self.counts["plots_near_confirmed_track"] += 1
+                    continue
                 updates.append((plots[k].time, next(self._seq), tr, (z[k], C[k], R[k]), plots[k]))
         return {live[i].id for i in taken}
 
