@@ -216,7 +216,8 @@ class Service:
 
     def _checkpoint(self) -> None:
         self.checkpoint_seq += 1
-        write_checkpoint(self.config.state_dir, self.checkpoint_seq, self.manager, {"counts": dict(self._counts(False))})
+        write_checkpoint(self.config.state_dir, self.checkpoint_seq, self.manager,
+                         {"counts": dict(self._counts(False)), "written": time.time()})
         self.checkpoints_written += 1
 
     def _counts(self, live: bool) -> Counter[str]:
