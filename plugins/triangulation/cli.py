@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from collections import defaultdict
 from pathlib import Path
@@ -44,6 +45,10 @@ def register_triangulate(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_triangulate)
 
 
+MAX_ORDER = 10  # a polynomial trajectory of higher degree is fitted noise, and slow to set up
+MAX_OUTPUT_TIMES = 1_000_000  # per target: --step finer than span/10⁶ is a typo (1e-9 s asked for 411 GiB)
+
+
 def _reference(text: str | None) -> tuple[float, ...] | None:
     if text is None:
         return None
@@ -53,7 +58,28 @@ def _reference(text: str | None) -> tuple[float, ...] | None:
         raise ConfigurationError(f"--reference: expected LAT,LON[,H] in degrees and metres, got {text!r}") from None
     if len(values) not in (2, 3):
         raise ConfigurationError(f"--reference: expected LAT,LON[,H], got {text!r}")
+    for name, v, lo, hi in zip(("LAT", "LON", "H"), values, (-90.0, -180.0, -1e5), (90.0, 180.0, 1e5)):
+        if not lo <= v <= hi:  # also refuses NaN and ±inf
+            raise ConfigurationError(f"--reference: {name} = {v!r} outside [{lo:g}, {hi:g}]")
     return values
+
+
+def _check_options(args: argparse.Namespace) -> None:
+    if not 0 <= args.order <= MAX_ORDER:
+        raise ConfigurationError(f"--order: must be 0..{MAX_ORDER}, got {args.order}")
+    if args.step is not None and not (math.isfinite(args.step) and args.step > 0):
+        raise ConfigurationError(f"--step: must be a finite number > 0, got {args.step}")
+    for option, value in (("--warn-gdop", args.warn_gdop), ("--max-gdop", args.max_gdop)):
+        if value is not None and not value > 0:  # +inf is allowed: no limit
+            raise ConfigurationError(f"{option}: must be > 0, got {value}")
+
+
+def _output_times(target: str, t_min: float, t_max: float, step: float) -> np.ndarray:
+    n = math.floor((t_max - t_min) / step) + 1
+    if n > MAX_OUTPUT_TIMES:
+        raise ConfigurationError(f"--step {step:g}: target {target} would get {n:.3g} output times over "
+                                 f"{t_max - t_min:g} s (at most {MAX_OUTPUT_TIMES:,}); choose a larger step")
+    return np.arange(t_min, t_max + 1e-9, step)
 
 
 def _cmd_triangulate(args: argparse.Namespace) -> int:
@@ -62,10 +88,7 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
 
     if args.out.exists() and any(args.out.iterdir()):
         raise ConfigurationError(f"{args.out} exists and is not empty; choose a new folder")
-    if args.order < 0:
-        raise ConfigurationError(f"--order: must be >= 0, got {args.order}")
-    if args.step is not None and args.step <= 0:
-        raise ConfigurationError(f"--step: must be > 0, got {args.step}")
+    _check_options(args)
     if args.estimator == "ml" and args.weights is not None:
         raise ConfigurationError("--weights: only with --estimator lsq (ML weighs by the stations' σ)")
     weights = None
@@ -94,7 +117,7 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
                 tr = track(frame, bs, order=args.order, warn_gdop=args.warn_gdop, max_gdop=args.max_gdop,
                            weights=weights)
                 times = (np.unique([b.time for b in bs]) if args.step is None
-                         else np.arange(tr.t_min, tr.t_max + 1e-9, args.step))
+                         else _output_times(target, tr.t_min, tr.t_max, args.step))
                 done.append((target, tr, times))
         except GeometryError as exc:
             refused[target] = str(exc)

@@ -30,22 +30,35 @@ TRACK_COLUMNS = ("target", "time_s", "lat_deg", "lon_deg", "height_m", "east_m",
 _UPPER = np.triu_indices(3)
 
 
+def _text(path: Path) -> str:
+    """UTF-8 text, with or without a byte-order mark; a non-UTF-8 file is named with the line."""
+    data = path.read_bytes()
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise InputError(f"{path.name} line {line}: not UTF-8 text (byte {exc.start} is {data[exc.start]:#04x})") from None
+
+
 def _rows(path: Path, required: tuple[str, ...]) -> Iterator[tuple[int, dict[str, str] | None]]:
     """(line number, row) of each data line; row is None when the field count is wrong."""
-    with open(path, newline="") as fh:
-        lines = ((i, line) for i, line in enumerate(fh, 1) if line.strip() and not line.startswith("#"))
-        try:
-            lineno, header = next(lines)
-        except StopIteration:
-            raise InputError(f"{path.name}: empty file, expected a header {','.join(required)}") from None
-        names = [h.strip() for h in next(csv.reader([header]))]
-        missing = [c for c in required if c not in names]
-        if missing:
-            raise InputError(f"{path.name} line {lineno}: header lacks column(s) {', '.join(missing)}")
-        for lineno, line in lines:
-            values = next(csv.reader([line]))
-            yield lineno, (None if len(values) != len(names)
-                           else {k: v.strip() for k, v in zip(names, values)})
+    text = _text(path)
+    lines = ((i, line) for i, line in enumerate(text.splitlines(), 1) if line.strip() and not line.startswith("#"))
+    try:
+        lineno, header = next(lines)
+    except StopIteration:
+        raise InputError(f"{path.name}: empty file, expected a header {','.join(required)}") from None
+    names = [h.strip() for h in next(csv.reader([header]))]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise InputError(f"{path.name} line {lineno}: column(s) {', '.join(twice)} appear more than once")
+    missing = [c for c in required if c not in names]
+    if missing:
+        raise InputError(f"{path.name} line {lineno}: header lacks column(s) {', '.join(missing)}")
+    for lineno, line in lines:
+        values = next(csv.reader([line]))
+        yield lineno, (None if len(values) != len(names)
+                       else {k: v.strip() for k, v in zip(names, values)})
 
 
 class _FieldError(ValueError):
