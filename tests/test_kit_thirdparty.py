@@ -170,3 +170,23 @@ def test_thirdparty_in_the_track_manager(thirdparty, short_demo):
         np.testing.assert_array_equal(b.bias, mgr.biases()[rid].bias)  # same plugin, same options, same data
     with pytest.raises(ConfigurationError, match="options apply to a plugin name"):
         make_estimator(inst, None, [], {"bias_forgetting": "2"})
+
+
+def test_thirdparty_manager_snapshot_continues_bit_for_bit(thirdparty, short_demo, tmp_path):
+    """The safe snapshot format carries a third party's estimator (its state_dict) and its options."""
+    items = scenario_stream(short_demo)
+    half = len(items) // 2
+    config = ManagerConfig(estimator="thirdparty", estimator_options={"bias_forgetting": "1.05"}, motion_model="imm")
+    whole, first = (TrackManager(short_demo.radars, short_demo.reference, config) for _ in range(2))
+    for i in items[:half]:
+        whole.process(i)
+        first.process(i)
+    first.snapshot(tmp_path / "snap.rts")
+    restored = TrackManager.restore(tmp_path / "snap.rts")
+    assert restored.estimator.options.bias_forgetting == 1.05
+    events = [whole.process(i) for i in items[half:]] + [whole.flush()]
+    again = [restored.process(i) for i in items[half:]] + [restored.flush()]
+    assert again == events and sum(map(len, events)) > 0
+    for rid, b in whole.biases().items():
+        np.testing.assert_array_equal(restored.biases()[rid].bias, b.bias)
+        np.testing.assert_array_equal(restored.biases()[rid].cov, b.cov)
