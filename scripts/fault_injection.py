@@ -102,7 +102,8 @@ def tracking(data: ScenarioData, mgr: TrackManager, events: list, grace_s: float
         rep = [e for e in evs if e.kind in ("confirmed", "updated", "coasting")]
         if rep:
             end = next((e.time for e in evs if e.kind == "deleted"), rep[-1].time)
-            hist[tid] = TrackHistory(np.array([e.time for e in rep]), np.array([e.state for e in rep]), rep[0].time, end)
+            hist[tid] = TrackHistory(np.array([e.time for e in rep]), np.array([e.state for e in rep]),
+                                     rep[0].time, end)
     observed = {}
     for tg in np.unique(data.plots.target[data.plots.target != None].astype(str)):  # noqa: E711
         t = data.plots.time[data.plots.target == tg]
@@ -117,7 +118,8 @@ def report(data: ScenarioData, mgr: TrackManager, events: list) -> dict:
     for rid, (tr, ta) in data.truth_biases.items():
         b = mgr.estimator.bias(rid)
         er, ea = b.bias[0] - tr, b.bias[1] - ta
-        out["biases"][rid] = {"err_range_m": round(float(er), 2), "z_range": round(float(er / math.sqrt(b.cov[0, 0])), 2),
+        out["biases"][rid] = {"err_range_m": round(float(er), 2),
+                              "z_range": round(float(er / math.sqrt(b.cov[0, 0])), 2),
                               "err_azimuth_deg": round(math.degrees(ea), 5),
                               "z_azimuth": round(float(ea / math.sqrt(b.cov[1, 1])), 2)}
     m = tracking(data, mgr, events)
@@ -198,7 +200,8 @@ def markdown(rows: list[dict]) -> str:
         cells = [f"{row['rate'] * 100:g} %", row["screening"]]
         for r in radars:
             b = row["biases"][r]
-            cells.append(f"{b['err_range_m']:.1f} ({b['z_range']:.1f}) / {b['err_azimuth_deg'] * 1e3:.1f} ({b['z_azimuth']:.1f})")
+            cells.append(f"{b['err_range_m']:.1f} ({b['z_range']:.1f}) / "
+                         f"{b['err_azimuth_deg'] * 1e3:.1f} ({b['z_azimuth']:.1f})")
         cells += [f"{row['position_rmse_m']:.1f}", str(row["breaks"]), str(row["false_tracks"]),
                   f"{c.get('plots_outlier', 0) + c.get('adsb_outlier', 0)} / {c.get('adsb_implausible_speed', 0)} / "
                   f"{c.get('plots_time_jump', 0) + c.get('adsb_time_jump', 0)}"]
@@ -226,7 +229,8 @@ def main() -> None:
     items = clean_items(data)
     rows = []
     for rate in [0.0, *args.rates]:
-        faulty, injected = inject(items, rate, np.random.default_rng([args.seed, int(rate * 1e4)])) if rate else (items, {})
+        rng = np.random.default_rng([args.seed, int(rate * 1e4)])
+        faulty, injected = inject(items, rate, rng) if rate else (items, {})
         for screening in ("off", "on"):
             started = time.perf_counter()
             cfg = attrs.evolve(base, **OFF) if screening == "off" else base

@@ -12,8 +12,9 @@ A measurement with d² above its kind's gate is rejected and counted (``plots_ou
 gross errors of scripts/fault_injection.py: see docs/reliability.md, section "Gross errors".
 
 ``reinit_after`` consecutive rejections of one identified aircraft (Mode S address, ADS-B address,
-labelled key) that agree with each other (:func:`extend_run`) mean the track, not the measurements, is wrong — it started on a wild measurement or
-a swapped address: the track is re-initialised from the newest measurement instead of being frozen.
+labelled key) that agree with each other (:func:`extend_run`) mean the track, not the measurements,
+is wrong — it started on a wild measurement or a swapped address: the track is re-initialised from
+the newest measurement instead of being frozen.
 
 A new track has a diffuse prior, so its first measurement passes trivially. A wild *first*
 measurement is handled so: in the TrackManager a track reaches the bias estimator only when
@@ -58,7 +59,8 @@ class ScreeningConfig:
     has built up yet), so the second measurement meets an implied-speed test of about
     √18.4 × ``prior_sd_velocity_mps`` (1 300 m/s with 300 m/s) and a wild one cannot confirm it;
     ``reinit_after`` consecutive, mutually consistent rejections re-initialise an identified
-    aircraft's track; ``adsb_min_nacp`` is the lowest NACp that may be used; ``adsb_max_speed_mps`` the fastest implied speed between reports of one address, allowing
+    aircraft's track; ``adsb_min_nacp`` is the lowest NACp that may be used; ``adsb_max_speed_mps``
+    the fastest implied speed between reports of one address, allowing
     ``speed_sigmas`` standard deviations of the two positions' noise on top.
     """
 
@@ -116,7 +118,8 @@ def extend_run(config: ScreeningConfig, run: Rejected, time: float, z: np.ndarra
     return [*run[len(run) - keep:], (time, np.asarray(z, float), sd)] if keep else [(time, np.asarray(z, float), sd)]
 
 
-def speed_consistent(config: ScreeningConfig, dt: float, a: np.ndarray, sd_a: float, b: np.ndarray, sd_b: float) -> bool:
+def speed_consistent(config: ScreeningConfig, dt: float, a: np.ndarray, sd_a: float, b: np.ndarray,
+                     sd_b: float) -> bool:
     """Two positions of one aircraft ``dt`` s apart agree: ‖b − a‖ ≤ v_max·|dt| + k·√(σ_a² + σ_b²)."""
     allowance = config.adsb_max_speed_mps * abs(dt) + config.speed_sigmas * math.hypot(sd_a, sd_b)
     return bool(np.hypot(*(np.asarray(b, float) - a)) <= allowance)

@@ -184,7 +184,8 @@ def test_labelled_path_screens_the_same_gross_errors(demo):
     p, a = data.plots, data.adsb
     ip = _nearest(p.time, (p.mode_s == _icao(0)) & (p.radar == "R1"), 180.0)
     ia1, ia0 = _nearest(a.time, a.icao24 == _icao(1), 120.0), _nearest(a.time, a.icao24 == _icao(0), 240.0)
-    faulty = _tables(data, {ip: 20_000.0}, {ia1: (-a.lat[ia1], a.lon[ia1] - 180.0), ia0: (a.lat[ia0] + 1.0, a.lon[ia0])})
+    faulty = _tables(data, {ip: 20_000.0},
+                     {ia1: (-a.lat[ia1], a.lon[ia1] - 180.0), ia0: (a.lat[ia0] + 1.0, a.lon[ia0])})
     without = _tables(data, drop=[("plot", [ip]), ("adsb", [ia1, ia0])])
     cfg = RunConfig(association="labels", estimator=ESTIMATOR)
     res, ref = run(faulty, cfg, progress=False), run(without, cfg, progress=False)
