@@ -12,6 +12,7 @@ candidates are found first with a k-d tree on the predicted positions.
 
 from __future__ import annotations
 
+import attrs
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial import cKDTree
@@ -82,3 +83,51 @@ def assign_tiers(pairs: np.ndarray, d2: np.ndarray, cost: np.ndarray, gate: floa
     rest = ~first & ~in_gate[pairs[:, 0]] if len(pairs) else first
     matches.update(assign(pairs[rest], d2[rest], cost[rest], gate))
     return matches, in_gate
+
+
+@attrs.define
+class AltitudeTrack:
+    """A track's Mode C altitude: Kalman filter of (h, ḣ) with white vertical acceleration.
+
+    Prediction over Δt: h̄ = h + ḣ Δt, P̄ = A P Aᵀ + q_h [[Δt³/3, Δt²/2], [Δt²/2, Δt]]; a Mode C
+    report h_k (variance ``MODE_C_VAR``: 100 ft quantisation, (30.48 m)²/12) corrects it. In
+    gating, d_h² = (h_k − h̄)² / (P̄_hh + r) is χ²₁ for the track's own plots.
+    """
+
+    time: float
+    x: np.ndarray
+    P: np.ndarray
+
+    @classmethod
+    def start(cls, time: float, h: float) -> AltitudeTrack:
+        return cls(time, np.array([h, 0.0]), np.diag([MODE_C_VAR, VERTICAL_RATE_SD**2]))
+
+    def predict(self, time: float) -> tuple[np.ndarray, np.ndarray]:
+        dt = max(time - self.time, 0.0)
+        A = np.array([[1.0, dt], [0.0, 1.0]])
+        Q = VERTICAL_Q * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
+        return A @ self.x, A @ self.P @ A.T + Q
+
+    def update(self, time: float, h: float) -> None:
+        x, P = self.predict(time)
+        k = P[:, 0] / (P[0, 0] + MODE_C_VAR)
+        self.x = x + k * (h - x[0])
+        self.P = P - np.outer(k, P[0])
+        self.P = 0.5 * (self.P + self.P.T)
+        self.time = max(time, self.time)
+
+
+MODE_C_VAR = 30.48**2 / 12  # 100 ft Mode C quantisation
+VERTICAL_RATE_SD = 20.0  # m/s, a new track's vertical rate (4000 ft/min)
+VERTICAL_Q = 4.0  # m²/s³, white vertical acceleration
+ALTITUDE_GATE = 10.83  # χ²₁ 99.9 %
+
+
+def altitude_d2(h_plot: np.ndarray, tracks: list[AltitudeTrack | None], times: np.ndarray) -> np.ndarray:
+    """d_h² of each (plot altitude, track altitude filter, time) pair; NaN where either is missing."""
+    out = np.full(len(h_plot), np.nan)
+    for n, (h, trk, t) in enumerate(zip(h_plot, tracks, times)):
+        if trk is not None and np.isfinite(h):
+            x, P = trk.predict(t)
+            out[n] = (h - x[0]) ** 2 / (P[0, 0] + MODE_C_VAR)
+    return out

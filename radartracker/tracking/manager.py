@@ -47,7 +47,8 @@ from pathlib import Path
 import attrs
 import numpy as np
 
-from radartracker.tracking.association import assign, assign_tiers, candidate_pairs, gate_costs
+from radartracker.tracking.association import (ALTITUDE_GATE, AltitudeTrack, altitude_d2, assign, assign_tiers,
+                                                candidate_pairs, gate_costs)
 from radartracker.estimation.coupling import CouplingGraph
 from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, ScreeningConfig,
                                                extend_run, judge, normalised_innovation)
@@ -129,6 +130,7 @@ class ManagedTrack:
     n_plots: int = 0
     n_adsb: int = 0
     rejected: list = attrs.field(factory=list)  # consecutive consistent screening rejections (screening.extend_run)
+    vertical: AltitudeTrack | None = None  # Mode C altitude and vertical rate, for gating
 
 
 def _finite_position(m: PlaneMeasurement) -> bool:
@@ -383,6 +385,11 @@ class TrackManager:
                 dt = np.array([plots[rest[k]].time for k in pairs[:, 0]]) - pred["t"]
                 d2, cost = gate_costs(zr[pairs[:, 0]], C[rest][pairs[:, 0]], R[rest][pairs[:, 0]], b.bias, b.cov,
                                       pos + vel * dt[:, None], cov)
+                # Mode C: a pair whose altitudes disagree is not a pair; d_h² joins the cost (its mean, 1, if unknown)
+                h = np.array([np.nan if plots[rest[k]].altitude_m is None else plots[rest[k]].altitude_m for k in pairs[:, 0]])
+                d2h = altitude_d2(h, [live[i].vertical for i in pairs[:, 1]], dt + pred["t"])
+                d2 = np.where(d2h > ALTITUDE_GATE, np.inf, d2)
+                cost = cost + np.where(np.isnan(d2h), 1.0, d2h)
                 tier = np.array([t.status == "tentative" for t in live], int)
                 matches, in_gate = assign_tiers(pairs, d2, cost, self.config.gate, tier, self.config.new_track_exclusion)
             else:
@@ -497,6 +504,11 @@ class TrackManager:
             tr.n_plots += 1
             tr.mode_3a = src.mode_3a or tr.mode_3a
             tr.altitude_m = src.altitude_m if src.altitude_m is not None else tr.altitude_m
+            if src.altitude_m is not None:
+                if tr.vertical is None:
+                    tr.vertical = AltitudeTrack.start(src.time, src.altitude_m)
+                else:
+                    tr.vertical.update(src.time, src.altitude_m)
         elif isinstance(src, AdsbReport):
             tr.n_adsb += 1
             tr.altitude_m = src.altitude_m if src.altitude_m is not None else tr.altitude_m

@@ -1,0 +1,112 @@
+"""The tracking scenario set of ``scripts/tracking_report.py`` (issue 17).
+
+Real flights of ``../shared/data/real_flights.csv.gz`` (OpenSky Network) flown through simulated
+radars, plots primary-only with Mode C altitude (no Mode S, no Mode 3/A, no ADS-B) unless
+``mode_s=True``; and kinematic crossing / parallel pairs.
+
+* ``approach``: the four radars of the built-in ``paris`` scenario (periods 4, 4, 10, 8 s), the
+  Paris flights airborne during the first ``duration`` s of the recording.
+* ``enroute``: five long-range radars (250 km, periods 8–12 s, on high sites 100–190 km around
+  Paris); the Paris flights that climb above 7000 m, each shifted by a whole number of hours so
+  that its start falls in one ``duration`` window (real trajectories, denser traffic).
+* ``crossing``: pairs crossing at 30°, 60°, 90° and head-on, at the same level and 1000 ft apart;
+  ``parallel``: pairs 3 NM and 2 NM apart, same level and speed.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from radartracker.domain import Aircraft
+from radartracker.geometry.plane import SystemPlane
+from radartracker.io.tables import ScenarioData
+from radartracker.simulation.flights import load_flights
+from radartracker.simulation.scenarios import _radar
+from radartracker.simulation.simulator import (KinematicTrajectory, Leg, RecordedTrajectory, SimAircraft, SimRadar,
+                                               Simulator)
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real_flights.csv.gz"
+PARIS = (48.85, 2.35)
+FT = 0.3048
+
+
+def _paris_flights(path: Path | None) -> dict:
+    flights = load_flights(path or DATA)
+    return {k: f for k, f in sorted(flights.items()) if k.startswith("paris-")}
+
+
+def _identity(i: int, icao: str, mode_s: bool) -> Aircraft:
+    return Aircraft(icao, f"F{i:03d}", f"{(1000 + 37 * i) % 4096:04o}", transponder="mode_s" if mode_s else "mode_a_c")
+
+
+def primary_only(data: ScenarioData) -> ScenarioData:
+    """Strip Mode 3/A codes from the plots (Mode C altitude stays): kinematics must separate aircraft."""
+    data.plots.mode_3a[:] = None
+    return data
+
+
+def approach(seed: int = 1, duration: float = 1800.0, mode_s: bool = False, path: Path | None = None) -> ScenarioData:
+    plane = SystemPlane(*PARIS)
+    radars = [
+        SimRadar(_radar(plane, "ORLY", -2, -14, period=4.0), 90.0, math.radians(0.12), pd=0.9),
+        SimRadar(_radar(plane, "CDG", 14, 22, period=4.0), -60.0, math.radians(-0.08), pd=0.9),
+        SimRadar(_radar(plane, "EVREUX", -100, 10, period=10.0, sr=100.0, sa_deg=0.1), 150.0, math.radians(0.2), pd=0.9),
+        SimRadar(_radar(plane, "REIMS", 130, 20, period=8.0), -110.0, math.radians(-0.15), pd=0.9),
+    ]
+    flights = _paris_flights(path)
+    t0 = min(f.time[0] for f in flights.values())
+    aircraft = [SimAircraft(_identity(i, f.icao24, mode_s), RecordedTrajectory.from_geodetic(
+        plane, f.time, f.lat, f.lon, f.altitude_m)) for i, f in enumerate(flights.values()) if f.time[0] < t0 + duration]
+    sim = Simulator(PARIS, radars, aircraft, t0, t0 + duration, seed=seed, name="approach")
+    return primary_only(sim.run())
+
+
+def enroute(seed: int = 1, duration: float = 3600.0, mode_s: bool = False, max_flights: int | None = None,
+            path: Path | None = None) -> ScenarioData:
+    plane = SystemPlane(*PARIS)
+    sites = [("JURA", 180, -120, 8.0, 1500.0), ("VOSGES", 190, 60, 10.0, 1200.0), ("MORVAN", 60, -170, 12.0, 900.0),
+             ("PERCHE", -150, -40, 10.0, 300.0), ("ARTOIS", -20, 150, 12.0, 200.0)]
+    biases = [(80.0, 0.10), (-60.0, -0.12), (120.0, 0.08), (-90.0, 0.15), (50.0, -0.10)]
+    radars = [SimRadar(_radar(plane, rid, x, y, period=T, sr=70.0, sa_deg=0.06, height=h), b[0], math.radians(b[1]),
+                       pd=0.9) for (rid, x, y, T, h), b in zip(sites, biases)]
+    flights = [f for f in _paris_flights(path).values() if f.altitude_m.max() > 7000.0]
+    t0 = min(f.time[0] for f in flights)
+    aircraft = []
+    for i, f in enumerate(flights[:max_flights]):
+        shift = math.floor((f.time[0] - t0) / duration) * duration
+        traj = RecordedTrajectory.from_geodetic(plane, f.time - shift, f.lat, f.lon, f.altitude_m)
+        aircraft.append(SimAircraft(_identity(i, f.icao24, mode_s), traj))
+    sim = Simulator(PARIS, radars, aircraft, t0, t0 + duration, seed=seed, name="enroute")
+    return primary_only(sim.run())
+
+
+def pairs(seed: int = 1, duration: float = 900.0) -> ScenarioData:
+    """Crossing pairs (30°, 60°, 90°, 180°; same level and 1000 ft apart) and parallel pairs (3 NM, 2 NM)."""
+    plane = SystemPlane(*PARIS)
+    radars = [SimRadar(_radar(plane, "A", -60, -40, period=4.0), 80.0, math.radians(0.1), pd=0.9, false_per_scan=2.0),
+              SimRadar(_radar(plane, "B", 70, -20, period=8.0), -50.0, math.radians(-0.12), pd=0.9, false_per_scan=2.0,
+                       phase_rad=2.0)]
+    half, v = duration / 2, 220.0
+    aircraft: list[SimAircraft] = []
+
+    def add(x, y, h, heading, speed=v):
+        i = len(aircraft)
+        traj = KinematicTrajectory(0.0, x, y, h, heading, speed, [Leg(duration)])
+        aircraft.append(SimAircraft(_identity(i, f"{0x4c0000 + 11 * i:06x}", False), traj))
+
+    for k, angle in enumerate((30.0, 60.0, 90.0, 180.0)):
+        for dz in (0.0, 1000 * FT):
+            cx, cy = -45e3 + 30e3 * k, 40e3 if dz else -10e3
+            for heading in (math.radians(45.0), math.radians(45.0 + angle)):  # both pass (cx, cy) at mid-time
+                add(cx - v * half * math.sin(heading), cy - v * half * math.cos(heading),
+                    9000.0 + (dz if heading != math.radians(45.0) else 0.0), heading)
+    for k, sep_nm in enumerate((3.0, 2.0)):
+        hd, sep = math.radians(80.0), sep_nm * 1852.0
+        x0, y0 = -60e3, -60e3 + 30e3 * k
+        add(x0, y0, 8000.0, hd, 230.0)
+        add(x0 + sep * math.cos(hd), y0 - sep * math.sin(hd), 8000.0, hd, 230.0)
+    sim = Simulator(PARIS, radars, aircraft, 0.0, duration, seed=seed, name="pairs")
+    return primary_only(sim.run())
