@@ -176,7 +176,7 @@ def test_thirdparty_manager_snapshot_continues_bit_for_bit(thirdparty, short_dem
     """The safe snapshot format carries a third party's estimator (its state_dict) and its options."""
     items = scenario_stream(short_demo)
     half = len(items) // 2
-    config = ManagerConfig(estimator="thirdparty", estimator_options={"bias_forgetting": "1.05"}, motion_model="imm")
+    config = ManagerConfig(estimator="thirdparty", estimator_options={"bias_forgetting": "1.05"})
     whole, first = (TrackManager(short_demo.radars, short_demo.reference, config) for _ in range(2))
     for i in items[:half]:
         whole.process(i)
