@@ -6,6 +6,7 @@ import attrs
 import numpy as np
 import pytest
 
+from radartracker.cli import main
 from radartracker.errors import ConfigurationError, PluginError
 from radartracker.pipeline.stream import scenario_stream
 from radartracker.registry import (CallableFilterFactory, FilterFactory, describe_options, make_estimator,
@@ -91,9 +92,12 @@ def test_make_estimator_with_an_instance_adds_only_missing_radars():
     assert make_estimator(est, None, ["R1", "R2", "R2"]) is est and est.radars == ["R1", "R2"]
 
 
-def test_listing_and_description():
-    text = plugin_listing()
-    for line in ("estimators:", "motion models:", "reconstructors:", "  imm ", "options: prior_sd_velocity_mps=300"):
+def test_listing_and_description(capsys):
+    assert main(["estimators"]) == 0
+    text = capsys.readouterr().out
+    assert text.strip() == plugin_listing()
+    for line in ("estimators:", "motion models:", "reconstructors:", "  imm ", "options: prior_sd_velocity_mps=300",
+                 "q_turn=1", "fixed_lambda=none"):
         assert line in text
     assert "refresh_every=256" in text
     assert ("q", "float", 1.0) in describe_options(CVConfig)
