@@ -11,6 +11,7 @@ into it from the fields' annotations: ``float``, ``int``, ``bool`` (true/false/y
 
 from __future__ import annotations
 
+import math
 import types
 import typing
 from collections.abc import Callable, Iterable, Mapping
@@ -104,8 +105,13 @@ def parse_value(text: str, tp: Any) -> Any:
         if low in ("false", "no", "off", "0"):
             return False
         raise ValueError(f"expected true or false, got {text!r}")
-    if tp in (int, float, str):
-        return tp(text.strip()) if tp is not str else text
+    if tp is float:
+        value = float(text.strip())
+        if not math.isfinite(value):
+            raise ValueError(f"{text!r} is not finite")
+        return value
+    if tp in (int, str):
+        return int(text.strip()) if tp is int else text
     if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
         sep = ";" if typing.get_origin(args[0]) is tuple else ","
         return tuple(parse_value(part, args[0]) for part in text.split(sep) if part.strip())
@@ -114,7 +120,10 @@ def parse_value(text: str, tp: Any) -> Any:
 
 def option_fields(cls: type) -> dict[str, attrs.Attribute]:
     """The settable options of an attrs options class, by name (types resolved)."""
-    attrs.resolve_types(cls)
+    try:
+        attrs.resolve_types(cls)
+    except Exception as exc:  # an annotation naming something its module does not define
+        raise ConfigurationError(f"options class {cls.__qualname__}: annotations cannot be resolved: {exc}") from None
     return {a.name: a for a in attrs.fields(cls) if a.init}
 
 

@@ -42,6 +42,8 @@ def test_parse_options_reads_every_supported_type():
     ({"count": "1.5"}, "plugin 'p': option count='1.5'"),
     ({"flag": "maybe"}, "plugin 'p': option flag='maybe': expected true or false"),
     ({"rate": "fast"}, "plugin 'p': option rate='fast'"),
+    ({"rate": "inf"}, "plugin 'p': option rate='inf': 'inf' is not finite"),
+    ({"taus": "1,nan"}, "plugin 'p': option taus='1,nan': 'nan' is not finite"),
 ])
 def test_parse_options_errors_name_plugin_key_and_valid_keys(options, message):
     with pytest.raises(ConfigurationError, match=message.replace("(", r"\(").replace(")", r"\)")) as err:
