@@ -514,10 +514,11 @@ def read_asterix(path: Path | str, *, radars: Path | str | None = None, day_star
 
     Skipped and counted in ``skipped`` (never an error): blocks of other categories, blocks the
     library cannot decode (other editions, damaged bytes), records without an item we need (e.g. a
-    CAT048 track-only report without I040), ADS-B reports with an impossible position. With
-    ``skip_bad`` also framing that cannot be read (the rest of the file, or one pcap packet) and
-    plots whose SAC/SIC the sidecar lacks; without it those are :class:`InputError` naming the file
-    and byte. A recording with nothing usable is an error.
+    CAT048 track-only report without I040), ADS-B reports with an impossible position or a NACp
+    of 0 (accuracy unknown) or above 11. With ``skip_bad`` also framing that cannot be read (the
+    rest of the file, or one pcap packet) and plots whose SAC/SIC the sidecar lacks; without it
+    those are :class:`InputError` naming the file and byte. A recording with nothing usable is an
+    error.
     """
     path = Path(path)
     sites_path = Path(radars) if radars is not None else Path(str(path) + ".radars.csv")
@@ -541,6 +542,9 @@ def read_asterix(path: Path | str, *, radars: Path | str | None = None, day_star
             for a in _records(21, recs, decode_cat021, skipped):
                 if not (-90.0 <= a["lat"] <= 90.0 and -180.0 <= a["lon"] <= 180.0):
                     skipped["asterix_cat021_impossible_positions"] += 1
+                    continue
+                if a["nacp"] is not None and not 1 <= a["nacp"] <= 11:  # 0: accuracy unknown; 12-15 undefined
+                    skipped["asterix_cat021_unusable_nacp"] += 1
                     continue
                 a["time"] = clock(a["tod"])
                 adsb.append(a)
