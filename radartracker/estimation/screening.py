@@ -80,28 +80,39 @@ class ScreeningConfig:
 
 def normalised_innovation(z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray,
                           pos: np.ndarray, pos_cov: np.ndarray) -> float:
-    """d² = νᵀ S⁻¹ ν with ν = z − p̄ − C ς̂ and S = P̄_pp + C P_ς Cᵀ + R (∞ if S is not positive definite)."""
-    nu = np.asarray(z, float) - pos - C @ bias
+    """d² = νᵀ S⁻¹ ν with ν = z − p̄ − C ς̂ and S = P̄_pp + C P_ς Cᵀ + R (∞ if S is not positive definite).
+
+    S is 2×2: its inverse is written out (d² = (S₁₁ν₀² − 2 S₀₁ν₀ν₁ + S₀₀ν₁²) / det S), which is
+    several times cheaper than a factorisation in the per-measurement hot path.
+    """
+    n0, n1 = np.asarray(z, float) - pos - C @ bias
     S = pos_cov + C @ bias_cov @ C.T + R
-    try:
-        L = np.linalg.cholesky(0.5 * (S + S.T))
-    except np.linalg.LinAlgError:
+    s00, s11, s01 = float(S[0, 0]), float(S[1, 1]), 0.5 * float(S[0, 1] + S[1, 0])
+    det = s00 * s11 - s01 * s01
+    if not (s00 > 0.0 and det > 0.0):
         return math.inf
-    w = np.linalg.solve(L, nu)
-    d2 = float(w @ w)
+    d2 = (s11 * n0 * n0 - 2.0 * s01 * n0 * n1 + s00 * n1 * n1) / det
     return d2 if math.isfinite(d2) else math.inf
 
 
 Rejected = list[tuple[float, np.ndarray, float]]  # (time, position, σ) of consecutive rejected measurements
 
 
-def judge(config: ScreeningConfig, kind: str, d2: float, run: int, identified: bool, tentative: bool = False) -> str:
-    """ACCEPT when d² ≤ the gate (``gate_tentative`` for a tentative track); else REINIT when this
-    rejection makes ``run`` ≥ ``reinit_after`` consecutive, mutually consistent rejections of an
-    identified aircraft (``run`` counts this one, see :func:`extend_run`), else REJECT."""
+def judge(config: ScreeningConfig, kind: str, d2: float, run: Rejected, identified: bool, tentative: bool,
+          time: float, z: np.ndarray, R: np.ndarray) -> tuple[str, Rejected]:
+    """(verdict, the aircraft's run of rejections after it) for a measurement (z, R at ``time``).
+
+    ACCEPT when d² ≤ the gate (``gate_tentative`` for a tentative track), which ends the run; else
+    the measurement joins the run (:func:`extend_run`), and REINIT when that makes
+    ``reinit_after`` consecutive, mutually consistent rejections of an identified aircraft (the run
+    ends), else REJECT.
+    """
     if d2 <= (config.gate_tentative if tentative else config.gate(kind)):
-        return ACCEPT
-    return REINIT if identified and run >= config.reinit_after else REJECT
+        return ACCEPT, []
+    run = extend_run(config, run, time, z, R)
+    if identified and len(run) >= config.reinit_after:
+        return REINIT, []
+    return REJECT, run
 
 
 def extend_run(config: ScreeningConfig, run: Rejected, time: float, z: np.ndarray, R: np.ndarray) -> Rejected:
@@ -111,7 +122,8 @@ def extend_run(config: ScreeningConfig, run: Rejected, time: float, z: np.ndarra
     Only a run of measurements that agree with each other says the *track* is wrong; scattered
     gross errors between good measurements never make such a run, so they never re-initialise it.
     """
-    sd = math.sqrt(max(float(np.linalg.eigvalsh(R)[-1]), 0.0))
+    half_trace, det = 0.5 * float(R[0, 0] + R[1, 1]), float(R[0, 0] * R[1, 1] - R[0, 1] * R[1, 0])
+    sd = math.sqrt(max(half_trace + math.sqrt(max(half_trace * half_trace - det, 0.0)), 0.0))
     if run and not speed_consistent(config, time - run[-1][0], run[-1][1], run[-1][2], z, sd):
         run = []
     keep = config.reinit_after - 1  # the run never needs more than reinit_after entries
@@ -187,9 +199,9 @@ class LabelledScreen:
         else:
             bias, bias_cov = np.zeros(2), np.zeros((2, 2))
         d2 = normalised_innovation(m.z, m.C, m.R, bias, bias_cov, pred.state[:2], pred.cov[:2, :2])
-        run = extend_run(self.config, self._runs.pop(m.aircraft, []), m.time, m.z - m.C @ bias, m.R)
-        verdict = judge(self.config, kind, d2, len(run), identified=True)
-        if verdict == REJECT:
+        verdict, run = judge(self.config, kind, d2, self._runs.pop(m.aircraft, []), True, False, m.time,
+                             m.z - m.C @ bias, m.R)
+        if run:
             self._runs[m.aircraft] = run
         return verdict
 

@@ -38,18 +38,32 @@ def test_normalised_innovation_is_the_mahalanobis_distance_and_chi2_distributed(
 
 def test_judge_reinitialises_after_a_run_of_consistent_rejections():
     cfg = ScreeningConfig(gate_plots=10.0, gate_tentative=5.0, reinit_after=3)
-    assert judge(cfg, "plots", 9.9, 0, True) == ACCEPT
-    assert judge(cfg, "plots", 9.9, 1, True, tentative=True) == REJECT
-    assert [judge(cfg, "plots", 50.0, k, True) for k in (1, 2, 3)] == [REJECT, REJECT, REINIT]
-    assert judge(cfg, "plots", 50.0, 5, False) == REJECT  # an unidentified track is never re-initialised
     R = np.eye(2) * 100.0
+
+    def at(t, x=None):  # an aircraft flying east at 250 m/s, or a position x
+        return t, np.array([250.0 * t if x is None else x, 0.0]), R
+
+    assert judge(cfg, "plots", 9.9, [], True, False, *at(0.0)) == (ACCEPT, [])
+    assert judge(cfg, "plots", 9.9, [], True, True, *at(0.0))[0] == REJECT  # a tentative track's tighter gate
+    run, verdicts = [], []
+    for t in (0.0, 4.0, 8.0):  # consistent rejections: the track is wrong
+        verdict, run = judge(cfg, "plots", 50.0, run, True, False, *at(t))
+        verdicts.append(verdict)
+    assert verdicts == [REJECT, REJECT, REINIT] and run == []
+    # an unidentified track is never re-initialised
     run = []
-    for t in (0.0, 4.0, 8.0):  # an aircraft flying at 250 m/s: one consistent run
-        run = extend_run(cfg, run, t, np.array([250.0 * t, 0.0]), R)
-    assert len(run) == 3
+    for t in (0.0, 4.0, 8.0):
+        verdict, run = judge(cfg, "plots", 50.0, run, False, False, *at(t))
+    assert verdict == REJECT and len(run) == 3  # kept at reinit_after entries
     # scattered gross errors between good measurements: a 20 km jump restarts the run
-    assert len(extend_run(cfg, run, 12.0, np.array([3000.0 + 20e3, 0.0]), R)) == 1
-    assert len(extend_run(ScreeningConfig(reinit_after=1), run, 12.0, np.array([3000.0, 0.0]), R)) == 1
+    run = extend_run(cfg, extend_run(cfg, [], *at(0.0)), *at(4.0))
+    assert len(extend_run(cfg, run, *at(8.0, 2000.0 + 20e3))) == 1
+    verdict, after = judge(cfg, "plots", 50.0, run, True, False, *at(8.0, 2000.0 + 20e3))
+    assert verdict == REJECT and len(after) == 1
+    assert len(extend_run(ScreeningConfig(reinit_after=1), run, *at(8.0))) == 1
+    # the σ of the consistency test is the largest axis of R (closed form vs numpy)
+    Ra = np.array([[900.0, 300.0], [300.0, 100.0]])
+    assert extend_run(cfg, [], 0.0, np.zeros(2), Ra)[0][2] == pytest.approx(math.sqrt(np.linalg.eigvalsh(Ra)[-1]))
 
 
 def test_adsb_plausibility():
