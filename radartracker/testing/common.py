@@ -42,6 +42,15 @@ def chi2_inside(total: float, dof: int, p: float = 1e-3) -> tuple[bool, float, f
     return lo <= total <= hi, lo, hi
 
 
+def kalman_filter_class() -> type:
+    """FilterPy's ``KalmanFilter`` (the oracle of the ``filterpy`` checks), or an ImportError saying how to get it."""
+    try:
+        from filterpy.kalman import KalmanFilter
+    except ImportError as exc:
+        raise ImportError("the 'filterpy' checks need FilterPy: pip install filterpy (or radartracker[test])") from exc
+    return KalmanFilter
+
+
 def run_checks(owner: str, runners: dict, checks: list[str], *args: Any) -> list[str]:
     """Run the named checks in order; an exception inside the plugin becomes a CheckFailed naming the check."""
     unknown = set(checks) - set(runners)
@@ -50,7 +59,7 @@ def run_checks(owner: str, runners: dict, checks: list[str], *args: Any) -> list
     for name in checks:
         try:
             runners[name](*args, owner)
-        except CheckFailed:
+        except (CheckFailed, ImportError):  # ImportError: FilterPy, the oracle, is not installed
             raise
         except Exception as exc:
             raise fail(owner, name, f"raised {type(exc).__name__}: {exc}") from exc

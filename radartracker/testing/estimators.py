@@ -14,8 +14,8 @@ from radartracker.errors import ConfigurationError
 from radartracker.estimation.base import AircraftEstimate, Estimator, EstimatorConfig, Innovation, PlaneMeasurement
 from radartracker.estimation.motion import MotionModel
 from radartracker.registry import option_fields, parse_value
-from radartracker.testing.common import (H, CheckFailed, chi2_inside, close, fail, identical, noise_cov,
-                                         run_checks)
+from radartracker.testing.common import (H, CheckFailed, chi2_inside, close, fail, identical, kalman_filter_class,
+                                         noise_cov, run_checks)
 
 ESTIMATOR_CHECKS = ("contract", "filterpy", "consistency", "reads", "lifecycle", "update_many", "snapshot")
 # for an exact joint filter (every cross-covariance kept): consistent on biased measurements too
@@ -179,8 +179,7 @@ def _check_contract(make: Callable[[], Estimator], config: EstimatorConfig, owne
 
 
 def _check_filterpy(make: Callable[[], Estimator], config: EstimatorConfig, owner: str) -> None:
-    from filterpy.kalman import KalmanFilter
-
+    KalmanFilter = kalman_filter_class()
     check = "filterpy"
     stream = _unbiased_stream(np.random.default_rng(20), config.motion, 40)
     est = _started(make, stream, ["R1"])

@@ -10,7 +10,8 @@ from scipy.stats import chi2
 
 from radartracker.errors import ConfigurationError
 from radartracker.estimation.motion import MotionModel
-from radartracker.testing.common import H, CheckFailed, close, fail, identical, noise_cov, run_checks
+from radartracker.testing.common import (H, CheckFailed, close, fail, identical, kalman_filter_class, noise_cov,
+                                         run_checks)
 from radartracker.tracking.filters import MotionConfig, TrackFilter
 
 MOTION_CHECKS = ("contract", "errors", "reads", "filterpy", "hygiene", "consistency", "snapshot")
@@ -122,8 +123,7 @@ def _check_motion_reads(cls: type[TrackFilter], config: MotionConfig, owner: str
 
 
 def _check_motion_filterpy(cls: type[TrackFilter], config: MotionConfig, owner: str) -> None:
-    from filterpy.kalman import KalmanFilter
-
+    KalmanFilter = kalman_filter_class()
     check = "filterpy"
     t, _, zs, Rs = _track(np.random.default_rng(31), 30, 1.0, config.prior_sd_velocity_mps, manoeuvre=True)
     f = cls(config)
