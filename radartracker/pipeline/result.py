@@ -84,12 +84,14 @@ class RunResult:
     def histories(self) -> dict[int, TrackHistory]:
         """Each track's estimates and life span (created to deleted, or to its last estimate)."""
         ev, est = self.events, self.tracks
+        deleted = ev.kind == "deleted"
+        end = dict(zip(ev.track[deleted][::-1].tolist(), ev.time[deleted][::-1].tolist()))  # first deletion wins
+        order = np.argsort(est.track, kind="stable")
+        ids, first = np.unique(est.track[order], return_index=True)
         out = {}
-        for tid in np.unique(est.track):
-            sel = est.track == tid
-            dead = ev.time[(ev.track == tid) & (ev.kind == "deleted")]
-            t = est.time[sel]
-            out[int(tid)] = TrackHistory(t, est.state[sel], float(t[0]), float(dead[0]) if len(dead) else float(t[-1]))
+        for tid, idx in zip(ids.tolist(), np.split(order, first[1:]) if len(order) else []):
+            t = est.time[idx]
+            out[tid] = TrackHistory(t, est.state[idx], float(t[0]), end.get(tid, float(t[-1])))
         return out
 
     @functools.cached_property
