@@ -20,8 +20,8 @@ from radartracker.pipeline.config import ASSOCIATIONS, DEFAULT_Q, RunConfig, che
 def add_run_options(p: argparse.ArgumentParser, *, estimator_options: bool = True) -> None:
     """The options shared by ``replay`` and ``compare`` (``None`` defaults: the config file's or the default)."""
     p.add_argument("--q", type=str, default=None,
-                   help=f"aircraft process noise density q (m²/s³) for the estimator and the track filters "
-                        f"(default {DEFAULT_Q:g}; 0 is the seed's noiseless model)")
+                   help=f"aircraft process noise density q (m²/s³) for the estimator and the track filter's q "
+                        f"setting (default {DEFAULT_Q:g}; 0 is the seed's noiseless model)")
     p.add_argument("--association", choices=ASSOCIATIONS, default=None,
                    help="labels: by truth label / Mode S address (evaluation); manager: the TrackManager; "
                         "auto (default): labels when every plot carries one")
