@@ -21,7 +21,9 @@ import attrs
 
 from radartracker.errors import ConfigurationError
 from radartracker.estimation.base import EstimatorConfig
+from radartracker.estimation.screening import ScreeningConfig
 from radartracker.io.tables import ScenarioData
+from radartracker.tracking.admission import ClockConfig
 from radartracker.tracking.manager import ManagerConfig
 
 CONFIG_FORMAT = "radartracker-run-config"
@@ -118,9 +120,11 @@ def _evolved(what: str, obj: Any, values: dict[str, Any]) -> Any:
 
 
 _FROM_RUN = ("estimator", "estimator_config", "motion_model", "motion", "motion_options", "estimator_options",
-             "primary_altitude_m")  # set from the run's own settings, not from ``manager``
+             "primary_altitude_m", "screening", "clock")  # set from the run's own settings, not from ``manager``
 MANAGER_SETTINGS = _values(ManagerConfig(), exclude=_FROM_RUN)
 ESTIMATOR_SETTINGS = _values(EstimatorConfig(), exclude=("motion",))
+SCREENING_SETTINGS = _values(ScreeningConfig())
+CLOCK_SETTINGS = _values(ClockConfig())
 
 
 @attrs.frozen
@@ -154,8 +158,10 @@ class RunConfig:
     white-acceleration density, for the estimator and the track filters alike. ``default_altitude_m``:
     the altitude assumed for a plot whose aircraft never reports one. ``bias_log_interval_s``: the
     least time between two rows of one radar in ``biases.csv``. ``estimator_config`` / ``manager``:
-    overrides of :class:`EstimatorConfig` / :class:`ManagerConfig` numbers; ``labels`` the labelled
-    path's track life cycle. Settings of a path not taken are refused, never silently ignored.
+    overrides of :class:`EstimatorConfig` / :class:`ManagerConfig` numbers; ``screening`` / ``clock``:
+    of :class:`ScreeningConfig` (innovation gates) and :class:`ClockConfig` (robust stream clock), on
+    both paths; ``labels`` the labelled path's track life cycle. Settings of a path not taken are
+    refused, never silently ignored.
     """
 
     association: str = attrs.field(default="auto", validator=_association)
@@ -169,6 +175,8 @@ class RunConfig:
     skip_bad: bool = False
     estimator_config: dict[str, float] = attrs.field(factory=dict)
     manager: dict[str, Any] = attrs.field(factory=dict)
+    screening: dict[str, Any] = attrs.field(factory=dict)
+    clock: dict[str, Any] = attrs.field(factory=dict)
     labels: LabelsConfig | None = attrs.field(default=None, converter=lambda v: _labels(v))
 
     def __attrs_post_init__(self) -> None:
@@ -176,6 +184,8 @@ class RunConfig:
             check_number("default_altitude_m", self.default_altitude_m)
         _typed_overrides("estimator_config", ESTIMATOR_SETTINGS, self.estimator_config)
         _typed_overrides("manager", MANAGER_SETTINGS, self.manager)
+        _typed_overrides("screening", SCREENING_SETTINGS, self.screening)
+        _typed_overrides("clock", CLOCK_SETTINGS, self.clock)
 
     def estimator_settings(self) -> EstimatorConfig:
         """The :class:`EstimatorConfig` of this run (motion model of density ``q``)."""
@@ -184,6 +194,14 @@ class RunConfig:
         values = _typed_overrides("estimator_config", ESTIMATOR_SETTINGS, self.estimator_config)
         return _evolved("estimator_config", EstimatorConfig(motion=MotionModel(self.q)), values)
 
+    def screening_settings(self) -> ScreeningConfig:
+        """The innovation screening of this run (both associations)."""
+        return _evolved("screening", ScreeningConfig(), _typed_overrides("screening", SCREENING_SETTINGS, self.screening))
+
+    def clock_settings(self) -> ClockConfig:
+        """The robust stream clock of this run (both associations)."""
+        return _evolved("clock", ClockConfig(), _typed_overrides("clock", CLOCK_SETTINGS, self.clock))
+
     def manager_settings(self) -> ManagerConfig:
         """The :class:`ManagerConfig` of this run (estimator and motion model are passed as built objects)."""
         values = _typed_overrides("manager", MANAGER_SETTINGS, self.manager)
@@ -191,7 +209,8 @@ class RunConfig:
                              estimator_config=self.estimator_settings(),
                              motion_model=self.motion_model or ManagerConfig().motion_model,
                              primary_altitude_m=default_altitude() if self.default_altitude_m is None
-                             else self.default_altitude_m)
+                             else self.default_altitude_m,
+                             screening=self.screening_settings(), clock=self.clock_settings())
         return _evolved("manager", base, values)
 
     def to_json(self) -> str:
@@ -237,7 +256,9 @@ def resolve(config: RunConfig, data: ScenarioData, estimator_name: str) -> RunCo
         manager=manager, default_altitude_m=default_altitude() if config.default_altitude_m is None
         else float(config.default_altitude_m),
         estimator_config=_merged(ESTIMATOR_SETTINGS, _typed_overrides("estimator_config", ESTIMATOR_SETTINGS,
-                                                                      config.estimator_config)))
+                                                                      config.estimator_config)),
+        screening=_merged(SCREENING_SETTINGS, _typed_overrides("screening", SCREENING_SETTINGS, config.screening)),
+        clock=_merged(CLOCK_SETTINGS, _typed_overrides("clock", CLOCK_SETTINGS, config.clock)))
 
 
 def read_config(path: Path | str) -> RunConfig:

@@ -34,7 +34,7 @@ from radartracker.estimation.base import Estimator, PlaneMeasurement
 from radartracker.estimation.coupling import CouplingGraph
 from radartracker.estimation.kalman import SingularInnovation
 from radartracker.estimation.measurement import convert_adsb, convert_plots, fill_altitudes, merge, plot_keys
-from radartracker.estimation.screening import REINIT, REJECT, LabelledScreen, ScreeningConfig
+from radartracker.estimation.screening import REINIT, REJECT, LabelledScreen
 from radartracker.geometry.plane import SystemPlane
 from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.config import RunConfig, resolve
@@ -113,7 +113,8 @@ def _by_labels(data: ScenarioData, cfg: RunConfig, est: Estimator, rec: Recorder
     ident: dict[int, list] = {}  # track id → [altitude, mode_s, mode_3a, label]
     next_sweep = -math.inf
     # the TrackManager's admission and screening rules (radartracker.tracking.admission, estimation.screening)
-    clock, screen = StreamClock(), LabelledScreen(ScreeningConfig())
+    screening = cfg.screening_settings()
+    clock, screen = StreamClock(cfg.clock_settings()), LabelledScreen(screening)
 
     def end(k: object, t: float) -> None:
         tid = track.pop(k)
@@ -141,10 +142,10 @@ def _by_labels(data: ScenarioData, cfg: RunConfig, est: Estimator, rec: Recorder
             for k in [k for k, ts in last_seen.items() if t - ts > life.drop_after_s]:
                 end(k, t)
             next_sweep = t + 1.0
-        if radar is None and (why := screen.adsb.check(key, t, meas.z[i], math.sqrt(meas.R[i][0, 0]), nacp[i])):
+        if screening.enabled and radar is None and (why := screen.adsb.check(key, t, meas.z[i], math.sqrt(meas.R[i][0, 0]), nacp[i])):
             counts[why] += 1
             continue
-        if key in track:
+        if screening.enabled and key in track:
             verdict = screen.screen(est, PlaneMeasurement(t, track[key], radar, meas.z[i], meas.C[i], meas.R[i]), kind)
             if verdict == REJECT:
                 counts[f"{kind}_outlier"] += 1

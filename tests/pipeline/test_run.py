@@ -172,3 +172,12 @@ def test_a_failing_estimator_is_named_with_aircraft_and_time(labelled, monkeypat
     with pytest.raises(PluginError, match=r"estimator 'decoupled' failed on aircraft \S+ \(track \d+\) at t=[\d.]+ s: "
                                           r"ValueError: boom"):
         run(labelled, RunConfig(), estimator=est, progress=False)
+
+
+@pytest.mark.parametrize("association", ["labels", "manager"])
+def test_screening_settings_reach_both_paths(labelled, association):
+    tight = run(labelled, RunConfig(association=association, screening={"gate_plots": 1.0}), progress=False)
+    off = run(labelled, RunConfig(association=association, screening={"enabled": False, "gate_plots": 1.0}),
+              progress=False)
+    assert tight.counts.get("plots_outlier", 0) > 0 and off.counts.get("plots_outlier", 0) == 0
+    assert tight.config.screening["gate_plots"] == 1.0 and off.config.screening["enabled"] is False
