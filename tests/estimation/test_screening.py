@@ -223,3 +223,29 @@ def test_labelled_path_wild_first_measurement(demo):
         b = res.final_biases[rid]
         assert abs(b.bias[0] - true_r) < 3 * math.sqrt(b.cov[0, 0])
         assert abs(b.bias[1] - true_a) < 3 * math.sqrt(b.cov[1, 1])
+
+
+def test_unbiased_position_screened(demo):
+    """A triangulated fix (PlaneMeasurement without radar) 20 km off its Mode S-identified aircraft is
+    counted as ``positions_outlier`` and changes no bias; a good one is used."""
+    from radartracker.estimation.base import PlaneMeasurement
+    from radartracker.geometry.plane import SystemPlane
+
+    data, _, without = demo
+    without = [x for x in without if x.time < 240.0]
+    plane = SystemPlane(*data.reference)
+    rep = next(x for x in without if isinstance(x, AdsbReport) and x.icao24 == _icao(0) and x.time > 200.0)
+    xy = np.array([float(v) for v in plane.to_plane(rep.lat, rep.lon)])
+    k = without.index(rep)
+
+    def fix(dx):
+        return PlaneMeasurement(rep.time + 0.5, _icao(0), None, xy + [dx, 0.0], np.zeros((2, 2)),
+                                np.eye(2) * 100.0**2)
+
+    bad = _run(data, without[:k] + [fix(20_000.0)] + without[k:])
+    good = _run(data, without[:k] + [fix(0.0)] + without[k:])
+    ref = _run(data, without)
+    assert bad.accounting()["positions_outlier"] == 1 and "positions_outlier" not in good.accounting()
+    assert good.accounting()["positions_used"] == 1
+    for rid in data.truth_biases:
+        np.testing.assert_array_equal(bad.estimator.bias(rid).bias, ref.estimator.bias(rid).bias)
