@@ -12,9 +12,11 @@ Flights:
   two radars 40–90 km away (σ 70 m / 0.08°, periods 4–12 s) through radartracker's simulator.
 * simulated manoeuvring flights of the seed's model (random legs with turns up to 3.5 m/s²), truth known.
 
-Errors are horizontal distances from the reference at the plot times. Prints one JSON line per flight
+Errors are horizontal distances from the reference at the plot times; velocity errors are against
+the recorded ground speed and track (linearly interpolated between reports) or the simulated truth. Prints one JSON line per flight
 and method, one per group (pooled), the cost per flight-hour, and a Markdown table (per flight and
-pooled). ``--jump-sd 0,1,3`` runs the reconstruction once per prior strength (0 = no prior).
+pooled), and how hard each real reference curve accelerates (its |d²p/dt²|: OpenSky positions hold
+and jump, so the curve through them is not always flyable). ``--jump-sd 0,1,3`` runs the reconstruction once per prior strength (0 = no prior).
 Usage: nice python scripts/reconstruction_baselines.py [--paris N] [--cal N] [--sim N] [--window S]
        [--workers W] [--max-u A] [--max-w A] [--jump-sd LIST] [--seed S]
 """
@@ -48,6 +50,8 @@ from reconstruction_simulated import random_flight  # noqa: E402
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "real_flights.csv.gz"
 SUBSET = Path(__file__).resolve().parents[1] / "radartracker" / "data" / "flights_subset.csv.gz"
 KT, FT = 1852.0 / 3600.0, 0.3048
+REFERENCE_ACCELERATION: dict[str, dict] = {}  # per real flight: how hard the reference curve accelerates
+VELOCITY: dict[str, np.ndarray] = {}  # per flight: the reference ground velocity at the plot times
 
 
 class AdsbReference:
@@ -61,13 +65,22 @@ class AdsbReference:
         x, y = plane.to_plane(lat, lon)
         chi = np.radians(track_deg)
         self.t, self.h = np.asarray(t, float), np.asarray(alt_m, float)
-        self._x = CubicHermiteSpline(self.t, x, gs_mps * np.sin(chi))
-        self._y = CubicHermiteSpline(self.t, y, gs_mps * np.cos(chi))
+        self.vx, self.vy = gs_mps * np.sin(chi), gs_mps * np.cos(chi)
+        self._x = CubicHermiteSpline(self.t, x, self.vx)
+        self._y = CubicHermiteSpline(self.t, y, self.vy)
         self.t_start, self.t_end = float(self.t[0]), float(self.t[-1])
 
     def position(self, t):
         t = np.asarray(t, float)
         return self._x(t), self._y(t), np.interp(t, self.t, self.h)
+
+    def velocity(self, t) -> np.ndarray:
+        """The recorded ground velocity (gs, track) linearly interpolated between reports (n, 2)."""
+        return np.column_stack([np.interp(t, self.t, self.vx), np.interp(t, self.t, self.vy)])
+
+    def acceleration(self, t) -> np.ndarray:
+        """|d²(x, y)/dt²| of the curve (m/s²): what a model of the flight would have to follow."""
+        return np.hypot(self._x(t, 2), self._y(t, 2))
 
 
 def load_adsb(path: Path) -> dict[str, dict[str, np.ndarray]]:
@@ -119,6 +132,11 @@ def real_tracks(flights, ids, window, rng):
         pt, true = simulate_flight(traj, radars_for(plane, rng), seed=int(rng.integers(1 << 30)), reference=ref)
         tracks.append(type(pt)(fid, pt.t, pt.z, pt.h, pt.radar, pt.R, pt.C))
         truth[fid] = true
+        VELOCITY[fid] = traj.velocity(pt.t)
+        acc = traj.acceleration(np.arange(traj.t_start, traj.t_end, 1.0))
+        REFERENCE_ACCELERATION[fid] = {"p50_mps2": round(float(np.median(acc)), 2),
+                                       "p90_mps2": round(float(np.percentile(acc, 90)), 2),
+                                       "share_above_9.5": round(float(np.mean(acc > 9.5)), 3)}
     return tracks, truth
 
 
@@ -128,9 +146,16 @@ def sim_tracks(n, rng):
     plane = SystemPlane(*REFERENCE)
     tracks, truth = [], {}
     for i in range(n):
-        traj = random_flight(rng)
+        while True:  # a draw whose speed would reach zero is drawn again
+            try:
+                traj = random_flight(rng)
+                break
+            except ValueError:
+                continue
         pt, true = simulate_flight(traj, radars_for(plane, rng), seed=1000 + i)
         key = f"sim{i:02d}"
+        _, _, _, phi, v = traj.state(pt.t)
+        VELOCITY[key] = np.column_stack([v * np.sin(phi), v * np.cos(phi)])
         tracks.append(type(pt)(key, pt.t, pt.z, pt.h, pt.radar, pt.R, pt.C))
         truth[key] = true
     return tracks, truth
@@ -138,6 +163,10 @@ def sim_tracks(n, rng):
 
 def stats(e):
     return {"median_m": round(float(np.median(e)), 1), "p90_m": round(float(np.percentile(e, 90)), 1)}
+
+
+def vstats(e):
+    return {"median": round(float(np.median(e)), 2), "p90": round(float(np.percentile(e, 90)), 2)}
 
 
 def group_of(key):
@@ -155,17 +184,24 @@ def main() -> None:
     ap.add_argument("--max-u", type=float, default=9.5)
     ap.add_argument("--max-w", type=float, default=2.0)
     ap.add_argument("--jump-sd", default="0", help="comma-separated prior strengths (m/s²; 0 = no prior)")
+    ap.add_argument("--reference-only", action="store_true",
+                    help="print how hard each real flight's reference accelerates, and stop")
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed)
     flights = load_adsb(SHARED if SHARED.exists() else SUBSET)
     paris = sorted(k for k in flights if k.startswith("paris-"))[: args.paris]
     cal = sorted(k for k in flights if k.startswith("cal_"))[: args.cal]
     tracks, truth = real_tracks(flights, paris + cal, args.window, rng)
+    for fid, acc in REFERENCE_ACCELERATION.items():
+        print(json.dumps({"flight": fid, "reference_acceleration": acc}))
+    if args.reference_only:
+        return
     st, sv = sim_tracks(args.sim, rng)
     tracks += st
     truth.update(sv)
     hours = sum(pt.duration for pt in tracks) / 3600
     errs: dict[str, dict[str, np.ndarray]] = {pt.key: {} for pt in tracks}
+    verrs: dict[str, dict[str, np.ndarray]] = {pt.key: {} for pt in tracks}  # ground-velocity errors (m/s)
     extra: dict[str, dict] = {pt.key: {} for pt in tracks}
     cost = {}
     for js in (float(v) for v in args.jump_sd.split(",")):
@@ -177,7 +213,11 @@ def main() -> None:
                 if isinstance(r, Failure):
                     print(json.dumps({"flight": r.key, "method": name, "failed": r.reason}))
                     continue
-                errs[r.key][name] = np.hypot(*(sample(r.control, r.plots.t)[:, :2] - truth[r.key]).T)
+                st = sample(r.control, r.plots.t)
+                errs[r.key][name] = np.hypot(*(st[:, :2] - truth[r.key]).T)
+                if r.key in VELOCITY:
+                    verrs[r.key][name] = np.hypot(*(np.column_stack([st[:, 3] * np.sin(st[:, 2]), st[:, 3] * np.cos(st[:, 2])])
+                                                    - VELOCITY[r.key]).T)
                 q = assess(r, cfg)
                 extra[r.key][name] = {"segments": len(r.control), "chi2": q["chi2"], "plausible": q["plausible"],
                                       "pinned_s": sum(p["seconds"] for p in q["pinned"])}
@@ -186,14 +226,17 @@ def main() -> None:
                       "wall_s_per_flight_hour": round(wall / hours, 1)}
         print(json.dumps({"cost": name, **cost[name]}))
     for pt in tracks:
-        errs[pt.key]["cv_rts"] = np.hypot(*(tuned_rts(pt.t, pt.z, pt.R)[0][:, :2] - truth[pt.key]).T)
-        errs[pt.key]["imm"] = np.hypot(*(imm_smooth(pt.t, pt.z, pt.R)[0][:, :2] - truth[pt.key]).T)
+        for name, xs in (("cv_rts", tuned_rts(pt.t, pt.z, pt.R)[0]), ("imm", imm_smooth(pt.t, pt.z, pt.R)[0])):
+            errs[pt.key][name] = np.hypot(*(xs[:, :2] - truth[pt.key]).T)
+            if pt.key in VELOCITY:
+                verrs[pt.key][name] = np.hypot(*(xs[:, 2:] - VELOCITY[pt.key]).T)
         errs[pt.key]["plots"] = np.hypot(*(pt.z - truth[pt.key]).T)
     methods = [m for m in errs[tracks[0].key] if m != "plots"] + ["plots"]
     rows = []
     for pt in tracks:
         row = {"group": group_of(pt.key), "flight": pt.key, "n_plots": len(pt), "minutes": round(pt.duration / 60, 1),
-               **{m: stats(errs[pt.key][m]) for m in methods if m in errs[pt.key]}, "fit": extra[pt.key]}
+               **{m: stats(errs[pt.key][m]) for m in methods if m in errs[pt.key]}, "fit": extra[pt.key],
+               "velocity_error_mps": {m: vstats(v) for m, v in verrs[pt.key].items()}}
         rows.append(row)
         print(json.dumps(row))
     pooled = {}
@@ -202,7 +245,9 @@ def main() -> None:
         if not keys:
             continue
         pooled[g] = {"flights": len(keys), **{m: stats(np.concatenate([errs[k][m] for k in keys if m in errs[k]]))
-                                              for m in methods}}
+                                              for m in methods},
+                     "velocity_error_mps": {m: vstats(np.concatenate([verrs[k][m] for k in keys if m in verrs[k]]))
+                                            for m in methods if any(m in verrs[k] for k in keys)}}
         print(json.dumps({"group": g, "pooled": True, **pooled[g]}))
     _table(rows, pooled, methods)
 
