@@ -75,8 +75,8 @@ def _check_options(args: argparse.Namespace) -> None:
 
 
 def _output_times(target: str, t_min: float, t_max: float, step: float) -> np.ndarray:
-    n = math.floor((t_max - t_min) / step) + 1
-    if n > MAX_OUTPUT_TIMES:
+    n = (t_max - t_min) / step + 1  # a float: a denormal step makes it infinite
+    if not n <= MAX_OUTPUT_TIMES:
         raise ConfigurationError(f"--step {step:g}: target {target} would get {n:.3g} output times over "
                                  f"{t_max - t_min:g} s (at most {MAX_OUTPUT_TIMES:,}); choose a larger step")
     return np.arange(t_min, t_max + 1e-9, step)
