@@ -6,7 +6,8 @@ Scenarios (``scripts/tracking_scenarios.py``): ``approach`` and ``enroute`` (rea
 plots), and the built-in ``tracking`` and ``manoeuvres`` scenarios. Prints one JSON line per run,
 then a Markdown table. Metrics (:func:`radartracker.pipeline.evaluate.track_metrics`, 2 s grid,
 c = 2 km): continuity (min over aircraft), breaks (also in % of flights), swaps, RMSE and GOSPA;
-here also the p95 position error of each aircraft's own track, and *false confirmed tracks* —
+here also the p95 position error of each aircraft's own track (overall, flying straight and turning
+faster than 1°/s), and *false confirmed tracks* —
 tracks farther than 2 km from every aircraft for more than half of their reports (track_metrics'
 own ``false_tracks`` also counts a real track confirmed before its aircraft's 20 s grace period).
 
@@ -68,7 +69,7 @@ def evaluate(data: ScenarioData, tracks: dict[int, TrackHistory]) -> dict:
             observed[tg] = (float(t.min()) + GRACE_S, float(t.max()))
     grid = np.arange(data.truth.time.min(), data.truth.time.max(), GRID_S)
     m = track_metrics(tracks, paths, observed, grid, C_M)
-    err = []
+    err, turning = [], []
     for tg, v in m["per_target"].items():
         if v["right_track"] < 0:
             continue
@@ -76,8 +77,12 @@ def evaluate(data: ScenarioData, tracks: dict[int, TrackHistory]) -> dict:
         g = grid[(grid >= max(observed[tg][0], h.start)) & (grid <= min(observed[tg][1], h.end))]
         pos, alive = h.at(g)
         truth, inside = paths.state_at(tg, g)
-        d = np.hypot(*(pos - truth[:, :2]).T)[alive & inside]
-        err.extend(d[d < C_M])
+        heading = np.unwrap(np.arctan2(truth[:, 2], truth[:, 3]))
+        rate = np.abs(np.gradient(heading, g)) if len(g) > 1 else np.zeros(len(g))
+        d = np.hypot(*(pos - truth[:, :2]).T)
+        use = alive & inside & (d < C_M)
+        err.extend(d[use])
+        turning.extend(rate[use] > np.radians(1.0))
     false = 0
     for h in tracks.values():
         near = np.zeros(len(h.times), bool)
@@ -89,7 +94,14 @@ def evaluate(data: ScenarioData, tracks: dict[int, TrackHistory]) -> dict:
             "breaks_pct": 100.0 * m["breaks"] / max(len(observed), 1), "swaps": m["swaps"],
             "false_confirmed": false, "confirmed_tracks": m["confirmed_tracks"],
             "rmse_m": m["position_rmse_m"], "p95_m": float(np.percentile(err, 95)) if err else float("nan"),
-            "gospa_m": m["gospa_mean_m"]}
+            "gospa_m": m["gospa_mean_m"], **_split(np.array(err), np.array(turning, bool))}
+
+
+def _split(err: np.ndarray, turning: np.ndarray) -> dict:
+    """p95 of the error where the aircraft flies straight and where it turns faster than 1°/s."""
+    p95 = {k: float(np.percentile(err[m], 95)) if m.any() else float("nan")
+           for k, m in (("p95_straight_m", ~turning), ("p95_turning_m", turning))}
+    return {**p95, "turning_pct": 100.0 * float(turning.mean()) if len(turning) else 0.0}
 
 
 def build(name: str, args: argparse.Namespace, mode_s: bool = False) -> ScenarioData:
@@ -140,12 +152,13 @@ def main() -> None:
               "ms_per_plot": 1e3 * wall / len(data.plots)})
     print()
     print("| set | tracker | flights | continuity min | breaks (% flights) | swaps | false confirmed | "
-          "RMSE (m) | p95 (m) | GOSPA (m) | ms/plot |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+          "RMSE (m) | p95 (m) | p95 straight / turning (m) | GOSPA (m) | ms/plot |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r['set']} | {r['tracker']} | {r['flights']} | {r['continuity_min']:.3f} | {r['breaks']} "
               f"({r['breaks_pct']:.1f} %) | {r['swaps']} | {r['false_confirmed']} | {r['rmse_m']:.1f} | "
-              f"{r['p95_m']:.1f} | {r['gospa_m']:.1f} | {r['ms_per_plot']:.2f} |")
+              f"{r['p95_m']:.1f} | {r['p95_straight_m']:.0f} / {r['p95_turning_m']:.0f} | {r['gospa_m']:.1f} | "
+              f"{r['ms_per_plot']:.2f} |")
 
 
 if __name__ == "__main__":

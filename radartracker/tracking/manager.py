@@ -47,8 +47,8 @@ from pathlib import Path
 import attrs
 import numpy as np
 
-from radartracker.tracking.association import (ALTITUDE_GATE, AltitudeTrack, altitude_d2, assign, assign_tiers,
-                                                candidate_pairs, gate_costs)
+from radartracker.tracking.association import (ALTITUDE_GATE, AltitudeTrack, altitude_d2, altitude_spread, assign,
+                                                assign_tiers, candidate_pairs, gate_costs)
 from radartracker.estimation.coupling import CouplingGraph
 from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, ScreeningConfig, judge,
                                                normalised_innovation)
@@ -96,6 +96,7 @@ class ManagerConfig:
     frame_s: float = 0.5
     max_time_jump_s: float = 3600.0
     primary_altitude_m: float = 6000.0
+    primary_altitude_sd_m: float = 3500.0  # its uncertainty, added to R of plots converted at it
     search_radius_m: float = 25_000.0
     new_track_exclusion: float = 27.63  # χ²₂ 1 − 10⁻⁶: no tentative track this close to a confirmed one
     screening: ScreeningConfig = attrs.field(factory=ScreeningConfig)
@@ -344,14 +345,21 @@ class TrackManager:
                          is not None else self.config.primary_altitude_m) for p in plots])
         if all(isinstance(p, PreparedPlot) and p.assumed_altitude_m == a for p, a in zip(plots, alt)):
             # converted ahead in bulk at the same altitude (radartracker.tracking.prepared)
-            return (np.array([p.z for p in plots]), np.array([p.C for p in plots]), np.array([p.R for p in plots]),
-                    np.array([p.valid for p in plots], bool))
-        rho = np.array([p.range_m for p in plots])
-        theta = np.array([p.azimuth_rad for p in plots])
-        frame = self.frames[rid]
-        z, ok = frame.to_plane(rho, theta, alt)
-        C = frame.bias_jacobian(z, rho, alt)
-        R = C @ self.radars[rid].W @ np.swapaxes(C, 1, 2)
+            z, C, R = (np.array([p.z for p in plots]), np.array([p.C for p in plots]), np.array([p.R for p in plots]))
+            ok = np.array([p.valid for p in plots], bool)
+        else:
+            rho = np.array([p.range_m for p in plots])
+            theta = np.array([p.azimuth_rad for p in plots])
+            frame = self.frames[rid]
+            z, ok = frame.to_plane(rho, theta, alt)
+            C = frame.bias_jacobian(z, rho, alt)
+            R = C @ self.radars[rid].W @ np.swapaxes(C, 1, 2)
+        # an assumed altitude is uncertain: near the radar its error moves the plot by km along the beam
+        guess = np.array([p.altitude_m is None for p in plots]) & (alt == self.config.primary_altitude_m)
+        if guess.any():
+            rho = np.array([p.range_m for p in plots])[guess]
+            R[guess] += altitude_spread(C[guess], rho, alt[guess], self.radars[rid].height_m,
+                                        self.config.primary_altitude_sd_m)
         return z, C, R, ok
 
     def _associate(self, rid: str, plots: list[Plot], live: list[ManagedTrack], pred: dict, updates: list) -> set[int]:

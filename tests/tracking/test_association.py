@@ -157,3 +157,22 @@ def test_track_kept_through_a_turn_while_plots_arrive():
     confirmed = {e.track for e in events if e.kind == "confirmed"}
     assert len(confirmed) == 1
     assert all(e.time >= data.plots.time.max() for e in events if e.kind == "deleted" and e.track in confirmed)
+
+
+def test_altitude_spread_is_the_conversion_derivative():
+    """g = ∂z/∂h of the plane conversion at fixed (ρ, θ), against central finite differences of
+    RadarFrame.to_plane (pyproj), near (20 km) and far (200 km) from the radar."""
+    from radartracker.geometry.plane import RadarFrame
+    from radartracker.tracking.association import altitude_spread
+
+    plane = SystemPlane(48.85, 2.35)
+    frame = RadarFrame(48.7, 2.3, 150.0, plane)
+    rho = np.array([20e3, 80e3, 200e3])
+    theta = np.radians([30.0, 200.0, 310.0])
+    alt = np.full(3, 6000.0)
+    z, _ = frame.to_plane(rho, theta, alt)
+    C = frame.bias_jacobian(z, rho, alt)
+    h = 1.0
+    g = (frame.to_plane(rho, theta, alt + h)[0] - frame.to_plane(rho, theta, alt - h)[0]) / (2 * h)
+    np.testing.assert_allclose(altitude_spread(C, rho, alt, 150.0, 1.0), g[:, :, None] * g[:, None, :], rtol=5e-3)  # sphere vs ellipsoid
+    assert np.linalg.norm(g[0]) > 0.25 > 0.05 > np.linalg.norm(g[2])  # near the radar the altitude matters
