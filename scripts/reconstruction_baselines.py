@@ -146,10 +146,11 @@ def sim_tracks(n, rng):
     plane = SystemPlane(*REFERENCE)
     tracks, truth = [], {}
     for i in range(n):
-        while True:  # a draw whose speed would reach zero is drawn again
+        while True:  # a draw whose speed would fall below 60 m/s (or reach zero) is drawn again
             try:
                 traj = random_flight(rng)
-                break
+                if np.min(traj.state(np.linspace(traj.t_start, traj.t_end, 200))[4]) > 60.0:
+                    break
             except ValueError:
                 continue
         pt, true = simulate_flight(traj, radars_for(plane, rng), seed=1000 + i)
