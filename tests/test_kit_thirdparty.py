@@ -1,6 +1,6 @@
-"""A throw-away third-party estimator with an option, installed from this test as a distribution with an
-entry point (nothing in the core touched): it passes check_estimator, and its option set on the command
-line reaches the plugin on the labelled replay and on the TrackManager path."""
+"""A throw-away third-party estimator with an option and a motion model with typed settings, installed from
+this test as a distribution with entry points (nothing in the core touched): they pass check_estimator and
+check_motion_model, and their options set on the command line reach them (labelled replay and TrackManager)."""
 
 import json
 import sys
@@ -13,18 +13,20 @@ from radartracker.cli import main
 from radartracker.errors import ConfigurationError
 from radartracker.io.scenario import write_scenario
 from radartracker.pipeline.stream import scenario_stream
-from radartracker.registry import load_estimator, make_estimator
+from radartracker.registry import load_estimator, load_motion_model, make_estimator
 from radartracker.simulation.scenarios import build_scenario
-from radartracker.testing import ESTIMATOR_CHECKS, check_estimator
+from radartracker.testing import ESTIMATOR_CHECKS, MOTION_CHECKS, check_estimator, check_motion_model
 from radartracker.tracking.manager import ManagerConfig, TrackManager
 
 PLUGIN = '''
 """Decoupled aircraft and bias filters with a bias forgetting factor (a third party's estimator)."""
 import attrs
 import numpy as np
-from radartracker.api import AircraftEstimate, BiasState, Estimator, Innovation, correct, validated_prior
+from radartracker.api import (AircraftEstimate, BiasState, Estimator, Innovation, MotionConfig, MotionModel,
+                              TrackFilter, correct, nis, validated_prior)
 
-BUILT = []  # the options of every instance built: the test reads what reached the plugin
+BUILT = []  # the options of every estimator built: the test reads what reached the plugin
+FILTERS = []  # the config of every track filter built
 
 
 @attrs.frozen
@@ -87,6 +89,64 @@ class Forgetting(Estimator):
     @property
     def radars(self):
         return list(self._s)
+
+
+@attrs.frozen
+class ThirdCVConfig(MotionConfig):
+    """``q``: white-acceleration density (m²/s³)."""
+
+    q: float = attrs.field(default=1.0, converter=float, validator=attrs.validators.ge(0.0))
+
+
+def _checked(time, z, R):
+    time, z, R = float(time), np.asarray(z, float), np.asarray(R, float)
+    if not np.isfinite(time):
+        raise ValueError(f"time: not finite ({time})")
+    if z.shape != (2,) or not np.isfinite(z).all():
+        raise ValueError(f"z: expected 2 finite numbers, got {z.tolist()}")
+    if R.shape != (2, 2) or not np.isfinite(R).all() or not np.allclose(R, R.T) or np.linalg.eigvalsh(R).min() <= 0:
+        raise ValueError(f"R: expected a symmetric positive definite 2×2 matrix, got {R.tolist()}")
+    return time, z, R
+
+
+class ThirdCV(TrackFilter):
+    """Constant-velocity Kalman filter: χ̄ = A χ̂, P̄ = A P̂ Aᵀ + Q(Δt), then the position correction."""
+
+    name = "thirdcv"
+    config_class = ThirdCVConfig
+
+    def __init__(self, config=None):
+        super().__init__(config)
+        FILTERS.append(self.config)
+        self.time, self.x, self.P = None, np.zeros(4), np.eye(4)
+
+    def start(self, time, z, R):
+        self.time, z, R = _checked(time, z, R)
+        self.x = np.array([z[0], z[1], 0.0, 0.0])
+        self.P = np.zeros((4, 4))
+        self.P[:2, :2], self.P[2:, 2:] = R, self.config.prior_sd_velocity_mps ** 2 * np.eye(2)
+
+    def predict(self, time):
+        if self.time is None:
+            raise ValueError("filter not started")
+        time = float(time)
+        if not np.isfinite(time) or abs(time - self.time) > self.config.max_gap_s:
+            raise ValueError(f"time: {time} too far from the track's epoch {self.time}")
+        A, Q = MotionModel(self.config.q).transition(time - self.time)
+        return A @ self.x, A @ self.P @ A.T + Q
+
+    def update(self, time, z, R):
+        time, z, R = _checked(time, z, R)
+        x, P = self.predict(time)
+        nu, S = z - x[:2], P[:2, :2] + R
+        self.x, self.P = correct(x, P, P[:, :2], S, nu)
+        self.time = time
+        return nis(nu, S)
+
+    def estimate(self):
+        if self.time is None:
+            raise ValueError("filter not started")
+        return self.time, self.x.copy(), self.P.copy()
 '''
 
 
@@ -99,7 +159,8 @@ def thirdparty(tmp_path, monkeypatch):
     dist = tmp_path / "site" / "rt_kit_thirdparty-0.1.dist-info"
     dist.mkdir()
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: rt-kit-thirdparty\nVersion: 0.1\n")
-    (dist / "entry_points.txt").write_text("[radartracker.estimators]\nthirdparty = rt_kit_thirdparty:Forgetting\n")
+    (dist / "entry_points.txt").write_text("[radartracker.estimators]\nthirdparty = rt_kit_thirdparty:Forgetting\n"
+                                           "[radartracker.motion_models]\nthirdcv = rt_kit_thirdparty:ThirdCV\n")
     monkeypatch.syspath_prepend(str(tmp_path / "site"))
     yield sys.modules.get("rt_kit_thirdparty") or __import__("rt_kit_thirdparty")
     sys.modules.pop("rt_kit_thirdparty", None)
@@ -124,23 +185,40 @@ def test_thirdparty_passes_check_estimator(thirdparty):
     assert thirdparty.BUILT[-1].bias_forgetting == 1.02
 
 
+def test_thirdparty_motion_model_passes_and_takes_cli_settings(thirdparty, scenario, tmp_path, capsys):
+    cls = load_motion_model("thirdcv")
+    assert cls is thirdparty.ThirdCV
+    assert check_motion_model(cls, cls.config_class(q=2.0)) == list(MOTION_CHECKS)
+    thirdparty.FILTERS.clear()
+    out = tmp_path / "out"
+    argv = ["replay", str(scenario), "--out", str(out), "--association", "manager", "--estimator", "coupled",
+            "--motion-model", "thirdcv", "--motion-option", "q=3", "--motion-option", "prior_sd_velocity_mps=250",
+            "--quiet"]
+    assert main(argv) == 0, capsys.readouterr().err
+    assert thirdparty.FILTERS and all(c == cls.config_class(q=3.0, prior_sd_velocity_mps=250.0) for c in thirdparty.FILTERS)
+    config = json.loads((out / "config.json").read_text())
+    assert config["settings"]["motion_model"] == "thirdcv"
+    assert config["plugins"]["motion_model"] == {"prior_sd_velocity_mps": 250.0, "max_gap_s": 3600.0, "q": 3.0}
+    assert main(["replay", str(scenario), "--out", str(tmp_path / "bad"), "--association", "manager",
+                 "--motion-model", "thirdcv", "--motion-option", "q_turn=1", "--quiet"]) == 2
+    assert "'q_turn'; valid options: max_gap_s, prior_sd_velocity_mps, q" in capsys.readouterr().err
+
+
 def test_option_reaches_the_plugin_from_the_cli_on_both_paths(thirdparty, scenario, tmp_path, capsys):
     biases = {}
-    for association in ("labels", "manager"):
-        for value in ("1.0", "1.05"):
-            out = tmp_path / f"{association}-{value}"
-            thirdparty.BUILT.clear()
-            argv = ["replay", str(scenario), "--out", str(out), "--association", association,
-                    "--estimator", "thirdparty", "--estimator-option", f"bias_forgetting={value}", "--quiet"]
-            assert main(argv) == 0, capsys.readouterr().err
-            assert [o.bias_forgetting for o in thirdparty.BUILT] == [float(value)]
-            config = json.loads((out / "config.json").read_text())
-            settings = config["settings"]
-            assert settings["estimator"] == "thirdparty" and settings["estimator_options"] == {"bias_forgetting": value}
-            assert config["plugins"]["estimator"] == {"bias_forgetting": float(value)}
-            biases[association, value] = (out / "biases.csv").read_text()
-        # the option changes what the plugin computes, on this path too
-        assert biases[association, "1.0"] != biases[association, "1.05"]
+    for association, value in (("labels", "1.0"), ("labels", "1.05"), ("manager", "1.05")):
+        out = tmp_path / f"{association}-{value}"
+        thirdparty.BUILT.clear()
+        argv = ["replay", str(scenario), "--out", str(out), "--association", association,
+                "--estimator", "thirdparty", "--estimator-option", f"bias_forgetting={value}", "--quiet"]
+        assert main(argv) == 0, capsys.readouterr().err
+        assert [o.bias_forgetting for o in thirdparty.BUILT] == [float(value)]
+        config = json.loads((out / "config.json").read_text())
+        settings = config["settings"]
+        assert settings["estimator"] == "thirdparty" and settings["estimator_options"] == {"bias_forgetting": value}
+        assert config["plugins"]["estimator"] == {"bias_forgetting": float(value)}
+        biases[association, value] = (out / "biases.csv").read_text()
+    assert biases["labels", "1.0"] != biases["labels", "1.05"]  # the option changes what the plugin computes
 
 
 def test_bad_option_from_the_cli_names_plugin_key_and_valid_keys(thirdparty, scenario, tmp_path, capsys):
