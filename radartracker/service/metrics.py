@@ -14,7 +14,7 @@ radartracker_queue_depth                   gauge    datagrams waiting for the tr
 radartracker_queue_capacity                gauge    the bound of that queue
 radartracker_tracks                        gauge    ``status``: tentative, confirmed, coasting
 radartracker_processing_latency_seconds    histo.   datagram receipt → its records handed to the tracker
-radartracker_checkpoints_total             counter  checkpoints written since start
+radartracker_checkpoints_total             counter  ``outcome``: written (since start), skipped_busy, failed
 =========================================  =======  ==================================================
 """
 
@@ -44,7 +44,8 @@ class ServiceMetrics:
         yield _counter("radartracker_tracker_inputs", "TrackManager accounting of its inputs", "reason",
                        view["tracker"])
         yield _counter("radartracker_cat062", "CAT062 output", "what", view["published"])
-        yield _counter("radartracker_checkpoints", "Checkpoints written since start", None, view["checkpoints"])
+        yield _counter("radartracker_checkpoints", "Checkpoints: written since start, skipped while one was "
+                       "being written, failed", "outcome", view["checkpoints"])
         depth = GaugeMetricFamily("radartracker_queue_depth", "Datagrams waiting for the tracker")
         depth.add_metric([], self.service.queue.qsize())
         yield depth
@@ -54,9 +55,7 @@ class ServiceMetrics:
         yield _gauge("radartracker_tracks", "Live tracks by status", "status", view["tracks_by_status"])
 
 
-def _counter(name: str, doc: str, label: str | None, values) -> CounterMetricFamily:
-    if label is None:
-        return CounterMetricFamily(name, doc, value=values)
+def _counter(name: str, doc: str, label: str, values: dict) -> CounterMetricFamily:
     fam = CounterMetricFamily(name, doc, labels=[label])
     for k, v in sorted(values.items()):
         fam.add_metric([k], v)

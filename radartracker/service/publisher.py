@@ -10,11 +10,15 @@ ids modulo 65 535, in 1…65 535.
 
 from __future__ import annotations
 
+import math
 import socket
 from collections import Counter
 
+import numpy as np
+
 from radartracker.service.codec import blocks, cat062_bytes
-from radartracker.tracking.manager import ManagedTrack, TrackEvent, TrackManager
+from radartracker.geometry.plane import SystemPlane
+from radartracker.tracking.manager import TrackEvent, TrackManager
 
 UDP_PAYLOAD = 1472  # an Ethernet frame's UDP payload (1500 − IP and UDP headers): no IP fragments
 
@@ -23,8 +27,21 @@ def track_number(track_id: int) -> int:
     return (track_id - 1) % 65_535 + 1
 
 
+def track_rows(mgr: TrackManager) -> list[dict]:
+    """The confirmed and coasting tracks as the rows of ``/tracks`` (one geodetic conversion for all)."""
+    trs = mgr.confirmed_tracks()
+    est = [tr.filter.estimate() for tr in trs]
+    x = np.array([e[1] for e in est], float).reshape(-1, 4)
+    lat, lon = mgr.plane.to_geodetic(x[:, 0], x[:, 1]) if len(trs) else (np.empty(0), np.empty(0))
+    return [{"track_number": track_number(tr.id), "id": tr.id, "status": tr.status, "time": float(t),
+             "lat": float(la), "lon": float(lo), "x_m": float(xi[0]), "y_m": float(xi[1]), "vx_mps": float(xi[2]),
+             "vy_mps": float(xi[3]), "sd_x_m": math.sqrt(P[0, 0]), "sd_y_m": math.sqrt(P[1, 1]),
+             "altitude_m": tr.altitude_m, "mode_3a": tr.mode_3a, "mode_s": tr.mode_s}
+            for tr, (t, _, P), xi, la, lo in zip(trs, est, x, lat, lon)]
+
+
 class Publisher:
-    """Sends the manager's system tracks as CAT062 (SAC/SIC of this tracker: ``sac``, ``sic``)."""
+    """Sends system tracks as CAT062 (SAC/SIC of this tracker: ``sac``, ``sic``)."""
 
     def __init__(self, sock: socket.socket, sac: int = 0, sic: int = 100, max_datagram: int = UDP_PAYLOAD) -> None:
         self.sock, self.sac, self.sic, self.max_datagram = sock, sac, sic, max_datagram
@@ -32,14 +49,19 @@ class Publisher:
         self._published: set[int] = set()  # track ids sent at least once, to announce their end
         self.last_records = 0  # records of the latest publication (the final one, after a stop)
 
-    def publish(self, mgr: TrackManager, ended: list[TrackEvent]) -> int:
-        """Send every confirmed/coasting track and the ends of published tracks; returns the records sent."""
-        recs = [self._record(mgr, tr) for tr in mgr.confirmed_tracks()]
-        for ev in ended:
-            if ev.track in self._published:
-                self._published.discard(ev.track)
-                recs.append(self._end_record(mgr, ev))
-        self._published |= {tr.id for tr in mgr.confirmed_tracks()}
+    def publish(self, rows: list[dict], ended: list[TrackEvent], plane: SystemPlane) -> int:
+        """Send the tracks ``rows`` (:func:`track_rows`) and the ends of published tracks; returns the records sent."""
+        recs = [cat062_bytes(r["time"], self.sac, self.sic, r["track_number"], r["lat"], r["lon"], r["x_m"], r["y_m"],
+                             r["vx_mps"], r["vy_mps"], r["altitude_m"], mode_3a=r["mode_3a"], mode_s=r["mode_s"],
+                             coasting=r["status"] == "coasting") for r in rows]
+        ends = [ev for ev in ended if ev.track in self._published]
+        if ends:
+            x = np.array([ev.state for ev in ends], float)
+            lat, lon = plane.to_geodetic(x[:, 0], x[:, 1])
+            recs += [cat062_bytes(ev.time, self.sac, self.sic, track_number(ev.track), float(la), float(lo), *ev.state,
+                                  ended=True) for ev, la, lo in zip(ends, lat, lon)]
+            self._published -= {ev.track for ev in ends}
+        self._published |= {r["id"] for r in rows}
         for block in blocks(62, recs, self.max_datagram):
             try:
                 self.sock.send(block)
@@ -50,15 +72,3 @@ class Publisher:
         self.counts["publications"] += 1
         self.last_records = len(recs)
         return len(recs)
-
-    def _record(self, mgr: TrackManager, tr: ManagedTrack):
-        t, x, _ = tr.filter.estimate()
-        lat, lon = mgr.plane.to_geodetic(x[0], x[1])
-        return cat062_bytes(t, self.sac, self.sic, track_number(tr.id), float(lat), float(lon), x[0], x[1], x[2], x[3],
-                             tr.altitude_m, mode_3a=tr.mode_3a, mode_s=tr.mode_s, coasting=tr.status == "coasting")
-
-    def _end_record(self, mgr: TrackManager, ev: TrackEvent):
-        x = ev.state
-        lat, lon = mgr.plane.to_geodetic(x[0], x[1])
-        return cat062_bytes(ev.time, self.sac, self.sic, track_number(ev.track), float(lat), float(lon), *x,
-                             ended=True)

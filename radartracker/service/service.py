@@ -14,7 +14,9 @@ between the last checkpoint and a crash is in neither (docs/service.md measures 
 
 from __future__ import annotations
 
+import logging
 import math
+import os
 import queue
 import threading
 import time
@@ -31,9 +33,11 @@ from radartracker.service.checkpoints import checkpoints, read_checkpoint, write
 from radartracker.service.decoder import DayClock, Decoder, ReceiveClock
 from radartracker.service.endpoints import Endpoint, open_receiver, open_sender
 from radartracker.service.metrics import ServiceMetrics
-from radartracker.service.publisher import Publisher, track_number
+from radartracker.service.publisher import Publisher, track_rows
 from radartracker.service.receiver import Receiver
 from radartracker.tracking.manager import TrackEvent, TrackManager, default_estimator
+log = logging.getLogger(__name__)
+
 
 def build_manager(radars: list[Radar], estimator: str | None = None, motion_model: str | None = None) -> TrackManager:
     """A TrackManager set up as ``radartracker replay --association manager`` sets up its own
@@ -93,6 +97,7 @@ class Service:
         self.receiver = Receiver(self.sockets, self.queue)
         self.publisher = Publisher(open_sender(config.publish), config.sac, config.sic)
         self.checkpoints_written = 0
+        self._child: int | None = None  # pid of the process writing a checkpoint
         self.started = time.time()
         self.last_datagram: float | None = None
         self._ended: list[TrackEvent] = []
@@ -136,6 +141,7 @@ class Service:
                     self._checkpoint()
                     next_ckpt = now + cfg.checkpoint_s
                 if now >= next_view:
+                    self._reap()
                     self._refresh_view()
                     next_view = now + 0.5
         finally:
@@ -147,7 +153,7 @@ class Service:
             pass
         self._collect(self.manager.flush())
         self._publish()
-        self._checkpoint()
+        self._checkpoint(wait=True)
         summary = self.summary()
         write_json_atomic(cfg.state_dir / "summary.json", summary)
         if self.http is not None:
@@ -182,18 +188,10 @@ class Service:
 
     # --- outputs -----------------------------------------------------------------------------------
     def _publish(self) -> None:
-        mgr = self.manager
-        self.publisher.publish(mgr, self._ended)
+        rows = track_rows(self.manager)
+        self.publisher.publish(rows, self._ended, self.manager.plane)
         self._ended = []
-        tracks = []
-        for tr in mgr.confirmed_tracks():
-            t, x, P = tr.filter.estimate()
-            lat, lon = mgr.plane.to_geodetic(x[0], x[1])
-            tracks.append({"track_number": track_number(tr.id), "id": tr.id, "status": tr.status, "time": t,
-                           "lat": float(lat), "lon": float(lon), "x_m": x[0], "y_m": x[1], "vx_mps": x[2],
-                           "vy_mps": x[3], "sd_x_m": math.sqrt(P[0, 0]), "sd_y_m": math.sqrt(P[1, 1]),
-                           "altitude_m": tr.altitude_m, "mode_3a": tr.mode_3a, "mode_s": tr.mode_s})
-        self.tracks_json = {"published": time.time(), "tracks": tracks}
+        self.tracks_json = {"published": time.time(), "tracks": rows}
         self.biases_json = self._biases()
         write_json_atomic(self.config.state_dir / "biases.json", self.biases_json)
         self._refresh_view()
@@ -214,11 +212,44 @@ class Service:
         return {"published": time.time(), "estimator": mgr.config.estimator, "radars": radars,
                 "components": obs.get("components")}
 
-    def _checkpoint(self) -> None:
-        self.checkpoint_seq += 1
-        write_checkpoint(self.config.state_dir, self.checkpoint_seq, self.manager,
-                         {"counts": dict(self._counts(False)), "written": time.time()})
-        self.checkpoints_written += 1
+    def _checkpoint(self, wait: bool = False) -> None:
+        """Write the next checkpoint. The periodic ones are written by a forked child: it holds a
+        copy-on-write image of the manager as it is now, so the loop goes on while the snapshot (seconds
+        for thousands of tracks) is written; one is skipped (counted) while the previous is still being
+        written. ``wait``: in this process, after the previous one (the final checkpoint)."""
+        if self._reap(block=wait):
+            self.checkpoint_seq += 1
+            state = {"counts": dict(self._counts(False)), "written": time.time()}
+            if wait or not hasattr(os, "fork"):
+                write_checkpoint(self.config.state_dir, self.checkpoint_seq, self.manager, state)
+                self.checkpoints_written += 1
+                return
+            pid = os.fork()
+            if pid == 0:  # the child: write, and leave without running the parent's cleanup
+                code = 1
+                try:
+                    write_checkpoint(self.config.state_dir, self.checkpoint_seq, self.manager, state)
+                    code = 0
+                finally:
+                    os._exit(code)
+            self._child = pid
+        else:
+            self.base["checkpoints_skipped_busy"] += 1
+
+    def _reap(self, block: bool = False) -> bool:
+        """Collect a finished checkpoint child; True when none is running."""
+        if self._child is None:
+            return True
+        pid, status = os.waitpid(self._child, 0 if block else os.WNOHANG)
+        if pid == 0:
+            return False
+        self._child = None
+        if os.waitstatus_to_exitcode(status) == 0:
+            self.checkpoints_written += 1
+        else:
+            self.base["checkpoints_failed"] += 1
+            log.error("checkpoint %d failed (exit status %s); the previous one stands", self.checkpoint_seq, status)
+        return True
 
     def _counts(self, live: bool) -> Counter[str]:
         """All service counters (carried-over base + this run). Not ``live``: datagrams received are
@@ -236,9 +267,12 @@ class Service:
 
     def _refresh_view(self) -> None:
         c = self._counts(True)
-        groups: dict[str, dict] = {"datagrams": {}, "blocks": {}, "records": {}, "published": {}}
+        groups: dict[str, dict] = {"datagrams": {}, "blocks": {}, "records": {}, "published": {},
+                                   "checkpoints": {"written": self.checkpoints_written}}
         for k, v in c.items():
-            if k.startswith("datagrams_"):
+            if k.startswith("checkpoints_"):
+                groups["checkpoints"][k.removeprefix("checkpoints_")] = v
+            elif k.startswith("datagrams_"):
                 groups["datagrams"][k.removeprefix("datagrams_")] = v
             elif k.startswith("blocks_"):
                 groups["blocks"][k.removeprefix("blocks_")] = v
@@ -247,7 +281,7 @@ class Service:
             else:
                 groups["records"][k] = v
         statuses = Counter(t.status for t in self.manager.tracks.values())
-        self.view = groups | {"tracker": self.manager.accounting(), "checkpoints": self.checkpoints_written,
+        self.view = groups | {"tracker": self.manager.accounting(),
                               "tracks_by_status": {s: statuses.get(s, 0) for s in ("tentative", "confirmed", "coasting")}}
 
     def health(self) -> dict:
