@@ -143,7 +143,9 @@ def test_compare_help_states_the_real_default_q(capsys):
 
 
 @pytest.mark.parametrize("settings, match", [
-    (dict(association="manager", manager={"screening": {"gate_plots": -1}}), "gate_plots"),
+    (dict(association="manager", screening={"gate_plots": -1}), "gate_plots"),
+    (dict(association="labels", clock={"window": 0}), "window"),
+    (dict(association="manager", manager={"screening": {}}), "unknown setting 'screening'"),
     (dict(association="manager", manager={"nosuch": 1}), "nosuch"),
     (dict(association="manager", manager={"confirm_m": 2.5}), "confirm_m"),
     (dict(association="labels", manager={"gate": 9.0}), "association manager"),
