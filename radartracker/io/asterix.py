@@ -508,6 +508,16 @@ def _records(cat: int, recs: list, decode, skipped: Counter) -> Iterator[dict]:
             skipped[key] += 1
 
 
+def _first(rec: dict, seen: set[tuple], skipped: Counter, reason: str) -> bool:
+    """False for a record equal to one read before (a redundant feed recorded twice), counted."""
+    key = (reason, *sorted((k, v) for k, v in rec.items() if not (isinstance(v, float) and math.isnan(v))))
+    if key in seen:
+        skipped[reason] += 1
+        return False
+    seen.add(key)
+    return True
+
+
 def read_asterix(path: Path | str, *, radars: Path | str | None = None, day_start: float = 0.0,
                  skip_bad: bool = False) -> ScenarioData:
     """Read a CAT048/CAT021 recording (raw, FINAL or pcap) as a scenario (see the module notes).
@@ -515,7 +525,7 @@ def read_asterix(path: Path | str, *, radars: Path | str | None = None, day_star
     Skipped and counted in ``skipped`` (never an error): blocks of other categories, blocks the
     library cannot decode (other editions, damaged bytes), records without an item we need (e.g. a
     CAT048 track-only report without I040), ADS-B reports with an impossible position or a NACp
-    of 0 (accuracy unknown) or above 11. With ``skip_bad`` also framing that cannot be read (the
+    of 0 (accuracy unknown) or above 11, records equal to one read before (used once). With ``skip_bad`` also framing that cannot be read (the
     rest of the file, or one pcap packet) and plots whose SAC/SIC the sidecar lacks; without it
     those are :class:`InputError` naming the file and byte. A recording with nothing usable is an
     error.
@@ -523,6 +533,7 @@ def read_asterix(path: Path | str, *, radars: Path | str | None = None, day_star
     path = Path(path)
     sites_path = Path(radars) if radars is not None else Path(str(path) + ".radars.csv")
     plots, adsb, skipped = [], [], Counter()
+    seen_records: set[tuple] = set()
     clock = None
     for k, (stamp, block) in enumerate(iter_datablocks(path, skipped if skip_bad else None)):
         if clock is None:
@@ -537,7 +548,8 @@ def read_asterix(path: Path | str, *, radars: Path | str | None = None, day_star
         if cat == 48:
             for p in _records(48, recs, decode_cat048, skipped):
                 p["time"] = clock(p["tod"])
-                plots.append(p)
+                if _first(p, seen_records, skipped, "asterix_cat048_duplicate_records"):
+                    plots.append(p)
         elif cat == 21:
             for a in _records(21, recs, decode_cat021, skipped):
                 if not (-90.0 <= a["lat"] <= 90.0 and -180.0 <= a["lon"] <= 180.0):
@@ -547,7 +559,8 @@ def read_asterix(path: Path | str, *, radars: Path | str | None = None, day_star
                     skipped["asterix_cat021_unusable_nacp"] += 1
                     continue
                 a["time"] = clock(a["tod"])
-                adsb.append(a)
+                if _first(a, seen_records, skipped, "asterix_cat021_duplicate_records"):
+                    adsb.append(a)
         else:
             skipped[f"asterix_cat{cat:03d}_blocks"] += 1
     seen = sorted({(p["sac"], p["sic"]) for p in plots})

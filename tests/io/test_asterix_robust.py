@@ -76,8 +76,9 @@ def test_pcap_packet_with_bad_payload_is_skipped_with_skip_bad(tmp_path, rec):
     with pytest.raises(InputError, match="packet at byte"):
         read_asterix(path)
     data = read_asterix(path, skip_bad=True)
-    assert data.skipped == {"asterix_malformed_packets": 1}
-    assert len(data.plots) == 9  # 3 records per block, the damaged packet's whole block kept
+    # the damaged packet's whole block is kept; the same block three times is three records, each used once
+    assert data.skipped == {"asterix_malformed_packets": 1, "asterix_cat048_duplicate_records": 6}
+    assert len(data.plots) == 3
 
 
 def test_sidecar_mistakes(rec):
@@ -103,3 +104,13 @@ def test_nothing_usable_is_an_error(tmp_path):
     path.write_bytes(b"".join(datablocks(CAT048, [_track_only(1.0)])))
     with pytest.raises(InputError, match=r"only\.ast: no usable .*records_without_I040"):
         read_asterix(path)
+
+
+def test_duplicate_records_are_used_once_and_counted(rec, scenario):
+    """A redundant (dual-LAN) feed records every block twice: each record is used once."""
+    raw = rec.read_bytes()
+    rec.write_bytes(raw + raw)
+    data = read_asterix(rec)
+    assert len(data.plots) == len(scenario.plots) and len(data.adsb) == len(scenario.adsb)
+    assert data.skipped == {"asterix_cat048_duplicate_records": len(scenario.plots),
+                            "asterix_cat021_duplicate_records": len(scenario.adsb)}
