@@ -28,7 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
     parser.add_argument("--debug", action="store_true", help="show the traceback of every error")
-    parser.add_argument("--quiet", action="store_true",
+    parser.add_argument("--quiet", action="store_true", dest="quiet_all",
                         help="no progress bars and no library logs (Dask...); errors only (also after a command)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for ep in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
@@ -47,6 +47,8 @@ QUIET_LOGGERS = ("", "distributed", "dask", "bokeh", "tornado", "asyncio", "py.w
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    # a command's own --quiet default must not undo `radartracker --quiet COMMAND`
+    args.quiet = args.quiet_all or bool(getattr(args, "quiet", False))
     logging.basicConfig(
         level=logging.ERROR if args.quiet else logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",

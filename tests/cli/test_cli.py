@@ -102,3 +102,10 @@ def test_quiet_silences_progress_and_library_logs_then_restores(monkeypatch):
     assert main(["--quiet", "estimators"]) == 0
     assert seen == {"env": ("1", "error"), "dask": logging.ERROR}
     assert "TQDM_DISABLE" not in os.environ
+
+
+def test_quiet_before_the_command_reaches_commands_with_their_own_quiet(monkeypatch):
+    seen = []
+    monkeypatch.setattr("radartracker.cli._cmd_estimators", lambda args: seen.append(args.quiet) or 0)
+    assert main(["--quiet", "estimators"]) == 0 and main(["estimators"]) == 0
+    assert seen == [True, False]
