@@ -52,8 +52,9 @@ def test_records_lacking_items_are_counted_not_fatal(recordings, records):
     """Any subset of the optional items: records with what we need are used, the others counted."""
     _, sites = recordings
     blocks, expect = [], Counter()
-    for cat, data in records:
-        items = CAT048_ITEMS if cat == 48 else CAT021_ITEMS
+    for i, (cat, data) in enumerate(records):
+        items = dict(CAT048_ITEMS if cat == 48 else CAT021_ITEMS)
+        items["140" if cat == 48 else "071"] = (3600.0 + i, "s")  # distinct records (equal ones are used once)
         keep = data.draw(st.sets(st.sampled_from(sorted(items)), min_size=1))
         spec = CAT048 if cat == 48 else CAT021
         blocks += list(datablocks(spec, [spec.cv_record.create({k: items[k] for k in sorted(keep)})]))
