@@ -122,6 +122,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     if args.out.exists():
         raise ConfigurationError(f"{args.out} already exists; choose a new folder")
+    check_number("--seed", args.seed, lo=0, integer=True)
     if args.duration is not None:  # a week of traffic at most: beyond that, a typo, not a scenario
         check_number("--duration", args.duration, lo=0.0, lo_open=True, hi=7 * 86400.0)
     bounds = {"aircraft": (1, None), "radars": (1, None), "adsb_share": (0.0, 1.0), "primary_share": (0.0, 1.0)}

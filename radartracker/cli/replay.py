@@ -126,6 +126,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from radartracker.pipeline.writer import prepare, write_outputs
     from radartracker.simulation.scenarios import build_scenario
 
+    check_number("--seed", args.seed, lo=0, integer=True)
     with tempfile.TemporaryDirectory() as tmp:
         root = args.out or Path(tmp)
         out = prepare(root / "replay")

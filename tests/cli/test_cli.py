@@ -66,6 +66,7 @@ def test_replay_without_truth_labels_uses_the_track_manager(tmp_path):
 @pytest.mark.parametrize("argv, option", [
     (["--duration", "inf"], "--duration"), (["--duration", "nan"], "--duration"), (["--duration", "-5"], "--duration"),
     (["--scenario", "traffic", "--adsb-share", "2"], "--adsb-share"), (["--scenario", "traffic", "--radars", "0"], "--radars"),
+    (["--seed", "-1"], "--seed"),
 ])
 def test_simulate_numeric_options_are_validated(tmp_path, capsys, argv, option):
     assert main(["simulate", str(tmp_path / "s"), *argv]) == 2
@@ -109,3 +110,7 @@ def test_quiet_before_the_command_reaches_commands_with_their_own_quiet(monkeypa
     monkeypatch.setattr("radartracker.cli._cmd_estimators", lambda args: seen.append(args.quiet) or 0)
     assert main(["--quiet", "estimators"]) == 0 and main(["estimators"]) == 0
     assert seen == [True, False]
+
+
+def test_demo_refuses_a_negative_seed(capsys):
+    assert main(["demo", "--seed", "-3"]) == 2 and "--seed" in capsys.readouterr().err
