@@ -44,7 +44,6 @@ import numpy as np
 
 from radartracker.estimation.base import Estimator, PlaneMeasurement
 
-KINDS = ("plots", "adsb", "positions")
 ACCEPT, REJECT, REINIT = "accept", "reject", "reinit"
 
 
@@ -142,13 +141,14 @@ class AdsbPlausibility:
 
     A report failing the speed test is counted and not used, and the reference stays the last
     accepted report — so a single wild report costs only itself. If ``reinit_after`` reports in a
-    row fail, the reference was the wild one: the newest report becomes the reference and is used.
+    row fail but agree with each other (:func:`extend_run`), the reference was the wild one: the
+    newest report becomes the reference and is used.
     """
 
     def __init__(self, config: ScreeningConfig) -> None:
         self.config = config
         self._last: dict[str, tuple[float, np.ndarray, float]] = {}
-        self._fails: dict[str, int] = {}
+        self._fails: dict[str, Rejected] = {}
 
     def check(self, icao24: str, time: float, xy: np.ndarray, sd: float, nacp: int) -> str | None:
         """``None`` if the report may be used, else the counter it is rejected under."""
@@ -156,9 +156,9 @@ class AdsbPlausibility:
             return "adsb_low_nacp"
         last = self._last.get(icao24)
         if last is not None and not speed_consistent(self.config, time - last[0], last[1], last[2], xy, sd):
-            fails = self._fails.get(icao24, 0) + 1
-            if fails < self.config.reinit_after:
-                self._fails[icao24] = fails
+            run = extend_run(self.config, self._fails.get(icao24, []), time, xy, np.eye(2) * sd * sd)
+            if len(run) < self.config.reinit_after:
+                self._fails[icao24] = run
                 return "adsb_implausible_speed"
         self._fails.pop(icao24, None)
         self._last[icao24] = (time, np.asarray(xy, float), sd)
@@ -169,12 +169,18 @@ class AdsbPlausibility:
 
     def state_dict(self) -> dict:
         """The state as plain values (for TrackManager snapshots)."""
-        return {"last": {k: [t, [float(v) for v in xy], sd] for k, (t, xy, sd) in self._last.items()},
-                "fails": dict(self._fails)}
+        def plain(entry: tuple[float, np.ndarray, float]) -> list:
+            return [entry[0], [float(v) for v in entry[1]], entry[2]]
+
+        return {"last": {k: plain(e) for k, e in self._last.items()},
+                "fails": {k: [plain(e) for e in run] for k, run in self._fails.items()}}
 
     def load_state_dict(self, state: dict) -> None:
-        self._last = {k: (float(t), np.array(xy, float), float(sd)) for k, (t, xy, sd) in state["last"].items()}
-        self._fails = {k: int(v) for k, v in state["fails"].items()}
+        def typed(entry: list) -> tuple[float, np.ndarray, float]:
+            return float(entry[0]), np.array(entry[1], float), float(entry[2])
+
+        self._last = {k: typed(v) for k, v in state["last"].items()}
+        self._fails = {k: [typed(e) for e in run] for k, run in state["fails"].items()}
 
 
 class LabelledScreen:

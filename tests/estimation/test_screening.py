@@ -249,3 +249,17 @@ def test_unbiased_position_screened(demo):
     assert good.accounting()["positions_used"] == 1
     for rid in data.truth_biases:
         np.testing.assert_array_equal(bad.estimator.bias(rid).bias, ref.estimator.bias(rid).bias)
+
+
+def test_adsb_plausibility_state_round_trip():
+    cfg = ScreeningConfig()
+    a, b = AdsbPlausibility(cfg), AdsbPlausibility(cfg)
+    for t in range(5):
+        a.check("abc123", float(t), np.array([250.0 * t, 0.0]), 40.0, 8)
+    a.check("abc123", 5.0, np.array([0.0, 111e3]), 40.0, 8)  # a failure in progress is state too
+    b.load_state_dict(a.state_dict())
+    probe = [(6.0, np.array([0.0, 111e3 + 250.0])), (7.0, np.array([0.0, 111e3 + 500.0])),
+             (8.0, np.array([2000.0, 0.0]))]
+    got_a = [a.check("abc123", t, xy, 40.0, 8) for t, xy in probe]
+    assert got_a == [b.check("abc123", t, xy, 40.0, 8) for t, xy in probe]
+    assert got_a == ["adsb_implausible_speed", None, "adsb_implausible_speed"]  # 3 agreeing failures move it
