@@ -157,3 +157,17 @@ def test_a_plugin_raising_during_a_run_is_named(tiny):
     mgr = TrackManager(data.radars, data.reference, ManagerConfig(), filter_factory=BrokenFilter)
     with pytest.raises(PluginError, match="motion model 'cv' failed on track .* KeyError"):
         mgr.process_many(items)
+
+
+def test_manager_filters_share_the_estimators_process_noise_by_default(tiny):
+    """ManagerConfig.motion None: the model's defaults, with q from estimator_config unless set."""
+    data, items = tiny
+    for model, options, q in (("cv", {}, 5.0), ("imm", {}, 5.0), ("cv", {"q": "2"}, 2.0)):
+        config = ManagerConfig(motion_model=model, motion_options=options)
+        mgr = TrackManager(data.radars, data.reference, config)
+        mgr.process_many(items[:200])
+        assert mgr.tracks and all(t.filter.config.q == q for t in mgr.tracks.values())
+    assert ManagerConfig().estimator_config.motion.q == 5.0
+    mgr = TrackManager(data.radars, data.reference, ManagerConfig(motion_model="adaptive"))  # no q setting
+    mgr.process_many(items[:200])
+    assert mgr.tracks and all(t.filter.config == AdaptiveConfig() for t in mgr.tracks.values())

@@ -62,7 +62,8 @@ from radartracker.estimation.base import Estimator, EstimatorConfig, PlaneMeasur
 from radartracker.tracking.prepared import PreparedPlot, prepare
 from radartracker.tracking.filters import MotionConfig, TrackFilter
 from radartracker.tracking.snapshot import load_manager, save_manager
-from radartracker.registry import available_estimators, make_estimator, make_filter_factory
+from radartracker.registry import (available_estimators, load_motion_model, make_estimator, make_filter_factory,
+                                   option_fields)
 
 log = logging.getLogger(__name__)
 EVENT_KINDS = ("created", "confirmed", "updated", "coasting", "deleted")
@@ -85,7 +86,8 @@ class ManagerConfig:
     # aircraft turn: the estimator's CV model needs process noise, or it explains a turn by biases
     estimator_config: EstimatorConfig = attrs.field(factory=lambda: EstimatorConfig(motion=MotionModel(5.0)))
     motion_model: str = "cv"
-    motion: MotionConfig | None = None  # the motion model's settings; None: its config_class() defaults
+    # the motion model's settings; None: its config_class() defaults, with q from estimator_config (motion_q)
+    motion: MotionConfig | None = None
     motion_options: dict[str, str] = attrs.field(factory=dict)  # KEY=VALUE settings applied on top of ``motion``
     estimator_options: dict[str, str] = attrs.field(factory=dict)  # KEY=VALUE options of the estimator plugin
     gate: float = 13.82  # χ²₂ 99.9 % quantile
@@ -101,6 +103,16 @@ class ManagerConfig:
     new_track_exclusion: float = 27.63  # χ²₂ 1 − 10⁻⁶: no tentative track this close to a confirmed one
     screening: ScreeningConfig = attrs.field(factory=ScreeningConfig)
     clock: ClockConfig = attrs.field(factory=ClockConfig)
+
+
+def motion_q(cfg: ManagerConfig) -> dict[str, str]:
+    """``cfg.motion_options``, plus ``q`` = the estimator's process noise ``estimator_config.motion.q``
+    when the motion model has a ``q`` setting that neither ``motion`` nor the options set: one aircraft
+    process-noise density for the estimator and the track filters unless told otherwise."""
+    options = dict(cfg.motion_options)
+    if cfg.motion is None and "q" not in options and "q" in option_fields(load_motion_model(cfg.motion_model).config_class):
+        options["q"] = repr(cfg.estimator_config.motion.q)
+    return options
 
 
 @attrs.frozen
@@ -160,7 +172,7 @@ class TrackManager:
         self.estimator = (make_estimator(cfg.estimator, cfg.estimator_config, list(self.radars), cfg.estimator_options)
                           if estimator is None else make_estimator(estimator, None, list(self.radars)))
         # the filter factory: factory() a new track filter, factory(config) one with a snapshot's config
-        self._filter_cls = (make_filter_factory(cfg.motion_model, cfg.motion_options, cfg.motion)
+        self._filter_cls = (make_filter_factory(cfg.motion_model, motion_q(cfg), cfg.motion)
                             if filter_factory is None else make_filter_factory(filter_factory))
         self.coupling = CouplingGraph(list(self.radars))
         self.tracks: dict[int, ManagedTrack] = {}
