@@ -96,13 +96,13 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
         weights = (StationWeights.identity() if args.weights in (None, "identity")
                    else read_weights(Path(args.weights)))
     frame = TriangulationFrame(io.read_stations(args.stations), _reference(args.reference))
-    bearings, malformed = io.read_bearings(args.bearings, skip_bad=args.skip_bad)
+    bearings, skipped = io.read_bearings(args.bearings, skip_bad=args.skip_bad)
     unknown = sorted({b.station for b in bearings} - set(frame.stations))
     if unknown and not args.skip_bad:
         raise ConfigurationError(f"{args.bearings.name}, field 'station': station id(s) {unknown} are not in "
                        f"{args.stations.name} (use --skip-bad to skip and count them)")
     known = [b for b in bearings if b.station in frame.stations]
-    skipped = {"malformed": malformed, "unknown_station": len(bearings) - len(known)}
+    skipped["unknown_station"] = len(bearings) - len(known)
     bearings = known
     by_target = defaultdict(list)
     for b in bearings:

@@ -123,13 +123,16 @@ def read_stations(path: str | Path) -> list[DirectionFinder]:
     return stations
 
 
-def read_bearings(path: str | Path, skip_bad: bool = False) -> tuple[list[Bearing], int]:
-    """Bearings from a bearings CSV (degrees) and the number of malformed rows skipped."""
+def read_bearings(path: str | Path, skip_bad: bool = False) -> tuple[list[Bearing], dict[str, int]]:
+    """Bearings from a bearings CSV (degrees) and the rows skipped by reason: ``malformed`` (with
+    ``skip_bad``) and ``duplicate`` (an exact repeat of an earlier row, used once)."""
     def make(row):
         return Bearing(_number(row, "time_s"), row["station"],
                        math.radians(_number(row, "azimuth_deg")), math.radians(_number(row, "elevation_deg")),
                        row.get("target") or "1")
-    return _read(Path(path), BEARING_COLUMNS, make, skip_bad)
+    rows, malformed = _read(Path(path), BEARING_COLUMNS, make, skip_bad)
+    unique = list(dict.fromkeys(rows))
+    return unique, {"malformed": malformed, "duplicate": len(rows) - len(unique)}
 
 
 def _geo_cols(frame: TriangulationFrame, r: np.ndarray, cov: np.ndarray) -> list:

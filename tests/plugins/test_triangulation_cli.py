@@ -129,7 +129,7 @@ def test_skip_bad_counts_malformed_and_unknown_station_rows(tmp_path):
     assert main(args + ["--out", str(tmp_path / "strict")]) == 2
     assert main(args + ["--out", str(tmp_path / "out"), "--skip-bad"]) == 0
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
-    assert summary["skipped_rows"] == {"malformed": 2, "unknown_station": 1}
+    assert summary["skipped_rows"] == {"malformed": 2, "duplicate": 0, "unknown_station": 1}
     assert summary["solved"] == ["A"]
 
 

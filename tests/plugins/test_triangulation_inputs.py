@@ -67,3 +67,13 @@ def test_a_fine_but_bounded_step_works(files, tmp_path):
     n = len((tmp_path / "out" / "tracks.csv").read_text().splitlines()) - 1
     t = [b.time for b in io.read_bearings(bearings)[0]]
     assert n == math.floor((max(t) - min(t)) / 0.01 + 1e-6) + 1
+
+
+def test_duplicate_bearing_rows_are_used_once(files, tmp_path):
+    bearings, stations = files
+    clean, counts = io.read_bearings(bearings)
+    assert counts == {"malformed": 0, "duplicate": 0}
+    lines = bearings.read_text().splitlines(keepends=True)
+    bearings.write_text("".join(lines[:3] + [lines[2]] * 2 + lines[3:]))
+    again, counts = io.read_bearings(bearings)
+    assert again == clean and counts == {"malformed": 0, "duplicate": 2}
