@@ -35,6 +35,7 @@ from pathlib import Path
 import attrs
 import numpy as np
 
+from radartracker.errors import FormatError
 from radartracker.io.recording import ADS_FILE, COLUMNS, MULTI_RADAR, PLOTS_FILE, TRACKS_FILE, format_new4, format_plt
 
 KIND_ADS, KIND_MULTI, KIND_MONO, KIND_PLOT = 0, 1, 2, 3
@@ -93,19 +94,22 @@ def _lines(path: Path) -> Iterator[tuple[int, bytes, bool]]:
 
 
 def _header(path: Path) -> dict[str, int]:
-    """Column indices of the required columns; a clear error for a missing or bad header."""
+    """Column indices of the required columns; a FormatError for a missing, repeated or bad header."""
     required = COLUMNS[path.name]
     with open(path, "rb") as fh:
         first = fh.readline()
     if not first.strip():
-        raise ValueError(f"{path}: line 1: empty file or blank header; expected the columns "
-                         f"{', '.join(required)} separated by tabs")
-    names = first.rstrip(b"\r\n").decode("utf-8-sig", "replace").split("\t")
-    index = {name.strip(): i for i, name in enumerate(names)}
+        raise FormatError(path.name, 1, None, "empty file or blank header; expected the columns "
+                          f"{', '.join(required)} separated by tabs")
+    names = [n.strip() for n in first.rstrip(b"\r\n").decode("utf-8-sig", "replace").split("\t")]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise FormatError(path.name, 1, None, f"column(s) {', '.join(twice)} appear more than once")
+    index = {name: i for i, name in enumerate(names)}
     missing = [c for c in required if c not in index]
     if missing:
-        raise ValueError(f"{path}: line 1: header lacks column(s) {', '.join(missing)} "
-                         f"(found: {', '.join(names)})")
+        raise FormatError(path.name, 1, None, f"header lacks column(s) {', '.join(missing)} "
+                          f"(found: {', '.join(names)})")
     return index
 
 

@@ -63,3 +63,29 @@ def test_tricky_fields(files, name, data):
     path.write_text("".join(lines))
     args = (path, False) if name == "bearings.csv" else (path,)
     works_or_refuses(READERS[name], *args)
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory, tiny_data):
+    from radartracker.io.recording import write_scenario_recording
+
+    folder = tmp_path_factory.mktemp("fuzz_rec") / "rec"
+    write_scenario_recording(folder, tiny_data)
+    return folder
+
+
+@given(name=st.sampled_from(["plots_ads.txt", "tracks.txt", "plots.txt"]), edits=st.data())
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+def test_damaged_recording_converts_or_refuses(recording, name, edits):
+    """The seed's conversion program on a recording with one damaged file: every line accounted."""
+    import shutil
+
+    from radartracker.io.convert import ConvertOptions, convert
+
+    work = recording.parent / "work"
+    shutil.rmtree(work, ignore_errors=True)
+    shutil.copytree(recording, work / "rec")
+    buf = (work / "rec" / name).read_bytes()
+    (work / "rec" / name).write_bytes(apply(buf, edits.draw(mutations(len(buf)))))
+    opts = ConvertOptions(AZN_TRACKS_MIN_MEASUR=1, TRACKS_MIN_MEASUR=1)
+    works_or_refuses(convert, work / "rec", work / "new", opts)

@@ -163,10 +163,10 @@ def test_malformed_and_truncated_lines_are_counted_with_line_numbers(tmp_path):
 def test_empty_or_headerless_file_is_a_clear_error_and_writes_nothing(tmp_path):
     write_recording(tmp_path / "rec", _records(3))
     (tmp_path / "rec" / "tracks.txt").write_bytes(b"")
-    with pytest.raises(ValueError, match=r"tracks\.txt: line 1: empty file"):
+    with pytest.raises(ValueError, match=r"tracks\.txt line 1: empty file"):
         convert(tmp_path / "rec", tmp_path / "new", OPTS)
     (tmp_path / "rec" / "tracks.txt").write_text("time\tradar\n1\t2\n")
-    with pytest.raises(ValueError, match=r"tracks\.txt: line 1: header lacks column\(s\) sensor, global"):
+    with pytest.raises(ValueError, match=r"tracks\.txt line 1: header lacks column\(s\) sensor, global"):
         convert(tmp_path / "rec", tmp_path / "new", OPTS)
     (tmp_path / "rec" / "tracks.txt").unlink()
     with pytest.raises(FileNotFoundError, match="tracks.txt"):
