@@ -263,3 +263,30 @@ def test_adsb_plausibility_state_round_trip():
     got_a = [a.check("abc123", t, xy, 40.0, 8) for t, xy in probe]
     assert got_a == [b.check("abc123", t, xy, 40.0, 8) for t, xy in probe]
     assert got_a == ["adsb_implausible_speed", None, "adsb_implausible_speed"]  # 3 agreeing failures move it
+
+
+def test_snapshot_mid_rejection_run_continues_exactly(demo, tmp_path):
+    """A snapshot taken while a track holds a run of rejected measurements (and the ADS-B check its
+    references) restores them: the continued run equals the uninterrupted one."""
+    data, faulty, _ = demo
+    code = _icao(2)
+    first = next(i for i, x in enumerate(faulty) if isinstance(x, Plot) and x.mode_s == code)
+    donor = next(x for x in faulty[first:] if isinstance(x, Plot) and x.mode_s not in (code, None)
+                 and x.radar == faulty[first].radar)
+    items = faulty[:first] + [attrs.evolve(donor, time=faulty[first].time - 0.01, mode_s=code)] + faulty[first:]
+    items = [x for x in items if x.time < 240.0]
+    whole = _run(data, items)
+    mgr = TrackManager(data.radars, data.reference, ManagerConfig(estimator=ESTIMATOR))
+    k = 0
+    while not any(t.rejected for t in mgr.tracks.values()):
+        mgr.process(items[k])
+        k += 1
+    mgr.snapshot(tmp_path / "snap")
+    restored = TrackManager.restore(tmp_path / "snap")
+    assert [t.rejected[0][0] for t in restored.tracks.values() if t.rejected] == \
+        [t.rejected[0][0] for t in mgr.tracks.values() if t.rejected]
+    restored.process_many(items[k:])
+    assert restored.accounting() == whole.accounting()
+    assert restored.accounting()["tracks_reinitialised"] >= 1
+    for rid in data.truth_biases:
+        np.testing.assert_array_equal(restored.estimator.bias(rid).bias, whole.estimator.bias(rid).bias)
