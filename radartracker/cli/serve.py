@@ -37,6 +37,9 @@ def register_serve(sub: argparse._SubParsersAction) -> None:
                                                      "coupled-sparse; on resume: the checkpoint's)")
     p.add_argument("--motion-model", default=None, help="track motion model plugin (default cv; on resume: the checkpoint's)")
     p.add_argument("--period", type=float, default=4.0, help="seconds between CAT062 publications (default 4)")
+    p.add_argument("--reorder-window", type=float, default=None, metavar="S",
+                   help="seconds the tracker holds inputs to put them in time order (default: the replay's, 2); "
+                        "shorter lowers the latency, and late inputs are counted as plots_late/adsb_late")
     p.add_argument("--checkpoint-s", type=float, default=60.0, help="seconds between checkpoints (default 60)")
     p.add_argument("--queue", type=int, default=50_000, help="datagrams the queue holds before dropping (default 50000)")
     p.add_argument("--day-start", type=_day_start, default=None, metavar="DATE|SECONDS",
@@ -60,10 +63,11 @@ def _cmd_serve(args: argparse.Namespace) -> int:
                                args.sic, args.interface)
     except ValueError as exc:
         raise ConfigurationError(f"bad option: {exc}") from None
-    service = Service(config, radars, sites, estimator=args.estimator, motion_model=args.motion_model)
-    stop = threading.Event()
+    stop = threading.Event()  # a signal during the start still gets a clean stop
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())
+    manager = {} if args.reorder_window is None else {"reorder_window_s": args.reorder_window}
+    service = Service(config, radars, sites, estimator=args.estimator, motion_model=args.motion_model, manager=manager)
     print(json.dumps({"serving": [str(e) for e in config.listen], "publish": str(config.publish),
                       "estimator": service.manager.config.estimator, "resumed_from": service.resumed_from}),
           file=sys.stderr, flush=True)

@@ -39,16 +39,19 @@ from radartracker.tracking.manager import TrackEvent, TrackManager, default_esti
 log = logging.getLogger(__name__)
 
 
-def build_manager(radars: list[Radar], estimator: str | None = None, motion_model: str | None = None) -> TrackManager:
+def build_manager(radars: list[Radar], estimator: str | None = None, motion_model: str | None = None,
+                  manager: dict | None = None) -> TrackManager:
     """A TrackManager set up as ``radartracker replay --association manager`` sets up its own
     (:func:`radartracker.pipeline.run.run`): same settings, estimator and motion-model factory, so the
-    service's tracks are the replay's; the system plane is centred on the radars' mean position."""
+    service's tracks are the replay's; the system plane is centred on the radars' mean position.
+    ``manager``: overrides of :class:`ManagerConfig` settings, as ``RunConfig.manager``."""
     from radartracker.pipeline.config import RunConfig, resolve
     from radartracker.pipeline.run import motion_factory
 
     name = estimator or default_estimator()
     # with the association named, resolve() reads nothing of the scenario
-    cfg = resolve(RunConfig(association="manager", estimator=name, motion_model=motion_model), None, name)
+    cfg = resolve(RunConfig(association="manager", estimator=name, motion_model=motion_model, manager=manager or {}),
+                  None, name)
     mcfg = cfg.manager_settings()
     est = make_estimator(name, cfg.estimator_settings(), [r.id for r in radars], cfg.estimator_options)
     ref = (float(np.mean([r.lat for r in radars])), float(np.mean([r.lon for r in radars])))
@@ -76,7 +79,7 @@ class Service:
     """A running surveillance service (see the module notes); :meth:`run` until ``stop`` is set."""
 
     def __init__(self, config: ServiceConfig, radars: list[Radar], sites: dict[tuple[int, int], str], *,
-                 estimator: str | None = None, motion_model: str | None = None) -> None:
+                 estimator: str | None = None, motion_model: str | None = None, manager: dict | None = None) -> None:
         self.config = config
         config.state_dir.mkdir(parents=True, exist_ok=True)
         self.base: Counter[str] = Counter()  # counters carried over from the checkpoint resumed
@@ -85,11 +88,11 @@ class Service:
         if found:
             self.checkpoint_seq, folder = found[-1]
             self.manager, state = read_checkpoint(folder)
-            self._check_resume(folder, radars, estimator, motion_model)
+            self._check_resume(folder, radars, estimator, motion_model, manager or {})
             self.base.update(state["counts"])
             self.resumed_from = folder.name
         else:
-            self.manager = build_manager(radars, estimator, motion_model)
+            self.manager = build_manager(radars, estimator, motion_model, manager)
         self.queue: queue.Queue = queue.Queue(config.queue_size)
         clock = ReceiveClock() if config.day_start is None else DayClock(config.day_start)
         self.decoder = Decoder(sites, clock)
@@ -112,8 +115,13 @@ class Service:
 
             self.http = serve_http(self, *config.http)
 
-    def _check_resume(self, folder: Path, radars: list[Radar], estimator: str | None, motion_model: str | None) -> None:
+    def _check_resume(self, folder: Path, radars: list[Radar], estimator: str | None, motion_model: str | None,
+                      manager: dict) -> None:
         mc = self.manager.config
+        differ = sorted(k for k, v in manager.items() if getattr(mc, k, None) != v)
+        if differ:
+            raise ConfigurationError(f"{folder}: the checkpoint's tracker settings differ in {', '.join(differ)}; "
+                                     "omit them to resume, or use a new state folder")
         if {r.id: r for r in radars} != self.manager.radars:
             raise ConfigurationError(f"{folder}: the checkpoint's radars differ from --radars; "
                                      "use the same radars file or a new state folder")

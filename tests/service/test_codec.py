@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from radartracker.io.asterix import (CAT021, CAT048, CAT062, cat021_record, cat048_record, cat062_record, datablocks,
+from radartracker.io.asterix import (CAT048, CAT062, cat021_record, cat048_record, cat062_record, datablocks,
                                      decode_block, decode_cat021, decode_cat048)
 from radartracker.service.codec import blocks, cat021_bytes, cat048_bytes, cat062_bytes, decode_block_fast
 

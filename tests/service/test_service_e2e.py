@@ -194,7 +194,7 @@ def test_serve_command_stops_on_sigterm_and_matches_the_replay(recording, tmp_pa
     try:
         def health() -> dict | None:
             try:
-                with urllib.request.urlopen(f"http://127.0.0.1:{http}/health", timeout=2) as r:
+                with urllib.request.urlopen(f"http://127.0.0.1:{http}/health", timeout=10) as r:
                     return json.loads(r.read())
             except OSError:
                 assert proc.poll() is None, proc.stderr.read()
@@ -202,7 +202,8 @@ def test_serve_command_stops_on_sigterm_and_matches_the_replay(recording, tmp_pa
 
         wait_for(lambda: health() is not None, "the service to start")
         sent = send(recording, port, capsys)
-        wait_for(lambda: health()["datagrams"].get("decoded", 0) >= sent["datagrams"], "the service to read everything")
+        wait_for(lambda: (health() or {"datagrams": {}})["datagrams"].get("decoded", 0) >= sent["datagrams"],
+                 "the service to read everything")
         with urllib.request.urlopen(f"http://127.0.0.1:{http}/metrics", timeout=5) as r:
             metrics = r.read().decode()
         assert f'radartracker_datagrams_total{{outcome="received"}} {float(sent["datagrams"])}' in metrics

@@ -3,11 +3,9 @@ checkpoints and resume, endpoints; and ``asterix-import --day-start``."""
 
 from __future__ import annotations
 
-import json
 import math
 import queue
 import socket
-import threading
 import time
 
 import pytest
