@@ -14,7 +14,7 @@ from pathlib import Path
 import attrs
 
 from radartracker.errors import ConfigurationError
-from radartracker.pipeline.config import ASSOCIATIONS, DEFAULT_Q, RunConfig, check_number
+from radartracker.pipeline.config import ARCHITECTURES, ASSOCIATIONS, DEFAULT_Q, RunConfig, check_number
 
 
 def add_run_options(p: argparse.ArgumentParser, *, estimator_options: bool = True) -> None:
@@ -26,6 +26,9 @@ def add_run_options(p: argparse.ArgumentParser, *, estimator_options: bool = Tru
                    help="labels: by truth label / Mode S address (evaluation); manager: the TrackManager; "
                         "auto (default): labels when every plot carries one")
     p.add_argument("--manager", action="store_true", help="same as --association manager")
+    p.add_argument("--architecture", choices=ARCHITECTURES, default=None,
+                   help="central (default): every plot to one tracker and estimator; distributed: one tracker "
+                        "per radar and a fusion centre over their tracks (seed 004, docs/fusion.md)")
     p.add_argument("--motion-model", default=None,
                    help="track filter plugin for --association manager (cv, imm, adaptive, fading; "
                         "default: ManagerConfig's); refused on the labelled path, which has no track filters")
@@ -55,6 +58,10 @@ def run_config(args: argparse.Namespace, base: RunConfig | None = None) -> RunCo
         raise ConfigurationError(f"--manager contradicts --association {args.association}")
     if association is not None:
         changes["association"] = association
+    if args.architecture is not None:
+        changes["architecture"] = args.architecture
+        if args.architecture == "central":
+            changes["fusion"] = {}
     if args.motion_model is not None:
         changes["motion_model"] = args.motion_model
     if args.motion_option:

@@ -22,6 +22,7 @@ import attrs
 from radartracker.errors import ConfigurationError
 from radartracker.estimation.base import EstimatorConfig
 from radartracker.estimation.screening import ScreeningConfig
+from radartracker.fusion.center import FusionConfig
 from radartracker.io.tables import ScenarioData
 from radartracker.tracking.admission import ClockConfig
 from radartracker.tracking.manager import ManagerConfig
@@ -30,6 +31,7 @@ CONFIG_FORMAT = "radartracker-run-config"
 CONFIG_VERSION = 1
 DEFAULT_Q = 5.0  # m²/s³: real aircraft turn; with the seed's q = 0 a manoeuvre is explained away as bias
 ASSOCIATIONS = ("auto", "labels", "manager")
+ARCHITECTURES = ("central", "distributed")
 
 
 def check_number(option: str, value: Any, *, lo: float | None = None, lo_open: bool = False,
@@ -61,6 +63,11 @@ def _q(inst: Any, attr: attrs.Attribute, value: float) -> None:
 def _association(inst: Any, attr: attrs.Attribute, value: str) -> None:
     if value not in ASSOCIATIONS:
         raise ConfigurationError(f"association: {value!r} is not one of {', '.join(ASSOCIATIONS)}")
+
+
+def _architecture(inst: Any, attr: attrs.Attribute, value: str) -> None:
+    if value not in ARCHITECTURES:
+        raise ConfigurationError(f"--architecture: {value!r} is not one of {', '.join(ARCHITECTURES)}")
 
 
 def _optional_positive(option: str):
@@ -178,6 +185,8 @@ class RunConfig:
     screening: dict[str, Any] = attrs.field(factory=dict)
     clock: dict[str, Any] = attrs.field(factory=dict)
     labels: LabelsConfig | None = attrs.field(default=None, converter=lambda v: _labels(v))
+    architecture: str = attrs.field(default="central", validator=_architecture)
+    fusion: dict[str, float] = attrs.field(factory=dict)
 
     def __attrs_post_init__(self) -> None:
         if self.default_altitude_m is not None:
@@ -193,6 +202,17 @@ class RunConfig:
 
         values = _typed_overrides("estimator_config", ESTIMATOR_SETTINGS, self.estimator_config)
         return _evolved("estimator_config", EstimatorConfig(motion=MotionModel(self.q)), values)
+
+    def fusion_settings(self) -> FusionConfig:
+        """The fusion centre of the distributed architecture (``fusion`` overrides of :class:`FusionConfig`)."""
+        known = {f.name for f in attrs.fields(FusionConfig)}
+        if unknown := sorted(set(self.fusion) - known):
+            raise ConfigurationError(f"fusion: unknown setting(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
+        values = {k: check_number(f"fusion.{k}", v) for k, v in self.fusion.items()}
+        try:
+            return FusionConfig(**values)
+        except ValueError as exc:
+            raise ConfigurationError(f"fusion: {exc}") from None
 
     def screening_settings(self) -> ScreeningConfig:
         """The innovation screening of this run (both associations)."""
@@ -231,6 +251,13 @@ def resolve(config: RunConfig, data: ScenarioData, estimator_name: str) -> RunCo
     labelled path: there the estimator itself carries the aircraft motion, a CV model of density q).
     """
     association = config.association
+    if config.architecture == "distributed":  # one TrackManager per radar: never by labels
+        if association == "labels":
+            raise ConfigurationError("--architecture distributed tracks each radar with the TrackManager; "
+                                     "it cannot associate by truth labels")
+        association = "manager"
+    elif config.fusion:
+        raise ConfigurationError(f"fusion settings {sorted(config.fusion)} need --architecture distributed")
     if association == "auto":
         association = "labels" if data.plots.has_truth_labels else "manager"
     if association == "labels":
@@ -258,7 +285,8 @@ def resolve(config: RunConfig, data: ScenarioData, estimator_name: str) -> RunCo
         estimator_config=_merged(ESTIMATOR_SETTINGS, _typed_overrides("estimator_config", ESTIMATOR_SETTINGS,
                                                                       config.estimator_config)),
         screening=_merged(SCREENING_SETTINGS, _typed_overrides("screening", SCREENING_SETTINGS, config.screening)),
-        clock=_merged(CLOCK_SETTINGS, _typed_overrides("clock", CLOCK_SETTINGS, config.clock)))
+        clock=_merged(CLOCK_SETTINGS, _typed_overrides("clock", CLOCK_SETTINGS, config.clock)),
+        fusion=attrs.asdict(config.fusion_settings()) if config.architecture == "distributed" else {})
 
 
 def read_config(path: Path | str) -> RunConfig:

@@ -35,6 +35,7 @@ from radartracker.estimation.coupling import CouplingGraph
 from radartracker.estimation.kalman import SingularInnovation
 from radartracker.estimation.measurement import convert_adsb, convert_plots, fill_altitudes, merge, plot_keys
 from radartracker.estimation.screening import REINIT, REJECT, LabelledScreen
+from radartracker.fusion.distributed import run_distributed
 from radartracker.geometry.plane import SystemPlane
 from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.config import RunConfig, resolve
@@ -74,7 +75,9 @@ def run(data: ScenarioData, config: RunConfig | None = None, *, estimator: Estim
                "motion_model": attrs.asdict(factory.config) if factory is not None else None}
     rec = Recorder(cfg.bias_log_interval_s)
     started = _time.perf_counter()
-    if cfg.association == "labels":
+    if cfg.architecture == "distributed":
+        counts, coupling = run_distributed(data, cfg, est, factory, rec, progress, cfg.fusion_settings())
+    elif cfg.association == "labels":
         counts, coupling = _by_labels(data, cfg, est, rec, progress)
     else:
         counts, coupling = _by_manager(data, cfg, est, factory, rec, progress)

@@ -1,0 +1,1 @@
+"""Distributed surveillance (seed 004): one tracker per radar, local tracks fused into system tracks."""
