@@ -9,6 +9,7 @@ per ``bias_log_interval_s``.
 from __future__ import annotations
 
 import math
+from array import array
 
 import attrs
 import numpy as np
@@ -62,21 +63,35 @@ class BiasLog:
     cov: np.ndarray
 
 
+_NAN16 = (math.nan,) * 16
+
+
 class Recorder:
-    """Collects a run's events, bias estimates and NIS values (see the module docstring)."""
+    """Collects a run's events, bias estimates and NIS values (see the module docstring).
+
+    Numbers go to flat ``array('d')`` buffers (8 bytes each, no object per event): a national-scale run
+    records millions of events.
+    """
 
     def __init__(self, bias_log_interval_s: float = 1.0) -> None:
         self.bias_log_interval_s = bias_log_interval_s
-        self._ev: list[tuple] = []
+        self._num = {k: array("d") for k in ("time", "state", "cov", "altitude_m")}
+        self._track = array("q")
+        self._obj: dict[str, list] = {k: [] for k in ("kind", "status", "mode_s", "mode_3a", "target")}
         self._bias: list[tuple] = []
         self._bias_last: dict[str, float] = {}
         self.nis: list[float] = []
 
     def event(self, time: float, track: int, kind: str, status: str, state: np.ndarray, cov: np.ndarray | None,
               altitude_m: float | None, mode_s: str | None, mode_3a: str | None, target: object = None) -> None:
-        self._ev.append((float(time), int(track), kind, status, np.asarray(state, float),
-                         np.full((4, 4), np.nan) if cov is None else np.asarray(cov, float),
-                         math.nan if altitude_m is None else float(altitude_m), mode_s, mode_3a, target))
+        n = self._num
+        n["time"].append(float(time))
+        n["state"].extend(np.asarray(state, float).ravel()[:4])
+        n["cov"].extend(_NAN16 if cov is None else np.asarray(cov, float).ravel())
+        n["altitude_m"].append(math.nan if altitude_m is None else float(altitude_m))
+        self._track.append(int(track))
+        for k, v in (("kind", kind), ("status", status), ("mode_s", mode_s), ("mode_3a", mode_3a), ("target", target)):
+            self._obj[k].append(v)
 
     def bias(self, time: float, state: BiasState) -> None:
         """Record ``state`` unless this radar was recorded less than the interval before ``time``."""
@@ -85,11 +100,11 @@ class Recorder:
             self._bias_last[state.radar] = time
 
     def events(self) -> Events:
-        cols = list(zip(*self._ev)) if self._ev else [[]] * 10
-        return Events(time=np.array(cols[0], float), track=np.array(cols[1], int), kind=_obj(list(cols[2])),
-                      status=_obj(list(cols[3])), state=np.array(cols[4], float).reshape(-1, 4),
-                      cov=np.array(cols[5], float).reshape(-1, 4, 4), altitude_m=np.array(cols[6], float),
-                      mode_s=_obj(list(cols[7])), mode_3a=_obj(list(cols[8])), target=_obj(list(cols[9])))
+        n, o = self._num, self._obj
+        return Events(time=np.array(n["time"], float), track=np.array(self._track, int), kind=_obj(o["kind"]),
+                      status=_obj(o["status"]), state=np.array(n["state"], float).reshape(-1, 4),
+                      cov=np.array(n["cov"], float).reshape(-1, 4, 4), altitude_m=np.array(n["altitude_m"], float),
+                      mode_s=_obj(o["mode_s"]), mode_3a=_obj(o["mode_3a"]), target=_obj(o["target"]))
 
     def biases(self) -> BiasLog:
         cols = list(zip(*self._bias)) if self._bias else [[]] * 4
