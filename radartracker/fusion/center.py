@@ -210,9 +210,12 @@ class FusionCentre:
                 matched = {}
         else:
             matched = {}
+        born: list[int] = []  # system tracks started in this epoch
         for j, i in enumerate(rest):
             if j in matched:
                 self._join(keys[i], ids[matched[j]])
+            elif (sid := self._newborn(keys[i], aligned[i], born)) is not None:
+                self._join(keys[i], sid)  # another radar's track of an aircraft first seen in this epoch
             else:
                 x, P, _ = aligned[i]
                 self._ids += 1
@@ -220,7 +223,29 @@ class FusionCentre:
                 self.tracks[tr.id] = tr
                 self.estimator.add_aircraft(tr.id, t, x.copy(), P + np.diag([1e4, 1e4, 1e2, 1e2]))
                 self._join(keys[i], tr.id)
+                born.append(tr.id)
                 self.on_event(t, tr, "created", self._identity(tr))
+
+    def _newborn(self, key: tuple[str, int], aligned: tuple, born: list[int]) -> int | None:
+        """The system track started earlier in this epoch that local track ``key`` joins: the one with
+        its Mode S address, else the nearest within the χ²₂ gate (its founding state and covariance);
+        never one that already holds a track of the same radar."""
+        code = self.local[key].mode_s
+        best, best_d2 = None, self.config.gate
+        for sid in born:
+            tr = self.tracks[sid]
+            if any(m[0] == key[0] for m in tr.members):
+                continue
+            codes = {self.local[m].mode_s for m in tr.members} - {None}
+            if code and code in codes:
+                return sid
+            if code and codes:
+                continue  # another aircraft's address
+            nu = aligned[0][:2] - tr.state[:2]
+            d2 = float(nu @ np.linalg.solve(aligned[1][:2, :2] + tr.cov[:2, :2], nu))
+            if d2 < best_d2:
+                best, best_d2 = sid, d2
+        return best
 
     def _join(self, key: tuple[str, int], sid: int) -> None:
         self.link[key] = sid
