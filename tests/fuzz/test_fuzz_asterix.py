@@ -71,7 +71,7 @@ def test_records_lacking_items_are_counted_not_fatal(recordings, records):
 
 
 @given(cat=st.integers(0, 255), body=st.binary(max_size=64), where=st.integers(0, 10))
-@FUZZ
+@settings(FUZZ, max_examples=100)
 def test_unknown_categories_and_editions_are_skipped(recordings, cat, body, where):
     """A block of any category with any content (another edition, another standard) in a good recording."""
     bufs, sites = recordings
