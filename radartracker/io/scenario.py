@@ -85,13 +85,13 @@ class _Rows:
                 fields = exc
             if fields is None:
                 return
+            if not fields:
+                continue  # a blank line
             line = reader.line_num
             if isinstance(fields, csv.Error) or len(fields) != n:
                 got = f"unreadable ({fields})" if isinstance(fields, csv.Error) else f"{len(fields)} fields"
                 self.reject(FormatError(self.name, line, None, f"{got}, header has {n}", "wrong_field_count"))
                 continue
-            if not any(f.strip() for f in fields):
-                continue  # a blank line
             yield line, dict(zip(self.header, fields))
 
     def reject(self, err: FormatError) -> None:
@@ -196,7 +196,8 @@ class _Skipper:
 
 
 def _key(row: dict) -> tuple[str, ...]:
-    return tuple(v.strip() for v in row.values())
+    """An exact duplicate has the same text in every field."""
+    return tuple(row.values())
 
 
 def read_plots(path: Path, radar_ids: set[str], skip: _Skipper) -> PlotTable:
