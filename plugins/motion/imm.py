@@ -36,7 +36,7 @@ from typing import Any
 import attrs
 import numpy as np
 
-from radartracker.api import ConfigurationError, MotionConfig, TrackFilter, kernels, symmetrize
+from radartracker.api import ConfigurationError, MotionConfig, TrackFilter, kernels
 from radartracker_plugins.motion.base import check_measurement, check_time, position_update, require_started, start_state
 
 _v = attrs.validators
@@ -185,20 +185,19 @@ class IMMFilter(TrackFilter):
         Pi = self.switching(time - self.time)
         cbar = self.mu @ Pi
         padded = [self._pad(x, P) for x, P in zip(self.xs, self.Ps)]
+        X, PP = np.array([x for x, _ in padded]), np.array([P for _, P in padded])
         out = []
         for j, mode in enumerate(self.modes):
             w = Pi[:, j] * self.mu / cbar[j] if cbar[j] > 0 else np.eye(len(self.modes))[j]
-            x0 = sum(wi * x for wi, (x, _) in zip(w, padded))
-            P0 = sum(wi * (P + np.outer(x - x0, x - x0)) for wi, (x, P) in zip(w, padded))
+            x0, P0 = kernels.moment_match(w, X, PP)  # mixing, compiled
             d = mode.dim
-            out.append(mode.predict(x0[:d], symmetrize(P0[:d, :d]), time - self.time))
+            out.append(mode.predict(x0[:d], np.ascontiguousarray(P0[:d, :d]), time - self.time))
         return cbar, out
 
     @staticmethod
     def _combine(mu: np.ndarray, states) -> tuple[np.ndarray, np.ndarray]:
-        x = sum(m * s[0][:4] for m, s in zip(mu, states))
-        P = sum(m * (s[1][:4, :4] + np.outer(s[0][:4] - x, s[0][:4] - x)) for m, s in zip(mu, states))
-        return x, symmetrize(P)
+        return kernels.moment_match(np.asarray(mu, float), np.array([s[0][:4] for s in states]),
+                                    np.array([s[1][:4, :4] for s in states]))
 
     # --- TrackFilter -----------------------------------------------------------------------------
     def start(self, time: float, z: np.ndarray, R: np.ndarray) -> None:

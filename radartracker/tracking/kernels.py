@@ -11,6 +11,9 @@ The equations are those of the numpy code they replace, written out for the smal
   G = P̄ Hᵀ Λ⁻¹ (closed-form 2×2 inverse), χ̂ = χ̄ + G ν, P̂ = sym(P̄ − G H P̄), with
   NIS = νᵀΛ⁻¹ν and log N(ν; 0, Λ) from the Cholesky factor of Λ; ``ok`` is False when Λ is not
   positive definite (the caller raises).
+* :func:`moment_match` — the Gaussian mixture's mean and covariance, x = Σ wᵢ xᵢ,
+  P = sym(Σ wᵢ (Pᵢ + (xᵢ − x)(xᵢ − x)ᵀ)) (the IMM's mixing and its combined estimate), summed in the
+  order of the numpy expressions it replaces.
 * :func:`measurement_ok` — the checks of a position measurement: finite time and z, R finite,
   symmetric (``numpy.allclose`` tolerances) and positive definite.
 """
@@ -179,3 +182,21 @@ def position_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray):
     nis = w0 * w0 + w1 * w1
     loglik = -0.5 * nis - (math.log(l00) + math.log(l11)) - _LOG_2PI
     return xn, Pn, nu, S, nis, loglik, True
+
+
+@njit(cache=True)
+def moment_match(w: np.ndarray, X: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and covariance of the mixture Σ wᵢ N(Xᵢ, Pᵢ) (rows of ``X``, matrices of ``P``)."""
+    n, d = X.shape
+    x = np.zeros(d)
+    for i in range(n):
+        for a in range(d):
+            x[a] += w[i] * X[i, a]
+    out = np.zeros((d, d))
+    for i in range(n):
+        for a in range(d):
+            da = X[i, a] - x[a]
+            for b in range(d):
+                out[a, b] += w[i] * (P[i, a, b] + da * (X[i, b] - x[b]))
+    _symmetrize(out)
+    return x, out

@@ -62,3 +62,15 @@ def test_singular_innovation_and_bad_measurements_are_flagged():
     assert kernels.measurement_ok(1.0, np.zeros(2), np.array([[1.0, 0.5], [0.0, 1.0]])) == 3
     assert kernels.measurement_ok(1.0, np.zeros(2), np.array([[1.0, 2.0], [2.0, 1.0]])) == 3
     assert kernels.measurement_ok(1.0, np.zeros(2), -ok) == 3
+
+
+def test_moment_match_equals_the_numpy_sums():
+    rng = np.random.default_rng(3)
+    w = rng.dirichlet(np.ones(3))
+    X = rng.normal(size=(3, 5)) * 100
+    P = np.array([spd(rng, 5, 10.0) for _ in range(3)])
+    x, C = kernels.moment_match(w, X, P)
+    x_ref = sum(wi * xi for wi, xi in zip(w, X))
+    C_ref = sum(wi * (Pi + np.outer(xi - x_ref, xi - x_ref)) for wi, xi, Pi in zip(w, X, P))
+    np.testing.assert_allclose(x, x_ref, rtol=1e-14, atol=1e-12)
+    np.testing.assert_allclose(C, 0.5 * (C_ref + C_ref.T), rtol=1e-13, atol=1e-10)
