@@ -25,6 +25,7 @@ import subprocess
 import sys
 import threading
 import time
+import urllib.error
 import urllib.request
 from pathlib import Path
 
@@ -156,14 +157,30 @@ def test_serve_in_a_thread_matches_the_replay(recording, tmp_path, capsys):
     listener = Listener()
     listener.start()
     port = free_port()
+    http = free_port()
     cfg = ServiceConfig((parse_endpoint(f"udp://127.0.0.1:{port}"),), parse_endpoint(f"udp://127.0.0.1:{listener.port}"),
-                        tmp_path / "state", period_s=0.5, checkpoint_s=1.0, day_start=0.0)
+                        tmp_path / "state", http=("127.0.0.1", http), period_s=0.5, checkpoint_s=1.0, day_start=0.0)
     service = Service(cfg, radars, sites)
     stop, out = threading.Event(), {}
     th = threading.Thread(target=lambda: out.update(service.run(stop)), daemon=True)
     th.start()
     sent = send(recording, port, capsys)
     wait_for(lambda: service.view["datagrams"].get("decoded", 0) >= sent["datagrams"], "the service to read everything")
+    wait_for(lambda: service.tracks_json["tracks"], "a publication with tracks")
+
+    def get(path: str):
+        with urllib.request.urlopen(f"http://127.0.0.1:{http}{path}", timeout=30) as r:
+            return r.headers["Content-Type"], r.read().decode()
+
+    ctype, body = get("/tracks")
+    rows = json.loads(body)["tracks"]
+    assert ctype == "application/json" and rows and {"track_number", "lat", "lon", "status", "mode_s"} <= rows[0].keys()
+    assert set(json.loads(get("/biases")[1])["radars"]) == {r.id for r in radars}
+    ctype, metrics = get("/metrics")
+    assert ctype.startswith("text/plain") and "radartracker_processing_latency_seconds_bucket" in metrics
+    assert f'radartracker_records_total{{outcome="records_to_tracker"}} {float(sent["records"])}' in metrics
+    with pytest.raises(urllib.error.HTTPError):
+        get("/nothing")
     stop.set()
     th.join(DEADLINE_S)
     assert not th.is_alive()
