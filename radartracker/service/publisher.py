@@ -4,8 +4,9 @@ Each record carries the track's latest estimate at the time of its last update (
 extrapolated: a consumer extrapolates with I185 to its own display time), position in WGS-84
 (I105) and in the system plane (I100), velocity (I185), flight level (I136), Mode 3/A (I060) and
 Mode S address (I380/ADR) when known, I080 with CST set while coasting. A track that ends is sent
-once more with TSE set, at the time of its deletion. Track numbers (I040) are the manager's track
-ids modulo 65 535, in 1…65 535.
+once more with TSE set, at the time of its deletion, with its last codes (after a restart: every
+track confirmed in the checkpoint counts as published). Track numbers (I040) are the manager's
+track ids modulo 65 535, in 1…65 535.
 """
 
 from __future__ import annotations
@@ -46,8 +47,12 @@ class Publisher:
     def __init__(self, sock: socket.socket, sac: int = 0, sic: int = 100, max_datagram: int = UDP_PAYLOAD) -> None:
         self.sock, self.sac, self.sic, self.max_datagram = sock, sac, sic, max_datagram
         self.counts: Counter[str] = Counter()
-        self._published: set[int] = set()  # track ids sent at least once, to announce their end
+        self._published: dict[int, tuple] = {}  # track id → (Mode 3/A, Mode S) of tracks sent, to announce their end
         self.last_records = 0  # records of the latest publication (the final one, after a stop)
+
+    def remember(self, mgr: TrackManager) -> None:
+        """Count the manager's confirmed tracks as published (a resumed service announces their end)."""
+        self._published |= {tr.id: (tr.mode_3a, tr.mode_s) for tr in mgr.confirmed_tracks()}
 
     def publish(self, rows: list[dict], ended: list[TrackEvent], plane: SystemPlane) -> int:
         """Send the tracks ``rows`` (:func:`track_rows`) and the ends of published tracks; returns the records sent."""
@@ -59,9 +64,11 @@ class Publisher:
             x = np.array([ev.state for ev in ends], float)
             lat, lon = plane.to_geodetic(x[:, 0], x[:, 1])
             recs += [cat062_bytes(ev.time, self.sac, self.sic, track_number(ev.track), float(la), float(lo), *ev.state,
-                                  ended=True) for ev, la, lo in zip(ends, lat, lon)]
-            self._published -= {ev.track for ev in ends}
-        self._published |= {r["id"] for r in rows}
+                                  mode_3a=self._published[ev.track][0], mode_s=self._published[ev.track][1], ended=True)
+                     for ev, la, lo in zip(ends, lat, lon)]
+            for ev in ends:
+                del self._published[ev.track]
+        self._published |= {r["id"]: (r["mode_3a"], r["mode_s"]) for r in rows}
         for block in blocks(62, recs, self.max_datagram):
             try:
                 self.sock.send(block)

@@ -99,6 +99,7 @@ class Service:
         self.sockets = {ep: open_receiver(ep, config.interface) for ep in config.listen}
         self.receiver = Receiver(self.sockets, self.queue)
         self.publisher = Publisher(open_sender(config.publish), config.sac, config.sic)
+        self.publisher.remember(self.manager)
         self.checkpoints_written = 0
         self._child: int | None = None  # pid of the process writing a checkpoint
         self.started = time.time()

@@ -45,10 +45,23 @@ DEADLINE_S = 180.0  # the machine may be shared: generous, but every wait is bou
 
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory) -> Path:
+    """The tracking scenario, its Mode S aircraft falling silent at 50 s (radar and ADS-B), so that a
+    published track ends within the recording."""
+    import attrs
+    import numpy as np
+
+    from radartracker.io.tables import AdsbTable
     from radartracker.simulation.scenarios import build_scenario
 
+    data = build_scenario("tracking", seed=2, duration=120).run()
+    p, a = data.plots, data.adsb
+    silent = sorted({c for c in p.mode_s if c is not None})[0]
+    keep = np.flatnonzero(~((p.mode_s == silent) & (p.time > 50.0)))
+    keep_a = ~((a.icao24 == silent) & (a.time > 50.0))
+    data = attrs.evolve(data, plots=p.take(keep),
+                        adsb=AdsbTable(**{f.name: getattr(a, f.name)[keep_a] for f in attrs.fields(AdsbTable)}))
     d = tmp_path_factory.mktemp("e2e")
-    write_scenario(d / "sc", build_scenario("tracking", seed=2, duration=120).run())
+    write_scenario(d / "sc", data)
     assert main(["asterix-export", str(d / "sc"), "--out", str(d / "rec.ast")]) == 0
     return d / "rec.ast"
 
@@ -138,6 +151,7 @@ def check_against_replay(recording: Path, summary: dict, datagrams: list[bytes],
                 and abs(r["100"]["Y"] - x[1]) <= XY_TOL and abs(r["185"]["Vx"] - x[2]) <= V_TOL
                 and abs(r["185"]["Vy"] - x[3]) <= V_TOL)
 
+    assert any(r["080"].get("TSE") for r in records)  # a track ended: rule 3 is exercised
     for r in records:  # 1 and 3
         n = r["040"]["TrkN"]
         if r["080"].get("TSE"):
