@@ -11,8 +11,10 @@ paths' tracks do, so the outputs, their schema and the evaluation are the same.
 
 from __future__ import annotations
 
+import heapq
 import math
 from collections import Counter
+from collections.abc import Callable
 
 import attrs
 import numpy as np
@@ -21,7 +23,7 @@ from tqdm import tqdm
 from radartracker.domain import AdsbReport, Plot, nacp_sigma_m
 from radartracker.estimation.base import Estimator
 from radartracker.estimation.coupling import CouplingGraph
-from radartracker.fusion.center import FusionCentre, FusionConfig, LocalReport, SystemTrack
+from radartracker.fusion.center import FusionCentre, FusionConfig, LocalReport, LocalTracks, SystemTrack
 from radartracker.geometry.plane import SystemPlane
 from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.recorder import Recorder
@@ -31,8 +33,10 @@ from radartracker.tracking.manager import TrackEvent, TrackManager
 
 
 def run_distributed(data: ScenarioData, cfg, est: Estimator, factory: FilterFactory, rec: Recorder,
-                    progress: bool, fusion: FusionConfig | None = None) -> tuple[Counter, CouplingGraph]:
-    """Local trackers, fusion centre and recorder over ``data`` (``cfg`` the run's resolved RunConfig)."""
+                    progress: bool, fusion: FusionConfig | None = None,
+                    local_tracks: LocalTracks | None = None) -> tuple[Counter, CouplingGraph]:
+    """Local trackers, fusion centre and recorder over ``data`` (``cfg`` the run's resolved RunConfig);
+    with ``local_tracks`` (imported from CAT048) those replace the local trackers and ``data``'s plots."""
     fusion = fusion or FusionConfig()
     plane = SystemPlane(*data.reference)
     mcfg = cfg.manager_settings()
@@ -53,32 +57,20 @@ def run_distributed(data: ScenarioData, cfg, est: Estimator, factory: FilterFact
 
     centre = FusionCentre(data.radars, plane, est, cfg.q, fusion, system_event, mcfg.primary_altitude_m,
                           cfg.screening_settings())
-    managers: dict[str, TrackManager] = {}
-    # a radar head does not know its own bias: its tracker corrects nothing (prior held at zero), so its
-    # tracks carry the whole bias, which the centre then estimates
-    local_settings = attrs.evolve(cfg.estimator_settings(), bias_sd_range_m=1e-6, bias_sd_azimuth_rad=1e-12)
-    for radar in data.radars:
-        def on_event(ev: TrackEvent, rid: str = radar.id) -> None:
-            mgr = managers[rid]
-            if ev.kind == "deleted":
-                centre.drop(rid, ev.track)
-                return
-            tr = mgr.tracks.get(ev.track)
-            if tr is None or ev.kind not in ("confirmed", "updated"):
-                return
-            t0, x, P = tr.filter.estimate()
-            centre.report(LocalReport(t0, rid, ev.track, np.array(x, float), np.array(P, float), tr.altitude_m,
-                                      tr.mode_s, tr.mode_3a))
-
-        local_est = make_estimator(cfg.estimator, local_settings, [radar.id], cfg.estimator_options)
-        managers[radar.id] = TrackManager([radar], data.reference, mcfg, on_event, estimator=local_est,
-                                          filter_factory=factory)
+    managers = {} if local_tracks is not None else local_trackers(data, cfg, factory, centre.report, centre.drop)
+    if local_tracks is None:
+        stream, total = iter_scenario(data), len(data.plots) + len(data.adsb)
+    else:  # imported local tracks (CAT048): no local trackers, their reports and ends in time order
+        stream = heapq.merge(iter_scenario(data), local_tracks.items(), key=lambda item: item.time)
+        total = len(data.adsb) + len(local_tracks.reports) + len(local_tracks.ends)
     next_epoch = math.nan
-    for item in tqdm(iter_scenario(data), total=len(data.plots) + len(data.adsb), desc="distributed", unit="item",
+    for item in tqdm(stream, total=total, desc="distributed", unit="item",
                      delay=2.0, mininterval=1.0, disable=not progress):
         if math.isnan(next_epoch):
             next_epoch = math.ceil(item.time / fusion.period_s) * fusion.period_s
         while item.time >= next_epoch:
+            for mgr in managers.values():  # a radar head's clock runs without plots too
+                mgr.advance(next_epoch)
             centre.epoch(next_epoch)
             _log_biases(rec, est, next_epoch)
             next_epoch += fusion.period_s
@@ -88,16 +80,47 @@ def run_distributed(data: ScenarioData, cfg, est: Estimator, factory: FilterFact
             x, y = plane.to_plane(item.lat, item.lon)
             sd = nacp_sigma_m(item.nacp)
             centre.adsb_report(item.time, item.icao24, np.array([float(x), float(y)]), np.eye(2) * sd * sd, item.nacp)
+        elif isinstance(item, LocalReport):
+            centre.report(item)
+        else:
+            centre.drop(item.radar, item.track)
     for mgr in managers.values():
         mgr.flush()
     if not math.isnan(next_epoch):
-        centre.epoch(next_epoch)
+        centre.epoch(next_epoch, final=True)
         _log_biases(rec, est, next_epoch)
     counts: Counter[str] = Counter()
     for mgr in managers.values():
         counts.update(mgr.accounting())
     counts.update(centre.counts)
     return counts, coupling
+
+
+def local_trackers(data: ScenarioData, cfg, factory: FilterFactory, report: Callable[[LocalReport], None],
+                   drop: Callable[[str, int], None]) -> dict[str, TrackManager]:
+    """One TrackManager per radar (``cfg`` the run's resolved RunConfig); each confirmed or updated
+    track's estimate goes to ``report``, each deletion to ``drop``."""
+    mcfg = cfg.manager_settings()
+    managers: dict[str, TrackManager] = {}
+    # a radar head does not know its own bias: its tracker corrects nothing (prior held at zero), so its
+    # tracks carry the whole bias, which the centre then estimates
+    local_settings = attrs.evolve(cfg.estimator_settings(), bias_sd_range_m=1e-6, bias_sd_azimuth_rad=1e-12)
+    for radar in data.radars:
+        def on_event(ev: TrackEvent, rid: str = radar.id) -> None:
+            if ev.kind == "deleted":
+                drop(rid, ev.track)
+                return
+            tr = managers[rid].tracks.get(ev.track)
+            if tr is None or ev.kind not in ("confirmed", "updated"):
+                return
+            t0, x, P = tr.filter.estimate()
+            report(LocalReport(t0, rid, ev.track, np.array(x, float), np.array(P, float), tr.altitude_m,
+                               tr.mode_s, tr.mode_3a))
+
+        local_est = make_estimator(cfg.estimator, local_settings, [radar.id], cfg.estimator_options)
+        managers[radar.id] = TrackManager([radar], data.reference, mcfg, on_event, estimator=local_est,
+                                          filter_factory=factory)
+    return managers
 
 
 def _log_biases(rec: Recorder, est: Estimator, t: float) -> None:

@@ -35,6 +35,7 @@ from radartracker.estimation.coupling import CouplingGraph
 from radartracker.estimation.kalman import SingularInnovation
 from radartracker.estimation.measurement import convert_adsb, convert_plots, fill_altitudes, merge, plot_keys
 from radartracker.estimation.screening import REINIT, REJECT, LabelledScreen
+from radartracker.fusion.center import LocalTracks
 from radartracker.fusion.distributed import run_distributed
 from radartracker.geometry.plane import SystemPlane
 from radartracker.io.tables import ScenarioData
@@ -50,8 +51,11 @@ log = logging.getLogger(__name__)
 
 
 def run(data: ScenarioData, config: RunConfig | None = None, *, estimator: Estimator | None = None,
-        progress: bool = True) -> RunResult:
+        progress: bool = True, local_tracks: LocalTracks | None = None) -> RunResult:
     """Run ``data`` through the association, estimator and motion model of ``config``.
+
+    ``local_tracks`` (``--architecture distributed`` only): radar tracks imported from CAT048
+    (:func:`radartracker.fusion.local_tracks_from_asterix`), fused instead of tracking ``data``'s plots.
 
     ``estimator`` replaces the plugin named in ``config``: it is given every radar of ``data``, and its
     own configuration must use the run's process noise ``q`` (a mismatch is refused, not ignored).
@@ -59,6 +63,8 @@ def run(data: ScenarioData, config: RunConfig | None = None, *, estimator: Estim
     config = config or RunConfig()
     name = type(estimator).name if estimator is not None else (config.estimator or default_estimator())
     cfg = resolve(config, data, name)
+    if local_tracks is not None and cfg.architecture != "distributed":
+        raise ConfigurationError("local tracks (CAT048 track reports) need --architecture distributed")
     radar_ids = [r.id for r in data.radars]
     if estimator is not None:
         if config.estimator_options:
@@ -76,7 +82,8 @@ def run(data: ScenarioData, config: RunConfig | None = None, *, estimator: Estim
     rec = Recorder(cfg.bias_log_interval_s)
     started = _time.perf_counter()
     if cfg.architecture == "distributed":
-        counts, coupling = run_distributed(data, cfg, est, factory, rec, progress, cfg.fusion_settings())
+        counts, coupling = run_distributed(data, cfg, est, factory, rec, progress, cfg.fusion_settings(),
+                                           local_tracks)
     elif cfg.association == "labels":
         counts, coupling = _by_labels(data, cfg, est, rec, progress)
     else:

@@ -210,6 +210,18 @@ class TrackManager:
         events.extend(self.flush())
         return events
 
+    def advance(self, now: float) -> list[TrackEvent]:
+        """The stream's clock reached ``now`` (inputs for other consumers, e.g. the other radars of the
+        distributed architecture): release and process what the reorder window allows, closing the
+        last frame if it ended before that, so a quiet radar's tracks are not held back a scan."""
+        self._events = []
+        until = now - self.config.reorder_window_s
+        self._release(until)
+        if self._frame is not None and self._frame_items and (self._frame + 1) * self.config.frame_s <= until:
+            self._run_frame(self._frame)
+            self._frame += 1
+        return self._events
+
     def flush(self) -> list[TrackEvent]:
         """Release and process everything still waiting (end of a recording)."""
         self._events = []
