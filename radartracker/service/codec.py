@@ -151,6 +151,27 @@ def decode_block_fast(block: bytes) -> tuple[int, list[dict]] | None:
     return cat, out
 
 
+def split_block_fast(block: bytes) -> tuple[int, list[tuple[bytes, float | None]]] | None:
+    """(category, [(record bytes, time of day)]) of a CAT048/CAT021 block, for repacking records into
+    datagrams without decoding them; ``None`` when libasterix must read the block."""
+    cat = block[0]
+    if cat not in (48, 21):
+        return None
+    uap, tod_item = (_UAP048, "140") if cat == 48 else (_UAP021, "071")
+    out, off, end = [], 3, len(block)
+    try:
+        while off < end:
+            where, nxt = _items(block, off, uap)
+            if nxt > end:
+                return None
+            tod = _u(block, where[tod_item], 3) / 128 if tod_item in where else None
+            out.append((block[off:nxt], tod))
+            off = nxt
+    except (_Unsupported, IndexError):
+        return None
+    return cat, out
+
+
 # --- encoding (the load generator and the publisher) ---------------------------------------------
 
 def _q(x: float, lsb: float) -> int:

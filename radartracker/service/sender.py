@@ -1,7 +1,8 @@
 """``radartracker send``: a recording replayed onto the network with its original timing.
 
 The recording's records are repacked into datagrams of at most one Ethernet payload (1472 bytes,
-a data block of one category each, records in file order); a datagram leaves when the recording's
+a data block of one category each, records in file order; split by the codec fast path, else by
+libasterix); a datagram leaves when the recording's
 clock — the time of day of its first record, scaled by ``speed`` — reaches it (``speed`` = 0: as
 fast as possible). Records of categories other than 048, 021 and 062 are sent as their original
 blocks.
@@ -14,6 +15,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from radartracker.io.asterix import CAT021, CAT048, CAT062, DAY, decode_block, iter_datablocks
+from radartracker.service.codec import split_block_fast
 from radartracker.service.endpoints import Endpoint, open_sender
 from radartracker.service.publisher import UDP_PAYLOAD
 
@@ -24,6 +26,12 @@ _TOD_ITEM = {48: "140", 21: "071", 62: "070"}
 def datagrams(path: Path | str, max_bytes: int = UDP_PAYLOAD) -> Iterator[tuple[float | None, int, bytes]]:
     """(time of day of the first record or None, records, payload) of each datagram to send."""
     for k, (_, block) in enumerate(iter_datablocks(path)):
+        fast = split_block_fast(block)
+        if fast is not None:
+            cat, pieces = fast
+            for cat_block, n, tod in _repack(cat, pieces, max_bytes):
+                yield tod, n, cat_block
+            continue
         cat, recs = decode_block(block, f"{path}: data block {k}")
         if cat not in _SPECS:
             yield None, 0, block
@@ -38,6 +46,20 @@ def datagrams(path: Path | str, max_bytes: int = UDP_PAYLOAD) -> Iterator[tuple[
             size += n
         if batch:
             yield _tod(cat, batch[0]), len(batch), _SPECS[cat].create(batch).unparse().to_bytes()
+
+
+def _repack(cat: int, pieces: list[tuple[bytes, float | None]], max_bytes: int) -> Iterator[tuple[bytes, int, float | None]]:
+    """Records already split (codec fast path) into blocks of at most ``max_bytes``."""
+    batch: list[tuple[bytes, float | None]] = []
+    size = 3
+    for rec, tod in pieces + [(b"", None)]:
+        if batch and (not rec or size + len(rec) > max_bytes):
+            body = b"".join(r for r, _ in batch)
+            yield bytes([cat]) + (3 + len(body)).to_bytes(2, "big") + body, len(batch), batch[0][1]
+            batch, size = [], 3
+        if rec:
+            batch.append((rec, tod))
+            size += len(rec)
 
 
 def _tod(cat: int, rec) -> float | None:

@@ -80,3 +80,14 @@ def test_unsupported_layouts_go_to_libasterix():
     good = blocks(48, [cat048_bytes(1.0, 0, 1, 1e5, 1.0)], 100)[0]
     assert decode_block_fast(good[:-1]) is None  # a record running past the block's end
     assert decode_block_fast(next(datablocks(CAT062, [cat062_record(1.0, 0, 1, 1, 0, 0, 0, 0, 0, 0)]))) is None
+
+
+def test_send_repacks_the_same_datagrams_with_and_without_the_fast_path(tmp_path, monkeypatch):
+    from radartracker.io.asterix import write_asterix
+    from radartracker.service import sender
+    from radartracker.simulation.scenarios import build_scenario
+
+    write_asterix(tmp_path / "r.ast", build_scenario("tracking", seed=2, duration=60).run())
+    fast = list(sender.datagrams(tmp_path / "r.ast"))
+    monkeypatch.setattr(sender, "split_block_fast", lambda block: None)
+    assert fast == list(sender.datagrams(tmp_path / "r.ast")) and len(fast) > 10
