@@ -163,6 +163,7 @@ class IMMFilter(TrackFilter):
         self.mu = self.mu0.copy()
         self.xs: list[np.ndarray] = []
         self.Ps: list[np.ndarray] = []
+        self._combined: tuple[np.ndarray, np.ndarray] | None = None  # estimate() until the next start/update
 
     # --- IMM cycle -----------------------------------------------------------------------------
     def switching(self, dt: float) -> np.ndarray:
@@ -205,6 +206,7 @@ class IMMFilter(TrackFilter):
         x, P = start_state(z, R, self.config.prior_sd_velocity_mps)
         self.mu = self.mu0.copy()
         self.xs, self.Ps = [], []
+        self._combined = None
         for mode in self.modes:
             xp, Pp = self._pad(x, P) if mode.dim == 5 else (x, P)
             self.xs.append(xp.copy())
@@ -228,12 +230,15 @@ class IMMFilter(TrackFilter):
         self.xs = [s.x for s in steps]
         self.Ps = [s.P for s in steps]
         self.time = time
+        self._combined = None
         return nis
 
     def estimate(self) -> tuple[float, np.ndarray, np.ndarray]:
         require_started(self.time)
-        x, P = self._combine(self.mu, list(zip(self.xs, self.Ps)))
-        return self.time, x, P
+        if self._combined is None:  # read several times per input by the manager: combined once per update
+            self._combined = self._combine(self.mu, list(zip(self.xs, self.Ps)))
+        x, P = self._combined
+        return self.time, x.copy(), P.copy()
 
     @property
     def probabilities(self) -> np.ndarray:
