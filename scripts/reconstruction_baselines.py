@@ -134,9 +134,19 @@ def real_tracks(flights, ids, window, rng):
         truth[fid] = true
         VELOCITY[fid] = traj.velocity(pt.t)
         acc = traj.acceleration(np.arange(traj.t_start, traj.t_end, 1.0))
+        # do the recorded velocity fields agree with the positions? bearing and speed between reports
+        x, y = plane.to_plane(f["lat"][sel], f["lon"][sel])
+        dt = np.diff(f["t"][sel])
+        bearing = np.degrees(np.arctan2(np.diff(x), np.diff(y)))
+        off = np.abs((bearing - f["track"][sel][1:] + 180) % 360 - 180)
+        ratio = np.hypot(np.diff(x), np.diff(y)) / dt / np.maximum(f["gs"][sel][1:], 1.0)
         REFERENCE_ACCELERATION[fid] = {"p50_mps2": round(float(np.median(acc)), 2),
                                        "p90_mps2": round(float(np.percentile(acc, 90)), 2),
-                                       "share_above_9.5": round(float(np.mean(acc > 9.5)), 3)}
+                                       "share_above_9.5": round(float(np.mean(acc > 9.5)), 3),
+                                       "report_interval_s": round(float(np.median(dt)), 1),
+                                       "track_vs_bearing_deg_median": round(float(np.median(off)), 1),
+                                       "position_speed_over_gs_p10_p90": [round(float(np.percentile(ratio, 10)), 2),
+                                                                          round(float(np.percentile(ratio, 90)), 2)]}
     return tracks, truth
 
 

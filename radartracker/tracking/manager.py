@@ -317,8 +317,12 @@ class TrackManager:
         pred = self._predict(live, 0.5 * (t_a + t_b))
         updates: list[tuple] = []  # (time, seq, track or None, measurement, plot-or-report)
         assigned: dict[str, set[int]] = {}
+        by_radar: dict[str, list[Plot]] = {}  # the frame's plots of each radar, in order (one pass, not one per radar)
+        for p in items:
+            if isinstance(p, Plot):
+                by_radar.setdefault(p.radar, []).append(p)
         for rid in self.radars:
-            plots = [p for p in items if isinstance(p, Plot) and p.radar == rid]
+            plots = by_radar.get(rid, [])
             for p in plots:
                 self._phase[rid] = self._phase.get(rid, 0j) * 0.98 + np.exp(
                     1j * (p.azimuth_rad - 2 * math.pi * p.time / self.radars[rid].period_s))
