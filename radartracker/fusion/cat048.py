@@ -1,0 +1,217 @@
+"""Local (radar) tracks over ASTERIX CAT048: what a radar head that tracks really sends.
+
+A CAT048 track report carries I010 SAC/SIC, I140 time of day, I040 measured position (ρ, θ) of the
+track, I090 flight level, I161 track number (12 bits), I200 calculated velocity (ground speed
+2⁻¹⁴ NM/s, heading 360°/2¹⁶), I170 track status (CNF confirmed; TRE: the track ends with this report),
+I070 Mode 3/A and I220 Mode S address. :func:`write_local_tracks` writes the local tracks of a
+simulated run (and the ADS-B as CAT021); :func:`local_tracks_from_asterix` reads them back into
+:class:`~radartracker.fusion.center.LocalTracks` for ``run(..., local_tracks=...)``.
+
+Geometry: the position is the track's plane position, located at its altitude (I090, else the
+manager's primary altitude) and seen from the radar (exactly as a plot, :class:`RadarFrame`); the
+velocity is the plane velocity turned into ground speed and true heading at the track's position.
+
+Covariance: CAT048 carries none. An imported track gets the documented default
+P_pp = s² · J W Jᵀ (J = ∂p/∂(ρ, θ) at its position, W = diag(σ_r², σ_θ²) of its radar in the radar
+sites file, s = ``position_sd_scale``) and P_vv = σ_v² I (σ_v = ``velocity_sd_mps``), no
+position–velocity correlation. Track numbers are 12 bits: a number reused after the track-end report is
+a new local track.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from pathlib import Path
+
+import attrs
+import numpy as np
+
+from radartracker.errors import InputError
+from radartracker.fusion.center import LocalReport, LocalTrackEnd, LocalTracks
+from radartracker.geometry.plane import RadarFrame, SystemPlane
+from radartracker.io.asterix import (CAT021, CAT048, FL_M, NM, _Clock, _records, _tod, _write_sites, cat021_record,
+                                     datablocks, decode_block, decode_cat048, iter_datablocks, read_asterix,
+                                     read_sites, sac_sic_of)
+from radartracker.io.tables import PlotTable, ScenarioData
+
+EARTH_M = 6_371_008.8  # spherical radius for the 1-second heading step (the same both ways)
+GSP_LSB = 2.0 ** -14  # NM/s
+
+
+def local_track_record(time: float, sac: int, sic: int, track: int, range_m: float, azimuth_rad: float,
+                       speed_mps: float, heading_rad: float, altitude_m: float | None = None,
+                       mode_s: str | None = None, mode_3a: str | None = None, ended: bool = False):
+    """One CAT048 track report (I161 track number, I200 velocity, I170 status)."""
+    items: dict = {
+        "010": (("SAC", sac), ("SIC", sic)),
+        "140": (_tod(time), "s"),
+        "020": ((5 if mode_s else 2 if mode_3a else 1, 0, 0, 0, 0, None),),
+        "040": (("RHO", (range_m / NM, "NM")), ("THETA", (math.degrees(azimuth_rad) % 360.0, "°"))),
+        "161": int(track) % 4096,
+        "200": (("GSP", (min(speed_mps / NM, 65535 * GSP_LSB), "NM/s")), ("HDG", (math.degrees(heading_rad) % 360.0, "°"))),
+        "170": ((0, 0, 0, 0, 0, None), (1, 0, 0, 0, 0, None)) if ended else ((0, 0, 0, 0, 0, None),),
+    }
+    if mode_3a:
+        items["070"] = (0, 0, 0, 0, ("MODE3A", mode_3a))
+    if altitude_m is not None and math.isfinite(altitude_m):
+        items["090"] = (0, 0, ("FL", (altitude_m / FL_M, "FL")))
+    if mode_s:
+        items["220"] = int(mode_s, 16)
+    return CAT048.cv_record.create(items)
+
+
+def _heading_step(plane: SystemPlane, x: float, y: float) -> tuple[float, float, float, float]:
+    """(lat, lon) at plane (x, y) and the plane displacement of 1 m north and 1 m east from it."""
+    lat, lon = (float(v) for v in plane.to_geodetic(x, y))
+    north = np.array(plane.to_plane(lat + math.degrees(1.0 / EARTH_M), lon), float) - (x, y)
+    east = np.array(plane.to_plane(lat, lon + math.degrees(1.0 / (EARTH_M * math.cos(math.radians(lat))))), float) - (x, y)
+    return lat, lon, north, east
+
+
+def write_local_tracks(path: Path | str, data: ScenarioData, tracks: LocalTracks, *, default_altitude_m: float,
+                       sac_sic: dict[str, tuple[int, int]] | None = None, adsb_sac_sic: tuple[int, int] = (0, 200)) -> int:
+    """``tracks`` as CAT048 track reports, ``data``'s ADS-B as CAT021 (raw blocks, in time order), the
+    radar sites as ``<path>.radars.csv``; returns the number of records. A track's last report
+    before its end carries TRE."""
+    path = Path(path)
+    if path.exists():
+        raise FileExistsError(f"{path} already exists")
+    sac_sic = sac_sic or sac_sic_of(data)
+    plane = SystemPlane(*data.reference)
+    frames = {r.id: RadarFrame(r.lat, r.lon, r.height_m, plane) for r in data.radars}
+    last = {}
+    for k, r in enumerate(tracks.reports):
+        last[(r.radar, r.track)] = k
+    ended = {last[(e.radar, e.track)] for e in tracks.ends if (e.radar, e.track) in last}
+    events = sorted([(r.time, 0, k) for k, r in enumerate(tracks.reports)]
+                    + [(float(t), 1, i) for i, t in enumerate(data.adsb.time)])
+    a = data.adsb
+    tmp = path.with_name(path.name + ".partial")
+    try:
+        with open(tmp, "wb") as fh:
+            for time, cat, i in events:
+                if cat == 0:
+                    r = tracks.reports[i]
+                    x, y, vx, vy = (float(v) for v in r.state)
+                    alt = default_altitude_m if r.altitude_m is None else r.altitude_m
+                    lat, lon, north, east = _heading_step(plane, x, y)
+                    # v = v_n·north + v_e·east (plane displacement per metre north/east): solve for (v_n, v_e)
+                    vn, ve = np.linalg.solve(np.column_stack([north, east]), [vx, vy])
+                    rho, theta, _ = frames[r.radar].polar(lat, lon, alt)
+                    rec = local_track_record(time, *sac_sic[r.radar], r.track, float(rho), float(theta),
+                                             math.hypot(vn, ve), math.atan2(ve, vn), r.altitude_m, r.mode_s,
+                                             r.mode_3a, ended=i in ended)
+                    fh.writelines(datablocks(CAT048, [rec]))
+                else:
+                    fh.writelines(datablocks(CAT021, [cat021_record(a.time[i], *adsb_sac_sic, a.icao24[i], a.lat[i],
+                                                                    a.lon[i], a.altitude_m[i], int(a.nacp[i]))]))
+        _write_sites(Path(str(path) + ".radars.csv"), data.radars, sac_sic)
+        tmp.rename(path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return len(events)
+
+
+def local_tracks_from_asterix(path: Path | str, *, radars: Path | str | None = None, default_altitude_m: float = 6000.0,
+                              position_sd_scale: float = 0.75, velocity_sd_mps: float = 10.0,
+                              day_start: float = 0.0,
+                              reference: tuple[float, float] | None = None) -> tuple[ScenarioData, LocalTracks]:
+    """The CAT048 *track* reports (those with I161) of a recording as local tracks, and everything else
+    (ADS-B, radar sites, reference; plots without I161 are left out and counted) as a scenario without
+    plots. Covariance: the documented default of the module notes. Records without I200 are skipped
+    and counted (``local_tracks_without_I200``). ``reference``: the system plane's centre (default: the
+    mean of the radar sites, as :func:`~radartracker.io.asterix.read_asterix`)."""
+    path = Path(path)
+    data = read_asterix(path, radars=radars, day_start=day_start)
+    if reference is not None:
+        data = attrs.evolve(data, reference=tuple(reference))
+    plane = SystemPlane(*data.reference)
+    radar_by_id = data.radar_by_id
+    frames = {r.id: RadarFrame(r.lat, r.lon, r.height_m, plane) for r in data.radars}
+    _, ids = read_sites(Path(radars) if radars is not None else Path(str(path) + ".radars.csv"))
+    skipped: Counter[str] = Counter(data.skipped)
+    reports, ends = [], []
+    number: dict[tuple[str, int], int] = {}  # (radar, I161) → our local track id
+    next_id = 0
+    clock = None
+    for k, (stamp, block) in enumerate(iter_datablocks(path)):
+        if clock is None:
+            clock = _Clock(math.floor(stamp / 86400.0) * 86400.0 if stamp is not None else day_start)
+        cat, recs = decode_block(block, f"{path}: data block {k}")
+        if cat != 48:
+            continue
+        for rec in recs:
+            i161, i200, i170 = rec.get_item("161"), rec.get_item("200"), rec.get_item("170")
+            if i161 is None:
+                skipped["asterix_cat048_plots_not_tracks"] += 1
+                continue
+            if i200 is None:
+                skipped["local_tracks_without_I200"] += 1
+                continue
+            p = next(_records(48, [rec], decode_cat048, skipped), None)
+            if p is None or (p["sac"], p["sic"]) not in ids:
+                skipped["local_tracks_unknown_sac_sic"] += p is not None
+                continue
+            rid, trn = ids[(p["sac"], p["sic"])], i161.variation.get_item("TRN").variation.as_uint()
+            if (rid, trn) not in number:
+                next_id += 1
+                number[(rid, trn)] = next_id
+            tid, time = number[(rid, trn)], clock(p["tod"])
+            alt = None if math.isnan(p["altitude_m"]) else p["altitude_m"]
+            xy, ok = frames[rid].to_plane(p["range_m"], p["azimuth_rad"], default_altitude_m if alt is None else alt)
+            if not ok:
+                skipped["local_tracks_impossible_position"] += 1
+                continue
+            x, y = (float(v) for v in xy)
+            v = i200.variation
+            speed = v.get_item("GSP").variation.content.as_quantity("NM/s") * NM
+            hdg = math.radians(v.get_item("HDG").variation.content.as_quantity("°"))
+            _, _, north, east = _heading_step(plane, x, y)
+            vel = speed * (math.cos(hdg) * north + math.sin(hdg) * east)
+            J = frames[rid].bias_jacobian(np.array([x, y]), p["range_m"], default_altitude_m if alt is None else alt)
+            P = np.zeros((4, 4))
+            P[:2, :2] = position_sd_scale ** 2 * J @ radar_by_id[rid].W @ J.T
+            P[2:, 2:] = np.eye(2) * velocity_sd_mps ** 2
+            reports.append(LocalReport(time, rid, tid, np.array([x, y, vel[0], vel[1]]), P, alt, p["mode_s"], p["mode_3a"]))
+            tre = i170 is not None and i170.variation.get_item("TRE") is not None and \
+                i170.variation.get_item("TRE").variation.as_uint() == 1
+            if tre:
+                ends.append(LocalTrackEnd(time, rid, tid))
+                del number[(rid, trn)]
+    if not reports:
+        raise InputError(f"{path}: no CAT048 track report (I161 with I200)")
+    reports.sort(key=lambda r: r.time)
+    ends.sort(key=lambda e: e.time)
+    empty = PlotTable.from_columns(time=[], radar=[], range_m=[], azimuth_rad=[], altitude_m=[], mode_s=[],
+                                   mode_3a=[], target=[])
+    return (ScenarioData(data.reference, data.radars, empty, data.adsb, aircraft=data.aircraft, name=data.name,
+                         skipped={k: v for k, v in skipped.items() if v}), LocalTracks(reports, ends))
+
+
+def collect_local_tracks(data: ScenarioData, config=None) -> LocalTracks:
+    """The local tracks the distributed architecture's per-radar trackers make of ``data``'s plots
+    (``config`` a RunConfig; its motion model and estimator settings apply): the input a radar head
+    that tracks would send, for :func:`write_local_tracks`."""
+    from radartracker.pipeline.config import RunConfig, resolve
+    from radartracker.pipeline.run import motion_factory
+    from radartracker.fusion.distributed import local_trackers
+    from radartracker.pipeline.stream import iter_scenario
+    from radartracker.domain import Plot
+    from radartracker.tracking.manager import default_estimator
+
+    config = config or RunConfig(architecture="distributed")
+    cfg = resolve(config, data, config.estimator or default_estimator())
+    reports, ends, now = [], [], [0.0]
+    managers = local_trackers(data, cfg, motion_factory(cfg) if cfg.motion_model is not None else None,
+                              reports.append, lambda rid, track: ends.append(LocalTrackEnd(now[0], rid, track)))
+    for item in iter_scenario(data):
+        if isinstance(item, Plot):
+            now[0] = item.time
+            managers[item.radar].process(item)
+    for mgr in managers.values():
+        mgr.flush()
+    reports.sort(key=lambda r: r.time)
+    ends.sort(key=lambda e: e.time)
+    return LocalTracks(reports, ends)
