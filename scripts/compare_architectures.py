@@ -166,8 +166,8 @@ def main() -> None:
     print(md)
     if not args.no_doc:
         text = DOC.read_text()
-        text = re.sub(r"(<!-- architectures:begin -->\n).*?(\n<!-- architectures:end -->)",
-                      lambda m: m.group(1) + md + m.group(2), text, flags=re.S)
+        text = re.sub(r"(<!-- architectures:begin -->\n).*?(<!-- architectures:end -->)",
+                      lambda m: m.group(1) + md + "\n" + m.group(2), text, flags=re.S)
         DOC.write_text(text)
         figure(results, FIG)
 
