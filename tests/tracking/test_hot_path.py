@@ -17,6 +17,7 @@ from radartracker.pipeline.stream import scenario_stream
 from radartracker.registry import make_filter_factory
 from radartracker.simulation.scenarios import build_scenario
 from radartracker.tracking.manager import ManagerConfig, TrackManager
+from radartracker_plugins.motion.cv import CVConfig
 
 H = np.eye(2, 4)
 
@@ -66,8 +67,9 @@ def replay(data, config, factory=None):
 @pytest.mark.parametrize("name", ["tracking", "manoeuvres"])
 def test_events_and_biases_equal_an_independent_filter(name):
     data = build_scenario(name, seed=4, duration=400.0).run()
-    config = ManagerConfig(motion_model="cv")
+    config = ManagerConfig(motion_model="cv", motion=CVConfig(q=5.0))
     cv_config = make_filter_factory("cv", config.motion_options, config.motion).config
+    assert cv_config.q == 5.0
     fast, fast_b, fast_n = replay(data, config)
     ref, ref_b, ref_n = replay(data, config, lambda: FilterPyCV(cv_config))
     assert len(fast) > 300 and fast_n == ref_n
