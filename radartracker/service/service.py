@@ -18,6 +18,7 @@ import logging
 import math
 import os
 import queue
+import signal
 import threading
 import time
 from collections import Counter
@@ -101,7 +102,8 @@ class Service:
         self.publisher = Publisher(open_sender(config.publish), config.sac, config.sic)
         self.publisher.remember(self.manager)
         self.checkpoints_written = 0
-        self._child: int | None = None  # pid of the process writing a checkpoint
+        self._child: int | None = None  # pid of the process writing a checkpoint, and when it started
+        self._child_started = 0.0
         self.started = time.time()
         self.last_datagram: float | None = None
         self._ended: list[TrackEvent] = []
@@ -241,7 +243,7 @@ class Service:
                     code = 0
                 finally:
                     os._exit(code)
-            self._child = pid
+            self._child, self._child_started = pid, time.monotonic()
         else:
             self.base["checkpoints_skipped_busy"] += 1
 
@@ -250,6 +252,9 @@ class Service:
         if self._child is None:
             return True
         pid, status = os.waitpid(self._child, 0 if block else os.WNOHANG)
+        if pid == 0 and time.monotonic() - self._child_started > max(300.0, 5 * self.config.checkpoint_s):
+            os.kill(self._child, signal.SIGKILL)  # hung (e.g. a lock copied by fork): the previous checkpoint stands
+            pid, status = os.waitpid(self._child, 0)
         if pid == 0:
             return False
         self._child = None
