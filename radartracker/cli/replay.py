@@ -98,15 +98,22 @@ def register_replay(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
-    from radartracker.io.sources import read_source
+    from radartracker.fusion.cat048 import has_track_reports, local_tracks_from_asterix
+    from radartracker.io.sources import ASTERIX_SUFFIXES, read_source
     from radartracker.pipeline.config import read_config
     from radartracker.pipeline.run import run
     from radartracker.pipeline.writer import prepare, write_outputs
 
     config = run_config(args, read_config(args.config) if args.config is not None else None)
     out = prepare(args.out, overwrite=args.overwrite)  # before the computation: fail early, not after it
-    data = read_source(args.scenario, skip_bad=config.skip_bad)
-    result = run(data, config, progress=not getattr(args, "quiet", False))
+    local = None
+    if (config.architecture == "distributed" and args.scenario.suffix.lower() in ASTERIX_SUFFIXES
+            and args.scenario.is_file() and has_track_reports(args.scenario)):
+        # CAT048 track reports (I161): what a radar head that tracks sends; fused without local trackers
+        data, local = local_tracks_from_asterix(args.scenario, skip_bad=config.skip_bad)
+    else:
+        data = read_source(args.scenario, skip_bad=config.skip_bad)
+    result = run(data, config, progress=not getattr(args, "quiet", False), local_tracks=local)
     write_outputs(result, out, figures=args.plots)
     print(f"{result.config.association} association, estimator {result.config.estimator}"
           + (f", motion model {result.config.motion_model}" if result.config.motion_model else ""))

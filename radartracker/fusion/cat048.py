@@ -69,6 +69,20 @@ def _heading_step(plane: SystemPlane, x: float, y: float) -> tuple[float, float,
     return lat, lon, north, east
 
 
+def has_track_reports(path: Path | str, blocks: int = 50) -> bool:
+    """Whether the first CAT048 records of a recording (within ``blocks`` data blocks) are track reports (I161)."""
+    for k, (_, block) in enumerate(iter_datablocks(path, Counter())):
+        if k >= blocks:
+            break
+        try:
+            cat, recs = decode_block(block, f"{path}: data block {k}")
+        except InputError:
+            continue
+        if cat == 48 and recs:
+            return recs[0].get_item("161") is not None
+    return False
+
+
 def write_local_tracks(path: Path | str, data: ScenarioData, tracks: LocalTracks, *, default_altitude_m: float,
                        sac_sic: dict[str, tuple[int, int]] | None = None, adsb_sac_sic: tuple[int, int] = (0, 200)) -> int:
     """``tracks`` as CAT048 track reports, ``data``'s ADS-B as CAT021 (raw blocks, in time order), the
@@ -117,14 +131,15 @@ def write_local_tracks(path: Path | str, data: ScenarioData, tracks: LocalTracks
 def local_tracks_from_asterix(path: Path | str, *, radars: Path | str | None = None, default_altitude_m: float = 6000.0,
                               position_sd_scale: float = 0.75, velocity_sd_mps: float = 10.0,
                               day_start: float = 0.0,
-                              reference: tuple[float, float] | None = None) -> tuple[ScenarioData, LocalTracks]:
+                              reference: tuple[float, float] | None = None,
+                              skip_bad: bool = False) -> tuple[ScenarioData, LocalTracks]:
     """The CAT048 *track* reports (those with I161) of a recording as local tracks, and everything else
     (ADS-B, radar sites, reference; plots without I161 are left out and counted) as a scenario without
     plots. Covariance: the documented default of the module notes. Records without I200 are skipped
     and counted (``local_tracks_without_I200``). ``reference``: the system plane's centre (default: the
     mean of the radar sites, as :func:`~radartracker.io.asterix.read_asterix`)."""
     path = Path(path)
-    data = read_asterix(path, radars=radars, day_start=day_start)
+    data = read_asterix(path, radars=radars, day_start=day_start, skip_bad=skip_bad)
     if reference is not None:
         data = attrs.evolve(data, reference=tuple(reference))
     plane = SystemPlane(*data.reference)
@@ -136,10 +151,13 @@ def local_tracks_from_asterix(path: Path | str, *, radars: Path | str | None = N
     number: dict[tuple[str, int], int] = {}  # (radar, I161) → our local track id
     next_id = 0
     clock = None
-    for k, (stamp, block) in enumerate(iter_datablocks(path)):
+    for k, (stamp, block) in enumerate(iter_datablocks(path, Counter() if skip_bad else None)):
         if clock is None:
             clock = _Clock(math.floor(stamp / 86400.0) * 86400.0 if stamp is not None else day_start)
-        cat, recs = decode_block(block, f"{path}: data block {k}")
+        try:
+            cat, recs = decode_block(block, f"{path}: data block {k}")
+        except InputError:
+            continue  # counted by read_asterix above (asterix_undecodable_blocks)
         if cat != 48:
             continue
         for rec in recs:

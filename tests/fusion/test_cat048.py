@@ -3,12 +3,14 @@ to within the items' resolution, and fused by the distributed architecture witho
 
 from __future__ import annotations
 
+import json
 import math
 
 import attrs
 import numpy as np
 import pytest
 
+from radartracker.cli import main
 from radartracker.fusion import local_tracks_from_asterix
 from radartracker.fusion.cat048 import collect_local_tracks, write_local_tracks
 from radartracker.fusion.center import LocalTrackEnd, LocalTracks
@@ -62,3 +64,11 @@ def test_distributed_run_on_imported_local_tracks(exported):
     assert s["tracking"]["false_tracks"] == 0
     assert s["tracking"]["confirmed_tracks"] == len(set(data.truth.target))
     assert s["counts"]["local_track_reports_used"] > 0 and s["counts"]["adsb_used"] > 0
+
+
+def test_replay_of_a_track_recording_with_the_distributed_architecture(exported, tmp_path):
+    _, tracks, path, _ = exported
+    out = tmp_path / "out"
+    assert main(["--quiet", "replay", str(path), "--architecture", "distributed", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["counts"]["local_track_reports_used"] > 0 and s["tracks"] == len({r.mode_s for r in tracks.reports})
