@@ -8,7 +8,9 @@ fusion epoch t every live local track i of radar j is
    p̃ = p − C_s ς̂_j, P̃_pp = P_pp + C_s P_ς C_sᵀ (C_s at the local position, as for a plot);
 2. **associated** — a local track keeps its system track once linked; a new one joins the system
    track with its Mode S address, else the nearest system track by d² = Δpᵀ(P_sys + P̃)⁻¹Δp within a
-   χ²₂ gate (GNN, one local track per radar per system track), else starts a system track;
+   χ²₂ gate (GNN, one local track per radar per system track), else joins a system track started
+   earlier in the same epoch (Mode S, else nearest in the gate: two radars' first tracks of one
+   aircraft), else starts a system track;
 3. **fused** by covariance intersection: P⁻¹ = Σ ω_i P̃_i⁻¹, x = P Σ ω_i P̃_i⁻¹ x̃_i with
    ω_i ∝ 1/tr P̃_i (the fast CI of Niehsen 2002). CI rather than Bar-Shalom–Campo because the
    cross-covariances between local tracks of one aircraft (common process noise, the shared bias
@@ -22,6 +24,8 @@ correlated in time; decimation to about one independent sample per few scans kee
 near consistent), and the ADS-B reports of system tracks with the report's Mode S address. Each
 passes the same innovation screening as on the central paths (:class:`LabelledScreen`: ADS-B
 plausibility, then d² against the estimator's own prediction) before it may move a bias.
+Both wait ``delay`` (a scan of the slowest radar plus a period) in a buffer so that they reach the
+estimator in time order.
 """
 
 from __future__ import annotations
