@@ -113,3 +113,30 @@ def test_asterix_import_day_start(tmp_path, capsys):
     assert {a.icao24: a.mode_3a for a in back.aircraft} == {a.icao24: a.mode_3a for a in ref.aircraft}
     with pytest.raises(SystemExit):  # argparse: one line naming the option
         main(["asterix-import", str(tmp_path / "r.ast"), "--out", str(tmp_path / "x"), "--day-start", "tomorrow"])
+
+
+def test_cat062_scoring_is_the_replays_evaluation_of_the_same_states():
+    """Records carrying exactly a replay's reported states score exactly as the replay evaluates itself."""
+    import attrs
+    import numpy as np
+
+    from radartracker.pipeline.config import RunConfig
+    from radartracker.pipeline.run import run
+    from radartracker.service.score import score_cat062
+    from radartracker.simulation.scenarios import build_scenario
+
+    data = build_scenario("tracking", seed=3, duration=120).run()
+    # the service's plane: centred on the radars' mean position
+    data = attrs.evolve(data, reference=(float(np.mean([r.lat for r in data.radars])),
+                                         float(np.mean([r.lon for r in data.radars]))))
+    res = run(data, RunConfig(association="manager"), progress=False)
+    ev = res.events
+    records = [{"track_number": int(ev.track[i]), "time": float(ev.time[i]), "x_m": ev.state[i, 0],
+                "y_m": ev.state[i, 1], "vx_mps": ev.state[i, 2], "vy_mps": ev.state[i, 3],
+                "ended": ev.kind[i] == "deleted"}
+               for i in range(len(ev.time)) if ev.kind[i] in ("confirmed", "updated", "deleted")]
+    expected = res.evaluation["tracking"]
+    got = score_cat062(records, data)
+    assert expected["confirmed_tracks"] > 0
+    for key in ("continuity_min", "swaps", "breaks", "false_tracks", "confirmed_tracks", "position_rmse_m"):
+        assert got[key] == pytest.approx(expected[key], rel=1e-9), key

@@ -1,0 +1,53 @@
+"""Scoring the service's output: a CAT062 capture (:func:`radartracker.io.asterix.read_cat062`)
+against a scenario's truth, with the replay's track metrics (:func:`radartracker.pipeline.evaluate.
+track_metrics`: continuity, swaps, breaks, false tracks — CLEAR MOT assignment on a 2 s grid).
+
+Each track number's published updates (I070 time, I100 position, I185 velocity) form its history;
+a TSE record ends it. Positions are in the service's plane (centred on the radars' mean position,
+as :func:`radartracker.service.service.build_manager` sets it), where the truth is projected too.
+A target counts as observed from ``GRACE_S`` after its first labelled plot to its last, as in a
+replay's evaluation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from radartracker.geometry.plane import SystemPlane
+from radartracker.io.tables import ScenarioData
+from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, track_metrics
+from radartracker.pipeline.result import GRACE_S
+
+
+def cat062_histories(records: list[dict]) -> dict[int, TrackHistory]:
+    """Track number → history of its published updates (the last record wins at equal times)."""
+    per: dict[int, list[dict]] = {}
+    for r in records:
+        per.setdefault(r["track_number"], []).append(r)
+    out = {}
+    for n, recs in per.items():
+        live = sorted({r["time"]: r for r in recs if not r["ended"]}.items())
+        if not live:
+            continue
+        t = np.array([k for k, _ in live], float)
+        states = np.array([[r["x_m"], r["y_m"], r["vx_mps"], r["vy_mps"]] for _, r in live], float)
+        end = max((r["time"] for r in recs if r["ended"]), default=float(t[-1]))
+        out[n] = TrackHistory(t, states, float(t[0]), float(end))
+    return out
+
+
+def score_cat062(records: list[dict], data: ScenarioData, step_s: float = 2.0) -> dict:
+    """Track metrics of the published tracks against ``data``'s truth (which must have plot labels)."""
+    if data.truth is None:
+        raise ValueError("the scenario has no truth to score against")
+    plane = SystemPlane(float(np.mean([r.lat for r in data.radars])), float(np.mean([r.lon for r in data.radars])))
+    labelled = np.array([t is not None for t in data.plots.target], bool)
+    observed = {}
+    for tg in np.unique(data.plots.target[labelled].astype(str)):
+        t = data.plots.time[data.plots.target == tg]
+        if t.max() - t.min() > GRACE_S:
+            observed[str(tg)] = (float(t.min()) + GRACE_S, float(t.max()))
+    grid = np.arange(data.truth.time.min(), data.truth.time.max(), step_s)
+    metrics = track_metrics(cat062_histories(records), TruthPaths.from_table(data.truth, plane), observed, grid)
+    metrics.pop("gospa", None)
+    return metrics
