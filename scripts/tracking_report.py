@@ -5,7 +5,9 @@ Scenarios (``scripts/tracking_scenarios.py``): ``approach`` and ``enroute`` (rea
 ``../shared/data``, primary-only plots with Mode C), ``pairs`` (crossing and parallel pairs, false
 plots), and the built-in ``tracking`` and ``manoeuvres`` scenarios. Prints one JSON line per run,
 then a Markdown table. Metrics (:func:`radartracker.pipeline.evaluate.track_metrics`, 2 s grid,
-c = 2 km): continuity (min over aircraft), breaks (also in % of flights), swaps, RMSE and GOSPA;
+c = 2 km): continuity (min over aircraft), breaks (also in % of flights; ``coverage_gaps`` counts
+the gaps longer than ``delete_after_s`` in an aircraft's plots, each an unavoidable break), swaps,
+RMSE and GOSPA;
 here also the p95 position error of each aircraft's own track (overall, flying straight and turning
 faster than 1°/s), and *false confirmed tracks* —
 tracks farther than 2 km from every aircraft for more than half of their reports (track_metrics'
@@ -62,11 +64,12 @@ def evaluate(data: ScenarioData, tracks: dict[int, TrackHistory]) -> dict:
 
     paths = TruthPaths.from_table(data.truth, SystemPlane(*data.reference))
     labelled = np.array([t is not None for t in data.plots.target])
-    observed = {}
+    observed, gaps = {}, 0
     for tg in np.unique(data.plots.target[labelled].astype(str)):
-        t = data.plots.time[data.plots.target == tg]
+        t = np.sort(data.plots.time[data.plots.target == tg])
         if t.max() - t.min() > GRACE_S:
             observed[tg] = (float(t.min()) + GRACE_S, float(t.max()))
+            gaps += int(np.sum(np.diff(t) > ManagerConfig().delete_after_s))
     grid = np.arange(data.truth.time.min(), data.truth.time.max(), GRID_S)
     m = track_metrics(tracks, paths, observed, grid, C_M)
     err, turning = [], []
@@ -90,7 +93,7 @@ def evaluate(data: ScenarioData, tracks: dict[int, TrackHistory]) -> dict:
             truth, inside = paths.state_at(tg, h.times)
             near |= inside & (np.hypot(*(h.states[:, :2] - truth[:, :2]).T) < C_M)
         false += bool(near.mean() < 0.5)
-    return {"flights": len(observed), "continuity_min": m["continuity_min"], "breaks": m["breaks"],
+    return {"flights": len(observed), "coverage_gaps": gaps, "continuity_min": m["continuity_min"], "breaks": m["breaks"],
             "breaks_pct": 100.0 * m["breaks"] / max(len(observed), 1), "swaps": m["swaps"],
             "false_confirmed": false, "confirmed_tracks": m["confirmed_tracks"],
             "rmse_m": m["position_rmse_m"], "p95_m": float(np.percentile(err, 95)) if err else float("nan"),
@@ -116,8 +119,8 @@ def build(name: str, args: argparse.Namespace, mode_s: bool = False) -> Scenario
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--sets", nargs="+", default=["approach", "enroute", "pairs", "tracking", "manoeuvres"])
-    ap.add_argument("--models", nargs="+", default=["imm", "cv", "adaptive"])
+    ap.add_argument("--sets", nargs="*", default=["approach", "enroute", "pairs", "tracking", "manoeuvres"])
+    ap.add_argument("--models", nargs="*", default=["imm", "cv", "adaptive"])
     ap.add_argument("--estimator", default="coupled-sparse")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--approach-s", type=float, default=1800.0)

@@ -7,8 +7,10 @@ radars, plots primary-only with Mode C altitude (no Mode S, no Mode 3/A, no ADS-
 * ``approach``: the four radars of the built-in ``paris`` scenario (periods 4, 4, 10, 8 s), the
   Paris flights airborne during the first ``duration`` s of the recording.
 * ``enroute``: five long-range radars (250 km, periods 8–12 s, on high sites 100–190 km around
-  Paris); the Paris flights that climb above 7000 m, each shifted by a whole number of hours so
-  that its start falls in one ``duration`` window (real trajectories, denser traffic).
+  Paris); the Paris flights that climb above 7000 m, each shifted by a whole number of windows so
+  that its start falls in one ``duration`` window (real trajectories, denser traffic); a shifted
+  flight that would come within 3 NM and 1000 ft of one already kept is left out (two departures
+  30 min apart on one runway would otherwise fly as one), and every flight gets its own address.
 * ``crossing``: pairs crossing at 30°, 60°, 90° and head-on, at the same level and 1000 ft apart;
   ``parallel``: pairs 3 NM and 2 NM apart, same level and speed.
 """
@@ -74,13 +76,27 @@ def enroute(seed: int = 1, duration: float = 3600.0, mode_s: bool = False, max_f
                        pd=0.9) for (rid, x, y, T, h), b in zip(sites, biases)]
     flights = [f for f in _paris_flights(path).values() if f.altitude_m.max() > 7000.0]
     t0 = min(f.time[0] for f in flights)
-    aircraft = []
-    for i, f in enumerate(flights[:max_flights]):
+    kept: list[RecordedTrajectory] = []
+    for f in flights:
         shift = math.floor((f.time[0] - t0) / duration) * duration
         traj = RecordedTrajectory.from_geodetic(plane, f.time - shift, f.lat, f.lon, f.altitude_m)
-        aircraft.append(SimAircraft(_identity(i, f.icao24, mode_s), traj))
+        if not any(_conflict(traj, other) for other in kept):
+            kept.append(traj)
+    # one address per flight (an airframe flies several flights of the recording)
+    aircraft = [SimAircraft(_identity(i, f"{0x3a0000 + i:06x}", mode_s), traj) for i, traj in enumerate(kept[:max_flights])]
     sim = Simulator(PARIS, radars, aircraft, t0, t0 + duration, seed=seed, name="enroute")
     return primary_only(sim.run())
+
+
+def _conflict(a: RecordedTrajectory, b: RecordedTrajectory) -> bool:
+    """Whether two time-shifted flights ever come within 3 NM and 1000 ft of each other (a loss of
+    separation no controlled traffic has: such a pair is an artefact of moving flights in time)."""
+    lo, hi = max(a.t_start, b.t_start), min(a.t_end, b.t_end)
+    if hi <= lo:
+        return False
+    t = np.arange(lo, hi, 5.0)
+    (xa, ya, ha), (xb, yb, hb) = a.position(t), b.position(t)
+    return bool(np.any((np.hypot(xa - xb, ya - yb) < 3 * 1852.0) & (np.abs(ha - hb) < 1000 * FT)))
 
 
 def pairs(seed: int = 1, duration: float = 900.0) -> ScenarioData:
