@@ -13,6 +13,7 @@ Prints one JSON line per run, writes the Markdown table into ``docs/fusion.md`` 
 the figure ``docs/figures/fusion_comparison.png``::
 
     python scripts/compare_architectures.py [--duration 600] [--flights N] [--no-doc]
+    python scripts/compare_architectures.py --sweep 300   # the FusionConfig table (one setting at a time)
 """
 
 from __future__ import annotations
@@ -65,8 +66,8 @@ def flight_scenario(fid: str, f, seed: int, seconds: float) -> ScenarioData:
                      seed=seed, name=fid).run()
 
 
-def measure(data: ScenarioData, arch: str) -> dict:
-    cfg = RunConfig(architecture=arch, association="manager")
+def measure(data: ScenarioData, arch: str, fusion: dict | None = None) -> dict:
+    cfg = RunConfig(architecture=arch, association="manager", fusion=fusion or {})
     cpu = time.process_time()
     res = run(data, cfg, progress=False)
     cpu = time.process_time() - cpu
@@ -83,7 +84,30 @@ def measure(data: ScenarioData, arch: str) -> dict:
         "bias_sd_range_m": [x["sd_range_m"] for x in b], "bias_sd_az_deg": [x["sd_azimuth_deg"] for x in b],
         "bias_z": [max(abs(x["z_range"]), abs(x["z_azimuth"])) for x in b],
         "cpu_s": cpu, "us_per_input": 1e6 * cpu / max(len(data.plots) + len(data.adsb), 1),
+        "mean_nees": s["consistency"]["mean_nees"],
     }
+
+
+# one FusionConfig setting changed at a time from its default
+SWEEP = [({}, "defaults"), ({"period_s": 1.0}, "period_s 1"), ({"period_s": 4.0}, "period_s 4"),
+         ({"bias_every_s": 4.0}, "bias_every_s 4"), ({"bias_every_s": 30.0}, "bias_every_s 30"),
+         ({"r_inflation": 1.0}, "r_inflation 1"), ({"r_inflation": 4.0}, "r_inflation 4")]
+
+
+def sweep(duration: float, seed: int) -> str:
+    """The fusion settings, one at a time, on demo and manoeuvres: the table that backs the defaults."""
+    lines = ["| setting | " + " | ".join(f"{n}: RMSE m / range-bias sd m / max \\|z\\| / NEES" for n in ("demo", "manoeuvres"))
+             + " |", "|---|---|---|"]
+    datas = {n: build_scenario(n, seed=seed, duration=duration).run() for n in ("demo", "manoeuvres")}
+    for change, label in SWEEP:
+        cells = []
+        for name, data in datas.items():
+            r = measure(data, "distributed", change)
+            print(json.dumps({"sweep": label, "scenario": name, **r}), flush=True)
+            cells.append(f"{r['rmse_m']:.1f} / {np.mean(r['bias_sd_range_m']):.1f} / {max(r['bias_z']):.2f} / "
+                         f"{r['mean_nees']:.2f}")
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def pooled(rows: list[dict]) -> dict:
@@ -141,7 +165,17 @@ def main() -> None:
     ap.add_argument("--data", default=str(FULL), help="real_flights.csv.gz-style file")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--no-doc", action="store_true", help="print only; leave docs/ untouched")
+    ap.add_argument("--sweep", type=float, default=None, metavar="SECONDS",
+                    help="instead: the FusionConfig settings one at a time on demo and manoeuvres of SECONDS")
     args = ap.parse_args()
+    if args.sweep is not None:
+        md = sweep(args.sweep, args.seed)
+        print(md)
+        if not args.no_doc:
+            text = re.sub(r"(<!-- sweep:begin -->\n).*?(<!-- sweep:end -->)",
+                          lambda m: m.group(1) + md + "\n" + m.group(2), DOC.read_text(), flags=re.S)
+            DOC.write_text(text)
+        return
     results, durations = {}, {}
     for name in SCENARIOS:
         data = build_scenario(name, seed=args.seed, duration=args.duration).run()
