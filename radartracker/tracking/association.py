@@ -7,7 +7,11 @@ estimate (ς̂_j, P_ς) from the estimator plugin::
 
 A pair is admissible when d² ≤ gate (χ²₂ quantile). Global nearest neighbour: the assignment that
 minimises Σ (d² + ln det S) over admissible pairs (``scipy.optimize.linear_sum_assignment``);
-candidates are found first with a k-d tree on the predicted positions.
+candidates are found first with a k-d tree on the predicted positions. The assignment is tiered
+(:func:`assign_tiers`): confirmed tracks first, tentative ones on what no confirmed track claims.
+With Mode C on both sides, d_h² = (h − h̄)²/(P̄_hh + r) of the track's :class:`AltitudeTrack`
+gates the pair (χ²₁) and joins the cost. A plot converted at an assumed altitude carries that
+uncertainty in R (:func:`altitude_spread`).
 """
 
 from __future__ import annotations

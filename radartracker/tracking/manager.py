@@ -14,7 +14,9 @@ triangulated fix; associated by its ``aircraft`` key if that is a Mode S address
    Mode S address → the track with that address; otherwise global nearest neighbour with gates on
    the bias-corrected predicted position and the full innovation covariance
    (:mod:`radartracker.tracking.association`), Mode 3/A codes restricting the candidates.
-   Unassigned plots start tentative tracks. ADS-B reports go to the track with their address.
+   Confirmed tracks take the plots they gate before tentative ones; Mode C altitude gates too
+   (:class:`AltitudeTrack`). Unassigned plots start tentative tracks, unless they lie within
+   ``new_track_exclusion`` of a confirmed track. ADS-B reports go to the track with their address.
 4. **Misses** — each radar's antenna phase is estimated from its plots (α(t) = φ + 2πt/T); a track
    in coverage whose azimuth the antenna swept during the frame without a plot has missed a
    detection. Tentative tracks are confirmed by M hits out of N opportunities and dropped when that
@@ -85,7 +87,7 @@ class ManagerConfig:
     estimator: str = attrs.field(factory=default_estimator)
     # aircraft turn: the estimator's CV model needs process noise, or it explains a turn by biases
     estimator_config: EstimatorConfig = attrs.field(factory=lambda: EstimatorConfig(motion=MotionModel(5.0)))
-    motion_model: str = "cv"
+    motion_model: str = "imm"  # chosen by measurement: docs/tracking.md, "Association of primary-only traffic"
     # the motion model's settings; None: its config_class() defaults, with q from estimator_config (motion_q)
     motion: MotionConfig | None = None
     motion_options: dict[str, str] = attrs.field(factory=dict)  # KEY=VALUE settings applied on top of ``motion``

@@ -99,8 +99,8 @@ def _scenario(aircraft_specs, duration=420.0, seed=3, false_per_scan=0.0):
 
 
 def _run(data):
-    """Every event of the TrackManager (default settings, coupled-sparse) over ``data``."""
-    mgr = TrackManager(data.radars, data.reference, ManagerConfig(estimator="coupled-sparse", motion_model="imm"))
+    """Every event of the TrackManager (default settings, so the default motion model) over ``data``."""
+    mgr = TrackManager(data.radars, data.reference, ManagerConfig(estimator="coupled-sparse"))
     return mgr.process_many(scenario_stream(data))
 
 
