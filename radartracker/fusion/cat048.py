@@ -49,7 +49,8 @@ def local_track_record(time: float, sac: int, sic: int, track: int, range_m: flo
         "020": ((5 if mode_s else 2 if mode_3a else 1, 0, 0, 0, 0, None),),
         "040": (("RHO", (range_m / NM, "NM")), ("THETA", (math.degrees(azimuth_rad) % 360.0, "°"))),
         "161": int(track) % 4096,
-        "200": (("GSP", (min(speed_mps / NM, 65535 * GSP_LSB), "NM/s")), ("HDG", (math.degrees(heading_rad) % 360.0, "°"))),
+        "200": (("GSP", (min(speed_mps / NM, 65535 * GSP_LSB), "NM/s")),
+                ("HDG", (math.degrees(heading_rad) % 360.0, "°"))),
         "170": ((0, 0, 0, 0, 0, None), (1, 0, 0, 0, 0, None)) if ended else ((0, 0, 0, 0, 0, None),),
     }
     if mode_3a:
@@ -61,11 +62,12 @@ def local_track_record(time: float, sac: int, sic: int, track: int, range_m: flo
     return CAT048.cv_record.create(items)
 
 
-def _heading_step(plane: SystemPlane, x: float, y: float) -> tuple[float, float, float, float]:
+def _heading_step(plane: SystemPlane, x: float, y: float) -> tuple[float, float, np.ndarray, np.ndarray]:
     """(lat, lon) at plane (x, y) and the plane displacement of 1 m north and 1 m east from it."""
     lat, lon = (float(v) for v in plane.to_geodetic(x, y))
     north = np.array(plane.to_plane(lat + math.degrees(1.0 / EARTH_M), lon), float) - (x, y)
-    east = np.array(plane.to_plane(lat, lon + math.degrees(1.0 / (EARTH_M * math.cos(math.radians(lat))))), float) - (x, y)
+    dlon = math.degrees(1.0 / (EARTH_M * math.cos(math.radians(lat))))
+    east = np.array(plane.to_plane(lat, lon + dlon), float) - (x, y)
     return lat, lon, north, east
 
 
@@ -84,7 +86,8 @@ def has_track_reports(path: Path | str, blocks: int = 50) -> bool:
 
 
 def write_local_tracks(path: Path | str, data: ScenarioData, tracks: LocalTracks, *, default_altitude_m: float,
-                       sac_sic: dict[str, tuple[int, int]] | None = None, adsb_sac_sic: tuple[int, int] = (0, 200)) -> int:
+                       sac_sic: dict[str, tuple[int, int]] | None = None,
+                       adsb_sac_sic: tuple[int, int] = (0, 200)) -> int:
     """``tracks`` as CAT048 track reports, ``data``'s ADS-B as CAT021 (raw blocks, in time order), the
     radar sites as ``<path>.radars.csv``; returns the number of records. A track's last report
     before its end carries TRE."""
@@ -168,9 +171,11 @@ def local_tracks_from_asterix(path: Path | str, *, radars: Path | str | None = N
             if i200 is None:
                 skipped["local_tracks_without_I200"] += 1
                 continue
-            p = next(_records(48, [rec], decode_cat048, skipped), None)
-            if p is None or (p["sac"], p["sic"]) not in ids:
-                skipped["local_tracks_unknown_sac_sic"] += p is not None
+            p = next(_records(48, [rec], decode_cat048, skipped), None)  # None: counted by missing item
+            if p is None:
+                continue
+            if (p["sac"], p["sic"]) not in ids:
+                skipped["local_tracks_unknown_sac_sic"] += 1
                 continue
             rid, trn = ids[(p["sac"], p["sic"])], i161.variation.get_item("TRN").variation.as_uint()
             if (rid, trn) not in number:
@@ -192,7 +197,8 @@ def local_tracks_from_asterix(path: Path | str, *, radars: Path | str | None = N
             P = np.zeros((4, 4))
             P[:2, :2] = position_sd_scale ** 2 * J @ radar_by_id[rid].W @ J.T
             P[2:, 2:] = np.eye(2) * velocity_sd_mps ** 2
-            reports.append(LocalReport(time, rid, tid, np.array([x, y, vel[0], vel[1]]), P, alt, p["mode_s"], p["mode_3a"]))
+            reports.append(LocalReport(time, rid, tid, np.array([x, y, vel[0], vel[1]]), P, alt,
+                                       p["mode_s"], p["mode_3a"]))
             tre = i170 is not None and i170.variation.get_item("TRE") is not None and \
                 i170.variation.get_item("TRE").variation.as_uint() == 1
             if tre:
