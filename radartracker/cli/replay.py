@@ -9,6 +9,7 @@ command line override the file's).
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import attrs
@@ -107,11 +108,15 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     config = run_config(args, read_config(args.config) if args.config is not None else None)
     out = prepare(args.out, overwrite=args.overwrite)  # before the computation: fail early, not after it
     local = None
-    if (config.architecture == "distributed" and args.scenario.suffix.lower() in ASTERIX_SUFFIXES
-            and args.scenario.is_file() and has_track_reports(args.scenario)):
+    tracks_in = (args.scenario.suffix.lower() in ASTERIX_SUFFIXES and args.scenario.is_file()
+                 and has_track_reports(args.scenario))
+    if tracks_in and config.architecture == "distributed":
         # CAT048 track reports (I161): what a radar head that tracks sends; fused without local trackers
         data, local = local_tracks_from_asterix(args.scenario, skip_bad=config.skip_bad)
     else:
+        if tracks_in:
+            print(f"warning: {args.scenario} holds CAT048 track reports (I161); the central architecture reads "
+                  "their positions as plots; --architecture distributed fuses them as tracks", file=sys.stderr)
         data = read_source(args.scenario, skip_bad=config.skip_bad)
     result = run(data, config, progress=not getattr(args, "quiet", False), local_tracks=local)
     write_outputs(result, out, figures=args.plots)

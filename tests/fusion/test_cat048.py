@@ -66,9 +66,13 @@ def test_distributed_run_on_imported_local_tracks(exported):
     assert s["counts"]["local_track_reports_used"] > 0 and s["counts"]["adsb_used"] > 0
 
 
-def test_replay_of_a_track_recording_with_the_distributed_architecture(exported, tmp_path):
+def test_replay_of_a_track_recording_with_the_distributed_architecture(exported, tmp_path, capsys):
     _, tracks, path, _ = exported
     out = tmp_path / "out"
     assert main(["--quiet", "replay", str(path), "--architecture", "distributed", "--out", str(out)]) == 0
     s = json.loads((out / "summary.json").read_text())
     assert s["counts"]["local_track_reports_used"] > 0 and s["tracks"] == len({r.mode_s for r in tracks.reports})
+    assert "track reports" not in capsys.readouterr().err
+    # the central architecture reads the track positions as plots, and says so
+    assert main(["--quiet", "replay", str(path), "--out", str(tmp_path / "central")]) == 0
+    assert "CAT048 track reports (I161)" in capsys.readouterr().err
