@@ -137,4 +137,4 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
     print(f"triangulated {len(done)} of {len(by_target)} targets from {len(bearings)} bearings "
           f"({sum(skipped.values())} rows skipped, {len(refused)} refused, "
           f"{len(summary['poor_geometry'])} in poor geometry); wrote {args.out / name}")
-    return 0
+    return 0 if done else 1  # nothing solved: nothing useful produced

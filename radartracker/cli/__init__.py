@@ -129,6 +129,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     options = {k: getattr(args, k) for k in bounds if getattr(args, k) is not None}
     for k, v in options.items():
         check_number(f"--{k.replace('_', '-')}", v, lo=bounds[k][0], hi=bounds[k][1])
+    if options.get("aircraft", 0) * max(options.get("radars", 1), 1) > 1_000_000:  # memory, not a scenario
+        raise ConfigurationError("--aircraft × --radars: at most 1 000 000 aircraft-radar pairs")
     if args.scenario == "traffic":
         from radartracker.simulation.traffic import traffic_scenario
 
@@ -138,6 +140,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     else:
         scenario = build_scenario(args.scenario, seed=args.seed, duration=args.duration)
     data = scenario.run()
+    if len(data.plots) == 0:  # nothing useful: say so instead of writing a scenario no command can read
+        raise ConfigurationError(f"the simulation produced no plots (--duration {args.duration} s is shorter than "
+                                 "a radar scan?); nothing written")
     write_scenario(args.out, data)
     print(f"wrote {args.out}: {len(data.radars)} radars, {len(data.plots)} plots, "
           f"{len(data.adsb)} ADS-B reports")
