@@ -75,9 +75,9 @@ def _scans(t: np.ndarray, ridx: np.ndarray, z: np.ndarray, R: np.ndarray, frame_
 
 class PreGatedHypothesiser(DistanceHypothesiser):
     """Stone Soup's ``DistanceHypothesiser`` on the detections within ``radius_m`` of the track's
-    straight-line extrapolation only (a k-d-tree-like pre-gate, as the TrackManager uses): the
-    Mahalanobis gate of the plain hypothesiser lies well inside it, so the result is unchanged and
-    the cost no longer grows with the number of tracks times detections."""
+    straight-line extrapolation only (a pre-gate like the TrackManager's k-d tree search): the
+    Mahalanobis gate of the plain hypothesiser normally lies well inside it, and the cost no longer
+    grows with the number of tracks times detections."""
 
     radius_m: float = 25_000.0
 
