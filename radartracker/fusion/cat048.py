@@ -30,7 +30,7 @@ import numpy as np
 from radartracker.errors import InputError
 from radartracker.fusion.center import LocalReport, LocalTrackEnd, LocalTracks
 from radartracker.geometry.plane import RadarFrame, SystemPlane
-from radartracker.io.asterix import (CAT021, CAT048, FL_M, NM, _Clock, _records, _tod, _write_sites, cat021_record,
+from radartracker.io.asterix import (CAT021, CAT048, NM, _Clock, _records, _write_sites, cat021_record, cat048_record,
                                      datablocks, decode_block, decode_cat048, iter_datablocks, read_asterix,
                                      read_sites, sac_sic_of)
 from radartracker.io.tables import PlotTable, ScenarioData
@@ -43,23 +43,12 @@ def local_track_record(time: float, sac: int, sic: int, track: int, range_m: flo
                        speed_mps: float, heading_rad: float, altitude_m: float | None = None,
                        mode_s: str | None = None, mode_3a: str | None = None, ended: bool = False):
     """One CAT048 track report (I161 track number, I200 velocity, I170 status)."""
-    items: dict = {
-        "010": (("SAC", sac), ("SIC", sic)),
-        "140": (_tod(time), "s"),
-        "020": ((5 if mode_s else 2 if mode_3a else 1, 0, 0, 0, 0, None),),
-        "040": (("RHO", (range_m / NM, "NM")), ("THETA", (math.degrees(azimuth_rad) % 360.0, "°"))),
+    return cat048_record(time, sac, sic, range_m, azimuth_rad, altitude_m, mode_s, mode_3a, extra={
         "161": int(track) % 4096,
         "200": (("GSP", (min(speed_mps / NM, 65535 * GSP_LSB), "NM/s")),
                 ("HDG", (math.degrees(heading_rad) % 360.0, "°"))),
         "170": ((0, 0, 0, 0, 0, None), (1, 0, 0, 0, 0, None)) if ended else ((0, 0, 0, 0, 0, None),),
-    }
-    if mode_3a:
-        items["070"] = (0, 0, 0, 0, ("MODE3A", mode_3a))
-    if altitude_m is not None and math.isfinite(altitude_m):
-        items["090"] = (0, 0, ("FL", (altitude_m / FL_M, "FL")))
-    if mode_s:
-        items["220"] = int(mode_s, 16)
-    return CAT048.cv_record.create(items)
+    })
 
 
 def _heading_step(plane: SystemPlane, x: float, y: float) -> tuple[float, float, np.ndarray, np.ndarray]:

@@ -54,14 +54,17 @@ def _tod(t: float) -> float:
 
 
 def cat048_record(time: float, sac: int, sic: int, range_m: float, azimuth_rad: float,
-                  altitude_m: float | None = None, mode_s: str | None = None, mode_3a: str | None = None):
-    """One CAT048 target report (TYP: 5 Mode S roll-call, 2 SSR, 1 PSR as the codes present)."""
+                  altitude_m: float | None = None, mode_s: str | None = None, mode_3a: str | None = None,
+                  extra: dict | None = None):
+    """One CAT048 target report (TYP: 5 Mode S roll-call, 2 SSR, 1 PSR as the codes present);
+    ``extra`` adds items (a local track's I161/I200/I170)."""
     typ = 5 if mode_s else 2 if mode_3a else 1
     items: dict = {
         "010": (("SAC", sac), ("SIC", sic)),
         "140": (_tod(time), "s"),
         "020": ((typ, 0, 0, 0, 0, None),),
         "040": (("RHO", (range_m / NM, "NM")), ("THETA", (math.degrees(azimuth_rad) % 360.0, "°"))),
+        **(extra or {}),
     }
     if mode_3a:
         items["070"] = (0, 0, 0, 0, ("MODE3A", mode_3a))
