@@ -45,7 +45,7 @@ def test_damaged_bytes(files, name, edits, skip_bad):
     path = d / f"m_{name}"
     path.write_bytes(apply(bufs[name], edits.draw(mutations(len(bufs[name])))))
     args = (path, skip_bad) if name == "bearings.csv" else (path,)
-    works_or_refuses(READERS[name], *args)
+    assert works_or_refuses(READERS[name], *args) in ("read", "refused")
 
 
 @given(name=st.sampled_from(sorted(READERS)), data=st.data())
@@ -62,7 +62,7 @@ def test_tricky_fields(files, name, data):
     path = d / f"f_{name}"
     path.write_text("".join(lines))
     args = (path, False) if name == "bearings.csv" else (path,)
-    works_or_refuses(READERS[name], *args)
+    assert works_or_refuses(READERS[name], *args) in ("read", "refused")
 
 
 @pytest.fixture(scope="module")
@@ -88,4 +88,4 @@ def test_damaged_recording_converts_or_refuses(recording, name, edits):
     buf = (work / "rec" / name).read_bytes()
     (work / "rec" / name).write_bytes(apply(buf, edits.draw(mutations(len(buf)))))
     opts = ConvertOptions(AZN_TRACKS_MIN_MEASUR=1, TRACKS_MIN_MEASUR=1)
-    works_or_refuses(convert, work / "rec", work / "new", opts)
+    assert works_or_refuses(convert, work / "rec", work / "new", opts) in ("read", "refused")
