@@ -142,6 +142,13 @@ class SimAircraft:
     trajectory: Trajectory
 
 
+def time_ordered(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """The plot columns of every radar, concatenated and in time order (stable at equal times)."""
+    cols = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    order = np.argsort(cols["time"], kind="stable")
+    return {k: v[order] for k, v in cols.items()}
+
+
 @attrs.define
 class Simulator:
     """Simulates radar plots, ADS-B reports and truth over [t0, t1] (see module docstring)."""
@@ -167,9 +174,7 @@ class Simulator:
         for j, sr in enumerate(self.radars):
             cols, truth_biases[sr.radar.id] = self._radar_plots(j, sr)
             plots.append(cols)
-        cols = {k: np.concatenate([p[k] for p in plots]) for k in plots[0]}
-        order = np.argsort(cols["time"], kind="stable")
-        table = PlotTable.from_columns(**{k: v[order] for k, v in cols.items()})
+        table = PlotTable.from_columns(**time_ordered(plots))
         return ScenarioData(
             reference=self.reference, radars=[sr.radar for sr in self.radars], plots=table,
             adsb=self._adsb(), truth=self._truth(), truth_biases=truth_biases,

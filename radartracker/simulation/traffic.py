@@ -29,7 +29,8 @@ from radartracker.errors import ConfigurationError
 from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.io.tables import AdsbTable, PlotTable, ScenarioData, TruthTable
 from radartracker.simulation.simulator import (_CONE_OF_SILENCE_RAD, _EARTH_RADIUS_M, _MODE_C_STEP_M,
-                                               KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator)
+                                               KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator,
+                                               time_ordered)
 
 _U_EPS = 1e-9  # as radartracker.geometry.kinematics: below this |u| a leg is straight
 _N_LEGS = 36  # enough alternating straight/turn legs for the longest flight (90 min)
@@ -198,9 +199,7 @@ class TrafficSimulator:
         for j, sr in enumerate(self.radars):
             cols, truth_biases[sr.radar.id] = self._radar_plots(j, sr)
             parts.append(cols)
-        cols = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-        order = np.argsort(cols["time"], kind="stable")
-        plots = PlotTable(**{k: v[order] for k, v in cols.items()})
+        plots = PlotTable(**time_ordered(parts))
         return ScenarioData(reference=self.config.reference, radars=[sr.radar for sr in self.radars], plots=plots,
                             adsb=self._adsb(), truth=self._truth(), truth_biases=truth_biases,
                             aircraft=self.aircraft, name="traffic")
