@@ -30,9 +30,9 @@ import numpy as np
 from radartracker.errors import InputError
 from radartracker.fusion.center import LocalReport, LocalTrackEnd, LocalTracks
 from radartracker.geometry.plane import RadarFrame, SystemPlane
-from radartracker.io.asterix import (CAT021, CAT048, NM, _Clock, _records, _write_sites, cat021_record, cat048_record,
-                                     datablocks, decode_block, decode_cat048, iter_datablocks, read_asterix,
-                                     read_sites, sac_sic_of)
+from radartracker.io.asterix import (CAT021, CAT048, NM, _Clock, _records, atomic_recording, cat021_record,
+                                     cat048_record, datablocks, decode_block, decode_cat048, iter_datablocks,
+                                     read_asterix, read_sites, sac_sic_of)
 from radartracker.io.tables import PlotTable, ScenarioData
 
 EARTH_M = 6_371_008.8  # spherical radius for the 1-second heading step (the same both ways)
@@ -93,30 +93,23 @@ def write_local_tracks(path: Path | str, data: ScenarioData, tracks: LocalTracks
     events = sorted([(r.time, 0, k) for k, r in enumerate(tracks.reports)]
                     + [(float(t), 1, i) for i, t in enumerate(data.adsb.time)])
     a = data.adsb
-    tmp = path.with_name(path.name + ".partial")
-    try:
-        with open(tmp, "wb") as fh:
-            for time, cat, i in events:
-                if cat == 0:
-                    r = tracks.reports[i]
-                    x, y, vx, vy = (float(v) for v in r.state)
-                    alt = default_altitude_m if r.altitude_m is None else r.altitude_m
-                    lat, lon, north, east = _heading_step(plane, x, y)
-                    # v = v_n·north + v_e·east (plane displacement per metre north/east): solve for (v_n, v_e)
-                    vn, ve = np.linalg.solve(np.column_stack([north, east]), [vx, vy])
-                    rho, theta, _ = frames[r.radar].polar(lat, lon, alt)
-                    rec = local_track_record(time, *sac_sic[r.radar], r.track, float(rho), float(theta),
-                                             math.hypot(vn, ve), math.atan2(ve, vn), r.altitude_m, r.mode_s,
-                                             r.mode_3a, ended=i in ended)
-                    fh.writelines(datablocks(CAT048, [rec]))
-                else:
-                    fh.writelines(datablocks(CAT021, [cat021_record(a.time[i], *adsb_sac_sic, a.icao24[i], a.lat[i],
-                                                                    a.lon[i], a.altitude_m[i], int(a.nacp[i]))]))
-        _write_sites(Path(str(path) + ".radars.csv"), data.radars, sac_sic)
-        tmp.rename(path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    with atomic_recording(path, data.radars, sac_sic) as fh:
+        for time, cat, i in events:
+            if cat == 0:
+                r = tracks.reports[i]
+                x, y, vx, vy = (float(v) for v in r.state)
+                alt = default_altitude_m if r.altitude_m is None else r.altitude_m
+                lat, lon, north, east = _heading_step(plane, x, y)
+                # v = v_n·north + v_e·east (plane displacement per metre north/east): solve for (v_n, v_e)
+                vn, ve = np.linalg.solve(np.column_stack([north, east]), [vx, vy])
+                rho, theta, _ = frames[r.radar].polar(lat, lon, alt)
+                rec = local_track_record(time, *sac_sic[r.radar], r.track, float(rho), float(theta),
+                                         math.hypot(vn, ve), math.atan2(ve, vn), r.altitude_m, r.mode_s,
+                                         r.mode_3a, ended=i in ended)
+                fh.writelines(datablocks(CAT048, [rec]))
+            else:
+                fh.writelines(datablocks(CAT021, [cat021_record(a.time[i], *adsb_sac_sic, a.icao24[i], a.lat[i],
+                                                                a.lon[i], a.altitude_m[i], int(a.nacp[i]))]))
     return len(events)
 
 

@@ -29,7 +29,9 @@ import math
 import struct
 from collections import Counter
 from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 from asterix.base import Bits, RawDatablock
@@ -37,6 +39,7 @@ import asterix.generated as gen
 
 from radartracker.domain import Aircraft, Radar
 from radartracker.errors import FormatError, InputError
+from radartracker.io.atomic import atomic_open
 from radartracker.io.tables import RADAR_COLUMNS, AdsbTable, PlotTable, ScenarioData
 
 CAT048, CAT021, CAT062 = gen.Cat_048_1_32, gen.Cat_021_2_6, gen.Cat_062_1_21
@@ -153,24 +156,38 @@ def write_asterix(path: Path | str, data: ScenarioData, *, sac_sic: dict[str, tu
         raise ValueError(f"no SAC/SIC for radar(s) {', '.join(missing)}")
     p, a = data.plots, data.adsb
     events = sorted([(float(p.time[i]), 0, i) for i in range(len(p))] + [(float(a.time[i]), 1, i) for i in range(len(a))])
-    tmp = path.with_name(path.name + ".partial")
-    try:
-        with open(tmp, "wb") as fh:
-            for cat, group in _runs(events):
-                if cat == 0:
-                    recs = (cat048_record(p.time[i], *sac_sic[p.radar[i]], p.range_m[i], p.azimuth_rad[i],
-                                          p.altitude_m[i], p.mode_s[i], p.mode_3a[i]) for i in group)
-                    fh.writelines(datablocks(CAT048, recs))
-                else:
-                    recs = (cat021_record(a.time[i], *adsb_sac_sic, a.icao24[i], a.lat[i], a.lon[i],
-                                          a.altitude_m[i], int(a.nacp[i])) for i in group)
-                    fh.writelines(datablocks(CAT021, recs))
-        _write_sites(Path(str(path) + ".radars.csv"), data.radars, sac_sic)
-        tmp.rename(path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    with atomic_recording(path, data.radars, sac_sic) as fh:
+        for cat, group in _runs(events):
+            if cat == 0:
+                recs = (cat048_record(p.time[i], *sac_sic[p.radar[i]], p.range_m[i], p.azimuth_rad[i],
+                                      p.altitude_m[i], p.mode_s[i], p.mode_3a[i]) for i in group)
+                fh.writelines(datablocks(CAT048, recs))
+            else:
+                recs = (cat021_record(a.time[i], *adsb_sac_sic, a.icao24[i], a.lat[i], a.lon[i],
+                                      a.altitude_m[i], int(a.nacp[i])) for i in group)
+                fh.writelines(datablocks(CAT021, recs))
     return len(events)
+
+
+@contextmanager
+def atomic_recording(path: Path, radars: list[Radar], sac_sic: dict[str, tuple[int, int]]) -> Iterator[IO[bytes]]:
+    """The binary file of a new recording ``path`` and its ``.radars.csv`` sidecar, both atomic.
+
+    The sidecar is renamed into place first and the recording last, so a recording that exists has
+    its sidecar; when the block fails neither is left (a SIGKILL between the two renames can leave
+    the sidecar alone, which no command reads without its recording).
+    """
+    sites = Path(str(path) + ".radars.csv")
+    sites_written = False
+    try:
+        with atomic_open(path, "wb") as fh:
+            yield fh
+            _write_sites(sites, radars, sac_sic)
+            sites_written = True
+    except BaseException:
+        if sites_written:
+            sites.unlink(missing_ok=True)
+        raise
 
 
 def _runs(events: list[tuple[float, int, int]]) -> Iterator[tuple[int, list[int]]]:
@@ -187,7 +204,8 @@ def _runs(events: list[tuple[float, int, int]]) -> Iterator[tuple[int, list[int]
 
 
 def _write_sites(path: Path, radars: list[Radar], sac_sic: dict[str, tuple[int, int]]) -> None:
-    with open(path, "w", newline="", encoding="utf-8") as f:
+    """The ``.radars.csv`` sidecar (radars.csv columns plus SAC/SIC), written atomically."""
+    with atomic_open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f, lineterminator="\n")
         w.writerow(RADAR_COLUMNS + ("sac", "sic"))
         for r in radars:
@@ -214,7 +232,7 @@ def write_cat062(path: Path | str, result, *, sac: int = 0, sic: int = 100) -> d
         lat, lon = result.plane.to_geodetic(s[:, 0], s[:, 1])
     recs = (cat062_record(tracks.time[i], sac, sic, numbers[tracks.track[i]], lat[i], lon[i],
                           s[i, 0], s[i, 1], s[i, 2], s[i, 3]) for i in range(len(s)))
-    with open(path, "wb") as fh:
+    with atomic_open(path, "wb") as fh:
         fh.writelines(datablocks(CAT062, recs))
     return numbers
 
@@ -323,7 +341,7 @@ def write_pcap(path: Path | str, packets: Iterable[tuple[float, bytes]], *, dst:
                port: int = 8600) -> None:
     """Write (time, UDP payload) pairs as an Ethernet/IPv4/UDP pcap file (multicast, as ATC feeds are)."""
     d = bytes(int(x) for x in dst.split("."))
-    with open(path, "wb") as fh:
+    with atomic_open(path, "wb") as fh:
         fh.write(struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 65535, 1))
         for t, payload in packets:
             udp = struct.pack(">HHHH", port, port, 8 + len(payload), 0) + payload

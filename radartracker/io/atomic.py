@@ -5,6 +5,11 @@ renamed over its final name (``os.replace``, atomic within one file system on PO
 a reader, a Ctrl-C or a full disk leaves either the previous complete file or the new complete
 file, never a partial one. The temporary file is removed when the write fails.
 
+A folder made of several files that only make sense together (a scenario folder, a recording, a
+``convert`` output) is built whole by :func:`atomic_folder` in a hidden sibling, every file flushed
+to disk, then renamed into place: the folder appears complete or not at all. A run killed with
+SIGKILL leaves only that hidden ``.NAME.partial-*`` sibling, which no command reads.
+
 :func:`prepare_output_folder` runs *before* the computation: it creates the folder, proves it can
 be written, and refuses a folder that already holds files unless ``overwrite`` — which first
 removes the earlier run's files (and nothing that a run does not write).
@@ -13,6 +18,7 @@ removes the earlier run's files (and nothing that a run does not write).
 from __future__ import annotations
 
 import os
+import shutil
 import tempfile
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager, suppress
@@ -47,6 +53,39 @@ def atomic_open(path: Path | str, mode: str = "w", **kwargs: Any) -> Iterator[IO
             yield f
             f.flush()
             os.fsync(f.fileno())
+
+
+@contextmanager
+def atomic_folder(path: Path | str) -> Iterator[Path]:
+    """A new temporary folder beside ``path`` that becomes ``path`` (which must not exist) on success.
+
+    Everything written inside is flushed to disk before the rename; on failure the folder is removed.
+    """
+    path = Path(path)
+    if path.exists():
+        raise FileExistsError(f"{path} already exists; choose a new folder")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.partial-", dir=path.parent))
+    try:
+        yield tmp
+        _sync_tree(tmp)
+        if path.exists():  # os.rename would silently replace an empty folder made meanwhile
+            raise FileExistsError(f"{path} appeared while it was being written; the result is not moved there")
+        os.rename(tmp, path)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def _sync_tree(folder: Path) -> None:
+    """fsync every file under ``folder`` (the rename must not reach the disk before their content)."""
+    for root, _, files in os.walk(folder):
+        for name in files:
+            fd = os.open(os.path.join(root, name), os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
 
 
 def write_text(path: Path | str, text: str) -> None:

@@ -16,17 +16,16 @@ Algorithm, in memory bounded by the number of distinct global track numbers plus
 3. per bucket: load it, sort by (global, kind, radar, time, line), drop tracks with fewer than
    TRACKS_MIN_MEASUR points, write the files.
 
-Everything is written into a temporary sibling of the output folder that is renamed at the end, so
-an error or a crash never leaves a half-written output folder.
+Everything is written into a hidden sibling of the output folder that is renamed at the end
+(:func:`radartracker.io.atomic.atomic_folder`), so an error or a crash never leaves a half-written
+output folder.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import os
 import shutil
-import tempfile
 import time as _time
 from collections import Counter
 from collections.abc import Callable, Iterator
@@ -36,6 +35,7 @@ import attrs
 import numpy as np
 
 from radartracker.errors import FormatError
+from radartracker.io.atomic import atomic_folder
 from radartracker.io.recording import ADS_FILE, COLUMNS, MULTI_RADAR, PLOTS_FILE, TRACKS_FILE, format_new4, format_plt
 
 KIND_ADS, KIND_MULTI, KIND_MONO, KIND_PLOT = 0, 1, 2, 3
@@ -303,18 +303,10 @@ def convert(recording: Path | str, out: Path | str, opts: ConvertOptions | None 
             raise FileNotFoundError(f"{recording / name}: missing; a recording folder holds "
                                     f"{ADS_FILE}, {TRACKS_FILE} and {PLOTS_FILE}")
         _header(recording / name)  # fail early, before writing anything
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
-    try:
+    with atomic_folder(out) as tmp:
         report = _convert_into(recording, tmp, opts)
         shutil.rmtree(tmp / ".spool")
         (tmp / "report.json").write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
-        if out.exists():
-            raise FileExistsError(f"{out} appeared while converting; the result is not moved there")
-        os.rename(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return report
 
 

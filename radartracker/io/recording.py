@@ -31,6 +31,7 @@ from typing import IO, NamedTuple
 
 import numpy as np
 from radartracker.errors import FormatError, InputError
+from radartracker.io.atomic import atomic_folder, write_text
 
 ADS_FILE, TRACKS_FILE, PLOTS_FILE = "plots_ads.txt", "tracks.txt", "plots.txt"
 MULTI_RADAR = "240"  # the seed's radar number of the multi-radar (system) track
@@ -121,21 +122,28 @@ def format_plot(r: PlotRecord) -> str:
 class RecordingWriter:
     """Streams records into a recording folder (created; must not exist), all three files at once.
 
-    Use as a context manager; ``write_*`` accept one record, ``extend`` any iterable of records.
+    Use as a context manager; ``write_*`` accept one record, ``extend`` any iterable of records. The
+    files grow in ``partial`` (a hidden sibling, :func:`radartracker.io.atomic.atomic_folder`), which
+    becomes ``folder`` when the block ends without an exception and is removed when it raises.
     """
 
     def __init__(self, folder: Path | str, *, buffer_lines: int = 20_000) -> None:
         self.folder = Path(folder)
         if self.folder.exists():
             raise FileExistsError(f"{self.folder} already exists; choose a new recording folder")
-        self.folder.mkdir(parents=True)
+        self._commit = atomic_folder(self.folder)
+        self.partial = self._commit.__enter__()
         self._fh: dict[str, IO[str]] = {}
         self._buf: dict[str, list[str]] = {}
         self._limit = buffer_lines
-        for name, cols in COLUMNS.items():
-            fh = open(self.folder / name, "w", encoding="utf-8", newline="\n")
-            fh.write("\t".join(cols) + "\n")
-            self._fh[name], self._buf[name] = fh, []
+        try:
+            for name, cols in COLUMNS.items():
+                fh = open(self.partial / name, "w", encoding="utf-8", newline="\n")
+                self._fh[name], self._buf[name] = fh, []
+                fh.write("\t".join(cols) + "\n")
+        except BaseException as exc:
+            self.close(exc)
+            raise
 
     def _put(self, name: str, line: str) -> None:
         buf = self._buf[name]
@@ -174,17 +182,25 @@ class RecordingWriter:
             self._buf[name].clear()
             fh.flush()
 
-    def close(self) -> None:
-        self.flush()
-        for fh in self._fh.values():
-            fh.close()
-        self._fh.clear()
+    def close(self, exc: BaseException | None = None) -> None:
+        """Finish the files and rename the folder into place; with ``exc``, discard it instead."""
+        try:
+            if exc is None:
+                self.flush()
+        finally:
+            for fh in self._fh.values():
+                fh.close()
+            self._fh.clear()
+        if exc is None:
+            self._commit.__exit__(None, None, None)
+        else:
+            self._commit.__exit__(type(exc), exc, exc.__traceback__)
 
     def __enter__(self) -> RecordingWriter:
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def __exit__(self, exc_type: object, exc: BaseException | None, tb: object) -> None:
+        self.close(exc)
 
 
 def write_recording(folder: Path | str, records: Iterable[AdsRecord | TrackRecord | PlotRecord]) -> Path:
@@ -242,11 +258,13 @@ def format_plt(time, lat, lon, alt, name: str) -> str:
 
 
 def write_new4(path: Path | str, pts: TrackPoints) -> None:
-    Path(path).write_text(format_new4(*pts), encoding="utf-8", newline="\n")
+    """Write a ``.new4`` file atomically."""
+    write_text(path, format_new4(*pts))
 
 
 def write_plt(path: Path | str, pts: TrackPoints, name: str = "track") -> None:
-    Path(path).write_text(format_plt(*pts, name=name), encoding="utf-8", newline="\n")
+    """Write an OziExplorer ``.plt`` file atomically."""
+    write_text(path, format_plt(*pts, name=name))
 
 
 def _bad(path: Path, line: int, field: str, text: str) -> FormatError:
@@ -416,7 +434,7 @@ def write_synthetic_recording(folder: Path | str, *, target_bytes: int | None = 
             w.extend(batch)
             if target_bytes is not None:
                 w.flush()
-                if sum((folder / n).stat().st_size for n in COLUMNS) >= target_bytes:
+                if sum((w.partial / n).stat().st_size for n in COLUMNS) >= target_bytes:
                     break
     return sum((folder / n).stat().st_size for n in COLUMNS)
 

@@ -25,6 +25,7 @@ import numpy as np
 
 from radartracker.domain import Aircraft, Radar
 from radartracker.errors import FormatError
+from radartracker.io.atomic import atomic_folder
 from radartracker.tracking.admission import StreamClock
 from radartracker.io.tables import (ADSB_COLUMNS, BIAS_COLUMNS, PLOT_COLUMNS, RADAR_COLUMNS, TRUTH_COLUMNS, AdsbTable,
                                     PlotTable, ScenarioData, TruthTable)
@@ -399,9 +400,12 @@ def _write(path: Path, header: tuple[str, ...], rows: Iterable[Iterable[str]]) -
 
 
 def write_scenario(folder: Path | str, data: ScenarioData) -> None:
-    """Write ``data`` as a scenario folder (the folder must not exist)."""
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=False)
+    """Write ``data`` as a scenario folder (the folder must not exist); it appears complete or not at all."""
+    with atomic_folder(folder) as tmp:
+        _write_scenario_files(tmp, data)
+
+
+def _write_scenario_files(folder: Path, data: ScenarioData) -> None:
     _write(folder / "radars.csv", RADAR_COLUMNS, (
         (r.id, f"{r.lat:.8f}", f"{r.lon:.8f}", f"{r.height_m:.2f}", f"{r.sigma_range_m:g}",
          f"{math.degrees(r.sigma_azimuth_rad):.6g}", f"{r.period_s:g}", f"{r.max_range_m:g}") for r in data.radars))
