@@ -3,7 +3,8 @@
 Static mode gives one ML fix per target (seed 001 §2–3); dynamic mode one polynomial trajectory
 per target (seed 001 eq. 1.1), both with covariances. A target whose geometry is degenerate or
 too poor is skipped, counted and named on stderr and in ``summary.json``; file formats are in
-``docs/formats.md`` ("Triangulation files").
+``docs/formats.md`` ("Triangulation files"). The output folder is checked before the computation;
+each file is written atomically, ``summary.json`` last.
 """
 
 from __future__ import annotations
@@ -17,14 +18,16 @@ from pathlib import Path
 
 import numpy as np
 
-from radartracker.api import ConfigurationError
+from radartracker.api import ConfigurationError, prepare_output_folder, write_text
 
 
 def register_triangulate(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("triangulate", help="locate targets from passive direction-finder bearings")
     p.add_argument("bearings", type=Path, help="bearings CSV (see docs/formats.md)")
     p.add_argument("--stations", type=Path, required=True, help="stations CSV (see docs/formats.md)")
-    p.add_argument("--out", type=Path, required=True, help="output folder (must not exist or be empty)")
+    p.add_argument("--out", type=Path, required=True, help="output folder (new or empty; see --overwrite)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an earlier run's outputs in --out (otherwise a non-empty folder is refused)")
     p.add_argument("--mode", choices=("static", "dynamic"), default="static",
                    help="static: one position per target; dynamic: a polynomial trajectory (default static)")
     p.add_argument("--order", type=int, default=1, help="polynomial degree of the dynamic model (default 1)")
@@ -45,6 +48,7 @@ def register_triangulate(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_triangulate)
 
 
+OUTPUT_FILES = ("fixes.csv", "tracks.csv", "summary.json")  # what --overwrite may replace
 MAX_ORDER = 10  # a polynomial trajectory of higher degree is fitted noise, and slow to set up
 MAX_OUTPUT_TIMES = 1_000_000  # per target: --step finer than span/10⁶ is a typo (1e-9 s asked for 411 GiB)
 
@@ -86,9 +90,8 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
     from radartracker_plugins.triangulation import (GeometryError, StationWeights, TriangulationFrame, io, locate,
                                                     read_weights, track)
 
-    if args.out.exists() and any(args.out.iterdir()):
-        raise ConfigurationError(f"{args.out} exists and is not empty; choose a new folder")
     _check_options(args)
+    out = prepare_output_folder(args.out, OUTPUT_FILES, overwrite=args.overwrite)  # before the computation
     if args.estimator == "ml" and args.weights is not None:
         raise ConfigurationError("--weights: only with --estimator lsq (ML weighs by the stations' σ)")
     weights = None
@@ -122,9 +125,8 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
         except GeometryError as exc:
             refused[target] = str(exc)
             print(f"radartracker triangulate: target {target}: refused: {exc}", file=sys.stderr)
-    args.out.mkdir(parents=True, exist_ok=True)
     name = "fixes.csv" if args.mode == "static" else "tracks.csv"
-    (io.write_fixes if args.mode == "static" else io.write_tracks)(args.out / name, frame, done)
+    (io.write_fixes if args.mode == "static" else io.write_tracks)(out / name, frame, done)
     summary = {
         "mode": args.mode, "estimator": args.estimator, "weights": args.weights if weights is not None else None,
         "reference": dict(zip(("lat_deg", "lon_deg", "height_m"), frame.reference)),
@@ -133,8 +135,8 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
         "solved": [t[0] for t in done], "refused": refused,
         "poor_geometry": [t[0] for t in done if t[1].poor_geometry],
     }
-    (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")  # last: marks a finished run
     print(f"triangulated {len(done)} of {len(by_target)} targets from {len(bearings)} bearings "
           f"({sum(skipped.values())} rows skipped, {len(refused)} refused, "
-          f"{len(summary['poor_geometry'])} in poor geometry); wrote {args.out / name}")
+          f"{len(summary['poor_geometry'])} in poor geometry); wrote {out / name}")
     return 0 if done else 1  # nothing solved: nothing useful produced

@@ -18,7 +18,7 @@ from .dynamic import TrackFix
 from .frame import TriangulationFrame
 from .sensors import Bearing, DirectionFinder
 from .static import Fix
-from radartracker.api import InputError
+from radartracker.api import InputError, atomic_open
 
 STATION_COLUMNS = ("id", "lat_deg", "lon_deg", "height_m", "sigma_azimuth_deg", "sigma_elevation_deg")
 BEARING_COLUMNS = ("time_s", "station", "azimuth_deg", "elevation_deg")
@@ -146,8 +146,8 @@ def _status(poor: bool, gdop: float) -> str:
 
 
 def write_fixes(path: str | Path, frame: TriangulationFrame, fixes: Iterable[tuple[str, Fix]]) -> None:
-    """One row per static fix."""
-    with open(path, "w", newline="") as fh:
+    """One row per static fix (written atomically)."""
+    with atomic_open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
         w.writerow(FIX_COLUMNS)
         for target, f in fixes:
@@ -158,8 +158,8 @@ def write_fixes(path: str | Path, frame: TriangulationFrame, fixes: Iterable[tup
 
 def write_tracks(path: str | Path, frame: TriangulationFrame,
                  tracks: Iterable[tuple[str, TrackFix, np.ndarray]]) -> None:
-    """One row per (target, output time) of each dynamic track."""
-    with open(path, "w", newline="") as fh:
+    """One row per (target, output time) of each dynamic track (written atomically)."""
+    with atomic_open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
         w.writerow(TRACK_COLUMNS)
         for target, tr, times in tracks:
