@@ -36,7 +36,11 @@ def register_serve(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--estimator", default=None, help="estimator plugin (default: the best installed exact one, "
                                                      "coupled-sparse; on resume: the checkpoint's)")
     p.add_argument("--motion-model", default=None, help="track motion model plugin (default cv; on resume: the checkpoint's)")
-    p.add_argument("--period", type=float, default=4.0, help="seconds between CAT062 publications (default 4)")
+    p.add_argument("--period", type=float, default=4.0,
+                   help="seconds between periodic CAT062 publications of every track (default 4)")
+    p.add_argument("--publish-mode", choices=("update", "periodic", "both"), default="both",
+                   help="CAT062 on each track update (as soon as the tracker's frame is processed), every "
+                        "--period, or both (default both: docs/service.md)")
     p.add_argument("--reorder-window", type=float, default=None, metavar="S",
                    help="seconds the tracker holds inputs to put them in time order (default: the replay's, 2); "
                         "shorter lowers the latency, and late inputs are counted as plots_late/adsb_late")
@@ -46,7 +50,9 @@ def register_serve(sub: argparse._SubParsersAction) -> None:
                    help="UTC day of the first record, for a replayed recording (default: the receive clock)")
     p.add_argument("--sac", type=int, default=0, help="SAC of this tracker in CAT062 I010 (default 0)")
     p.add_argument("--sic", type=int, default=100, help="SIC of this tracker in CAT062 I010 (default 100)")
-    p.add_argument("--interface", default="0.0.0.0", help="IPv4 address of the interface joining multicast groups")
+    p.add_argument("--interface", default="0.0.0.0",
+                   help="IPv4 address of the interface that joins the listened multicast groups and sends to a "
+                        "multicast --publish (127.0.0.1: the loopback)")
     p.set_defaults(func=_cmd_serve)
 
 
@@ -60,7 +66,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     try:
         config = ServiceConfig(tuple(parse_endpoint(e) for e in args.listen), parse_endpoint(args.publish), args.state,
                                args.http, args.period, args.checkpoint_s, args.queue, args.day_start, args.sac,
-                               args.sic, args.interface)
+                               args.sic, args.interface, args.publish_mode)
     except ValueError as exc:
         raise ConfigurationError(f"bad option: {exc}") from None
     stop = threading.Event()  # a signal during the start still gets a clean stop
@@ -82,6 +88,8 @@ def register_send(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--to", required=True, metavar="udp://HOST:PORT", help="destination (unicast or multicast)")
     p.add_argument("--speed", type=float, default=1.0,
                    help="time scale: 1 real time, 10 ten times faster, 0 as fast as possible (default 1)")
+    p.add_argument("--interface", default="0.0.0.0",
+                   help="IPv4 address of the interface a multicast --to is sent from (127.0.0.1: the loopback)")
     p.set_defaults(func=_cmd_send)
 
 
@@ -92,7 +100,7 @@ def _cmd_send(args: argparse.Namespace) -> int:
     if args.speed < 0:
         raise ConfigurationError("--speed must be >= 0 (0: as fast as possible)")
     try:
-        sent = send(args.recording, parse_endpoint(args.to), args.speed)
+        sent = send(args.recording, parse_endpoint(args.to), args.speed, args.interface)
     except ValueError as exc:  # a malformed recording: the reader names file and byte offset
         raise ConfigurationError(str(exc)) from None
     print(json.dumps(sent))

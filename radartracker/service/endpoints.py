@@ -65,10 +65,18 @@ def open_receiver(ep: Endpoint, interface: str = "0.0.0.0") -> socket.socket:
     return sock
 
 
-def open_sender(ep: Endpoint, ttl: int = 1) -> socket.socket:
-    """A socket sending to ``ep`` (multicast with time-to-live ``ttl``: 1 stays on the local network)."""
+def open_sender(ep: Endpoint, ttl: int = 1, interface: str = "0.0.0.0") -> socket.socket:
+    """A socket sending to ``ep``. Multicast: time-to-live ``ttl`` (1 stays on the local network),
+    sent out of ``interface`` (IP_MULTICAST_IF; 0.0.0.0: the routing table's choice, 127.0.0.1: the
+    loopback, with no route needed) and looped back to listeners on this host (IP_MULTICAST_LOOP)."""
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM, socket.IPPROTO_UDP)
-    if ep.multicast:
-        sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, ttl)
-    sock.connect((ep.host, ep.port))
+    try:
+        if ep.multicast:
+            sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, ttl)
+            sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_IF, socket.inet_aton(interface))
+            sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_LOOP, 1)
+        sock.connect((ep.host, ep.port))
+    except OSError as exc:
+        sock.close()
+        raise ConfigurationError(f"cannot send to {ep} (interface {interface}): {exc}") from None
     return sock

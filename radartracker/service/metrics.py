@@ -14,6 +14,9 @@ radartracker_queue_depth                   gauge    datagrams waiting for the tr
 radartracker_queue_capacity                gauge    the bound of that queue
 radartracker_tracks                        gauge    ``status``: tentative, confirmed, coasting
 radartracker_processing_latency_seconds    histo.   datagram receipt → its records handed to the tracker
+radartracker_input_lateness_seconds        histo.   per record: the newest record time received before it
+                                                    − its time (how out of order the feed arrives: the
+                                                    reorder window needed; > the window → counted late)
 radartracker_checkpoints_total             counter  ``outcome``: written (since start), skipped_busy, failed
 =========================================  =======  ==================================================
 """
@@ -24,6 +27,7 @@ from prometheus_client import CollectorRegistry, Histogram
 from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily
 
 LATENCY_BUCKETS = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 30.0, 100.0, 300.0)
+LATENESS_BUCKETS = (0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 5.0, 10.0)
 
 
 class ServiceMetrics:
@@ -35,6 +39,9 @@ class ServiceMetrics:
         self.latency = Histogram("radartracker_processing_latency_seconds",
                                  "Datagram receipt to its records handed to the tracker", buckets=LATENCY_BUCKETS,
                                  registry=self.registry)
+        self.lateness = Histogram("radartracker_input_lateness_seconds",
+                                  "Per record: newest record time received before it minus its time",
+                                  buckets=LATENESS_BUCKETS, registry=self.registry)
         self.registry.register(self)
 
     def collect(self):

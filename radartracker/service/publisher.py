@@ -1,5 +1,11 @@
 """System tracks out: CAT062 datagrams, one record per confirmed or coasting track.
 
+Two kinds of publication (the service's ``--publish-mode`` chooses which it sends): *periodic* —
+every confirmed or coasting track, every period (the full picture a display refreshes from) — and
+*on update* — the tracks a frame of the tracker just updated, confirmed or put in coasting, sent as
+soon as that frame is processed (ARTAS-style asynchronous output: the latency is the tracker's, not
+the period's).
+
 Each record carries the track's latest estimate at the time of its last update (I070 — not
 extrapolated: a consumer extrapolates with I185 to its own display time), position in WGS-84
 (I105) and in the system plane (I100), velocity (I185), flight level (I136), Mode 3/A (I060) and
@@ -14,6 +20,7 @@ from __future__ import annotations
 import math
 import socket
 from collections import Counter
+from collections.abc import Iterable
 
 import numpy as np
 
@@ -28,9 +35,13 @@ def track_number(track_id: int) -> int:
     return (track_id - 1) % 65_535 + 1
 
 
-def track_rows(mgr: TrackManager) -> list[dict]:
-    """The confirmed and coasting tracks as the rows of ``/tracks`` (one geodetic conversion for all)."""
-    trs = mgr.confirmed_tracks()
+def track_rows(mgr: TrackManager, ids: Iterable[int] | None = None) -> list[dict]:
+    """The confirmed and coasting tracks (only those of ``ids`` if given) as the rows of ``/tracks``
+    (one geodetic conversion for all)."""
+    if ids is None:
+        trs = mgr.confirmed_tracks()
+    else:
+        trs = [tr for tr in map(mgr.tracks.get, ids) if tr is not None and tr.status in ("confirmed", "coasting")]
     est = [tr.filter.estimate() for tr in trs]
     x = np.array([e[1] for e in est], float).reshape(-1, 4)
     lat, lon = mgr.plane.to_geodetic(x[:, 0], x[:, 1]) if len(trs) else (np.empty(0), np.empty(0))
@@ -48,14 +59,15 @@ class Publisher:
         self.sock, self.sac, self.sic, self.max_datagram = sock, sac, sic, max_datagram
         self.counts: Counter[str] = Counter()
         self._published: dict[int, tuple] = {}  # track id → (Mode 3/A, Mode S) of tracks sent, to announce their end
-        self.last_records = 0  # records of the latest publication (the final one, after a stop)
+        self.last_records = 0  # records of the latest full publication (the final one, after a stop)
 
     def remember(self, mgr: TrackManager) -> None:
         """Count the manager's confirmed tracks as published (a resumed service announces their end)."""
         self._published |= {tr.id: (tr.mode_3a, tr.mode_s) for tr in mgr.confirmed_tracks()}
 
-    def publish(self, rows: list[dict], ended: list[TrackEvent], plane: SystemPlane) -> int:
-        """Send the tracks ``rows`` (:func:`track_rows`) and the ends of published tracks; returns the records sent."""
+    def publish(self, rows: list[dict], ended: list[TrackEvent], plane: SystemPlane, full: bool = True) -> int:
+        """Send the tracks ``rows`` (:func:`track_rows`) and the ends of published tracks; returns the
+        records sent. ``full``: a periodic publication (every track), else an on-update one."""
         recs = [cat062_bytes(r["time"], self.sac, self.sic, r["track_number"], r["lat"], r["lon"], r["x_m"], r["y_m"],
                              r["vx_mps"], r["vy_mps"], r["altitude_m"], mode_3a=r["mode_3a"], mode_s=r["mode_s"],
                              coasting=r["status"] == "coasting") for r in rows]
@@ -69,6 +81,8 @@ class Publisher:
             for ev in ends:
                 del self._published[ev.track]
         self._published |= {r["id"]: (r["mode_3a"], r["mode_s"]) for r in rows}
+        if not recs and not full:  # only ends of tracks never published: nothing to send
+            return 0
         for block in blocks(62, recs, self.max_datagram):
             try:
                 self.sock.send(block)
@@ -76,6 +90,9 @@ class Publisher:
             except OSError:  # nobody listening (ICMP port unreachable) or a full buffer: counted, never fatal
                 self.counts["cat062_datagrams_send_failed"] += 1
         self.counts["cat062_records"] += len(recs)
-        self.counts["publications"] += 1
-        self.last_records = len(recs)
+        if full:
+            self.counts["publications"] += 1
+            self.last_records = len(recs)
+        else:
+            self.counts["publications_on_update"] += 1
         return len(recs)

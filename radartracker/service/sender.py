@@ -67,9 +67,10 @@ def _tod(cat: int, rec) -> float | None:
     return None if item is None else item.variation.content.as_quantity("s")
 
 
-def send(path: Path | str, to: Endpoint, speed: float = 1.0) -> dict:
-    """Send the recording to ``to``; returns the datagrams, records and bytes sent and the seconds it took."""
-    sock = open_sender(to)
+def send(path: Path | str, to: Endpoint, speed: float = 1.0, interface: str = "0.0.0.0") -> dict:
+    """Send the recording to ``to`` (a multicast group out of ``interface``); returns the datagrams,
+    records and bytes sent and the seconds it took."""
+    sock = open_sender(to, interface=interface)
     sent = {"datagrams": 0, "records": 0, "bytes": 0}
     start, t0, last, days = time.monotonic(), None, None, 0.0
     try:

@@ -1,4 +1,8 @@
-"""The tracker loop: queue → decoder → TrackManager → CAT062 every period, checkpoints, summary.
+"""The tracker loop: queue → decoder → TrackManager → CAT062, checkpoints, summary.
+
+CAT062 leaves on update (the tracks a frame changed, as soon as the datagram whose records closed
+that frame is processed), every period (every track), or both (``ServiceConfig.publish_mode``); the
+final publication at a stop is always a full one.
 
 One thread (the caller's) owns the manager. The :class:`~radartracker.service.receiver.Receiver`
 thread only fills the bounded queue; the HTTP thread only reads the views this loop replaces whole
@@ -39,6 +43,9 @@ from radartracker.service.receiver import Receiver
 from radartracker.tracking.manager import TrackEvent, TrackManager, default_estimator
 log = logging.getLogger(__name__)
 
+PUBLISH_MODES = ("update", "periodic", "both")
+_CHANGED = frozenset({"confirmed", "updated", "coasting"})  # events after which a track is sent on update
+
 
 def build_manager(radars: list[Radar], estimator: str | None = None, motion_model: str | None = None,
                   manager: dict | None = None) -> TrackManager:
@@ -73,7 +80,9 @@ class ServiceConfig:
     day_start: float | None = None  # None: the receive clock gives the day (live data)
     sac: int = 0
     sic: int = 100
-    interface: str = "0.0.0.0"
+    interface: str = "0.0.0.0"  # joins the listened multicast groups and sends the published one
+    # chosen by measurement: docs/service.md, "Load test"
+    publish_mode: str = attrs.field(default="both", validator=attrs.validators.in_(PUBLISH_MODES))
 
 
 class Service:
@@ -99,14 +108,16 @@ class Service:
         self.decoder = Decoder(sites, clock)
         self.sockets = {ep: open_receiver(ep, config.interface) for ep in config.listen}
         self.receiver = Receiver(self.sockets, self.queue)
-        self.publisher = Publisher(open_sender(config.publish), config.sac, config.sic)
+        self.publisher = Publisher(open_sender(config.publish, interface=config.interface), config.sac, config.sic)
         self.publisher.remember(self.manager)
         self.checkpoints_written = 0
         self._child: int | None = None  # pid of the process writing a checkpoint, and when it started
         self._child_started = 0.0
         self.started = time.time()
         self.last_datagram: float | None = None
-        self._ended: list[TrackEvent] = []
+        self._ended: list[TrackEvent] = []  # deletions not yet published
+        self._changed: set[int] = set()  # tracks changed since they were last published
+        self._newest = -math.inf  # the newest record time decoded (for the lateness histogram)
         self.tracks_json: dict = {"tracks": []}
         self.biases_json: dict = {}
         self.view: dict = {}
@@ -146,7 +157,7 @@ class Service:
                 self._take(block=True)
                 now = time.monotonic()
                 if now >= next_pub:
-                    self._publish()
+                    self._publish(send=cfg.publish_mode != "update")
                     next_pub = max(next_pub + cfg.period_s, now + 0.1 * cfg.period_s)
                 if now >= next_ckpt:
                     self._checkpoint()
@@ -163,7 +174,7 @@ class Service:
         while self._take(block=False):  # what was received before the stop
             pass
         self._collect(self.manager.flush())
-        self._publish()
+        self._publish()  # a full publication at the stop, whatever the mode
         self._checkpoint(wait=True)
         summary = self.summary()
         write_json_atomic(cfg.state_dir / "summary.json", summary)
@@ -188,20 +199,38 @@ class Service:
         return n
 
     def _handle(self, received: float, received_mono: float, ep: Endpoint, payload: bytes) -> None:
-        process = self.manager.process
+        process, lateness = self.manager.process, self.metrics.lateness.observe
+        newest = self._newest
         for item in self.decoder.decode(payload, received):
+            lateness(max(0.0, newest - item.time))
+            newest = max(newest, item.time)
             self._collect(process(item))
+        self._newest = newest
         self.last_datagram = received
         self.metrics.latency.observe(time.monotonic() - received_mono)
+        if (self._changed or self._ended) and self.config.publish_mode != "periodic":
+            self._publish_changed()
 
     def _collect(self, events: list[TrackEvent]) -> None:
-        self._ended += [e for e in events if e.kind == "deleted"]
+        for e in events:
+            if e.kind == "deleted":
+                self._ended.append(e)
+                self._changed.discard(e.track)
+            elif e.kind in _CHANGED:
+                self._changed.add(e.track)
 
     # --- outputs -----------------------------------------------------------------------------------
-    def _publish(self) -> None:
+    def _publish_changed(self) -> None:
+        """On update: the tracks changed since the last publication, and the ends of published tracks."""
+        self.publisher.publish(track_rows(self.manager, self._changed), self._ended, self.manager.plane, full=False)
+        self._changed, self._ended = set(), []
+
+    def _publish(self, send: bool = True) -> None:
+        """Every track: sent as CAT062 if ``send`` (else only the JSON views and biases.json are renewed)."""
         rows = track_rows(self.manager)
-        self.publisher.publish(rows, self._ended, self.manager.plane)
-        self._ended = []
+        if send:
+            self.publisher.publish(rows, self._ended, self.manager.plane)
+            self._changed, self._ended = set(), []
         self.tracks_json = {"published": time.time(), "tracks": rows}
         self.biases_json = self._biases()
         write_json_atomic(self.config.state_dir / "biases.json", self.biases_json)

@@ -166,14 +166,47 @@ def check_against_replay(recording: Path, summary: dict, datagrams: list[bytes],
         assert bool(r["080"].get("CST")) == (status == "coasting")
 
 
-def test_serve_in_a_thread_matches_the_replay(recording, tmp_path, capsys):
+def published_late(recording: Path, summary: dict, datagrams: list[bytes]) -> list[tuple[int, float, float]]:
+    """The replay's track updates (track, time) not published within the on-update bound, with the
+    bound: a frame [k·fs, (k+1)·fs) is processed while the datagram whose records carry the newest
+    time past (k+1)·fs + W is handled, and its tracks are sent at that datagram's end with their
+    latest update, so an update at t is published with a time t' ∈ [t, t + fs + W + Δ], Δ the
+    largest step of the newest record time over one datagram of the recording (in send order)."""
+    from radartracker.service.decoder import DayClock, Decoder
+    from radartracker.service.sender import datagrams as recording_datagrams
+    from radartracker.tracking.manager import ManagerConfig
+
+    _, sites = read_sites(Path(str(recording) + ".radars.csv"))
+    decoder, newest, step = Decoder(sites, DayClock(0.0)), -float("inf"), 0.0
+    for _, _, payload in recording_datagrams(recording):
+        times = [i.time for i in decoder.decode(payload, 0.0)]
+        if times and newest > -float("inf"):
+            step = max(step, max(times) - newest)
+        newest = max([newest, *times])
+    mc = ManagerConfig()
+    bound = mc.frame_s + mc.reorder_window_s + step
+    published: dict[int, list[float]] = {}
+    for d in datagrams:
+        for r in asterix4py.AsterixParser(d).get_result().values():
+            published.setdefault(r["040"]["TrkN"], []).append(r["070"]["ToT"])
+    data = read_asterix(recording, day_start=0.0)
+    ev = run(data, RunConfig(association="manager", estimator=summary["estimator"],
+                             motion_model=summary["motion_model"]), progress=False).events
+    return [(int(ev.track[i]), float(ev.time[i]), bound) for i in range(len(ev.time))
+            if ev.kind[i] in ("confirmed", "updated")
+            and not any(ev.time[i] - T_TOL <= t <= ev.time[i] + bound for t in published.get(int(ev.track[i]), ()))]
+
+
+@pytest.mark.parametrize("mode", ["update", "periodic"])
+def test_serve_in_a_thread_matches_the_replay(recording, tmp_path, capsys, mode):
     radars, sites = read_sites(Path(str(recording) + ".radars.csv"))
     listener = Listener()
     listener.start()
     port = free_port()
     http = free_port()
     cfg = ServiceConfig((parse_endpoint(f"udp://127.0.0.1:{port}"),), parse_endpoint(f"udp://127.0.0.1:{listener.port}"),
-                        tmp_path / "state", http=("127.0.0.1", http), period_s=0.5, checkpoint_s=1.0, day_start=0.0)
+                        tmp_path / "state", http=("127.0.0.1", http), period_s=0.5, checkpoint_s=1.0, day_start=0.0,
+                        publish_mode=mode)
     service = Service(cfg, radars, sites)
     stop, out = threading.Event(), {}
     th = threading.Thread(target=lambda: out.update(service.run(stop)), daemon=True)
@@ -210,6 +243,12 @@ def test_serve_in_a_thread_matches_the_replay(recording, tmp_path, capsys):
         [(r["040"]["TrkN"], r["100"]["X"], bool(r["080"].get("CST")), bool(r["080"].get("TSE"))) for r in theirs]
     biases = json.loads((tmp_path / "state" / "biases.json").read_text())
     assert set(biases["radars"]) == {r.id for r in radars}
+    late = published_late(recording, summary, datagrams)
+    if mode == "update":  # every update is sent as soon as its frame is processed
+        assert not late, late[:5]
+        assert summary["published"]["publications_on_update"] > 0
+    else:  # the bound discriminates: a period of 0.5 s at 60x speed holds 30 s of data
+        assert late and "publications_on_update" not in summary["published"]
 
 
 @pytest.mark.slow
