@@ -7,6 +7,8 @@ velocities are the finite-difference slopes of that interpolation. NEES is
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import attrs
 import numpy as np
 
@@ -93,7 +95,7 @@ def gospa(d2: np.ndarray, n_missed: int, n_false: int, c: float) -> float:
 
 
 def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: dict[str, tuple[float, float]],
-                  grid: np.ndarray, c: float = 2000.0) -> dict:
+                  grid: np.ndarray, c: float = 2000.0, sensed: Iterable[str] | None = None) -> dict:
     """Track-to-truth assignment on a time grid and the metrics derived from it.
 
     At each grid time the alive tracks are assigned to the observed truths as in CLEAR MOT
@@ -103,7 +105,11 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
     same point at a crossing would "swap" for one instant by an accident of the tie.) Per target, the *right* track
     is the one assigned to it most often; continuity is the fraction of its observed time it holds.
     A *swap* is a track assigned to two different targets; a *break* a change of a target's
-    assigned track; a *false track* is assigned to a target less than half of its life.
+    assigned track. A track *follows* an aircraft at a grid time when it is assigned to it, or lies
+    within ``c`` of one of the ``sensed`` aircraft (those any plot or report observed; default: every
+    aircraft of ``paths``) where it has truth — so a track confirmed during its aircraft's grace
+    period, on an aircraft seen only by ADS-B, or a second track on an aircraft follows it. A *false
+    track* follows no aircraft for at least half of its life.
     """
     from scipy.optimize import linear_sum_assignment
 
@@ -153,6 +159,8 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
         for r, q in zip(rows, cols):
             track_targets[q].add(r)
     t_alive = trk_live.sum(axis=1)
+    t_follows = t_assigned + _unassigned_near(trk_pos, trk_live, assigned, paths,
+                                              paths.paths if sensed is None else sensed, grid, c2)
     tid_of = np.array(tids + [-1])  # index -1 stays -1
     assigned = tid_of[assigned]
     per_target = {}
@@ -172,9 +180,31 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
         "continuity_min": min((v["continuity"] for v in per_target.values()), default=float("nan")),
         "swaps": sum(len(s) > 1 for s in track_targets),
         "breaks": sum(v["breaks"] for v in per_target.values()),
-        "false_tracks": int(np.sum((t_alive > 0) & (t_assigned < 0.5 * t_alive))),
+        "false_tracks": int(np.sum((t_alive > 0) & (t_follows < 0.5 * t_alive))),
         "confirmed_tracks": len(tids),
         "position_rmse_m": float(np.sqrt(np.mean(sq))) if sq else float("nan"),
         "gospa_mean_m": float(np.mean(g)),
         "gospa": g,
     }
+
+
+def _unassigned_near(trk_pos: np.ndarray, trk_live: np.ndarray, assigned: np.ndarray, paths: TruthPaths,
+                     sensed: Iterable[str], grid: np.ndarray, c2: float) -> np.ndarray:
+    """Per track, the grid times it is alive, not assigned, and within c of a sensed aircraft's truth
+    (only those times are searched: few, so the cost stays linear in the grid)."""
+    held = np.zeros(trk_live.shape, bool)
+    r, k = np.nonzero(assigned >= 0)
+    held[assigned[r, k], k] = True
+    names = [tg for tg in sensed if tg in paths.paths]
+    out = np.zeros(len(trk_live), int)
+    if not names:
+        return out
+    states = [paths.state_at(tg, grid) for tg in names]
+    pos = np.stack([s[:, :2] for s, _ in states])  # sensed × grid × 2
+    inside = np.stack([m for _, m in states])
+    for q in range(len(trk_live)):
+        ks = np.flatnonzero(trk_live[q] & ~held[q])
+        if len(ks):
+            d2 = np.sum((pos[:, ks] - trk_pos[q, ks][None]) ** 2, axis=-1)
+            out[q] = int(np.sum(np.any(inside[:, ks] & (d2 < c2), axis=0)))
+    return out

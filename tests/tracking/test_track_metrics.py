@@ -48,3 +48,61 @@ def test_false_and_late_tracks():
 def test_gospa_definition():
     # two assigned pairs at 3 m and 4 m, one missed target, c = 10: sqrt(9 + 16 + 100/2)
     assert gospa(np.array([9.0, 16.0]), 1, 0, 10.0) == pytest.approx(np.sqrt(75.0), rel=1e-12)
+
+
+def test_false_tracks_follow_no_sensed_aircraft():
+    """False tracks against a count made by construction: aircraft flying east in three regions
+    100 km apart (observed by plots; seen by ADS-B only; seen by nothing), 20 km apart within a
+    region, and tracks of known kinds, some confirmed during their aircraft's 20 s grace period."""
+    rng = np.random.default_rng(7)
+    grid = np.arange(0.0, 600.0, 2.0)
+    paths, observed, sensed = {}, {}, set()
+    kinds = {"plots": 6, "adsb": 3, "unseen": 3}
+    for region, (kind, n) in enumerate(kinds.items()):
+        for i in range(n):
+            t = np.arange(rng.uniform(0, 100), rng.uniform(400, 600), 1.0)
+            v = np.array([rng.uniform(100, 250), 0.0])
+            p = np.array([0.0, region * 1e5 + i * 2e4]) + v * (t[:, None] - t[0])
+            paths[f"{kind}{i}"] = (t, p, np.repeat(v[None], len(t), 0))
+            if kind != "unseen":
+                sensed.add(f"{kind}{i}")
+            if kind == "plots":
+                observed[f"{kind}{i}"] = (t[0] + 20.0, t[-1])
+    truth = TruthPaths(paths)
+
+    def follow(name, start, end, offset=0.0):
+        tt, pp, vv = paths[name]
+        times = np.arange(start, end, 3.0)
+        st = np.column_stack([np.interp(times, tt, pp[:, 0]), np.interp(times, tt, pp[:, 1]) + offset,
+                              np.tile(vv[0], (len(times), 1))])
+        st[:, :2] += rng.normal(0, 300, (len(times), 2))
+        return TrackHistory(times, st, times[0], times[-1])
+
+    tracks, expect_false, not_assigned = {}, 0, 0
+    for name, (tt, _, _) in paths.items():
+        if name.startswith("plots"):
+            # confirmed 10 s after the first plot, inside the grace period: a real track
+            tracks[len(tracks) + 1] = follow(name, tt[0] + 10.0, tt[-1])
+            if name in ("plots0", "plots1"):  # a second track on the same aircraft: a duplicate, not false
+                tracks[len(tracks) + 1] = follow(name, tt[0] + 60.0, tt[0] + 200.0)
+                not_assigned += 1
+        elif name.startswith("adsb"):  # follows an aircraft that only ADS-B saw: real
+            tracks[len(tracks) + 1] = follow(name, tt[0], tt[-1])
+            not_assigned += 1
+        else:  # follows an aircraft no sensor saw: it cannot come from that aircraft's measurements
+            tracks[len(tracks) + 1] = follow(name, tt[0], tt[-1])
+            expect_false += 1
+    for _ in range(4):  # 5 km off an observed aircraft's path (c = 2 km; the next aircraft is 15 km away): false
+        name = f"plots{rng.integers(2, 6)}"
+        tt = paths[name][0]
+        tracks[len(tracks) + 1] = follow(name, tt[0] + 30.0, tt[0] + 150.0, offset=5000.0)
+        expect_false += 1
+    m = track_metrics(tracks, truth, observed, grid, sensed=sensed)
+    assert m["false_tracks"] == expect_false == 7
+    assert m["breaks"] == 0 and m["swaps"] == 0 and m["continuity_min"] > 0.9
+    # the old rule (assigned to an observed aircraft less than half of its life) also counted the
+    # ADS-B-only tracks and the duplicates
+    right = {v["right_track"] for v in m["per_target"].values()}
+    assert len(tracks) - len(right) == expect_false + not_assigned
+    # without ``sensed`` every aircraft of the truth counts as seen: the unseen ones' tracks are real
+    assert track_metrics(tracks, truth, observed, grid)["false_tracks"] == expect_false - kinds["unseen"]
