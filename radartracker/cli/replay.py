@@ -99,7 +99,6 @@ def register_replay(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
-    from radartracker.fusion.cat048 import has_track_reports, local_tracks_from_asterix
     from radartracker.io.sources import ASTERIX_SUFFIXES, read_source
     from radartracker.pipeline.config import read_config
     from radartracker.pipeline.run import run
@@ -108,8 +107,10 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     config = run_config(args, read_config(args.config) if args.config is not None else None)
     out = prepare(args.out, overwrite=args.overwrite)  # before the computation: fail early, not after it
     local = None
-    tracks_in = (args.scenario.suffix.lower() in ASTERIX_SUFFIXES and args.scenario.is_file()
-                 and has_track_reports(args.scenario))
+    tracks_in = args.scenario.suffix.lower() in ASTERIX_SUFFIXES and args.scenario.is_file()
+    if tracks_in:  # imported only for a recording: libasterix takes seconds to import
+        from radartracker.fusion.cat048 import has_track_reports, local_tracks_from_asterix
+        tracks_in = has_track_reports(args.scenario)
     if tracks_in and config.architecture == "distributed":
         # CAT048 track reports (I161): what a radar head that tracks sends; fused without local trackers
         data, local = local_tracks_from_asterix(args.scenario, skip_bad=config.skip_bad)
