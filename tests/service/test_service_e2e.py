@@ -67,12 +67,18 @@ def recording(tmp_path_factory) -> Path:
 
 
 class Listener(threading.Thread):
-    """Collects every datagram arriving on a loopback port until stopped."""
+    """Collects every datagram arriving on a loopback port (or a multicast ``group`` joined on the
+    loopback) until stopped."""
 
-    def __init__(self) -> None:
+    def __init__(self, group: str | None = None) -> None:
         super().__init__(daemon=True)
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1", 0))
+        if group is None:
+            self.sock.bind(("127.0.0.1", 0))
+        else:
+            self.sock.bind((group, 0))
+            self.sock.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP,
+                                 socket.inet_aton(group) + socket.inet_aton("127.0.0.1"))
         self.sock.settimeout(0.1)
         self.port = self.sock.getsockname()[1]
         self.datagrams: list[bytes] = []
@@ -336,3 +342,63 @@ def test_a_restarted_service_continues_from_its_checkpoint(recording, tmp_path):
     final = {(n, a) for n, a, ended in tracks(got[:n_first])[-first["last_publication_records"]:] if not ended}
     after = {(n, a) for n, a, _ in tracks(got[n_first:])}
     assert final and final <= after  # every track alive at the stop is published again, same number and address
+
+
+GROUP_IN, GROUP_OUT = "239.255.14.1", "239.255.14.2"  # administratively scoped; sent on the loopback only
+
+
+def loopback_multicast_refused() -> str | None:
+    """Why this host's loopback cannot carry multicast (None if it can): a group joined on 127.0.0.1,
+    one datagram sent to it out of 127.0.0.1 (IP_MULTICAST_IF, IP_MULTICAST_LOOP; no route needed)."""
+    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        rx.bind((GROUP_IN, 0))
+        rx.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP, socket.inet_aton(GROUP_IN) + socket.inet_aton("127.0.0.1"))
+        rx.settimeout(2.0)
+        tx.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_IF, socket.inet_aton("127.0.0.1"))
+        tx.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_LOOP, 1)
+        tx.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, 1)
+        tx.sendto(b"probe", (GROUP_IN, rx.getsockname()[1]))
+        return None if rx.recv(64) == b"probe" else "a different datagram came back"
+    except TimeoutError:
+        return "a datagram sent to a group joined on 127.0.0.1 did not come back within 2 s"
+    except OSError as exc:
+        return f"{type(exc).__name__}: {exc}"
+    finally:
+        rx.close()
+        tx.close()
+
+
+def test_multicast_in_and_out_on_the_loopback(recording, tmp_path, capsys):
+    """``send`` to a multicast group, ``serve`` joined to it and publishing to another group, a
+    listener joined to that one: everything sent is accounted for, and every CAT062 sent arrives."""
+    why = loopback_multicast_refused()
+    if why is not None:
+        print(f"loopback multicast unavailable: {why}")
+        pytest.skip(f"this host's loopback does not carry multicast: {why}")
+    radars, sites = read_sites(Path(str(recording) + ".radars.csv"))
+    listener = Listener(GROUP_OUT)
+    listener.start()
+    port = free_port()
+    cfg = ServiceConfig((parse_endpoint(f"udp://{GROUP_IN}:{port}"),),
+                        parse_endpoint(f"udp://{GROUP_OUT}:{listener.sock.getsockname()[1]}"), tmp_path / "state",
+                        period_s=0.5, checkpoint_s=60.0, day_start=0.0, interface="127.0.0.1")
+    service = Service(cfg, radars, sites)
+    stop, out = threading.Event(), {}
+    th = threading.Thread(target=lambda: out.update(service.run(stop)), daemon=True)
+    th.start()
+    capsys.readouterr()
+    assert main(["send", str(recording), "--to", f"udp://{GROUP_IN}:{port}", "--interface", "127.0.0.1",
+                 "--speed", "0"]) == 0
+    sent = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    wait_for(lambda: service.view["datagrams"].get("decoded", 0) >= sent["datagrams"], "the service to read everything")
+    stop.set()
+    th.join(DEADLINE_S)
+    assert not th.is_alive()
+    got = listener.finish()
+    dg, rec = out["datagrams"], out["records"]
+    assert dg["received"] == dg["decoded"] == sent["datagrams"] and dg.get("dropped_queue_full", 0) == 0
+    assert rec["cat048_records"] + rec["cat021_records"] == sent["records"]
+    records = [r for d in got for r in asterix4py.AsterixParser(d).get_result().values()]
+    assert out["published"]["datagrams_sent"] == len(got) > 0 and len(records) == out["published"]["records"]
