@@ -1,5 +1,6 @@
-"""CLI commands ``serve`` (the live surveillance service, docs/service.md) and ``send`` (a recording
-replayed onto the network) — registered through ``radartracker.commands`` entry points."""
+"""CLI commands ``serve`` (the live surveillance service, docs/service.md), ``send`` (a recording
+replayed onto the network) and ``score`` (a CAT062 capture scored against a scenario's truth) —
+registered through ``radartracker.commands`` entry points."""
 
 from __future__ import annotations
 
@@ -104,4 +105,32 @@ def _cmd_send(args: argparse.Namespace) -> int:
     except ValueError as exc:  # a malformed recording: the reader names file and byte offset
         raise ConfigurationError(str(exc)) from None
     print(json.dumps(sent))
+    return 0
+
+
+def register_score(sub: argparse._SubParsersAction) -> None:
+    from radartracker.cli.convert import _day_start
+
+    p = sub.add_parser("score", help="score a CAT062 capture (e.g. the service's output) against a scenario's truth")
+    p.add_argument("capture", type=Path, help="CAT062 recording: raw ASTERIX blocks, FINAL format or pcap")
+    p.add_argument("--scenario", type=Path, required=True,
+                   help="the simulated scenario folder the tracked data came from (with truth and plot labels)")
+    p.add_argument("--day-start", type=_day_start, default=0.0, metavar="DATE|SECONDS",
+                   help="UTC day of the capture's first record, as given to serve (default 0; a pcap's own stamps win)")
+    p.set_defaults(func=_cmd_score)
+
+
+def _cmd_score(args: argparse.Namespace) -> int:
+    from radartracker.io.asterix import read_cat062
+    from radartracker.io.scenario import read_scenario
+    from radartracker.service.score import score_cat062
+
+    try:
+        records = read_cat062(args.capture, day_start=args.day_start)
+    except ValueError as exc:  # a malformed capture: the reader names file and byte offset
+        raise ConfigurationError(str(exc)) from None
+    if not records:
+        raise ConfigurationError(f"{args.capture}: no CAT062 track record")
+    metrics = score_cat062(records, read_scenario(args.scenario))
+    print(json.dumps({"records": len(records)} | metrics, default=float))
     return 0

@@ -6,13 +6,14 @@ Each track number's published updates (I070 time, I100 position, I185 velocity) 
 a TSE record ends it. Positions are in the service's plane (centred on the radars' mean position,
 as :func:`radartracker.service.service.build_manager` sets it), where the truth is projected too.
 A target counts as observed from ``GRACE_S`` after its first labelled plot to its last, as in a
-replay's evaluation.
+replay's evaluation. Command line: ``radartracker score CAPTURE --scenario DIR`` (one JSON line).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from radartracker.errors import InputError
 from radartracker.geometry.plane import SystemPlane
 from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, track_metrics
@@ -39,9 +40,11 @@ def cat062_histories(records: list[dict]) -> dict[int, TrackHistory]:
 def score_cat062(records: list[dict], data: ScenarioData, step_s: float = 2.0) -> dict:
     """Track metrics of the published tracks against ``data``'s truth (which must have plot labels)."""
     if data.truth is None:
-        raise ValueError("the scenario has no truth to score against")
+        raise InputError("the scenario has no truth to score against")
     plane = SystemPlane(float(np.mean([r.lat for r in data.radars])), float(np.mean([r.lon for r in data.radars])))
     labelled = np.array([t is not None for t in data.plots.target], bool)
+    if not labelled.any():
+        raise InputError("the scenario's plots carry no target labels to score against")
     observed = {}
     for tg in np.unique(data.plots.target[labelled].astype(str)):
         t = data.plots.time[data.plots.target == tg]

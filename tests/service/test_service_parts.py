@@ -140,3 +140,38 @@ def test_cat062_scoring_is_the_replays_evaluation_of_the_same_states():
     assert expected["confirmed_tracks"] > 0
     for key in ("continuity_min", "swaps", "breaks", "false_tracks", "confirmed_tracks", "position_rmse_m"):
         assert got[key] == pytest.approx(expected[key], rel=1e-9), key
+
+
+def test_score_command_scores_a_cat062_capture_as_the_replay_evaluates_itself(tmp_path, capsys):
+    """The replay's reported states written as CAT062 (its resolutions: 1/128 s, 0.5 m, 0.25 m/s) and
+    scored by ``radartracker score``: the replay's own evaluation, the RMSE within the quantisation."""
+    import json
+
+    import attrs
+    import numpy as np
+
+    from radartracker.pipeline.config import RunConfig
+    from radartracker.pipeline.run import run
+    from radartracker.service.codec import blocks, cat062_bytes
+    from radartracker.simulation.scenarios import build_scenario
+
+    data = build_scenario("tracking", seed=3, duration=120).run()
+    data = attrs.evolve(data, reference=(float(np.mean([r.lat for r in data.radars])),
+                                         float(np.mean([r.lon for r in data.radars]))))
+    write_scenario(tmp_path / "sc", data)
+    res = run(data, RunConfig(association="manager"), progress=False)
+    ev = res.events
+    recs = [cat062_bytes(float(ev.time[i]), 0, 100, int(ev.track[i]), 48.0, 2.0, *map(float, ev.state[i]),
+                         ended=ev.kind[i] == "deleted")
+            for i in range(len(ev.time)) if ev.kind[i] in ("confirmed", "updated", "deleted")]
+    (tmp_path / "out.ast").write_bytes(b"".join(blocks(62, recs, 1472)))
+    assert main(["score", str(tmp_path / "out.ast"), "--scenario", str(tmp_path / "sc")]) == 0
+    got = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    expected = res.evaluation["tracking"]
+    assert got["records"] == len(recs) and expected["confirmed_tracks"] > 0
+    for key in ("swaps", "breaks", "false_tracks", "confirmed_tracks"):
+        assert got[key] == expected[key], key
+    assert got["continuity_min"] == pytest.approx(expected["continuity_min"], abs=0.02)
+    assert got["position_rmse_m"] == pytest.approx(expected["position_rmse_m"], abs=0.5)
+    (tmp_path / "empty.ast").write_bytes(b"")
+    assert main(["score", str(tmp_path / "empty.ast"), "--scenario", str(tmp_path / "sc")]) == 2
