@@ -20,7 +20,7 @@ from radartracker.io.atomic import atomic_open, atomic_path, prepare_output_fold
 from radartracker.io.recording import TrackPoints, read_new4, write_plt
 from radartracker.io.scenario import read_radars, read_scenario
 from radartracker.io.tables import ScenarioData
-from radartracker.simulation.simulator import SimAircraft, SimRadar, Simulator
+from radartracker.simulation.simulator import KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator
 from radartracker.tracking.filters import MotionConfig, TrackFilter
 from radartracker.tracking import kernels  # compiled CV/CT predictions and position update (numba)
 
@@ -32,4 +32,5 @@ __all__ = [
     "convert_plots", "correct", "fill_altitudes", "gain", "nacp_sigma_m", "nis", "plot_keys", "propagate",
     "read_new4", "read_radars", "read_scenario", "symmetrize", "validated_prior", "write_plt", "kernels",
     "atomic_open", "atomic_path", "prepare_output_folder", "write_text",
+    "KinematicTrajectory", "Leg",
 ]
