@@ -1,20 +1,29 @@
 """Load test of ``radartracker serve`` on loopback (127.0.0.1 only): national traffic in, CAT062 out.
 
-For each time scale in ``--speeds`` the script simulates national traffic
-(:mod:`radartracker.simulation.traffic`), packs it into datagrams as radar heads and an ADS-B
-ground station send them (one source and category per datagram, at most 0.25 s of data and 1472
-bytes), starts the service pinned to one core, sends the datagrams on their own timing scaled by
-the speed, listens to the CAT062 output, stops the service with SIGTERM and prints one JSON line:
+The traffic is a recording made by ``radartracker simulate OUT --scenario traffic`` and
+``asterix-export`` (``--recording``), or simulated here (:mod:`radartracker.simulation.traffic`).
+Its records are packed into datagrams as radar heads and an ADS-B ground station send them (one
+source and category per datagram, at most 0.25 s of data and 1472 bytes, sent at the time of its
+last record). For each time scale in ``--speeds`` the script starts the service pinned to one core,
+sends the datagrams on their own timing scaled by the speed, listens to the CAT062 output, stops
+the service with SIGTERM and prints one JSON line:
 
 * ``offered_records_per_s`` and whether anything was dropped (queue full, kernel buffer);
 * ``processing_latency_s`` p50/p99: datagram receipt → its records handed to the tracker
   (the service's histogram);
 * ``end_to_end_latency_s`` p50/p99: a record's datagram sent → the first CAT062 received for its
   aircraft (I380 address) with a track time (I070) at or after the record's time; it includes the
-  tracker's 2 s reorder window, its 0.5 s frames and the wait for the next publication (``--period``);
+  tracker's reorder window, its 0.5 s frames and, unless the service publishes on update, the wait
+  for the next periodic publication (``--period``);
+* ``input_lateness_s`` and ``records_later_than_s``: how out of order the records arrive (the
+  service's histogram: newest record time received before a record − its time), and how many a
+  reorder window of each bucket's length would count as late; ``inputs_late``: those the tracker
+  did count as late (``plots_late`` + ``adsb_late``) with the window of the run;
 * ``service_cpu_s`` (its own and its checkpoint children's), per record, and the rate one core
   would sustain at that cost (``one_core_capacity_records_per_s``) — on a shared machine the service
-  gets only part of its core, and this is the figure that does not depend on how much.
+  gets only part of its core, and this is the figure that does not depend on how much;
+  ``one_core_real_time_factor`` = the traffic's seconds ÷ that CPU time (≥ 1: one dedicated core
+  keeps up with the traffic at 1×); ``load_avg_*``: the machine's load around the run.
 
 ``--kill-at S`` runs one more pass at the first speed: the service is killed with SIGKILL S seconds
 into the run and restarted at once on the same state folder; the line says which records were lost
@@ -43,19 +52,46 @@ from pathlib import Path
 
 import numpy as np
 
-from radartracker.io.asterix import _write_sites, sac_sic_of
-from radartracker.service.codec import blocks, cat021_bytes, cat048_bytes
+from radartracker.io.asterix import _write_sites, iter_datablocks, sac_sic_of
+from radartracker.service.codec import blocks, cat021_bytes, cat048_bytes, decode_block_fast, split_block_fast
 from radartracker.simulation.traffic import traffic_scenario
 
 WINDOW_S, MAX_DATAGRAM = 0.25, 1472
 ADSB_SAC_SIC = (0, 200)
 
 
-def datagram_schedule(data) -> list[tuple[float, bytes, list[tuple[str, float]]]]:
-    """(send time = time of its last record, payload, [(address, time) of its records]) in send order."""
+def scenario_records(data) -> list[tuple[float, object, int, bytes, str | None]]:
+    """(time, source, category, record bytes, Mode S address) of a simulated scenario's plots and reports."""
     sac_sic = sac_sic_of(data)
     p, a = data.plots, data.adsb
-    ev = sorted([(float(p.time[i]), 0, i) for i in range(len(p))] + [(float(a.time[i]), 1, i) for i in range(len(a))])
+    out = [(float(p.time[i]), p.radar[i], 48, cat048_bytes(float(p.time[i]), *sac_sic[p.radar[i]], p.range_m[i],
+                                                           p.azimuth_rad[i], p.altitude_m[i], p.mode_s[i], p.mode_3a[i]),
+            p.mode_s[i]) for i in range(len(p))]
+    out += [(float(a.time[i]), "adsb", 21, cat021_bytes(float(a.time[i]), *ADSB_SAC_SIC, a.icao24[i], a.lat[i], a.lon[i],
+                                                        a.altitude_m[i], int(a.nacp[i])), a.icao24[i])
+            for i in range(len(a))]
+    return out
+
+
+def recording_records(path: Path) -> list[tuple[float, object, int, bytes, str | None]]:
+    """The same from a CAT048/CAT021 recording (``asterix-export``'s output; times = time of day), its
+    records' own bytes, read with the service's fast path."""
+    out = []
+    for _, block in iter_datablocks(path):
+        fast, split = decode_block_fast(block), split_block_fast(block)
+        if fast is None or split is None:
+            raise SystemExit(f"{path}: a block the fast path cannot read (category {block[0]})")
+        for d, (rec, tod) in zip(fast[1], split[1]):
+            if fast[0] == 48:
+                out.append((tod, (d["sac"], d["sic"]), 48, rec, d["mode_s"]))
+            else:
+                out.append((tod, "adsb", 21, rec, d["icao24"]))
+    return out
+
+
+def datagram_schedule(records) -> list[tuple[float, bytes, list[tuple[str, float]]]]:
+    """(send time = time of its last record, payload, [(address, time) of its records]) in send order:
+    each source's records in time order, cut into datagrams of at most WINDOW_S and MAX_DATAGRAM."""
     out: list = []
     open_: dict = {}
 
@@ -64,16 +100,7 @@ def datagram_schedule(data) -> list[tuple[float, bytes, list[tuple[str, float]]]
         for payload in blocks(cat, recs, MAX_DATAGRAM):  # one block: recs fit by construction
             out.append((keys[-1][1], payload, keys))
 
-    for t, kind, i in ev:
-        if kind == 0:
-            key, cat = p.radar[i], 48
-            rec = cat048_bytes(t, *sac_sic[key], p.range_m[i], p.azimuth_rad[i], p.altitude_m[i], p.mode_s[i],
-                               p.mode_3a[i])
-            addr = p.mode_s[i]
-        else:
-            key, cat = "adsb", 21
-            rec = cat021_bytes(t, *ADSB_SAC_SIC, a.icao24[i], a.lat[i], a.lon[i], a.altitude_m[i], int(a.nacp[i]))
-            addr = a.icao24[i]
+    for t, key, cat, rec, addr in sorted(records, key=lambda r: r[0]):
         if key in open_:
             c, recs, keys = open_[key]
             if t - keys[0][1] > WINDOW_S or 3 + sum(map(len, recs)) + len(rec) > MAX_DATAGRAM:
@@ -178,6 +205,15 @@ def histogram_quantiles(metrics: str, name: str = "radartracker_processing_laten
     return out | {"count": int(total)}
 
 
+def later_than(metrics: str, name: str = "radartracker_input_lateness_seconds") -> dict[str, int]:
+    """Records whose lateness (newest record time received before them − their time) exceeds each
+    bucket bound: what a reorder window of that many seconds would count as late."""
+    b = sorted((float(m.group(1)), float(m.group(2))) for m in re.finditer(
+        rf'{name}_bucket{{le="([^"]+)"}} ([0-9.e+]+)', metrics.replace('le="+Inf"', 'le="inf"')))
+    total = b[-1][1] if b else 0.0
+    return {f"{le:g}": int(total - n) for le, n in b if le != float("inf")}
+
+
 def get(url: str, timeout: float = 5.0) -> str | None:
     try:
         with urllib.request.urlopen(url, timeout=timeout) as r:
@@ -198,6 +234,8 @@ def start_service(args, work: Path, sites: Path, port: int, http: int, listener:
            "--checkpoint-s", str(args.checkpoint_s), "--day-start", "0"]
     if args.reorder_window is not None:
         cmd += ["--reorder-window", str(args.reorder_window)]
+    if args.publish_mode is not None:
+        cmd += ["--publish-mode", args.publish_mode]
     core = {args.core} if args.core is not None else None
     log = open(work / "service.log", "a")
     proc = subprocess.Popen(cmd, stdout=log, stderr=log, text=True,
@@ -218,6 +256,7 @@ def free_port() -> int:
 
 def one_run(args, sched, sites: Path, speed: float, kill_at: float | None = None) -> dict:
     work = Path(tempfile.mkdtemp(prefix="load_service_"))
+    load_start = os.getloadavg()
     listener = Listener()
     listener.start()
     port, http = free_port(), free_port()
@@ -260,6 +299,7 @@ def one_run(args, sched, sites: Path, speed: float, kill_at: float | None = None
         time.sleep(0.5)
     metrics = get(f"http://127.0.0.1:{http}/metrics") or ""
     cpu = info.get("cpu_before_kill", 0.0) + cpu_seconds(proc.pid)
+    run_s = time.monotonic() - start
     proc.send_signal(signal.SIGTERM)
     proc.wait(300)
     time.sleep(0.5)
@@ -267,19 +307,30 @@ def one_run(args, sched, sites: Path, speed: float, kill_at: float | None = None
     listener.join(5)
     summary = json.loads((work / "state" / "summary.json").read_text())
     records = sum(len(s[2]) for s in sched)
-    dg = summary["datagrams"]
+    data_s = sched[-1][0] - sched[0][0]
+    dg, tracker = summary["datagrams"], summary["tracker"]
     out = {
-        "speed": speed, "aircraft": args.aircraft, "radars": args.radars, "data_s": args.duration,
+        "speed": speed, "source": args.source, "data_s": round(data_s, 1),
         "datagrams_sent": len(sched), "records_sent": records,
         "offered_records_per_s": round(records / send_s, 1), "wall_s": round(send_s, 1),
-        "service_cpu_s": round(cpu, 1), "service_cpu_ms_per_record": round(cpu / records * 1e3, 3),
+        "service_cpu_s": round(cpu, 1), "service_cpu_share_of_a_core": round(cpu / run_s, 2),
+        "service_cpu_ms_per_record": round(cpu / records * 1e3, 3),
         "one_core_capacity_records_per_s": round(records / cpu, 1),
+        # the rate one dedicated core sustains at this cost ÷ the traffic's own rate (at 1×)
+        "one_core_real_time_factor": round(data_s / cpu, 2),
         "dropped_queue_full": dg.get("dropped_queue_full", 0), "dropped_kernel": dg.get("dropped_kernel", 0),
         "records_accounted": summary["records"].get("cat048_records", 0) + summary["records"].get("cat021_records", 0),
+        "inputs_late": tracker.get("plots_late", 0) + tracker.get("adsb_late", 0),
+        "input_lateness_s": histogram_quantiles(metrics, "radartracker_input_lateness_seconds"),
+        "records_later_than_s": later_than(metrics),
         "processing_latency_s": histogram_quantiles(metrics),
         "end_to_end_latency_s": end_to_end(sched, sent_wall, cat062_updates(listener.got)),
-        "period_s": args.period, "reorder_window_s": args.reorder_window or 2.0, "tracks": summary["tracks_by_status"], "estimator": summary["estimator"],
-        "resumed_from": summary.get("resumed_from"), "cpus": os.cpu_count(), "load_avg": os.getloadavg(),
+        "cat062_records_per_s": round(summary["published"].get("records", 0) / run_s, 1),
+        "publish_mode": args.publish_mode or "default", "period_s": args.period,
+        "reorder_window_s": args.reorder_window or "default", "tracks": summary["tracks_by_status"],
+        "estimator": summary["estimator"], "motion_model": summary["motion_model"],
+        "resumed_from": summary.get("resumed_from"), "cpus": os.cpu_count(), "load_avg_start": load_start,
+        "load_avg_end": os.getloadavg(),
     }
     if kill_at is not None:
         out |= restart_report(sched, sent_wall, info, summary, listener.got)
@@ -312,9 +363,14 @@ def restart_report(sched, sent_wall, info, summary, got) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--recording", type=Path, default=None,
+                    help="a CAT048/CAT021 recording from asterix-export (its .radars.csv beside it); "
+                         "default: traffic simulated here with --aircraft, --radars, --duration")
     ap.add_argument("--aircraft", type=int, default=2000)
     ap.add_argument("--radars", type=int, default=28)
     ap.add_argument("--duration", type=float, default=120.0, help="seconds of traffic per run")
+    ap.add_argument("--publish-mode", default=None, choices=("update", "periodic", "both"),
+                    help="the service's --publish-mode (default: its default)")
     ap.add_argument("--speeds", default="1,1.5", help="time scales to try, comma separated")
     ap.add_argument("--period", type=float, default=1.0, help="the service's CAT062 period (s)")
     ap.add_argument("--checkpoint-s", type=float, default=10.0)
@@ -324,16 +380,24 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args()
     args.core = None if args.core < 0 else args.core
-    data = traffic_scenario(seed=args.seed, duration=args.duration, aircraft=args.aircraft, radars=args.radars).run()
-    sched = datagram_schedule(data)
-    sites = Path(tempfile.mkdtemp(prefix="load_service_sites_")) / "radars.csv"
-    _write_sites(sites, data.radars, sac_sic_of(data))
+    if args.recording is not None:
+        records = recording_records(args.recording)
+        sites = Path(f"{args.recording}.radars.csv")
+        args.source = str(args.recording)
+    else:
+        data = traffic_scenario(seed=args.seed, duration=args.duration, aircraft=args.aircraft, radars=args.radars).run()
+        records = scenario_records(data)
+        sites = Path(tempfile.mkdtemp(prefix="load_service_sites_")) / "radars.csv"
+        _write_sites(sites, data.radars, sac_sic_of(data))
+        args.source = f"traffic: {args.aircraft} aircraft, {len(data.radars)} radars, {args.duration:g} s, seed {args.seed}"
+    sched = datagram_schedule(records)
     if args.core is not None:
         os.sched_setaffinity(0, set(range(os.cpu_count() or 1)) - {args.core} or {args.core})
-    print(json.dumps({"scenario": {"aircraft": args.aircraft, "radars": len(data.radars), "data_s": args.duration,
-                                   "plots": len(data.plots), "adsb": len(data.adsb), "datagrams": len(sched),
-                                   "records_per_s": round((len(data.plots) + len(data.adsb)) / args.duration, 1)}}),
-          flush=True)
+    data_s = sched[-1][0] - sched[0][0]
+    n48 = sum(r[2] == 48 for r in records)
+    print(json.dumps({"scenario": {"source": args.source, "data_s": round(data_s, 1), "plots": n48,
+                                   "adsb": len(records) - n48, "datagrams": len(sched),
+                                   "records_per_s": round(len(records) / data_s, 1)}}), flush=True)
     for speed in (float(s) for s in args.speeds.split(",")):
         print(json.dumps(one_run(args, sched, sites, speed)), flush=True)
     if args.kill_at is not None:
