@@ -14,7 +14,7 @@ import logging
 import sys
 from pathlib import Path
 
-from radartracker.api import ConfigurationError
+from radartracker.api import ConfigurationError, atomic_open
 
 
 def register_reconstruct(sub: argparse._SubParsersAction) -> None:
@@ -157,9 +157,8 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
     summary["reconstructed"].sort(key=lambda r: r["key"])
     bad = [r["key"] for r in summary["reconstructed"] if not r["quality"]["plausible"]]
     summary["implausible"] = bad
-    tmp = args.out / "summary.json.tmp"
-    tmp.write_text(json.dumps(summary, indent=1))
-    tmp.replace(args.out / "summary.json")
+    with atomic_open(args.out / "summary.json", "w", encoding="utf-8") as f:  # flushed, then renamed
+        f.write(json.dumps(summary, indent=1))
     n_ok = len(summary["reconstructed"]) - len(bad)
     print(f"reconstructed {len(summary['reconstructed'])} of {len(tracks)} aircraft into {args.out}"
           + (f"; {len(summary['failed'])} failed" if summary["failed"] else "")

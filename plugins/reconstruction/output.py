@@ -11,6 +11,9 @@ Folder ``<out>/<key>/``:
 * ``hypotheses.csv`` — every hypothesis ranked: rank, segments, weight (NLL), score (BIC), normalised
   χ², parameters, evaluations, origin (segmentation, split or merge);
 * ``figure.png`` — plots, reconstruction and truth (when known) in the plane; u and w over time.
+
+Every file is written atomically (``atomic_open``/``atomic_path``: a temporary file beside it, flushed,
+then renamed), so a killed run leaves complete files or none.
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from radartracker.api import SystemPlane, TrackPoints, write_plt
+from radartracker.api import SystemPlane, TrackPoints, atomic_open, atomic_path, write_plt
 from radartracker_plugins.reconstruction.config import ReconstructionConfig
 from radartracker_plugins.reconstruction.hypotheses import Reconstruction
 from radartracker_plugins.reconstruction.quality import pinned_segments, segment_chi2
@@ -41,7 +44,7 @@ def write_reconstruction(rec: Reconstruction, plane: SystemPlane, out: Path, tru
     chi2 = segment_chi2(rec, TrackWeight(rec.plots))
     pins = pinned_segments(rec, cfg or ReconstructionConfig())
     pin = ["u" * int(a) + "w" * int(b) for a, b in zip(pins["u"], pins["w"])]
-    with open(folder / "track.csv", "w", newline="") as f:
+    with atomic_open(folder / "track.csv", "w", newline="") as f:
         wr = csv.writer(f)
         wr.writerow(["time", "x_m", "y_m", "lat", "lon", "altitude_m", "heading_deg", "speed_mps", "segment",
                      "segment_chi2", "pinned"])
@@ -49,14 +52,14 @@ def write_reconstruction(rec: Reconstruction, plane: SystemPlane, out: Path, tru
             k = int(row[8])
             wr.writerow([f"{row[0]:.3f}", f"{row[1]:.2f}", f"{row[2]:.2f}", f"{row[3]:.7f}", f"{row[4]:.7f}",
                          f"{row[5]:.1f}", f"{row[6]:.3f}", f"{row[7]:.3f}", k, f"{chi2[k]:.3f}", pin[k]])
-    write_plt(folder / "track.plt", TrackPoints(g.time, lat, lon, g.h), name=rec.key)
-    with open(folder / "segments.csv", "w", newline="") as f:
+    write_plt(folder / "track.plt", TrackPoints(g.time, lat, lon, g.h), name=rec.key)  # atomic itself
+    with atomic_open(folder / "segments.csv", "w", newline="") as f:
         wr = csv.writer(f)
         wr.writerow(["segment", "t_start", "t_end", "u_mps2", "w_mps2", "first_point", "last_point"])
         for k, s in enumerate(g.control):
             wr.writerow([k, f"{s.t_start:.3f}", f"{s.t_end:.3f}", f"{s.u:.5f}", f"{s.w:.5f}",
                          s.geo_span.start, s.geo_span.stop - 1])
-    with open(folder / "hypotheses.csv", "w", newline="") as f:
+    with atomic_open(folder / "hypotheses.csv", "w", newline="") as f:
         wr = csv.writer(f)
         wr.writerow(["rank", "segments", "weight", "score", "chi2", "parameters", "evaluations", "origin"])
         for r, h in enumerate(rec.hypotheses, 1):
@@ -96,5 +99,6 @@ def plot_reconstruction(rec: Reconstruction, path: Path, truth=None) -> None:
     au.grid(alpha=0.3)
     au.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)

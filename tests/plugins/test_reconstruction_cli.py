@@ -111,3 +111,41 @@ def test_process_and_dask_engines_match_serial(scenario):
         assert got.keys() == serial.keys()
         for k in got:
             np.testing.assert_allclose(got[k], serial[k], rtol=1e-9, atol=1e-12)
+
+
+def test_outputs_are_written_atomically(scenario, tmp_path, monkeypatch):
+    """Each output reaches its name only by a rename of a complete temporary file; a write that fails
+    (here: the rename of hypotheses.csv) leaves neither that file nor a temporary one behind."""
+    import os
+
+    import radartracker.io.atomic as atomic
+
+    folder, _ = scenario
+    args = ["reconstruct", str(folder), "--flights", "aa0002", "--engine", "serial", "--quiet", "--no-figures",
+            "--hypotheses", "2", "--no-shooting"]
+    renamed, real_replace = {}, os.replace
+
+    def replace(src, dst):
+        assert not os.path.exists(dst)  # nothing was written under the final name before
+        renamed[os.path.basename(dst)] = open(src, "rb").read()
+        real_replace(src, dst)
+
+    monkeypatch.setattr(atomic.os, "replace", replace)
+    out = tmp_path / "out"
+    assert main([*args, "--out", str(out)]) == 0
+    assert {"track.csv", "track.plt", "segments.csv", "hypotheses.csv", "summary.json"} <= renamed.keys()
+    for name, data in renamed.items():  # the renamed file is the complete final file
+        final = out / name if name == "summary.json" else out / "aa0002" / name
+        assert final.read_bytes() == data
+
+    def failing(src, dst):
+        if os.path.basename(dst) == "hypotheses.csv":
+            raise OSError(28, "No space left on device")
+        real_replace(src, dst)
+
+    monkeypatch.setattr(atomic.os, "replace", failing)
+    out2 = tmp_path / "out2"
+    assert main([*args, "--out", str(out2)]) == 2  # an OSError is one line and exit 2
+    names = {p.name for p in (out2 / "aa0002").iterdir()}
+    assert "hypotheses.csv" not in names and not [n for n in names if n.endswith(atomic.TMP_SUFFIX)]
+    assert not (out2 / "summary.json").exists()
