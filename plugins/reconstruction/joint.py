@@ -95,6 +95,32 @@ def _refit_batch(pairs: list[tuple[Reconstruction, PlotTrack]], cfg: Reconstruct
     return [refit(rec, pt, cfg) for rec, pt in pairs]
 
 
+def joint_rounds(tracks: list[PlotTrack], recs: dict[str, Reconstruction], cfg: ReconstructionConfig,
+                 ex: Executor | None = None, batch_plots: int = 500
+                 ) -> tuple[dict[str, Reconstruction], dict[str, BiasEstimate], int, float]:
+    """Rounds of (bias step, refits) from ``recs`` (each flight's fit at zero biases) until no bias moves by
+    more than :data:`TOL` or :data:`MAX_ROUNDS`: (refitted recs, biases with covariance, rounds, the last
+    change in units of TOL). The biases are those of the last :func:`bias_step`, with its covariance."""
+    biases = {radar: BiasEstimate(np.zeros(2)) for radar in {r for pt in tracks for r in pt.radar}}
+    by_key = {pt.key: pt for pt in tracks}
+    rounds, change = 0, np.inf
+    for rounds in range(1, MAX_ROUNDS + 1):
+        new = bias_step(tracks, recs, biases, cfg)
+        change = max(float(np.max(np.abs(new[r].value - biases[r].value) / TOL)) for r in new)
+        biases.update(new)
+        if change <= 1.0:
+            break
+        corrected = {k: debias(by_key[k], {r: e.value for r, e in biases.items()}) for k in recs}
+        work = batches([corrected[k] for k in recs], batch_plots)
+        pairs = [[(recs[pt.key], pt) for pt in batch] for batch in work]
+        if ex is None:
+            done = [_refit_batch(p, cfg) for p in pairs]
+        else:
+            done = [f.result() for f in [ex.submit(_refit_batch, p, cfg) for p in pairs]]
+        recs = {r.key: r for batch in done for r in batch}
+    return recs, biases, rounds, change
+
+
 def estimate_jointly(tracks: list[PlotTrack], cfg: ReconstructionConfig, ex: Executor | None, batch_plots: int = 500,
                      progress: bool = False) -> tuple[Iterator[Reconstruction | Failure], dict]:
     """(results of the final search, a summary: biases with sd per radar, rounds, the largest last change)."""
@@ -105,23 +131,7 @@ def estimate_jointly(tracks: list[PlotTrack], cfg: ReconstructionConfig, ex: Exe
             failed.append(res)
         else:
             recs[res.key] = res
-    biases = {radar: BiasEstimate(np.zeros(2)) for radar in {r for pt in tracks for r in pt.radar}}
-    by_key = {pt.key: pt for pt in tracks}
-    rounds, change = 0, np.inf
-    for rounds in range(1, MAX_ROUNDS + 1):
-        new = bias_step(tracks, recs, biases, cfg)
-        change = max(float(np.max(np.abs(new[r].value - biases[r].value) / TOL)) for r in new)
-        biases.update(new)
-        corrected = {k: debias(by_key[k], {r: e.value for r, e in biases.items()}) for k in recs}
-        if change <= 1.0:
-            break
-        work = batches([corrected[k] for k in recs], batch_plots)
-        pairs = [[(recs[pt.key], pt) for pt in batch] for batch in work]
-        if ex is None:
-            done = [_refit_batch(p, cfg) for p in pairs]
-        else:
-            done = [f.result() for f in [ex.submit(_refit_batch, p, cfg) for p in pairs]]
-        recs = {r.key: r for batch in done for r in batch}
+    recs, biases, rounds, change = joint_rounds(tracks, recs, cfg, ex, batch_plots)
     summary = {"rounds": rounds, "converged": bool(change <= 1.0),
                "biases": {r: {"range_bias_m": round(float(e.value[0]), 2),
                               "azimuth_bias_deg": round(math.degrees(float(e.value[1])), 5),
