@@ -18,7 +18,7 @@ and method, one per group (pooled), the cost per flight-hour, and a Markdown tab
 pooled), and how hard each real reference curve accelerates (its |d²p/dt²|: OpenSky positions hold
 and jump, so the curve through them is not always flyable). ``--jump-sd 0,1,3`` runs the reconstruction once per prior strength (0 = no prior).
 Usage: nice python scripts/reconstruction_baselines.py [--paris N] [--cal N] [--sim N] [--window S]
-       [--workers W] [--max-u A] [--max-w A] [--jump-sd LIST] [--seed S]
+       [--workers W] [--max-u A] [--max-w A] [--jump-sd LIST] [--seed S] [--dump OUT.npz]
 """
 
 from __future__ import annotations
@@ -52,6 +52,7 @@ SUBSET = Path(__file__).resolve().parents[1] / "radartracker" / "data" / "flight
 KT, FT = 1852.0 / 3600.0, 0.3048
 REFERENCE_ACCELERATION: dict[str, dict] = {}  # per real flight: how hard the reference curve accelerates
 VELOCITY: dict[str, np.ndarray] = {}  # per flight: the reference ground velocity at the plot times
+SERIES: dict[str, np.ndarray] = {}  # '--dump': per-plot series (errors, reference acceleration, switch times)
 
 
 class AdsbReference:
@@ -133,6 +134,8 @@ def real_tracks(flights, ids, window, rng):
         tracks.append(type(pt)(fid, pt.t, pt.z, pt.h, pt.radar, pt.R, pt.C))
         truth[fid] = true
         VELOCITY[fid] = traj.velocity(pt.t)
+        SERIES[f"{fid}|ref_acc"] = traj.acceleration(pt.t)
+        SERIES[f"{fid}|since_report"] = pt.t - traj.t[np.maximum(np.searchsorted(traj.t, pt.t, side="right") - 1, 0)]
         acc = traj.acceleration(np.arange(traj.t_start, traj.t_end, 1.0))
         # do the recorded velocity fields agree with the positions? bearing and speed between reports
         x, y = plane.to_plane(f["lat"][sel], f["lon"][sel])
@@ -195,6 +198,9 @@ def main() -> None:
     ap.add_argument("--max-u", type=float, default=9.5)
     ap.add_argument("--max-w", type=float, default=2.0)
     ap.add_argument("--jump-sd", default="0", help="comma-separated prior strengths (m/s²; 0 = no prior)")
+    ap.add_argument("--dump", type=Path, default=None,
+                    help="write per-plot series (times, errors per method, radar, reference acceleration, "
+                         "switch times) to this .npz for analysis")
     ap.add_argument("--reference-only", action="store_true",
                     help="print how hard each real flight's reference accelerates, and stop")
     args = ap.parse_args()
@@ -225,6 +231,7 @@ def main() -> None:
                     print(json.dumps({"flight": r.key, "method": name, "failed": r.reason}))
                     continue
                 st = sample(r.control, r.plots.t)
+                SERIES[f"{r.key}|{name}|switches"] = np.array([s.t_start for s in r.control][1:])
                 errs[r.key][name] = np.hypot(*(st[:, :2] - truth[r.key]).T)
                 if r.key in VELOCITY:
                     verrs[r.key][name] = np.hypot(*(np.column_stack([st[:, 3] * np.sin(st[:, 2]), st[:, 3] * np.cos(st[:, 2])])
@@ -261,6 +268,12 @@ def main() -> None:
                                             for m in methods if any(m in verrs[k] for k in keys)}}
         print(json.dumps({"group": g, "pooled": True, **pooled[g]}))
     _table(rows, pooled, methods)
+    if args.dump:
+        for pt in tracks:
+            SERIES[f"{pt.key}|t"], SERIES[f"{pt.key}|radar"] = pt.t, np.asarray(pt.radar, str)
+            for m, e in errs[pt.key].items():
+                SERIES[f"{pt.key}|{m}|err"] = e
+        np.savez_compressed(args.dump, **SERIES)
 
 
 def _table(rows, pooled, methods) -> None:
