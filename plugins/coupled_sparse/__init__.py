@@ -184,9 +184,25 @@ class CoupledSparseEstimator(Estimator):
 
     # --- filter ------------------------------------------------------------------------------
     def update(self, m: PlaneMeasurement) -> Innovation:
-        z, C, R = (np.asarray(a, float)[None] for a in (m.z, m.C, m.R))
-        nu, lam, nis = self.update_many([m.time], [m.aircraft], [m.radar], z, C, R)
-        return Innovation(nu[0], lam[0], float(nis[0]))
+        """One measurement: :meth:`update_many`'s kernel step called directly (the TrackManager's path,
+        one call per measurement, where building the batch arrays cost more than the update)."""
+        s = self._slot(m.aircraft)
+        j = -1 if m.radar is None else self._radar_index(m.radar)
+        t = float(m.time)
+        z, C, R = (np.ascontiguousarray(a, dtype=float) for a in (m.z, m.C, m.R))
+        if z.shape != (2,) or C.shape != (2, 2) or R.shape != (2, 2):  # as update_many's batch would refuse it
+            nu, lam, nis = self.update_many([t], [m.aircraft], [m.radar], z[None], C[None], R[None])
+            return Innovation(nu[0], lam[0], float(nis[0]))
+        nu, lam = np.zeros(2), np.zeros((2, 2))
+        w = self._work
+        code, nis = K.update_one(self._Yxx, self._Yxb, self._ex, self._tx, self._nk, self._rk, self._Ybb, self._eb,
+                                 self._S, self._sv, self._Pb, self._bh, self._ctr, s, j, t, z, C, R, self._q, nu, lam,
+                                 w.f4, w.V, w.G, w.W, w.v4, w.idx, w.Kb, w.LS, w.LSi)
+        if code == K.OK or code in (K.ERR_LAMBDA, K.ERR_S, K.ERR_REBUILD):  # applied, or predicted: as update_many
+            self._bias_time = t if not t <= self._bias_time else self._bias_time  # NaN at first, like np.fmax
+        if code != K.OK:
+            raise self._failure(code, 0, m.aircraft, m.radar, t)
+        return Innovation(nu, lam, float(nis))
 
     def update_many(self, time: Sequence[float], aircraft: Sequence[Hashable], radar: Sequence[str | None],
                     z: np.ndarray, C: np.ndarray, R: np.ndarray) -> Innovation:
@@ -208,13 +224,17 @@ class CoupledSparseEstimator(Estimator):
         if done:
             self._bias_time = float(np.fmax(self._bias_time, times[:done].max()))  # fmax ignores the initial NaN
         if code != K.OK:
-            exc_type = ValueError if code == K.ERR_NONFINITE else SingularInformation
-            when = "after" if code in (K.ERR_S, K.ERR_REBUILD) else "at"
-            exc = exc_type(f"{when} the measurement of aircraft {aircraft[i]!r} by radar {radar[i]!r} at "
-                           f"t={times[i]}: {_WHY[code]}")
-            exc.index = i
-            raise exc
+            raise self._failure(code, i, aircraft[i], radar[i], times[i])
         return Innovation(nu, lam, nis)
+
+    @staticmethod
+    def _failure(code: int, i: int, aircraft: Hashable, radar: str | None, time: float) -> ValueError:
+        """The error of kernel status ``code`` at the batch's measurement ``i`` (its ``index``)."""
+        exc_type = ValueError if code == K.ERR_NONFINITE else SingularInformation
+        when = "after" if code in (K.ERR_S, K.ERR_REBUILD) else "at"
+        exc = exc_type(f"{when} the measurement of aircraft {aircraft!r} by radar {radar!r} at t={time}: {_WHY[code]}")
+        exc.index = i
+        return exc
 
     def _slot(self, key: Hashable) -> int:
         try:
@@ -248,8 +268,8 @@ class CoupledSparseEstimator(Estimator):
         return AircraftEstimate(float(self._tx[s]), x, P)
 
     def bias(self, radar: str) -> BiasState:
-        b = slice(2 * self._radar_index(radar), 2 * self._radar_index(radar) + 2)
-        return BiasState(radar, self._bias_time, self._bh[b].copy(), self._Pb[b, b].copy())
+        j = 2 * self._radar_index(radar)
+        return BiasState(radar, self._bias_time, self._bh[j:j + 2].copy(), self._Pb[j:j + 2, j:j + 2].copy())
 
     def joint(self, keys: list[Hashable] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(ξ̂, P̂) over ``keys`` (default: all, in insertion order) then all radars, as ``coupled.joint``.

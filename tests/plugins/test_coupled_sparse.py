@@ -12,7 +12,7 @@ from scipy.linalg import cho_factor, cho_solve
 from radartracker.estimation.kalman import SingularInnovation
 from radartracker.simulation.linsim import bias_jacobian, make_linear_scenario
 from radartracker.estimation.motion import MotionModel
-from radartracker.estimation.base import Estimator, EstimatorConfig, PlaneMeasurement
+from radartracker.estimation.base import Estimator, EstimatorConfig, Innovation, PlaneMeasurement
 from radartracker.registry import make_estimator
 from radartracker_plugins.coupled_sparse import CoupledSparseEstimator, SingularInformation
 from radartracker_plugins.coupled_sparse import _kernels as kernels
@@ -342,3 +342,43 @@ def test_dense_information_is_an_arrowhead_unless_biases_drift():
 
     assert offdiag(EstimatorConfig(motion=MotionModel(0.5))) < 1e-8
     assert offdiag(EstimatorConfig(motion=MotionModel(0.5), bias_drift_range=10.0, bias_drift_azimuth=1e-8)) > 1e-3
+
+
+def test_single_update_equals_the_batch_step_bit_for_bit():
+    """update() (the TrackManager's one-measurement path, which calls the kernel step directly) gives
+    exactly update_many()'s results — innovations, stored blocks, bias epoch — and its errors."""
+    sc = make_linear_scenario(n_aircraft=4, n_radars=3, duration=60.0, rng=3, q=0.3, adsb_aircraft=2)
+    ests = [make_estimator("coupled-sparse", EstimatorConfig(motion=MotionModel(0.3)), sc.radar_ids,
+                           {"refresh_every": "7", "rebuild_factor": "1"}) for _ in range(2)]
+    for e in ests:
+        for k, x in sc.initial.items():
+            e.add_aircraft(k, 0.0, x, P0)
+    ms = list(sc.measurements)
+    bad = ms[10]
+    ms.insert(11, PlaneMeasurement(bad.time, bad.aircraft, bad.radar, bad.z, bad.C, -np.eye(2)))  # R refused
+    ms.insert(12, PlaneMeasurement(bad.time, bad.aircraft, bad.radar, np.array([np.nan, 0.0]), bad.C, bad.R))
+    assert any(m.radar is None for m in ms) and any(m.radar is not None for m in ms)
+    for m in ms:
+        got = []
+        for one, e in ((True, ests[0]), (False, ests[1])):
+            try:
+                got.append(e.update(m) if one else Innovation(*(v[0] for v in e.update_many(
+                    [m.time], [m.aircraft], [m.radar], m.z[None], m.C[None], np.asarray(m.R)[None]))))
+            except ValueError as exc:
+                got.append((type(exc), str(exc), exc.index))
+        if isinstance(got[0], tuple) and len(got[0]) == 3 and isinstance(got[0][0], type):
+            assert got[0] == got[1]
+        else:
+            np.testing.assert_array_equal(got[0].nu, got[1].nu)
+            np.testing.assert_array_equal(got[0].S, got[1].S)
+            assert got[0].nis == got[1].nis
+    a, b = (e.information() for e in ests)
+    np.testing.assert_array_equal(a["Ybb"], b["Ybb"])
+    for key in a["aircraft"]:
+        for u, v in zip(a["aircraft"][key], b["aircraft"][key]):
+            assert u.keys() == v.keys() if isinstance(u, dict) else np.array_equal(u, v)
+    for r in sc.radar_ids:
+        ba, bb = ests[0].bias(r), ests[1].bias(r)
+        assert ba.time == bb.time
+        np.testing.assert_array_equal(ba.bias, bb.bias)
+        np.testing.assert_array_equal(ba.cov, bb.cov)
