@@ -4,7 +4,8 @@ Static mode gives one ML fix per target (seed 001 §2–3); dynamic mode one pol
 per target (seed 001 eq. 1.1), both with covariances. A target whose geometry is degenerate or
 too poor is skipped, counted and named on stderr and in ``summary.json``; file formats are in
 ``docs/formats.md`` ("Triangulation files"). The output folder is checked before the computation;
-each file is written atomically, ``summary.json`` last.
+the files are written beside their final names and renamed into place together, ``summary.json``
+last, so a failure or a kill keeps an earlier run's files (``--overwrite``) intact.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from radartracker.api import ConfigurationError, prepare_output_folder, write_text
+from radartracker.api import ConfigurationError, prepare_output_folder, replace_outputs, write_text
 
 
 def register_triangulate(sub: argparse._SubParsersAction) -> None:
@@ -91,7 +92,8 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
                                                     read_weights, track)
 
     _check_options(args)
-    out = prepare_output_folder(args.out, OUTPUT_FILES, overwrite=args.overwrite)  # before the computation
+    # before the computation; an earlier run's files stay until this run's replace them
+    out = prepare_output_folder(args.out, OUTPUT_FILES, overwrite=args.overwrite, keep_earlier=True)
     if args.estimator == "ml" and args.weights is not None:
         raise ConfigurationError("--weights: only with --estimator lsq (ML weighs by the stations' σ)")
     weights = None
@@ -126,7 +128,6 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
             refused[target] = str(exc)
             print(f"radartracker triangulate: target {target}: refused: {exc}", file=sys.stderr)
     name = "fixes.csv" if args.mode == "static" else "tracks.csv"
-    (io.write_fixes if args.mode == "static" else io.write_tracks)(out / name, frame, done)
     summary = {
         "mode": args.mode, "estimator": args.estimator, "weights": args.weights if weights is not None else None,
         "reference": dict(zip(("lat_deg", "lon_deg", "height_m"), frame.reference)),
@@ -135,7 +136,9 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
         "solved": [t[0] for t in done], "refused": refused,
         "poor_geometry": [t[0] for t in done if t[1].poor_geometry],
     }
-    write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")  # last: marks a finished run
+    with replace_outputs(out, OUTPUT_FILES, last="summary.json") as stage:
+        (io.write_fixes if args.mode == "static" else io.write_tracks)(stage(name), frame, done)
+        write_text(stage("summary.json"), json.dumps(summary, indent=2) + "\n")  # renamed last: a finished run
     print(f"triangulated {len(done)} of {len(by_target)} targets from {len(bearings)} bearings "
           f"({sum(skipped.values())} rows skipped, {len(refused)} refused, "
           f"{len(summary['poor_geometry'])} in poor geometry); wrote {out / name}")

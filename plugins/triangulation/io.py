@@ -1,7 +1,7 @@
 """Triangulation files: stations and bearings in (degrees at the edge), fixes and tracks out.
 
 Formats are specified in ``docs/formats.md`` ("Triangulation files"). Readers raise
-``ValueError`` naming the file, the line and the field, or — with ``skip_bad`` — skip and count
+``FormatError`` naming the file, the line and the field, or — with ``skip_bad`` — skip and count
 malformed rows.
 """
 
@@ -18,7 +18,7 @@ from .dynamic import TrackFix
 from .frame import TriangulationFrame
 from .sensors import Bearing, DirectionFinder
 from .static import Fix
-from radartracker.api import InputError, atomic_open
+from radartracker.api import FormatError, atomic_open
 
 STATION_COLUMNS = ("id", "lat_deg", "lon_deg", "height_m", "sigma_azimuth_deg", "sigma_elevation_deg")
 BEARING_COLUMNS = ("time_s", "station", "azimuth_deg", "elevation_deg")
@@ -37,27 +37,27 @@ def _text(path: Path) -> str:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         line = data[:exc.start].count(b"\n") + 1
-        raise InputError(f"{path.name} line {line}: not UTF-8 text (byte {exc.start} is {data[exc.start]:#04x})") from None
+        raise FormatError(path.name, line, None, f"not UTF-8 text (byte {exc.start} is {data[exc.start]:#04x})") from None
 
 
-def _rows(path: Path, required: tuple[str, ...]) -> Iterator[tuple[int, dict[str, str] | None]]:
-    """(line number, row) of each data line; row is None when the field count is wrong."""
+def _rows(path: Path, required: tuple[str, ...]) -> Iterator[tuple[int, dict[str, str] | str]]:
+    """(line number, row) of each data line; instead of the row, what is wrong with its field count."""
     text = _text(path)
     lines = ((i, line) for i, line in enumerate(text.splitlines(), 1) if line.strip() and not line.startswith("#"))
     try:
         lineno, header = next(lines)
     except StopIteration:
-        raise InputError(f"{path.name}: empty file, expected a header {','.join(required)}") from None
+        raise FormatError(path.name, None, None, f"empty file, expected a header {','.join(required)}") from None
     names = [h.strip() for h in next(csv.reader([header]))]
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
-        raise InputError(f"{path.name} line {lineno}: column(s) {', '.join(twice)} appear more than once")
+        raise FormatError(path.name, lineno, None, f"column(s) {', '.join(twice)} appear more than once")
     missing = [c for c in required if c not in names]
     if missing:
-        raise InputError(f"{path.name} line {lineno}: header lacks column(s) {', '.join(missing)}")
+        raise FormatError(path.name, lineno, None, f"header lacks column(s) {', '.join(missing)}")
     for lineno, line in lines:
         values = next(csv.reader([line]))
-        yield lineno, (None if len(values) != len(names)
+        yield lineno, (f"{len(values)} fields where the header has {len(names)}" if len(values) != len(names)
                        else {k: v.strip() for k, v in zip(names, values)})
 
 
@@ -87,22 +87,23 @@ def _read(path: Path, required: tuple[str, ...], make: Callable[[dict[str, str]]
           skip_bad: bool) -> tuple[list, int]:
     out, skipped = [], 0
     for lineno, row in _rows(path, required):
+        if isinstance(row, str):
+            if skip_bad:
+                skipped += 1
+                continue
+            raise FormatError(path.name, lineno, None, row)
         try:
-            if row is None:
-                raise InputError("wrong number of fields for the header")
             out.append(make(row))
         except ValueError as exc:
             if skip_bad:
                 skipped += 1
                 continue
-            if row is None:
-                raise InputError(f"{path.name} line {lineno}: {exc}") from None
             if isinstance(exc, _FieldError):
                 field, problem = exc.field, exc.problem
             else:  # a domain validator: "attribute: problem"
                 attr, _, problem = str(exc).partition(": ")
                 field = _COLUMN_OF.get(attr, attr)
-            raise InputError(f"{path.name} line {lineno}, field {field!r}: {problem}") from None
+            raise FormatError(path.name, lineno, field, problem) from None
     return out, skipped
 
 
@@ -115,11 +116,11 @@ def read_stations(path: str | Path) -> list[DirectionFinder]:
     path = Path(path)
     stations, _ = _read(path, STATION_COLUMNS, make, skip_bad=False)
     if not stations:
-        raise InputError(f"{path.name}: no stations")
+        raise FormatError(path.name, None, None, "no stations")
     ids = [s.id for s in stations]
     twice = sorted({i for i in ids if ids.count(i) > 1})
     if twice:
-        raise InputError(f"{path.name}, field 'id': station id(s) {twice} appear more than once")
+        raise FormatError(path.name, None, "id", f"station id(s) {twice} appear more than once")
     return stations
 
 
@@ -130,7 +131,11 @@ def read_bearings(path: str | Path, skip_bad: bool = False) -> tuple[list[Bearin
         return Bearing(_number(row, "time_s"), row["station"],
                        math.radians(_number(row, "azimuth_deg")), math.radians(_number(row, "elevation_deg")),
                        row.get("target") or "1")
-    rows, malformed = _read(Path(path), BEARING_COLUMNS, make, skip_bad)
+    path = Path(path)
+    rows, malformed = _read(path, BEARING_COLUMNS, make, skip_bad)
+    if not rows:  # nothing to triangulate is an input problem, not a result
+        raise FormatError(path.name, None, None, "no bearings" + (f" ({malformed} malformed rows skipped)"
+                                                                   if malformed else ""))
     unique = list(dict.fromkeys(rows))
     return unique, {"malformed": malformed, "duplicate": len(rows) - len(unique)}
 

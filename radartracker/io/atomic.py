@@ -8,19 +8,27 @@ file, never a partial one. The temporary file is removed when the write fails.
 A folder made of several files that only make sense together (a scenario folder, a recording, a
 ``convert`` output) is built whole by :func:`atomic_folder` in a hidden sibling, every file flushed
 to disk, then renamed into place: the folder appears complete or not at all. A run killed with
-SIGKILL leaves only that hidden ``.NAME.partial-*`` sibling, which no command reads.
+SIGKILL leaves only that hidden ``.NAME.partial-PID-*`` sibling (or ``.NAME.PID-*.tmp`` file), which
+no command reads; the first atomic write into that folder by a later process removes it once
+process PID has ended.
 
 :func:`prepare_output_folder` runs *before* the computation: it creates the folder, proves it can
-be written, and refuses a folder that already holds files unless ``overwrite`` — which first
-removes the earlier run's files (and nothing that a run does not write).
+be written, and refuses a folder that already holds files unless ``overwrite`` — which removes the
+earlier run's files (and nothing that a run does not write), either at once or, with
+``keep_earlier``, only when :func:`replace_outputs` puts the new run's files in their place, so
+that a run that fails leaves the earlier one intact.
+
+Temporary files and folders get the permissions ``open``/``mkdir`` would give (not ``mkstemp``'s
+owner-only ones), so an output is as readable as a file written directly.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import tempfile
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO, Any
@@ -28,14 +36,27 @@ from typing import IO, Any
 from radartracker.errors import ConfigurationError
 
 TMP_SUFFIX = ".tmp"
+_UMASK = os.umask(0o022)  # read once (os.umask is the only way), restored at once
+os.umask(_UMASK)
+
+
+def _mkstemp(folder: Path, name: str) -> Path:
+    """An empty temporary file ``.NAME.PID-XXXXXXXX.tmp`` in ``folder`` with the mode ``open`` would give."""
+    _remove_stale(folder)
+    fd, tmp = tempfile.mkstemp(prefix=f".{name}.{os.getpid()}-", suffix=TMP_SUFFIX, dir=folder)
+    try:
+        if hasattr(os, "fchmod"):  # POSIX; elsewhere mkstemp's mode is the usual one
+            os.fchmod(fd, 0o666 & ~_UMASK)
+    finally:
+        os.close(fd)
+    return Path(tmp)
 
 
 @contextmanager
 def atomic_path(path: Path | str) -> Iterator[Path]:
     """A temporary path beside ``path`` for a library that writes by file name; renamed on success."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=TMP_SUFFIX, dir=path.parent)
-    os.close(fd)
+    tmp = _mkstemp(path.parent, path.name)
     try:
         yield Path(tmp)
         os.replace(tmp, path)
@@ -65,8 +86,10 @@ def atomic_folder(path: Path | str) -> Iterator[Path]:
     if path.exists():
         raise FileExistsError(f"{path} already exists; choose a new folder")
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.partial-", dir=path.parent))
+    _remove_stale(path.parent)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.partial-{os.getpid()}-", dir=path.parent))
     try:
+        os.chmod(tmp, 0o777 & ~_UMASK)
         yield tmp
         _sync_tree(tmp)
         if path.exists():  # os.rename would silently replace an empty folder made meanwhile
@@ -75,6 +98,42 @@ def atomic_folder(path: Path | str) -> Iterator[Path]:
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+# the names atomic_path (a file) and atomic_folder (a folder) give, with the writer's pid; mkstemp adds 8 characters
+_STALE_FILE = re.compile(r"\..+\.(\d+)-[a-z0-9_]{8}" + re.escape(TMP_SUFFIX))
+_STALE_FOLDER = re.compile(r"\..+\.partial-(\d+)-[a-z0-9_]{8}")
+_swept: set[str] = set()
+
+
+def _remove_stale(folder: Path) -> None:
+    """Remove what killed writers left in ``folder`` (once per process and folder: outputs may be many)."""
+    key = os.path.abspath(folder)
+    if key in _swept or os.name != "posix":  # no harmless liveness probe elsewhere (os.kill terminates on Windows)
+        return
+    _swept.add(key)
+    with suppress(FileNotFoundError):
+        for entry in os.scandir(folder):
+            is_dir = entry.is_dir(follow_symlinks=False)
+            m = (_STALE_FOLDER if is_dir else _STALE_FILE).fullmatch(entry.name)
+            if m is None or _running(int(m.group(1))):
+                continue
+            if is_dir:
+                shutil.rmtree(entry.path, ignore_errors=True)
+            else:
+                with suppress(FileNotFoundError):
+                    os.unlink(entry.path)
+
+
+def _running(pid: int) -> bool:
+    """Whether process ``pid`` exists on this machine (another user's counts; a reused pid errs on keeping)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 def _sync_tree(folder: Path) -> None:
@@ -94,17 +153,65 @@ def write_text(path: Path | str, text: str) -> None:
         f.write(text)
 
 
-def prepare_output_folder(out: Path | str, outputs: Iterable[str], *, overwrite: bool = False) -> Path:
+@contextmanager
+def replace_outputs(out: Path | str, outputs: Iterable[str], *, last: str) -> Iterator[Callable[[str], Path]]:
+    """Write one run's files into ``out`` (prepared with ``keep_earlier``) so that a failure keeps the earlier run.
+
+    The block gets ``stage(name)``: a temporary path beside ``out/name`` to write that file to. When
+    it ends without an exception, the staged files are flushed to disk; then ``last`` (the file that
+    marks a finished run) is removed, the others are renamed into place, the earlier run's files
+    (``outputs`` patterns) that this run did not write are removed, and ``last`` is renamed last:
+    a kill during those few renames leaves a folder without ``last``, never two runs that look like
+    one. When the block raises, the staged files are removed and the folder is as it was.
+    """
+    out = Path(out)
+    staged: dict[str, Path] = {}
+
+    def stage(name: str) -> Path:
+        if name in staged:
+            raise ValueError(f"{name} staged twice")
+        staged[name] = _mkstemp(out, name)
+        return staged[name]
+
+    try:
+        yield stage
+        for tmp in staged.values():
+            fd = os.open(tmp, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+        written = set(staged)
+        with suppress(FileNotFoundError):
+            os.unlink(out / last)
+        for name in [n for n in staged if n != last]:
+            os.replace(staged.pop(name), out / name)
+        patterns = list(outputs)
+        for p in out.iterdir():
+            if p.is_file() and p.name != last and any(p.match(pat) for pat in patterns) and p.name not in written:
+                p.unlink()
+        if last in staged:
+            os.replace(staged.pop(last), out / last)
+    finally:
+        for tmp in staged.values():  # what was not renamed into place
+            with suppress(FileNotFoundError):
+                os.unlink(tmp)
+
+
+def prepare_output_folder(out: Path | str, outputs: Iterable[str], *, overwrite: bool = False,
+                          keep_earlier: bool = False) -> Path:
     """Create ``out``, check that it can be written, and make sure it holds no earlier results.
 
     ``outputs`` are the file names a run may write (``*.png`` style patterns allowed). A folder with
-    files is refused unless ``overwrite``; then the earlier run's files (those names, and temporary
-    files a killed run left behind) are removed first, and anything else in the folder is refused.
+    files is refused unless ``overwrite``; then anything but an earlier run's files (those names,
+    and temporary files a killed run left behind) is refused, and the earlier run's files are
+    removed now — or, with ``keep_earlier``, by :func:`replace_outputs` once the new run's are written.
     """
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ConfigurationError(f"output folder {out} is a file")
     out.mkdir(parents=True, exist_ok=True)
+    _remove_stale(out)  # a killed run's temporary files do not make the folder "not empty"
     patterns = list(outputs)
     present = sorted(p for p in out.iterdir())
     if present and not overwrite:
@@ -119,7 +226,8 @@ def prepare_output_folder(out: Path | str, outputs: Iterable[str], *, overwrite:
             raise ConfigurationError(f"output folder {out} holds files a run does not write ({', '.join(foreign[:3])}); "
                                      "--overwrite removes only an earlier run's outputs: choose another folder")
         for p in ours:
-            p.unlink()
+            if not keep_earlier or p.name.endswith(TMP_SUFFIX):
+                p.unlink()
     try:
         with tempfile.TemporaryFile(dir=out) as probe:
             probe.write(b"radartracker")
