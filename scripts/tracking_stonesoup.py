@@ -11,7 +11,10 @@ same χ²₂ 99.9 % gate, ``GNNWith2DAssignment``, ``MultiMeasurementInitiator``
 from __future__ import annotations
 
 import datetime as dt
+import hashlib
 import math
+import os
+from pathlib import Path
 
 import numpy as np
 from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
@@ -116,3 +119,35 @@ def stonesoup_gnn(data: ScenarioData, q: float = 5.0, gate: float = 13.82, delet
         end = min(times[-1] + delete_after_s, float(t.max()))
         out[n] = TrackHistory(times, states, float(times[0]), end)
     return out
+
+
+def plots_digest(data: ScenarioData) -> str:
+    """SHA-256 of the plots (time, radar, range, azimuth, altitude): proof that two runs saw the same plots."""
+    p = data.plots
+    h = hashlib.sha256()
+    for col in (p.time, p.range_m, p.azimuth_rad, p.altitude_m):
+        h.update(np.ascontiguousarray(col, float).tobytes())
+    h.update("\n".join(map(str, p.radar)).encode())
+    return h.hexdigest()
+
+
+def save_tracks(path: Path, tracks: dict[int, TrackHistory], digest: str, wall_s: float) -> None:
+    """Write Stone Soup's track histories with the plots' digest and the run's wall time, atomically."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cols = {"digest": np.array(digest), "wall_s": np.array(wall_s), "ids": np.array(sorted(tracks), int)}
+    for tid in sorted(tracks):
+        h = tracks[tid]
+        cols[f"t{tid}"], cols[f"s{tid}"], cols[f"span{tid}"] = h.times, h.states, np.array([h.start, h.end])
+    tmp = path.with_name(path.name + ".tmp.npz")
+    np.savez(tmp, **cols)
+    os.replace(tmp, path)
+
+
+def load_tracks(path: Path, digest: str) -> tuple[dict[int, TrackHistory], float]:
+    """Track histories saved by :func:`save_tracks` for the same plots (``digest``), and the run's wall time."""
+    with np.load(path, allow_pickle=False) as f:
+        if str(f["digest"]) != digest:
+            raise SystemExit(f"{path}: Stone Soup tracks of other plots (digest {str(f['digest'])[:12]}, these plots {digest[:12]})")
+        out = {int(tid): TrackHistory(f[f"t{tid}"], f[f"s{tid}"], float(f[f"span{tid}"][0]), float(f[f"span{tid}"][1]))
+               for tid in f["ids"]}
+        return out, float(f["wall_s"])
