@@ -45,6 +45,9 @@ def register_serve(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--reorder-window", type=float, default=None, metavar="S",
                    help="seconds the tracker holds inputs to put them in time order (default: the replay's, 2); "
                         "shorter lowers the latency, and late inputs are counted as plots_late/adsb_late")
+    p.add_argument("--frame-s", type=float, default=None, metavar="S",
+                   help="seconds of input the tracker processes together (default: the replay's, 0.5); "
+                        "an input waits for the end of its frame")
     p.add_argument("--checkpoint-s", type=float, default=60.0, help="seconds between checkpoints (default 60)")
     p.add_argument("--queue", type=int, default=50_000, help="datagrams the queue holds before dropping (default 50000)")
     p.add_argument("--day-start", type=_day_start, default=None, metavar="DATE|SECONDS",
@@ -73,7 +76,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     stop = threading.Event()  # a signal during the start still gets a clean stop
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())
-    manager = {} if args.reorder_window is None else {"reorder_window_s": args.reorder_window}
+    manager = {k: v for k, v in (("reorder_window_s", args.reorder_window), ("frame_s", args.frame_s)) if v is not None}
     service = Service(config, radars, sites, estimator=args.estimator, motion_model=args.motion_model, manager=manager)
     print(json.dumps({"serving": [str(e) for e in config.listen], "publish": str(config.publish),
                       "estimator": service.manager.config.estimator, "resumed_from": service.resumed_from}),
