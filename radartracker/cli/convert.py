@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from pathlib import Path
 
 from radartracker.errors import ConfigurationError
@@ -45,9 +46,14 @@ def _cmd_convert(args: argparse.Namespace) -> int:
     print(f"wrote {args.out}: {len(report['selected_aircraft'])} aircraft in {report['seconds']} s")
     for name, f in report["files"].items():
         bad = f.get("malformed", 0) + f.get("truncated_last_line", 0)
-        print(f"  {name}: {f['lines']} lines, {f.get('written', 0)} written, {bad} malformed, "
+        first = f" (first: {f['first_errors'][0]['error']})" if f.get("first_errors") else ""
+        print(f"  {name}: {f['lines']} lines, {f.get('written', 0)} written, {bad} malformed{first}, "
               f"{f['output_files']} files")
     print(f"accounting: {args.out / 'report.json'}")
+    if not report["selected_aircraft"]:  # nothing useful: say why, and exit non-zero like triangulate
+        print(f"radartracker convert: no aircraft has {opts.AZN_TRACKS_MIN_MEASUR} or more ADS-B reports in "
+              f"{args.recording / 'plots_ads.txt'}; only report.json was written", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -42,7 +42,7 @@ os.umask(_UMASK)
 
 def _mkstemp(folder: Path, name: str) -> Path:
     """An empty temporary file ``.NAME.PID-XXXXXXXX.tmp`` in ``folder`` with the mode ``open`` would give."""
-    _remove_stale(folder)
+    _remove_stale(folder, once=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{name}.{os.getpid()}-", suffix=TMP_SUFFIX, dir=folder)
     try:
         if hasattr(os, "fchmod"):  # POSIX; elsewhere mkstemp's mode is the usual one
@@ -106,10 +106,11 @@ _STALE_FOLDER = re.compile(r"\..+\.partial-(\d+)-[a-z0-9_]{8}")
 _swept: set[str] = set()
 
 
-def _remove_stale(folder: Path) -> None:
-    """Remove what killed writers left in ``folder`` (once per process and folder: outputs may be many)."""
+def _remove_stale(folder: Path, *, once: bool = False) -> None:
+    """Remove what killed writers left in ``folder``; ``once``: only at the first call of this process
+    for that folder (a run may write thousands of files into one folder, each would rescan it)."""
     key = os.path.abspath(folder)
-    if key in _swept or os.name != "posix":  # no harmless liveness probe elsewhere (os.kill terminates on Windows)
+    if (once and key in _swept) or os.name != "posix":  # no harmless liveness probe elsewhere (Windows)
         return
     _swept.add(key)
     with suppress(FileNotFoundError):

@@ -101,7 +101,10 @@ def _header(path: Path) -> dict[str, int]:
     if not first.strip():
         raise FormatError(path.name, 1, None, "empty file or blank header; expected the columns "
                           f"{', '.join(required)} separated by tabs")
-    names = [n.strip() for n in first.rstrip(b"\r\n").decode("utf-8-sig", "replace").split("\t")]
+    try:
+        names = [n.strip() for n in first.rstrip(b"\r\n").decode("utf-8-sig").split("\t")]
+    except UnicodeDecodeError:
+        raise FormatError(path.name, 1, None, "not UTF-8 text: not a recording file") from None
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
         raise FormatError(path.name, 1, None, f"column(s) {', '.join(twice)} appear more than once")
@@ -300,7 +303,8 @@ def convert(recording: Path | str, out: Path | str, opts: ConvertOptions | None 
         raise FileExistsError(f"{out} already exists; the output folder must not exist beforehand")
     for name in (ADS_FILE, TRACKS_FILE, PLOTS_FILE):
         if not (recording / name).is_file():
-            raise FileNotFoundError(f"{recording / name}: missing; a recording folder holds "
+            problem = "not a file" if (recording / name).exists() else "missing"
+            raise FileNotFoundError(f"{recording / name}: {problem}; a recording folder holds "
                                     f"{ADS_FILE}, {TRACKS_FILE} and {PLOTS_FILE}")
         _header(recording / name)  # fail early, before writing anything
     with atomic_folder(out) as tmp:

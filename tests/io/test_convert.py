@@ -278,3 +278,40 @@ def test_cli_simulate_write_recording_convert(tmp_path):
     assert report["files"]["plots_ads.txt"]["written"] == len(data.adsb)
     assert main(["write-recording", "--synthetic-mb", "0.2", "--out", str(tmp_path / "syn")]) == 0
     assert sum(p.stat().st_size for p in (tmp_path / "syn").iterdir()) >= 0.2e6
+
+
+def test_cli_bad_recordings_give_one_line_naming_the_file(tmp_path, capsys):
+    """Exit 2 and one line (no traceback) for a binary file, a folder where a file belongs, a missing one."""
+    write_recording(tmp_path / "rec", _records(8))
+    cases = {"plots.txt": ("bytes", bytes(range(128, 256))), "tracks.txt": ("folder", None),
+             "plots_ads.txt": ("missing", None)}
+    for name, (kind, content) in cases.items():
+        path = tmp_path / "rec" / name
+        saved = path.read_bytes()
+        path.unlink()
+        if kind == "bytes":
+            path.write_bytes(content)
+        elif kind == "folder":
+            path.mkdir()
+        assert main(["convert", str(tmp_path / "rec"), "--out", str(tmp_path / "new")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        expected = {"bytes": "plots.txt line 1: not UTF-8", "folder": "tracks.txt: not a file",
+                    "missing": "plots_ads.txt: missing"}[kind]
+        assert len(err) == 1 and expected in err[0], err
+        path.rmdir() if kind == "folder" else path.unlink(missing_ok=True)
+        path.write_bytes(saved)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rec"]
+
+
+def test_cli_names_the_first_malformed_line_and_exits_1_when_nothing_is_selected(tmp_path, capsys):
+    recs = [r for r in _records(9) if not isinstance(r, AdsRecord)]  # no ADS-B: no aircraft can be selected
+    write_recording(tmp_path / "rec", recs)
+    lines = (tmp_path / "rec" / "plots.txt").read_text().splitlines(keepends=True)
+    cols = lines[2].split("\t")
+    lines[2] = "\t".join(cols[:5] + ["north"] + cols[6:])  # line 3: lat
+    (tmp_path / "rec" / "plots.txt").write_text("".join(lines))
+    assert main(["convert", str(tmp_path / "rec"), "--out", str(tmp_path / "new")]) == 1
+    out, err = capsys.readouterr()
+    assert "1 malformed (first: plots.txt: line 3: field lat: not a number: 'north')" in out
+    assert len(err.splitlines()) == 1 and "no aircraft has 20 or more ADS-B reports" in err
+    assert json.loads((tmp_path / "new" / "report.json").read_text())["files"]["plots.txt"]["malformed"] == 1
