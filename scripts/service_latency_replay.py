@@ -14,8 +14,10 @@ arrival_i = (time of the datagram's last record − the first's) / speed. A CAT0
 leaves at finish_j; a record's end-to-end latency is, as in load_service.py, its datagram's arrival →
 the first CAT062 for its aircraft (I380) with a track time at or after the record's. Left out: the
 socket reader thread (tens of µs per datagram, measured apart in load_service.py's CPU total) and
-the forked checkpoints. CPU times measured under contention are inflated by cache sharing, so the
-latencies are upper bounds for an idle core. One JSON line per publish mode and reorder window.
+the forked checkpoints. The first ``--warmup-s`` of the recording are replayed once, untimed, so
+that compiled kernels (numba) are compiled and cached before the timed runs. CPU times measured
+under contention are inflated by cache sharing, so the latencies are upper bounds for an idle core.
+One JSON line per frame, reorder window and publish mode.
 """
 
 from __future__ import annotations
@@ -130,6 +132,7 @@ def main() -> None:
     ap.add_argument("--period", type=float, default=4.0)
     ap.add_argument("--speed", type=float, default=1.0)
     ap.add_argument("--max-data-s", type=float, default=math.inf, help="replay only this many seconds of the recording")
+    ap.add_argument("--warmup-s", type=float, default=10.0, help="seconds of the recording replayed untimed first")
     args = ap.parse_args()
     radars, sites = read_sites(Path(f"{args.recording}.radars.csv"))
     sched = datagram_schedule(recording_records(args.recording))
@@ -137,6 +140,8 @@ def main() -> None:
     print(json.dumps({"recording": str(args.recording), "datagrams": len(sched),
                       "records": sum(len(k) for _, _, k in sched), "cpus": os.cpu_count(),
                       "load_avg": os.getloadavg()}), flush=True)
+    warm = [d for d in sched if d[0] - sched[0][0] <= args.warmup_s]
+    replay(warm, radars, sites, "both", 2.0, 0.5, args.period, args.speed, None)
     for frame in (float(f) for f in args.frames.split(",")):
         for window in (float(w) for w in args.windows.split(",")):
             for mode in args.modes.split(","):
