@@ -146,6 +146,8 @@ class ManagedTrack:
     n_adsb: int = 0
     rejected: list = attrs.field(factory=list)  # consecutive consistent screening rejections (screening.extend_run)
     vertical: AltitudeTrack | None = None  # Mode C altitude and vertical rate, for gating
+    # the filter's estimate() (t, x, P), read once after each change of the filter (TrackManager._estimate_of)
+    estimate: tuple | None = attrs.field(default=None, eq=False, repr=False)
 
 
 def _finite_position(m: PlaneMeasurement) -> bool:
@@ -170,6 +172,12 @@ class TrackManager:
         self.reference = reference
         self.frames = {r.id: RadarFrame(r.lat, r.lon, r.height_m, self.plane) for r in radars}
         self._north = {rid: self._grid_north(r) for rid, r in self.radars.items()}
+        rids = list(self.radars)  # radar constants as arrays by row, for per-frame geometry (_geometry)
+        self._radar_rows = {"row": {rid: k for k, rid in enumerate(rids)},
+                            "xy": np.array([self.frames[rid].xy for rid in rids], float).reshape(len(rids), 2),
+                            "north": np.array([self._north[rid] for rid in rids], float),
+                            "period": np.array([r.period_s for r in self.radars.values()], float),
+                            "max_range": np.array([r.max_range_m for r in self.radars.values()], float)}
         cfg = self.config
         self.estimator = (make_estimator(cfg.estimator, cfg.estimator_config, list(self.radars), cfg.estimator_options)
                           if estimator is None else make_estimator(estimator, None, list(self.radars)))
@@ -340,14 +348,21 @@ class TrackManager:
         self._sweep(live, pred, t_b)
 
     @staticmethod
-    def _predict(live: list[ManagedTrack], t: float) -> dict[str, np.ndarray]:
-        """Straight-line extrapolation of every live track to ``t`` (for search, misses, coverage);
-        the filters' own predictions are computed only for gating candidates."""
+    def _estimate_of(tr: ManagedTrack) -> tuple:
+        """``tr.filter.estimate()``, kept until the filter changes (the manager reads it once per frame for
+        every live track, and for gating, screening and events)."""
+        if tr.estimate is None:
+            tr.estimate = tr.filter.estimate()
+        return tr.estimate
+
+    def _predict(self, live: list[ManagedTrack], t: float) -> dict[str, np.ndarray]:
+        """Straight-line extrapolation of every live track to ``t`` (for search, misses, coverage), as
+        arrays over the frame's tracks; the filters' own predictions are computed only for gating candidates."""
         n = len(live)
-        pos = np.zeros((n, 2))
-        for i, tr in enumerate(live):
-            t0, x, _ = tr.filter.estimate()
-            pos[i] = x[:2] + x[2:] * max(t - t0, 0.0)
+        est = [self._estimate_of(tr) for tr in live]
+        t0 = np.fromiter((e[0] for e in est), float, n)
+        x = np.array([e[1][:4] for e in est]).reshape(n, 4)
+        pos = x[:, :2] + x[:, 2:] * np.maximum(t - t0, 0.0)[:, None]
         # identities are fixed while a frame is associated: index them once per frame, not per radar
         index = {t.mode_s: i for i, t in enumerate(live) if t.mode_s}
         codes = np.array([t.mode_3a for t in live], object)
@@ -362,11 +377,22 @@ class TrackManager:
             if i not in cache:
                 tr = live[i]
                 try:
-                    x, P = tr.filter.predict(max(t, tr.filter.estimate()[0]))
+                    x, P = tr.filter.predict(max(t, TrackManager._estimate_of(tr)[0]))
                     cache[i] = (x[:2], x[2:], P[:2, :2])
                 except ValueError:  # the filter refuses this step: the track cannot be gated
                     cache[i] = (np.full(2, np.nan), np.zeros(2), np.eye(2))
         return tuple(np.array([cache[i][k] for i in idx]) for k in range(3))
+
+    def _geometry(self, pred: dict) -> dict[str, np.ndarray]:
+        """Range and grid azimuth (from true north) of every track of the frame from every radar, arrays
+        (radars × tracks) computed once per frame for misses and coverage; radar constants by row."""
+        if "range" not in pred:
+            c = self._radar_rows
+            d = pred["pos"][None, :, :] - c["xy"][:, None, :]
+            pred["range"] = np.hypot(d[..., 0], d[..., 1])
+            pred["az"] = np.mod(np.arctan2(d[..., 0], d[..., 1]) - c["north"][:, None], 2 * math.pi)
+            pred.update((k, c[k]) for k in ("row", "period", "max_range"))
+        return pred
 
     def _convert(self, rid: str, plots: list[Plot], live: list[ManagedTrack]) -> tuple[np.ndarray, ...]:
         by_code = {t.mode_s: t for t in live if t.mode_s} if any(p.altitude_m is None and p.mode_s for p in plots) else {}
@@ -530,6 +556,7 @@ class TrackManager:
             self._emit(src.time, tr, "created")
         else:
             try:
+                tr.estimate = None
                 tr.filter.update(src.time, zc, Rc)
             except ValueError as exc:  # SingularInnovation, or a filter refusing the time step
                 self.counts["plots_refused_by_filter" if radar else "unbiased_refused_by_filter"] += 1
@@ -565,7 +592,7 @@ class TrackManager:
         """Screening verdict for a bias-corrected measurement (zc, Rc = R + C P_ς Cᵀ) of track ``tr``:
         d² against the track filter's prediction, so S = P̄_pp + C P_ς Cᵀ + R."""
         try:
-            x, P = tr.filter.predict(max(t, tr.filter.estimate()[0]))
+            x, P = tr.filter.predict(max(t, self._estimate_of(tr)[0]))
         except ValueError:  # the filter refuses this step; its update refuses it too and counts it
             return ACCEPT
         d2 = normalised_innovation(zc, _ZERO22, Rc, _ZERO2, _ZERO22, x[:2], P[:2, :2])
@@ -604,19 +631,20 @@ class TrackManager:
 
     # --- misses, deletion, events ------------------------------------------------------------------
     def _misses(self, live: list[ManagedTrack], pred: dict, assigned: dict[str, set[int]], t_a: float, t_b: float) -> None:
-        if not live:
+        """Tracks in a radar's coverage whose azimuth its antenna swept in [t_a, t_b) without a plot:
+        one array pass over (radars with a phase) × (the frame's tracks), then a loop over those only."""
+        rids = [rid for rid in self.radars if rid in self._phase]
+        if not live or not rids:
             return
-        for rid, radar in self.radars.items():
-            if rid not in self._phase:
-                continue
-            frame = self.frames[rid]
-            d = pred["pos"] - frame.xy
-            rng = np.hypot(d[:, 0], d[:, 1])
-            az = np.mod(np.arctan2(d[:, 0], d[:, 1]) - self._north[rid], 2 * math.pi)
-            start = np.angle(self._phase[rid]) + 2 * math.pi * t_a / radar.period_s
-            swept = np.mod(az - start, 2 * math.pi) < 2 * math.pi * (t_b - t_a) / radar.period_s
-            hit = assigned.get(rid, set())
-            for i in np.flatnonzero(swept & (rng < 0.98 * radar.max_range_m)):
+        g = self._geometry(pred)
+        k = np.array([g["row"][rid] for rid in rids])
+        period = g["period"][k, None]
+        start = np.angle(np.array([self._phase[rid] for rid in rids]))[:, None] + 2 * math.pi * t_a / period
+        swept = np.mod(g["az"][k] - start, 2 * math.pi) < 2 * math.pi * (t_b - t_a) / period
+        missed = swept & (g["range"][k] < 0.98 * g["max_range"][k, None])
+        for r in np.flatnonzero(missed.any(axis=1)):
+            hit = assigned.get(rids[r], set())
+            for i in np.flatnonzero(missed[r]):
                 tr = live[i]
                 if tr.id in hit or tr.id not in self.tracks or tr.created >= t_a:
                     continue
@@ -626,12 +654,19 @@ class TrackManager:
                     self._emit(t_b, tr, "coasting")
 
     def _sweep(self, live: list[ManagedTrack], pred: dict, now: float) -> None:
-        """Delete tracks that cannot be confirmed any more, are stale or left every radar's coverage."""
+        """Delete tracks that cannot be confirmed any more, are stale or left every radar's coverage
+        (candidates found with arrays over the frame's tracks, then checked one by one)."""
+        if not live:
+            return
         cfg = self.config
-        covered = np.zeros(len(live), bool)
-        for rid, r in self.radars.items():
-            covered |= np.hypot(*(pred["pos"] - self.frames[rid].xy).T) <= r.max_range_m
-        for i, tr in enumerate(live):
+        g = self._geometry(pred)
+        covered = (g["range"] <= g["max_range"][:, None]).any(axis=0)
+        n = len(live)
+        last = np.fromiter((tr.last_update for tr in live), float, n)
+        quiet = np.fromiter((tr.n_adsb == 0 for tr in live), bool, n)
+        tentative = np.fromiter((tr.status == "tentative" for tr in live), bool, n)
+        for i in np.flatnonzero(tentative | (now - last > cfg.delete_after_s) | (~covered & quiet)):
+            tr = live[i]
             if tr.id not in self.tracks:
                 continue
             misses = len(tr.history) - sum(tr.history)
@@ -660,10 +695,11 @@ class TrackManager:
         return PluginError(f"{plugin} failed on {who} at t={time:.3f} s: {type(exc).__name__}: {exc}")
 
     def _emit(self, time: float, tr: ManagedTrack, kind: str) -> None:
-        t0, x, _ = tr.filter.estimate()
+        t0, x, _ = self._estimate_of(tr)
+        x0, y0, vx, vy = x[:4].tolist()
         if time > t0:  # coasting/deleted events happen after the last update: report the position then
-            x = np.concatenate([x[:2] + x[2:] * (time - t0), x[2:]])
-        ev = TrackEvent(float(time), tr.id, kind, tr.status, tuple(float(v) for v in x))
+            x0, y0 = x0 + vx * (time - t0), y0 + vy * (time - t0)
+        ev = TrackEvent(float(time), tr.id, kind, tr.status, (x0, y0, vx, vy))
         self._events.append(ev)
         if self.on_event is not None:
             self.on_event(ev)
