@@ -19,7 +19,8 @@ the service with SIGTERM and prints one JSON line:
   service's histogram: newest record time received before a record − its time), and how many a
   reorder window of each bucket's length would count as late; ``inputs_late``: those the tracker
   did count as late (``plots_late`` + ``adsb_late``) with the window of the run;
-* ``service_cpu_s`` (its own and its checkpoint children's), per record, and the rate one core
+* ``service_cpu_s`` (its own and its checkpoint children's, from its first datagram: the start-up
+  — imports, restore — is ``service_startup_cpu_s``), per record, and the rate one core
   would sustain at that cost (``one_core_capacity_records_per_s``) — on a shared machine the service
   gets only part of its core, and this is the figure that does not depend on how much;
   ``one_core_real_time_factor`` = the traffic's seconds ÷ that CPU time (≥ 1: one dedicated core
@@ -267,6 +268,7 @@ def one_run(args, sched, sites: Path, speed: float, kill_at: float | None = None
     listener.start()
     port, http = free_port(), free_port()
     proc = start_service(args, work, sites, port, http, listener)
+    startup_cpu = cpu_seconds(proc.pid)  # imports and restore, before the first datagram: not per-record work
     tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # unconnected: a dead service costs no error here
     sent_wall = np.full(len(sched), np.nan)
     t0 = sched[0][0]
@@ -283,6 +285,7 @@ def one_run(args, sched, sites: Path, speed: float, kill_at: float | None = None
             last = sorted((work / "state").glob("checkpoint-*"))
             info["checkpoint"] = json.loads((last[-1] / "service.json").read_text()) if last else None
             holder["proc"] = start_service(args, work, sites, port, http, listener)
+            info["startup_cpu_after_restart"] = cpu_seconds(holder["proc"].pid)
             info["restarted"] = time.time()
 
         killer = threading.Thread(target=kill_and_restart, daemon=True)
@@ -304,7 +307,8 @@ def one_run(args, sched, sites: Path, speed: float, kill_at: float | None = None
             break
         time.sleep(0.5)
     metrics = get(f"http://127.0.0.1:{http}/metrics") or ""
-    cpu = info.get("cpu_before_kill", 0.0) + cpu_seconds(proc.pid)
+    cpu = (info.get("cpu_before_kill", 0.0) + cpu_seconds(proc.pid)
+           - startup_cpu - info.get("startup_cpu_after_restart", 0.0))
     run_s = time.monotonic() - start
     proc.send_signal(signal.SIGTERM)
     proc.wait(300)
@@ -319,7 +323,8 @@ def one_run(args, sched, sites: Path, speed: float, kill_at: float | None = None
         "speed": speed, "source": args.source, "data_s": round(data_s, 1),
         "datagrams_sent": len(sched), "records_sent": records,
         "offered_records_per_s": round(records / send_s, 1), "wall_s": round(send_s, 1),
-        "service_cpu_s": round(cpu, 1), "service_cpu_share_of_a_core": round(cpu / run_s, 2),
+        "service_cpu_s": round(cpu, 1), "service_startup_cpu_s": round(startup_cpu, 1),
+        "service_cpu_share_of_a_core": round(cpu / run_s, 2),
         "service_cpu_ms_per_record": round(cpu / records * 1e3, 3),
         "one_core_capacity_records_per_s": round(records / cpu, 1),
         # the rate one dedicated core sustains at this cost ÷ the traffic's own rate (at 1×)
