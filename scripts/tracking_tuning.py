@@ -43,8 +43,8 @@ def main() -> None:
         for q in args.q:
             for q_turn in args.q_turn:
                 options = {"q": repr(q)} | ({} if q_turn is None else {"q_turn": repr(q_turn)})
-                tracks, _, wall = report.run_manager(data, ManagerConfig(motion_model="imm", motion_options=options))
-                row = {"set": name, "q": q, "q_turn": q_turn, **report.evaluate(data, tracks),
+                tracks, biases, wall = report.run_manager(data, ManagerConfig(motion_model="imm", motion_options=options))
+                row = {"set": name, "q": q, "q_turn": q_turn, **report.evaluate(data, tracks), **biases,
                        "ms_per_plot": 1e3 * wall / len(data.plots)}
                 print(json.dumps(row), flush=True)
                 rows.append(row)
