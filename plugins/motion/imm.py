@@ -36,8 +36,8 @@ from typing import Any
 import attrs
 import numpy as np
 
-from radartracker.api import ConfigurationError, MotionConfig, TrackFilter, kernels
-from radartracker_plugins.motion.base import check_measurement, check_time, position_update, require_started, start_state
+from radartracker.api import ConfigurationError, InputError, MotionConfig, SingularInnovation, TrackFilter, kernels
+from radartracker_plugins.motion.base import check_measurement, check_time, require_started, start_state
 
 _v = attrs.validators
 
@@ -123,7 +123,15 @@ class IMMConfig(MotionConfig):
 
 
 class IMMFilter(TrackFilter):
-    """IMM of mode filters (default constant velocity and coordinated turn), output moment matched."""
+    """IMM of mode filters (default constant velocity and coordinated turn), output moment matched.
+
+    Mode states are held padded to the largest mode's size (``X`` n×D, ``PP`` n×D×D; a 4-state mode
+    carries ω = 0 ± σ_e in the fifth place). The default modes (:class:`CVMode`, :class:`CTMode`) run
+    the whole cycle in compiled kernels (:func:`radartracker.api.kernels.imm_predict`,
+    ``imm_correct``, ``imm_cycle``); other mode filters are called through their ``predict``. A
+    prediction is kept until the state changes, so the update at the time innovation screening just
+    predicted to reuses it, and the output (χ̂, P̂) is combined once per update.
+    """
 
     name = "imm"
     config_class = IMMConfig
@@ -141,13 +149,16 @@ class IMMFilter(TrackFilter):
         self.modes = list(c.mode_filters())
         n = len(self.modes)
         self.dim = max(m.dim for m in self.modes)
-        self.entry_sd = c.turn_rate_entry_sd
-        if c.transition is not None:
-            self.fixed_pi = np.asarray(c.transition, float)
-            self.expG = None
+        self.dims = np.array([m.dim for m in self.modes], np.int64)
+        self.entry_var = c.turn_rate_entry_sd**2
+        # rows (kind, q, turn_rate_sd) of the compiled modes, or None: some mode is called in Python
+        builtin = all(type(m) in (CVMode, CTMode) for m in self.modes)
+        self.kernel_modes = (np.array([[0.0 if type(m) is CVMode else 1.0, m.q, getattr(m, "turn_rate_sd", 0.0)]
+                                       for m in self.modes]) if builtin else None)
+        if c.transition is not None:  # kernels.markov_switching: an empty λ means the fixed Π
+            self.chain = (np.zeros(0), np.asarray(c.transition, float), np.zeros((0, 0)))
             default_mu = np.full(n, 1.0 / n)
         else:
-            self.fixed_pi = None
             tau = np.asarray(c.sojourn_s if c.sojourn_s is not None
                              else [120.0 if m.dim == 4 else 30.0 for m in self.modes], float)
             # G = D B, D = diag(1/τ), B = (J − n I)/(n − 1) symmetric: exp(G t) through the symmetric
@@ -155,92 +166,109 @@ class IMMFilter(TrackFilter):
             B = (np.ones((n, n)) - n * np.eye(n)) / max(n - 1, 1)
             d = np.sqrt(1.0 / tau)
             lam, U = np.linalg.eigh(d[:, None] * B * d[None, :])
-            self.expG = (np.minimum(lam, 0.0), d[:, None] * U, U.T / d[None, :])
+            self.chain = (np.minimum(lam, 0.0), np.ascontiguousarray(d[:, None] * U), np.ascontiguousarray(U.T / d[None, :]))
             default_mu = tau / tau.sum()
         mu0 = np.asarray(c.initial_probabilities if c.initial_probabilities is not None else default_mu, float)
         self.mu0 = mu0 / mu0.sum()
         self.time: float | None = None
         self.mu = self.mu0.copy()
-        self.xs: list[np.ndarray] = []
-        self.Ps: list[np.ndarray] = []
-        self._combined: tuple[np.ndarray, np.ndarray] | None = None  # estimate() until the next start/update
+        self.X = np.zeros((n, self.dim))
+        self.PP = np.zeros((n, self.dim, self.dim))
+        self._out: tuple[np.ndarray, np.ndarray] | None = None  # (χ̂, P̂) of the current state
+        self._pred: tuple | None = None  # (time, c̄, X̄, P̄ of the modes, χ̄, P̄) from the current state
 
     # --- IMM cycle -----------------------------------------------------------------------------
     def switching(self, dt: float) -> np.ndarray:
         """Π(Δt): the fixed matrix, or exp(G |Δt|)."""
-        if self.expG is None:
-            return self.fixed_pi
-        lam, left, right = self.expG
-        return np.maximum((left * np.exp(lam * abs(dt))) @ right, 0.0)
+        return kernels.markov_switching(*self.chain, float(dt))
 
-    def _pad(self, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        if len(x) == self.dim:
-            return x, P
-        xp, Pp = np.zeros(self.dim), np.zeros((self.dim, self.dim))
-        xp[:4], Pp[:4, :4] = x, P
-        Pp[4, 4] = self.entry_sd**2
-        return xp, Pp
+    def _predicted(self, time: float) -> tuple:
+        """(time, c̄, X̄, P̄, χ̄, P̄): each mode's prediction from its mixed initial condition, and the
+        predicted mixture; computed once per state and time."""
+        if self._pred is not None and self._pred[0] == time:
+            return self._pred
+        dt = time - self.time
+        if self.kernel_modes is not None:
+            pred = kernels.imm_predict(self.mu, self.X, self.PP, *self.chain, self.kernel_modes, dt)
+        else:
+            cbar, X0, P0 = kernels.imm_mix(self.mu, self.X, self.PP, self.switching(dt))
+            Xp, PPp = np.zeros_like(X0), np.zeros_like(P0)
+            for j, (mode, d) in enumerate(zip(self.modes, self.dims)):
+                Xp[j, :d], PPp[j, :d, :d] = mode.predict(X0[j, :d].copy(), P0[j, :d, :d].copy(), dt)
+            pred = (cbar, Xp, PPp, *kernels.imm_combine(cbar, Xp, PPp))
+        self._pred = (time, *pred)
+        return self._pred
 
-    def _predicted(self, time: float):
-        """c̄ and each mode's prediction from its mixed initial condition."""
-        Pi = self.switching(time - self.time)
-        cbar = self.mu @ Pi
-        padded = [self._pad(x, P) for x, P in zip(self.xs, self.Ps)]
-        X, PP = np.array([x for x, _ in padded]), np.array([P for _, P in padded])
-        out = []
-        for j, mode in enumerate(self.modes):
-            w = Pi[:, j] * self.mu / cbar[j] if cbar[j] > 0 else np.eye(len(self.modes))[j]
-            x0, P0 = kernels.moment_match(w, X, PP)  # mixing, compiled
-            d = mode.dim
-            out.append(mode.predict(x0[:d], np.ascontiguousarray(P0[:d, :d]), time - self.time))
-        return cbar, out
-
-    @staticmethod
-    def _combine(mu: np.ndarray, states) -> tuple[np.ndarray, np.ndarray]:
-        return kernels.moment_match(np.asarray(mu, float), np.array([s[0][:4] for s in states]),
-                                    np.array([s[1][:4, :4] for s in states]))
+    def _set(self, time: float, mu: np.ndarray, X: np.ndarray, PP: np.ndarray, out: tuple) -> None:
+        self.time, self.mu, self.X, self.PP, self._out, self._pred = time, mu, X, PP, out, None
 
     # --- TrackFilter -----------------------------------------------------------------------------
     def start(self, time: float, z: np.ndarray, R: np.ndarray) -> None:
-        self.time, z, R = check_measurement(time, z, R)
+        time, z, R = check_measurement(time, z, R)
         x, P = start_state(z, R, self.config.prior_sd_velocity_mps)
-        self.mu = self.mu0.copy()
-        self.xs, self.Ps = [], []
-        self._combined = None
-        for mode in self.modes:
-            xp, Pp = self._pad(x, P) if mode.dim == 5 else (x, P)
-            self.xs.append(xp.copy())
-            self.Ps.append(Pp.copy())
+        n = len(self.modes)
+        X, PP = np.zeros((n, self.dim)), np.zeros((n, self.dim, self.dim))
+        X[:, :4], PP[:, :4, :4] = x, P
+        if self.dim == 5:  # the turn rate is unknown: ω = 0 ± σ_e in every mode
+            PP[:, 4, 4] = self.entry_var
+        mu = self.mu0.copy()
+        self._set(time, mu, X, PP, kernels.imm_combine(mu, X, PP))
 
     def predict(self, time: float) -> tuple[np.ndarray, np.ndarray]:
         time = check_time(time, self.time, self.config.max_gap_s)
-        cbar, pred = self._predicted(time)
-        return self._combine(cbar, pred)
+        _, _, _, _, x, P = self._predicted(time)
+        return x.copy(), P.copy()
 
     def update(self, time: float, z: np.ndarray, R: np.ndarray) -> float:
         time, z, R = check_measurement(time, z, R)
         check_time(time, self.time, self.config.max_gap_s)
-        cbar, pred = self._predicted(time)
-        x_bar, P_bar = self._combine(cbar, pred)
-        nis = position_update(x_bar, P_bar, z, R).nis
-        steps = [position_update(x, P, z, R) for x, P in pred]
-        logw = np.log(np.maximum(cbar, 1e-300)) + np.array([s.loglik for s in steps])
-        w = np.exp(logw - logw.max())
-        self.mu = w / w.sum()
-        self.xs = [s.x for s in steps]
-        self.Ps = [s.P for s in steps]
-        self.time = time
-        self._combined = None
-        return nis
+        if self.kernel_modes is not None and (self._pred is None or self._pred[0] != time):
+            mu, X, PP, x, P, S, nis, ok = kernels.imm_cycle(self.mu, self.X, self.PP, *self.chain, self.kernel_modes,
+                                                            self.dims, self.entry_var, time - self.time, z, R)
+        else:  # the prediction innovation screening asked for at this time
+            _, cbar, Xp, PPp, x_bar, P_bar = self._predicted(time)
+            mu, X, PP, x, P, S, nis, ok = kernels.imm_correct(cbar, Xp, PPp, self.dims, self.entry_var, x_bar, P_bar, z, R)
+        if not ok:
+            raise SingularInnovation(f"innovation covariance not positive definite: {S.tolist()}")
+        self._set(time, mu, X, PP, (x, P))
+        return float(nis)
 
     def estimate(self) -> tuple[float, np.ndarray, np.ndarray]:
         require_started(self.time)
-        if self._combined is None:  # read several times per input by the manager: combined once per update
-            self._combined = self._combine(self.mu, list(zip(self.xs, self.Ps)))
-        x, P = self._combined
+        x, P = self._out
         return self.time, x.copy(), P.copy()
 
     @property
     def probabilities(self) -> np.ndarray:
         """Current mode probabilities μ."""
         return self.mu.copy()
+
+    # --- snapshots and pickles: the state, not the caches derived from it ---------------------------
+    def __getstate__(self) -> dict:
+        return {**vars(self), "_pred": None}
+
+    def state_dict(self) -> dict:
+        """``time``, ``mu`` and each mode's own ``xs``/``Ps`` (without the padding)."""
+        return {"time": self.time, "mu": self.mu.copy(),
+                "xs": [self.X[j, :d].copy() for j, d in enumerate(self.dims)],
+                "Ps": [self.PP[j, :d, :d].copy() for j, d in enumerate(self.dims)]}
+
+    def load_state_dict(self, state: dict) -> None:
+        """Take back :meth:`state_dict` (other keys, which older versions saved, are derived from the
+        configuration and ignored)."""
+        n = len(self.modes)
+        X, PP = np.zeros((n, self.dim)), np.zeros((n, self.dim, self.dim))
+        if state.get("time") is None:  # never started
+            self._set(None, self.mu0.copy(), X, PP, None)
+            return
+        try:
+            time, mu, xs, Ps = float(state["time"]), np.array(state["mu"], float), state["xs"], state["Ps"]
+            if mu.shape != (n,) or len(xs) != n or len(Ps) != n:
+                raise ValueError(f"expected {n} modes")
+            for j, d in enumerate(self.dims):
+                X[j, :d], PP[j, :d, :d] = xs[j], Ps[j]
+                if d < self.dim:
+                    PP[j, 4, 4] = self.entry_var
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"IMMFilter: state does not fit this configuration: {exc}") from None
+        self._set(time, mu, X, PP, kernels.imm_combine(mu, X, PP))

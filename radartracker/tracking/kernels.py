@@ -14,6 +14,11 @@ The equations are those of the numpy code they replace, written out for the smal
 * :func:`moment_match` — the Gaussian mixture's mean and covariance, x = Σ wᵢ xᵢ,
   P = sym(Σ wᵢ (Pᵢ + (xᵢ − x)(xᵢ − x)ᵀ)) (the IMM's mixing and its combined estimate), summed in the
   order of the numpy expressions it replaces.
+* the IMM cycle of ``radartracker_plugins.motion.imm`` (Blom & Bar-Shalom), one call each:
+  :func:`markov_switching` Π(Δt) = exp(G|Δt|); :func:`imm_predict` — c̄ = μΠ, mixing
+  ω_ij = Π_ij μ_i / c̄_j with moment-matched initial conditions, each mode's CV or CT prediction and
+  the predicted mixture Σ c̄_j N(ξ̄_j, P̄_j); :func:`imm_correct` — each mode's position update,
+  μ_j ∝ c̄_j N(ν_j; 0, Λ_j) and the moment-matched output; :func:`imm_cycle` both.
 * :func:`measurement_ok` — the checks of a position measurement: finite time and z, R finite,
   symmetric (``numpy.allclose`` tolerances) and positive definite.
 """
@@ -185,18 +190,140 @@ def position_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray):
 
 
 @njit(cache=True)
-def moment_match(w: np.ndarray, X: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and covariance of the mixture Σ wᵢ N(Xᵢ, Pᵢ) (rows of ``X``, matrices of ``P``)."""
-    n, d = X.shape
-    x = np.zeros(d)
+def _mix(w: np.ndarray, X: np.ndarray, P: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and covariance of the first ``m`` components of the mixture Σ wᵢ N(Xᵢ, Pᵢ)."""
+    n = X.shape[0]
+    x = np.zeros(m)
     for i in range(n):
-        for a in range(d):
+        for a in range(m):
             x[a] += w[i] * X[i, a]
-    out = np.zeros((d, d))
+    out = np.zeros((m, m))
     for i in range(n):
-        for a in range(d):
+        for a in range(m):
             da = X[i, a] - x[a]
-            for b in range(d):
+            for b in range(m):
                 out[a, b] += w[i] * (P[i, a, b] + da * (X[i, b] - x[b]))
     _symmetrize(out)
     return x, out
+
+
+@njit(cache=True)
+def moment_match(w: np.ndarray, X: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and covariance of the mixture Σ wᵢ N(Xᵢ, Pᵢ) (rows of ``X``, matrices of ``P``)."""
+    return _mix(w, X, P, X.shape[1])
+
+
+# --- the IMM cycle (plugins/motion/imm.py) -------------------------------------------------------------
+# Mode states are held padded to the largest mode's size D (rows of X (n×D), matrices of PP (n×D×D)):
+# a 4-state CV mode carries ω = 0 with variance σ_e² (``entry_var``) in component 4 when D = 5.
+# ``modes`` rows (kind, q, turn_rate_sd): kind 0 = CV (:func:`cv_predict`), 1 = CT (:func:`ct_predict`).
+
+
+@njit(cache=True)
+def markov_switching(lam: np.ndarray, left: np.ndarray, right: np.ndarray, dt: float) -> np.ndarray:
+    """Π(Δt) = max(L diag(e^{λ|Δt|}) R, 0): exp(G|Δt|) from G's eigen-decomposition G = L diag(λ) R;
+    an empty ``lam`` means the fixed matrix Π = ``left``."""
+    n = lam.shape[0]
+    if n == 0:
+        return left.copy()
+    e = np.exp(lam * abs(dt))
+    Pi = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            acc = 0.0
+            for k in range(n):
+                acc += left[i, k] * e[k] * right[k, j]
+            Pi[i, j] = max(acc, 0.0)
+    return Pi
+
+
+@njit(cache=True)
+def imm_mix(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, Pi: np.ndarray):
+    """c̄ = μ Π and each mode's mixed initial condition: ω_ij = Π_ij μ_i / c̄_j (e_j if c̄_j = 0),
+    (X⁰_j, P⁰_j) = moment match of Σ_i ω_ij N(X_i, PP_i)."""
+    n, D = X.shape
+    cbar = np.zeros(n)
+    for j in range(n):
+        for i in range(n):
+            cbar[j] += mu[i] * Pi[i, j]
+    X0 = np.empty((n, D))
+    P0 = np.empty((n, D, D))
+    w = np.empty(n)
+    for j in range(n):
+        for i in range(n):
+            w[i] = Pi[i, j] * mu[i] / cbar[j] if cbar[j] > 0 else (1.0 if i == j else 0.0)
+        x0, p0 = _mix(w, X, PP, D)
+        X0[j] = x0
+        P0[j] = p0
+    return cbar, X0, P0
+
+
+@njit(cache=True)
+def imm_combine(w: np.ndarray, X: np.ndarray, PP: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The IMM output: moment match of Σ_j w_j N(X_j, PP_j) over the four kinematic components."""
+    return _mix(w, X, PP, 4)
+
+
+@njit(cache=True)
+def imm_predict(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, lam: np.ndarray, left: np.ndarray,
+                right: np.ndarray, modes: np.ndarray, dt: float):
+    """(c̄, X̄, P̄ of every mode, combined χ̄, P̄) predicted by ``dt``: switching, mixing, each mode's
+    prediction, and the predicted mixture weighed by c̄ (rows of ``modes``: block comment above)."""
+    cbar, X0, P0 = imm_mix(mu, X, PP, markov_switching(lam, left, right, dt))
+    n, D = X.shape
+    Xp = np.zeros((n, D))
+    PPp = np.zeros((n, D, D))
+    for j in range(n):
+        if modes[j, 0] == 0.0:
+            xp, pp = cv_predict(X0[j, :4].copy(), P0[j, :4, :4].copy(), dt, modes[j, 1])
+            Xp[j, :4] = xp
+            PPp[j, :4, :4] = pp
+        else:
+            xp, pp = ct_predict(X0[j].copy(), P0[j].copy(), dt, modes[j, 1], modes[j, 2])
+            Xp[j] = xp
+            PPp[j] = pp
+    x, P = _mix(cbar, Xp, PPp, 4)
+    return cbar, Xp, PPp, x, P
+
+
+@njit(cache=True)
+def imm_correct(cbar: np.ndarray, Xp: np.ndarray, PPp: np.ndarray, dims: np.ndarray, entry_var: float,
+                x_bar: np.ndarray, P_bar: np.ndarray, z: np.ndarray, R: np.ndarray):
+    """(μ, X, PP, χ̂, P̂, Λ, NIS, ok): every mode corrected by position z (:func:`position_update` on its
+    ``dims[j]`` states), μ_j ∝ c̄_j N(ν_j; 0, Λ_j), output χ̂, P̂ moment matched; NIS of the combined
+    prediction (χ̄, P̄). Not ``ok`` when a Λ is not positive definite (Λ returned is that one)."""
+    n, D = Xp.shape
+    X = np.zeros((n, D))
+    PP = np.zeros((n, D, D))
+    mu = np.empty(n)
+    _, _, _, S, nis, _, ok = position_update(x_bar, P_bar, z, R)
+    if not ok:
+        return mu, X, PP, x_bar, P_bar, S, nis, False
+    logw = np.empty(n)
+    for j in range(n):
+        d = dims[j]
+        xn, Pn, _, Sj, _, loglik, okj = position_update(Xp[j, :d].copy(), PPp[j, :d, :d].copy(), z, R)
+        if not okj:
+            return mu, X, PP, x_bar, P_bar, Sj, nis, False
+        X[j, :d] = xn
+        PP[j, :d, :d] = Pn
+        if d < D:
+            PP[j, 4, 4] = entry_var
+        logw[j] = math.log(max(cbar[j], 1e-300)) + loglik
+    top = logw.max()
+    total = 0.0
+    for j in range(n):
+        mu[j] = math.exp(logw[j] - top)
+        total += mu[j]
+    for j in range(n):
+        mu[j] /= total
+    x, P = _mix(mu, X, PP, 4)
+    return mu, X, PP, x, P, S, nis, True
+
+
+@njit(cache=True)
+def imm_cycle(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, lam: np.ndarray, left: np.ndarray, right: np.ndarray,
+              modes: np.ndarray, dims: np.ndarray, entry_var: float, dt: float, z: np.ndarray, R: np.ndarray):
+    """One whole IMM cycle, :func:`imm_predict` then :func:`imm_correct` (returns the latter's tuple)."""
+    cbar, Xp, PPp, x_bar, P_bar = imm_predict(mu, X, PP, lam, left, right, modes, dt)
+    return imm_correct(cbar, Xp, PPp, dims, entry_var, x_bar, P_bar, z, R)
