@@ -32,9 +32,14 @@ def register_convert(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_convert)
 
 
+MAX_MB = 1e6  # a terabyte: beyond that a typo (write-recording --synthetic-mb 1e300 never ended)
+
+
 def _cmd_convert(args: argparse.Namespace) -> int:
     from radartracker.io.convert import ConvertOptions, convert
+    from radartracker.pipeline.config import check_number
 
+    check_number("--bucket-mb", args.bucket_mb, lo=1 / 1024, hi=MAX_MB)  # inf reached int() as a traceback
     try:
         opts = ConvertOptions(args.AZN_TRACKS_MAX, args.AZN_TRACKS_MIN_MEASUR, args.TRACKS_MIN_MEASUR,
                               args.RADAR_SENSOR_ONLY, int(args.bucket_mb * 2**20))
@@ -133,6 +138,11 @@ def register_write_recording(sub: argparse._SubParsersAction) -> None:
 
 def _cmd_write_recording(args: argparse.Namespace) -> int:
     from radartracker.io.recording import write_scenario_recording, write_synthetic_recording
+    from radartracker.pipeline.config import check_number
+
+    if args.synthetic_mb is not None:  # NaN/inf were tracebacks, ≤ 0 still wrote a recording
+        check_number("--synthetic-mb", args.synthetic_mb, lo=0.0, lo_open=True, hi=MAX_MB)
+    check_number("--seed", args.seed, lo=0, integer=True)
 
     if args.out.exists():
         raise ConfigurationError(f"{args.out} already exists; choose a new folder")

@@ -315,3 +315,21 @@ def test_cli_names_the_first_malformed_line_and_exits_1_when_nothing_is_selected
     assert "1 malformed (first: plots.txt: line 3: field lat: not a number: 'north')" in out
     assert len(err.splitlines()) == 1 and "no aircraft has 20 or more ADS-B reports" in err
     assert json.loads((tmp_path / "new" / "report.json").read_text())["files"]["plots.txt"]["malformed"] == 1
+
+
+@pytest.mark.parametrize("argv,words", [
+    (["write-recording", "--synthetic-mb", "nan"], "--synthetic-mb: nan is not finite"),
+    (["write-recording", "--synthetic-mb", "inf"], "--synthetic-mb: inf is not finite"),
+    (["write-recording", "--synthetic-mb", "0"], "--synthetic-mb: 0.0 must be > 0"),
+    (["write-recording", "--synthetic-mb", "1e300"], "--synthetic-mb: 1e+300 must be <="),  # never ended
+    (["write-recording", "--synthetic-mb", "0.1", "--seed", "-1"], "--seed: -1 must be >= 0"),
+    (["convert", "REC", "--bucket-mb", "inf"], "--bucket-mb: inf is not finite"),
+    (["convert", "REC", "--bucket-mb", "nan"], "--bucket-mb: nan is not finite"),
+])
+def test_cli_numeric_options_are_refused_in_one_line(tmp_path, capsys, argv, words):
+    write_recording(tmp_path / "rec", _records(1))
+    argv = [str(tmp_path / "rec") if a == "REC" else a for a in argv]
+    assert main([*argv, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and words in err[0], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rec"]
