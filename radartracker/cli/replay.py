@@ -101,7 +101,7 @@ def register_replay(sub: argparse._SubParsersAction) -> None:
 def _cmd_replay(args: argparse.Namespace) -> int:
     from radartracker.io.sources import ASTERIX_SUFFIXES, read_source
     from radartracker.pipeline.config import read_config
-    from radartracker.pipeline.run import run
+    from radartracker.pipeline.run import replay_folder, run
     from radartracker.pipeline.writer import prepare, write_outputs
 
     config = run_config(args, read_config(args.config) if args.config is not None else None)
@@ -118,9 +118,12 @@ def _cmd_replay(args: argparse.Namespace) -> int:
         if tracks_in:
             print(f"warning: {args.scenario} holds CAT048 track reports (I161); the central architecture reads "
                   "their positions as plots; --architecture distributed fuses them as tracks", file=sys.stderr)
-        data = read_source(args.scenario, skip_bad=config.skip_bad)
-    result = run(data, config, progress=not getattr(args, "quiet", False), local_tracks=local)
-    write_outputs(result, out, figures=args.plots)
+        data = None if args.scenario.is_dir() and not args.plots else read_source(args.scenario, skip_bad=config.skip_bad)
+    if data is None:  # a scenario folder: streamed when it can be (pipeline.run.replay_folder)
+        result = replay_folder(args.scenario, config, out, progress=not getattr(args, "quiet", False))
+    else:
+        result = run(data, config, progress=not getattr(args, "quiet", False), local_tracks=local)
+        write_outputs(result, out, figures=args.plots)
     print(f"{result.config.association} association, estimator {result.config.estimator}"
           + (f", motion model {result.config.motion_model}" if result.config.motion_model else ""))
     print(result.summary_table())

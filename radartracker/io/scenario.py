@@ -6,17 +6,21 @@ A scenario folder holds ``radars.csv``, ``plots.csv`` and optionally ``adsb.csv`
 Reading validates every row. A malformed row raises :class:`FormatError` naming file, line and
 field; with ``skip_bad=True`` it is skipped instead and counted under its reason in
 ``ScenarioData.skipped`` (the replay reports those counts in ``summary.json``).
+
+``plots.csv`` and ``adsb.csv`` are read block by block (:mod:`radartracker.io.csvblocks`), each plain
+block converted column by column (:mod:`radartracker.io.columnar`) and any other row by row, with the
+same checks and the same results. :func:`read_scenario` gathers the blocks; :func:`open_scenario`
+hands them on one at a time (the streaming replay), so that only one block is in memory.
 """
 
 from __future__ import annotations
 
 import csv
-import io
 import json
 import logging
 import math
 from collections import Counter
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -25,104 +29,18 @@ import numpy as np
 
 from radartracker.domain import Aircraft, Radar
 from radartracker.errors import FormatError
+from radartracker.io import columnar
 from radartracker.io.atomic import atomic_folder
-from radartracker.tracking.admission import StreamClock
+from radartracker.io.csvblocks import BLOCK_BYTES, Rows, Skipper, read_text
 from radartracker.io.tables import (ADSB_COLUMNS, BIAS_COLUMNS, PLOT_COLUMNS, RADAR_COLUMNS, TRUTH_COLUMNS, AdsbTable,
-                                    PlotTable, ScenarioData, TruthTable)
+                                    PlotTable, ScenarioData, TruthTable, label_spans)
+from radartracker.tracking.admission import StreamClock
 
 log = logging.getLogger(__name__)
+_Rows = Rows  # the name other readers import (radartracker.io.asterix)
 
 
 # --- reading ----------------------------------------------------------------------------------
-
-
-def read_text(path: Path) -> str:
-    """A file's text: UTF-8 with or without a byte-order mark; a FormatError names the line of a bad byte."""
-    data = path.read_bytes()
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = data[:exc.start].count(b"\n") + 1
-        raise FormatError(path.name, line, None, f"not UTF-8 text (byte {exc.start} is {data[exc.start]:#04x})",
-                          "encoding") from None
-
-
-class _Rows:
-    """Iterate a CSV file's rows with line numbers; parse fields with errors naming the place.
-
-    The header must name each column once. A row with the wrong number of fields goes to ``skip``
-    (reason ``wrong_field_count``, or ``truncated_last_line`` for a last line without its newline).
-    """
-
-    def __init__(self, path: Path, required: tuple[str, ...], skip: _Skipper | None = None):
-        self.path, self.name = path, path.name
-        self.skip = skip if skip is not None else _Skipper(False)
-        text = read_text(path)
-        # a last line without its newline may have been cut short: its errors say so
-        self.cut_line = None if not text or text.endswith(("\n", "\r")) else text.count("\n") + 1
-        self._reader = csv.reader(io.StringIO(text, newline=""))
-        try:
-            header = next(self._reader, None)
-        except csv.Error as exc:
-            raise FormatError(self.name, 1, None, f"bad header: {exc}") from None
-        if not header:
-            raise FormatError(self.name, 1, None, "empty file: expected a header line")
-        header = [h.strip() for h in header]
-        twice = sorted({h for h in header if header.count(h) > 1})
-        if twice:
-            raise FormatError(self.name, 1, None, f"column(s) {', '.join(map(repr, twice))} appear more than once")
-        missing = [c for c in required if c not in header]
-        if missing:
-            raise FormatError(self.name, 1, None, f"missing column(s) {', '.join(missing)}; header is {header}")
-        self.header = header
-        self.optional = set(header)
-
-    def __iter__(self):
-        n, reader = len(self.header), self._reader
-        while True:
-            try:
-                fields = next(reader, None)
-            except csv.Error as exc:  # e.g. a quote left open at the end of the file
-                fields = exc
-            if fields is None:
-                return
-            if not fields:
-                continue  # a blank line
-            line = reader.line_num
-            if isinstance(fields, csv.Error) or len(fields) != n:
-                got = f"unreadable ({fields})" if isinstance(fields, csv.Error) else f"{len(fields)} fields"
-                self.reject(FormatError(self.name, line, None, f"{got}, header has {n}", "wrong_field_count"))
-                continue
-            yield line, dict(zip(self.header, fields))
-
-    def reject(self, err: FormatError) -> None:
-        """Raise ``err``, or skip and count it (skip_bad); on a cut last line, under ``truncated_last_line``."""
-        if err.line is not None and err.line == self.cut_line:
-            err = FormatError(err.file, err.line, err.field, f"{err.message} (the file ends in the middle of this "
-                              "line: cut short?)", "truncated_last_line")
-        self.skip(err)
-
-    def number(self, row: dict, line: int, field: str, *, optional: bool = False,
-               check: Callable[[float], str | None] | None = None) -> float:
-        text = (row.get(field) or "").strip()
-        if not text:
-            if optional:
-                return math.nan
-            raise FormatError(self.name, line, field, "empty")
-        try:
-            value = float(text)
-        except ValueError:
-            raise FormatError(self.name, line, field, f"{text!r} is not a number") from None
-        if not math.isfinite(value):
-            raise FormatError(self.name, line, field, f"{text!r} is not finite")
-        if check is not None and (why := check(value)) is not None:
-            raise FormatError(self.name, line, field, f"{value!r} {why}")
-        return value
-
-    @staticmethod
-    def text(row: dict, field: str) -> str | None:
-        text = (row.get(field) or "").strip()
-        return text or None
 
 
 def _range(lo: float, hi: float, *, hi_open: bool = False) -> Callable[[float], str | None]:
@@ -140,7 +58,7 @@ def _positive(v: float) -> str | None:
     return None if v > 0 else "must be > 0"
 
 
-def _code(rows: _Rows, row: dict, line: int, field: str, digits: str, n: int) -> str | None:
+def _code(rows: Rows, row: dict, line: int, field: str, digits: str, n: int) -> str | None:
     value = rows.text(row, field)
     if value is None:
         return None
@@ -154,7 +72,7 @@ _HEX, _OCT = "0123456789abcdef", "01234567"
 
 
 def read_radars(path: Path) -> list[Radar]:
-    rows = _Rows(path, RADAR_COLUMNS)
+    rows = Rows(path, RADAR_COLUMNS)
     radars: dict[str, tuple[Radar, int]] = {}
     for line, row in rows:
         rid = rows.text(row, "radar")
@@ -177,110 +95,170 @@ def read_radars(path: Path) -> list[Radar]:
     return [r for r, _ in radars.values()]
 
 
-class _Skipper:
-    """Raise, or count and log, bad rows; count duplicate rows (always used once)."""
-
-    def __init__(self, skip_bad: bool):
-        self.skip_bad = skip_bad
-        self.counts: Counter[str] = Counter()
-
-    def __call__(self, err: FormatError) -> None:
-        if not self.skip_bad:
-            raise err
-        self.count(err.file, err.reason, err)
-
-    def count(self, file: str, reason: str, what: object) -> None:
-        key = f"{file}:{reason}"
-        if self.counts[key] < 5:
-            log.warning("skipped (%s) %s", reason, what)
-        self.counts[key] += 1
+def _key(row: dict) -> str | tuple[str, ...]:
+    """An exact duplicate has the same text in every field. The key is the fields joined by commas
+    (a plain line's own text) when no field holds a comma, else the tuple of fields."""
+    values = tuple(row.values())
+    text = ",".join(values)
+    return text if text.count(",") == len(values) - 1 else values
 
 
-def _key(row: dict) -> tuple[str, ...]:
-    """An exact duplicate has the same text in every field."""
-    return tuple(row.values())
+PLOT_FIELDS = ("time", "radar", "range_m", "azimuth_rad", "altitude_m", "mode_s", "mode_3a", "target")
 
 
-def read_plots(path: Path, radar_ids: set[str], skip: _Skipper) -> PlotTable:
-    rows = _Rows(path, PLOT_COLUMNS, skip)
-    has_target = "target" in rows.optional
-    cols: dict[str, list] = {k: [] for k in ("time", "radar", "range_m", "azimuth_rad", "altitude_m", "mode_s", "mode_3a", "target")}
-    last_time: dict[str, tuple[float, int]] = {}
-    same_time: dict[str, set[tuple[str, ...]]] = {}  # rows of a radar at its latest time: duplicates are among them
-    clock = StreamClock()
-    for line, row in rows:
-        try:
-            t = rows.number(row, line, "time")
-            rid = rows.text(row, "radar")
-            if rid not in radar_ids:
-                raise FormatError(rows.name, line, "radar", f"unknown radar {rid!r} (radars.csv has {sorted(radar_ids)})", "unknown_radar")
-            if rid in last_time and t == last_time[rid][0] and _key(row) in same_time[rid]:
+class PlotReader:
+    """The rows of ``plots.csv`` validated in file order; the checks' state (each radar's latest time
+    and the rows at that time, the stream clock) carries over from one block to the next."""
+
+    def __init__(self, rows: Rows, radar_ids: set[str]):
+        self.rows, self.radar_ids = rows, radar_ids
+        self.has_target = "target" in rows.optional
+        self.cols: dict[str, list] = {k: [] for k in PLOT_FIELDS}
+        self.last_time: dict[str, tuple[float, int]] = {}
+        self.same_time: dict[str, set] = {}  # rows of a radar at its latest time: duplicates are among them
+        self.clock = StreamClock()
+        self.kept = 0
+
+    def add(self, block: Iterable[tuple[int, dict]]) -> None:
+        """Validate ``block``'s rows one by one (bad rows to the skipper)."""
+        rows, skip, cols = self.rows, self.rows.skip, self.cols
+        last_time, same_time, clock = self.last_time, self.same_time, self.clock
+        for line, row in block:
+            try:
+                t = rows.number(row, line, "time")
+                rid = rows.text(row, "radar")
+                if rid not in self.radar_ids:
+                    raise FormatError(rows.name, line, "radar", f"unknown radar {rid!r} (radars.csv has "
+                                      f"{sorted(self.radar_ids)})", "unknown_radar")
+                if rid in last_time and t == last_time[rid][0] and _key(row) in same_time[rid]:
+                    skip.count(rows.name, "duplicate_row", f"{rows.name} line {line}")
+                    continue
+                if rid in last_time and t < last_time[rid][0]:
+                    raise FormatError(rows.name, line, "time", f"{t} is earlier than {last_time[rid][0]} on line "
+                                      f"{last_time[rid][1]} of the same radar", "time_backwards")
+                if not clock.admit(t):  # one far-off time stamp must not make the good rows after it "backwards"
+                    raise FormatError(rows.name, line, "time", f"{t} is more than {clock.config.max_ahead_s:g} s "
+                                      f"ahead of the stream time {clock.now} (median of the last rows read)", "time_jump")
+                rng = rows.number(row, line, "range_m", check=_nonneg)
+                az = rows.number(row, line, "azimuth_deg", check=_range(0, 360, hi_open=True))
+                alt = rows.number(row, line, "altitude_m", optional=True)
+                ms = _code(rows, row, line, "mode_s", _HEX, 6)
+                m3a = _code(rows, row, line, "mode_3a", _OCT, 4)
+            except FormatError as err:
+                rows.reject(err)
+                continue
+            if rid not in last_time or t > last_time[rid][0]:
+                same_time[rid] = set()
+            same_time[rid].add(_key(row))
+            last_time[rid] = (t, line)
+            for k, v in (("time", t), ("radar", rid), ("range_m", rng), ("azimuth_rad", math.radians(az)),
+                         ("altitude_m", alt), ("mode_s", ms), ("mode_3a", m3a),
+                         ("target", rows.text(row, "target") if self.has_target else None)):
+                cols[k].append(v)
+            self.kept += 1
+
+    def take(self) -> PlotTable:
+        """The rows kept since the last call."""
+        cols, self.cols = self.cols, {k: [] for k in PLOT_FIELDS}
+        return PlotTable.from_columns(**cols)
+
+
+class AdsbReader:
+    """The rows of ``adsb.csv`` validated in file order. Exact duplicates are looked for among every
+    row kept so far, or (``latest_only``, for a file whose kept rows are in time order, as the
+    streaming replay requires) among the rows at the latest time kept: a duplicate has the same time."""
+
+    def __init__(self, rows: Rows, *, latest_only: bool = False):
+        self.rows, self.latest_only = rows, latest_only
+        self.cols: dict[str, list] = {k: [] for k in ADSB_COLUMNS}
+        self.seen: set = set()
+        self.seen_time = -math.inf
+        self.kept = 0
+
+    def add(self, block: Iterable[tuple[int, dict]]) -> None:
+        rows, skip, cols = self.rows, self.rows.skip, self.cols
+        for line, row in block:
+            try:
+                rec = {
+                    "time": rows.number(row, line, "time"),
+                    "icao24": _code(rows, row, line, "icao24", _HEX, 6),
+                    "lat": rows.number(row, line, "lat", check=_range(-90, 90)),
+                    "lon": rows.number(row, line, "lon", check=_range(-180, 180)),
+                    "altitude_m": rows.number(row, line, "altitude_m", optional=True),
+                    "nacp": rows.number(row, line, "nacp", check=_range(1, 11)),
+                }
+                if rec["icao24"] is None:
+                    raise FormatError(rows.name, line, "icao24", "empty")
+                if rec["nacp"] != int(rec["nacp"]):
+                    raise FormatError(rows.name, line, "nacp", f"{rec['nacp']!r} is not an integer")
+            except FormatError as err:
+                rows.reject(err)
+                continue
+            if (key := _key(row)) in self.seen:
                 skip.count(rows.name, "duplicate_row", f"{rows.name} line {line}")
                 continue
-            if rid in last_time and t < last_time[rid][0]:
-                raise FormatError(rows.name, line, "time",
-                                  f"{t} is earlier than {last_time[rid][0]} on line {last_time[rid][1]} of the same radar",
-                                  "time_backwards")
-            if not clock.admit(t):  # one far-off time stamp must not make the good rows after it "backwards"
-                raise FormatError(rows.name, line, "time", f"{t} is more than {clock.config.max_ahead_s:g} s ahead of "
-                                  f"the stream time {clock.now} (median of the last rows read)", "time_jump")
-            rng = rows.number(row, line, "range_m", check=_nonneg)
-            az = rows.number(row, line, "azimuth_deg", check=_range(0, 360, hi_open=True))
-            alt = rows.number(row, line, "altitude_m", optional=True)
-            ms = _code(rows, row, line, "mode_s", _HEX, 6)
-            m3a = _code(rows, row, line, "mode_3a", _OCT, 4)
-        except FormatError as err:
-            rows.reject(err)
-            continue
-        if rid not in last_time or t > last_time[rid][0]:
-            same_time[rid] = set()
-        same_time[rid].add(_key(row))
-        last_time[rid] = (t, line)
-        for k, v in (("time", t), ("radar", rid), ("range_m", rng), ("azimuth_rad", math.radians(az)),
-                     ("altitude_m", alt), ("mode_s", ms), ("mode_3a", m3a),
-                     ("target", rows.text(row, "target") if has_target else None)):
-            cols[k].append(v)
-    if not cols["time"]:
+            if self.latest_only and rec["time"] != self.seen_time:
+                self.seen, self.seen_time = set(), rec["time"]
+            self.seen.add(key)
+            for k, v in rec.items():
+                cols[k].append(v)
+            self.kept += 1
+
+    def take(self) -> AdsbTable:
+        cols, self.cols = self.cols, {k: [] for k in ADSB_COLUMNS}
+        return AdsbTable.from_columns(**cols)
+
+
+def plot_blocks(path: Path, radar_ids: set[str], skip: Skipper, *, block_bytes: int = BLOCK_BYTES,
+                fast: bool = True) -> Iterator[PlotTable]:
+    """``plots.csv`` as tables of the rows kept, block by block, in file order (``fast``: plain blocks
+    column by column). A file without a usable row is an error (nothing to track)."""
+    rows = Rows(path, PLOT_COLUMNS, skip, block_bytes=block_bytes)
+    reader = PlotReader(rows, radar_ids)
+    for _, text, block in rows.blocks():
+        table = columnar.plots(reader, text) if fast and text is not None else None
+        if table is None:
+            reader.add(block)
+            table = reader.take()
+        if len(table):
+            yield table
+    if not reader.kept:
         bad = sum(n for k, n in skip.counts.items() if k.startswith(f"{rows.name}:"))
         raise FormatError(rows.name, None, None, "no usable plot rows" + (f" ({bad} skipped)" if bad else
                           " after the header") + ": nothing to track", "empty")
-    return PlotTable.from_columns(**cols)
 
 
-def read_adsb(path: Path, skip: _Skipper) -> AdsbTable:
-    rows = _Rows(path, ADSB_COLUMNS, skip)
-    cols: dict[str, list] = {k: [] for k in ADSB_COLUMNS}
-    seen: set[tuple[str, ...]] = set()
-    for line, row in rows:
-        try:
-            rec = {
-                "time": rows.number(row, line, "time"),
-                "icao24": _code(rows, row, line, "icao24", _HEX, 6),
-                "lat": rows.number(row, line, "lat", check=_range(-90, 90)),
-                "lon": rows.number(row, line, "lon", check=_range(-180, 180)),
-                "altitude_m": rows.number(row, line, "altitude_m", optional=True),
-                "nacp": rows.number(row, line, "nacp", check=_range(1, 11)),
-            }
-            if rec["icao24"] is None:
-                raise FormatError(rows.name, line, "icao24", "empty")
-            if rec["nacp"] != int(rec["nacp"]):
-                raise FormatError(rows.name, line, "nacp", f"{rec['nacp']!r} is not an integer")
-        except FormatError as err:
-            rows.reject(err)
-            continue
-        if (key := _key(row)) in seen:
-            skip.count(rows.name, "duplicate_row", f"{rows.name} line {line}")
-            continue
-        seen.add(key)
-        for k, v in rec.items():
-            cols[k].append(v)
-    return AdsbTable.from_columns(**cols)
+def adsb_blocks(path: Path, skip: Skipper, *, block_bytes: int = BLOCK_BYTES, fast: bool = True,
+                latest_only: bool = False) -> Iterator[AdsbTable]:
+    """``adsb.csv`` as tables of the rows kept, block by block, in file order (see :class:`AdsbReader`)."""
+    rows = Rows(path, ADSB_COLUMNS, skip, block_bytes=block_bytes)
+    reader = AdsbReader(rows, latest_only=latest_only)
+    for _, text, block in rows.blocks():
+        table = columnar.adsb(reader, text) if fast and text is not None else None
+        if table is None:
+            reader.add(block)
+            table = reader.take()
+        if len(table):
+            yield table
 
 
-def read_truth(path: Path, skip: _Skipper) -> TruthTable:
-    rows = _Rows(path, TRUTH_COLUMNS)
+def _concat(cls, tables: list, names: Iterable[str]):
+    return cls(**{k: np.concatenate([getattr(t, k) for t in tables]) for k in names})
+
+
+def read_plots(path: Path, radar_ids: set[str], skip: Skipper, **kw: Any) -> PlotTable:
+    return _concat(PlotTable, list(plot_blocks(path, radar_ids, skip, **kw)), PLOT_FIELDS)
+
+
+def read_adsb(path: Path, skip: Skipper, **kw: Any) -> AdsbTable:
+    tables = list(adsb_blocks(path, skip, **kw)) or [AdsbTable.from_columns(**{k: [] for k in ADSB_COLUMNS})]
+    return _concat(AdsbTable, tables, ADSB_COLUMNS)
+
+
+def read_truth(path: Path, skip: Skipper) -> TruthTable:
+    rows = Rows(path, TRUTH_COLUMNS)
     cols: dict[str, list] = {k: [] for k in TRUTH_COLUMNS}
-    seen: set[tuple[str, ...]] = set()
+    seen: set = set()
     for line, row in rows:
         rec = (rows.number(row, line, "time"), rows.text(row, "target"),
                rows.number(row, line, "lat", check=_range(-90, 90)),
@@ -353,29 +331,105 @@ def read_meta(path: Path) -> dict[str, Any]:
     return out
 
 
-def read_scenario(folder: Path | str, *, skip_bad: bool = False) -> ScenarioData:
-    """Read and validate a scenario folder (see docs/formats.md).
-
-    Exact duplicate rows of plots, ADS-B and truth are used once and counted under
-    ``<file>:duplicate_row``; a ``plots.csv`` without a usable row is an error (nothing to track).
-    """
-    folder = Path(folder)
+def _meta(folder: Path) -> tuple[dict[str, Any], list[Radar]]:
     if not folder.is_dir():
         raise FileNotFoundError(f"scenario folder {folder} does not exist")
     meta = read_meta(folder / "scenario.json") if (folder / "scenario.json").exists() else {}
-    radars = read_radars(folder / "radars.csv")
+    return meta, read_radars(folder / "radars.csv")
+
+
+def _scenario(folder: Path, meta: dict, radars: list[Radar], plots: PlotTable, adsb: AdsbTable, skips: dict[str, Skipper],
+              ) -> ScenarioData:
     ids = {r.id for r in radars}
-    skip = _Skipper(skip_bad)
-    plots = read_plots(folder / "plots.csv", ids, skip)
-    adsb = read_adsb(folder / "adsb.csv", skip) if (folder / "adsb.csv").exists() else AdsbTable.from_columns(
-        **{k: [] for k in ADSB_COLUMNS})
-    truth = read_truth(folder / "truth.csv", skip) if (folder / "truth.csv").exists() else None
+    truth = read_truth(folder / "truth.csv", skips["truth"]) if (folder / "truth.csv").exists() else None
     tb = read_truth_biases(folder / "truth_biases.csv", ids) if (folder / "truth_biases.csv").exists() else None
     # documented default reference: the centroid of the radar sites
     reference = meta.get("reference") or (float(np.mean([r.lat for r in radars])), float(np.mean([r.lon for r in radars])))
     return ScenarioData(reference=reference, radars=radars, plots=plots, adsb=adsb, truth=truth,
                         truth_biases=tb, aircraft=meta.get("aircraft", []), name=meta.get("name", folder.name),
-                        skipped=dict(skip.counts))
+                        skipped=_skipped(skips))
+
+
+def _skipped(skips: dict[str, Skipper]) -> dict[str, int]:
+    """The skip counts of every file, plots first, then ADS-B, then truth."""
+    return {k: n for s in skips.values() for k, n in s.counts.items()}
+
+
+def _skippers(skip_bad: bool) -> dict[str, Skipper]:
+    return {name: Skipper(skip_bad, log) for name in ("plots", "adsb", "truth")}
+
+
+def _no_adsb() -> AdsbTable:
+    return AdsbTable.from_columns(**{k: [] for k in ADSB_COLUMNS})
+
+
+def read_scenario(folder: Path | str, *, skip_bad: bool = False, block_bytes: int = BLOCK_BYTES,
+                  fast: bool = True) -> ScenarioData:
+    """Read and validate a scenario folder (see docs/formats.md).
+
+    Exact duplicate rows of plots, ADS-B and truth are used once and counted under
+    ``<file>:duplicate_row``; a ``plots.csv`` without a usable row is an error (nothing to track).
+    ``fast=False`` reads every row one by one (the reference the columnar reading is held to).
+    """
+    folder = Path(folder)
+    meta, radars = _meta(folder)
+    skips = _skippers(skip_bad)
+    kw = {"block_bytes": block_bytes, "fast": fast}
+    plots = read_plots(folder / "plots.csv", {r.id for r in radars}, skips["plots"], **kw)
+    adsb = read_adsb(folder / "adsb.csv", skips["adsb"], **kw) if (folder / "adsb.csv").exists() else _no_adsb()
+    return _scenario(folder, meta, radars, plots, adsb, skips)
+
+
+@attrs.define
+class ScenarioFiles:
+    """A scenario folder opened for streaming: ``data`` holds everything but the plots and ADS-B reports
+    (its tables are empty; ``data.skipped`` is complete once both streams are read), which
+    :meth:`plot_blocks` and :meth:`adsb_blocks` read block by block in file order. ADS-B duplicates are
+    looked for at the latest time only (:class:`AdsbReader`): the streaming replay needs each file in
+    time order and checks it. ``rows`` is the number of data lines of both files (for progress)."""
+
+    folder: Path
+    data: ScenarioData
+    skips: dict[str, Skipper]
+    block_bytes: int = BLOCK_BYTES
+    fast: bool = True
+    rows: int = 0
+    label_spans: dict[str, tuple[float, float]] = attrs.field(factory=dict)
+
+    def plot_blocks(self) -> Iterator[PlotTable]:
+        """``plots.csv``'s blocks; with truth, the first and last time of each label are kept
+        (:attr:`label_spans`, what the evaluation needs of the plots)."""
+        for table in plot_blocks(self.folder / "plots.csv", {r.id for r in self.data.radars}, self.skips["plots"],
+                                 block_bytes=self.block_bytes, fast=self.fast):
+            if self.data.truth is not None:
+                self.label_spans = label_spans(table.time, table.target, self.label_spans)
+            yield table
+        self.data.skipped = _skipped(self.skips)
+
+    def adsb_blocks(self) -> Iterator[AdsbTable]:
+        if (self.folder / "adsb.csv").exists():
+            yield from adsb_blocks(self.folder / "adsb.csv", self.skips["adsb"], block_bytes=self.block_bytes,
+                                   fast=self.fast, latest_only=True)
+        self.data.skipped = _skipped(self.skips)
+
+
+def open_scenario(folder: Path | str, *, skip_bad: bool = False, block_bytes: int = BLOCK_BYTES,
+                  fast: bool = True) -> ScenarioFiles:
+    """A scenario folder for streaming (:class:`ScenarioFiles`): ``scenario.json``, radars, truth and true
+    biases read and checked now; plots and ADS-B reports when their blocks are asked for."""
+    folder = Path(folder)
+    meta, radars = _meta(folder)
+    skips = _skippers(skip_bad)
+    data = _scenario(folder, meta, radars, PlotTable.from_columns(**{k: [] for k in PLOT_FIELDS}), _no_adsb(), skips)
+    rows = sum(_data_lines(folder / f) for f in ("plots.csv", "adsb.csv"))
+    return ScenarioFiles(folder, data, skips, block_bytes, fast, rows)
+
+
+def _data_lines(path: Path) -> int:
+    if not path.exists():
+        return 0
+    with path.open("rb") as f:
+        return max(sum(block.count(b"\n") for block in iter(lambda: f.read(BLOCK_BYTES), b"")) - 1, 0)
 
 
 # --- writing ----------------------------------------------------------------------------------

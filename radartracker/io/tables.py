@@ -121,3 +121,14 @@ class ScenarioData:
     @property
     def radar_by_id(self) -> dict[str, Radar]:
         return {r.id: r for r in self.radars}
+
+
+def label_spans(time: np.ndarray, target: np.ndarray, spans: dict | None = None) -> dict[str, tuple[float, float]]:
+    """The first and last time of the plots of each truth label (``target`` not ``None``), sorted by label;
+    ``spans`` from earlier blocks of the same file are extended."""
+    spans = dict(spans or {})
+    for tg, t in zip(target.tolist(), time.tolist()):
+        if tg is not None:
+            lo, hi = spans.get(str(tg), (t, t))
+            spans[str(tg)] = (min(lo, t), max(hi, t))
+    return dict(sorted(spans.items()))

@@ -64,22 +64,30 @@ class BiasLog:
 
 
 _NAN16 = (math.nan,) * 16
+FLUSH_EVERY = 8192  # rows handed to the sink at a time
 
 
 class Recorder:
     """Collects a run's events, bias estimates and NIS values (see the module docstring).
 
     Numbers go to flat ``array('d')`` buffers (8 bytes each, no object per event): a national-scale run
-    records millions of events.
+    records millions of events. With a ``sink`` (:class:`radartracker.pipeline.writer.OutputStream`)
+    events and biases are handed on every ``flush_every`` rows as they come; ``keep=False`` then drops
+    them once handed on, so that memory does not grow with the recording's length (what
+    :attr:`track_ids` keeps, one integer per track with an estimate, grows with the number of tracks).
     """
 
-    def __init__(self, bias_log_interval_s: float = 1.0) -> None:
+    def __init__(self, bias_log_interval_s: float = 1.0, *, sink=None, keep: bool = True,
+                 flush_every: int | None = None) -> None:
         self.bias_log_interval_s = bias_log_interval_s
+        self.sink, self.keep, self.flush_every = sink, keep or sink is None, flush_every or FLUSH_EVERY
         self._num = {k: array("d") for k in ("time", "state", "cov", "altitude_m")}
         self._track = array("q")
         self._obj: dict[str, list] = {k: [] for k in ("kind", "status", "mode_s", "mode_3a", "target")}
         self._bias: list[tuple] = []
         self._bias_last: dict[str, float] = {}
+        self._sent = [0, 0]  # events and bias rows already handed to the sink
+        self.track_ids: set[int] = set()
         self.nis: list[float] = []
 
     def event(self, time: float, track: int, kind: str, status: str, state: np.ndarray, cov: np.ndarray | None,
@@ -92,21 +100,46 @@ class Recorder:
         self._track.append(int(track))
         for k, v in (("kind", kind), ("status", status), ("mode_s", mode_s), ("mode_3a", mode_3a), ("target", target)):
             self._obj[k].append(v)
+        if kind in TRACK_KINDS:
+            self.track_ids.add(int(track))
+        if self.sink is not None and len(self._track) - self._sent[0] >= self.flush_every:
+            self.flush()
 
     def bias(self, time: float, state: BiasState) -> None:
         """Record ``state`` unless this radar was recorded less than the interval before ``time``."""
         if time - self._bias_last.get(state.radar, -math.inf) >= self.bias_log_interval_s:
             self._bias.append((float(time), state.radar, np.asarray(state.bias, float), np.asarray(state.cov, float)))
             self._bias_last[state.radar] = time
+            if self.sink is not None and len(self._bias) - self._sent[1] >= self.flush_every:
+                self.flush()
 
-    def events(self) -> Events:
+    def flush(self) -> None:
+        """Hand the events and bias rows not yet handed on to the sink (dropping them unless ``keep``)."""
+        if self.sink is None:
+            return
+        self.sink.events(self.events(self._sent[0]))
+        self.sink.biases(self.biases(self._sent[1]))
+        if self.keep:
+            self._sent = [len(self._track), len(self._bias)]
+            return
+        for buf in (*self._num.values(), self._track):
+            del buf[:]
+        for col in self._obj.values():
+            col.clear()
+        self._bias.clear()
+
+    def events(self, start: int = 0) -> Events:
+        """The events recorded (from the ``start``-th of those held)."""
         n, o = self._num, self._obj
-        return Events(time=np.array(n["time"], float), track=np.array(self._track, int), kind=_obj(o["kind"]),
-                      status=_obj(o["status"]), state=np.array(n["state"], float).reshape(-1, 4),
-                      cov=np.array(n["cov"], float).reshape(-1, 4, 4), altitude_m=np.array(n["altitude_m"], float),
-                      mode_s=_obj(o["mode_s"]), mode_3a=_obj(o["mode_3a"]), target=_obj(o["target"]))
+        return Events(time=np.array(n["time"][start:], float), track=np.array(self._track[start:], int),
+                      kind=_obj(o["kind"][start:]), status=_obj(o["status"][start:]),
+                      state=np.array(n["state"][4 * start:], float).reshape(-1, 4),
+                      cov=np.array(n["cov"][16 * start:], float).reshape(-1, 4, 4),
+                      altitude_m=np.array(n["altitude_m"][start:], float), mode_s=_obj(o["mode_s"][start:]),
+                      mode_3a=_obj(o["mode_3a"][start:]), target=_obj(o["target"][start:]))
 
-    def biases(self) -> BiasLog:
-        cols = list(zip(*self._bias)) if self._bias else [[]] * 4
+    def biases(self, start: int = 0) -> BiasLog:
+        rows = self._bias[start:]
+        cols = list(zip(*rows)) if rows else [[]] * 4
         return BiasLog(np.array(cols[0], float), _obj(list(cols[1])), np.array(cols[2], float).reshape(-1, 2),
                        np.array(cols[3], float).reshape(-1, 2, 2))

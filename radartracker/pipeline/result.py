@@ -25,7 +25,7 @@ import numpy as np
 from radartracker.domain import BiasState
 from radartracker.estimation.coupling import CouplingGraph
 from radartracker.geometry.plane import SystemPlane
-from radartracker.io.tables import ScenarioData
+from radartracker.io.tables import ScenarioData, label_spans
 from radartracker.pipeline.config import RunConfig
 from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, nees, state_errors, track_metrics
 from radartracker.pipeline.recorder import BiasLog, Events
@@ -57,7 +57,8 @@ class RunResult:
     """A run's events (track estimates among them), bias history, final biases, counts and timing.
 
     ``config`` is the effective configuration (what ``config.json`` holds); ``plugins`` the estimator's
-    and motion model's effective typed settings.
+    and motion model's effective typed settings. A streamed run (``streamed``) wrote its events and
+    biases as it went and holds them only if the evaluation against truth needs them (``data.truth``).
     """
 
     data: ScenarioData
@@ -71,6 +72,12 @@ class RunResult:
     nis: np.ndarray
     coupling: CouplingGraph
     plugins: dict = attrs.field(factory=dict)
+    #: the tables were written as the run went (``events`` then holds only what the evaluation needs)
+    streamed: bool = False
+    #: the number of tracks with an estimate (``None``: counted from ``events``)
+    track_count: int | None = None
+    #: first and last plot time of each truth label (``None``: from ``data.plots``; see :func:`label_spans`)
+    label_spans: dict[str, tuple[float, float]] | None = None
 
     @property
     def estimator_name(self) -> str:
@@ -100,10 +107,10 @@ class RunResult:
         if d.truth is None or not len(est):
             return None
         paths = TruthPaths.from_table(d.truth, self.plane)
-        labelled = np.array([t is not None for t in d.plots.target], bool)
-        spans = ({tg: d.plots.time[d.plots.target == tg] for tg in np.unique(d.plots.target[labelled].astype(str))}
-                 if labelled.any() else {tg: p[0] for tg, p in paths.paths.items()})
-        observed = {tg: (float(t.min()) + GRACE_S, float(t.max())) for tg, t in spans.items() if t.max() - t.min() > GRACE_S}
+        spans = self.label_spans if self.label_spans is not None else label_spans(d.plots.time, d.plots.target)
+        if not spans:
+            spans = {tg: (float(p[0].min()), float(p[0].max())) for tg, p in paths.paths.items()}
+        observed = {tg: (lo + GRACE_S, hi) for tg, (lo, hi) in spans.items() if hi - lo > GRACE_S}
         grid = np.arange(d.truth.time.min(), d.truth.time.max(), 2.0)
         tracking = track_metrics(self.histories(), paths, observed, grid)
         tracking.pop("gospa")
@@ -181,7 +188,7 @@ class RunResult:
             "skipped_input_rows": dict(self.data.skipped),
             "seconds": self.seconds,
             "seconds_per_measurement": self.seconds / max(n_meas, 1),
-            "tracks": int(len(np.unique(self.tracks.track))),
+            "tracks": self.track_count if self.track_count is not None else int(len(np.unique(self.tracks.track))),
             "consistency": self.consistency(),
             "biases": {rid: self.bias_entry(rid) for rid in self.final_biases},
             "truth": ev["truth"] if ev else None,

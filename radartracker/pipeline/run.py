@@ -19,11 +19,14 @@ Every input is used or counted under a named reason.
 
 from __future__ import annotations
 
+import csv
 import itertools
 import logging
 import math
 import time as _time
 from collections import Counter
+from collections.abc import Iterable
+from pathlib import Path
 
 import attrs
 import numpy as np
@@ -38,11 +41,13 @@ from radartracker.estimation.screening import REINIT, REJECT, LabelledScreen
 from radartracker.fusion.center import LocalTracks
 from radartracker.fusion.distributed import run_distributed
 from radartracker.geometry.plane import SystemPlane
+from radartracker.io.scenario import open_scenario
 from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.config import RunConfig, resolve
 from radartracker.pipeline.recorder import Recorder
 from radartracker.pipeline.result import RunResult
-from radartracker.pipeline.stream import iter_scenario
+from radartracker.pipeline.stream import NotTimeOrdered, iter_files, iter_scenario
+from radartracker.pipeline.writer import OutputStream, write_outputs
 from radartracker.registry import FilterFactory, load_motion_model, make_estimator, make_filter_factory, option_fields
 from radartracker.tracking.admission import StreamClock
 from radartracker.tracking.manager import TrackEvent, TrackManager, default_estimator
@@ -51,7 +56,8 @@ log = logging.getLogger(__name__)
 
 
 def run(data: ScenarioData, config: RunConfig | None = None, *, estimator: Estimator | None = None,
-        progress: bool = True, local_tracks: LocalTracks | None = None) -> RunResult:
+        progress: bool = True, local_tracks: LocalTracks | None = None, inputs: Iterable | None = None,
+        sink: OutputStream | None = None, total: int | None = None) -> RunResult:
     """Run ``data`` through the association, estimator and motion model of ``config``.
 
     ``local_tracks`` (``--architecture distributed`` only): radar tracks imported from CAT048
@@ -59,6 +65,11 @@ def run(data: ScenarioData, config: RunConfig | None = None, *, estimator: Estim
 
     ``estimator`` replaces the plugin named in ``config``: it is given every radar of ``data``, and its
     own configuration must use the run's process noise ``q`` (a mismatch is refused, not ignored).
+
+    Streaming (TrackManager association, central architecture): ``inputs`` are the time-ordered items
+    (:func:`radartracker.pipeline.stream.iter_files`; ``total`` of them, about, for the progress bar)
+    in place of ``data``'s tables, and ``sink`` writes the events and biases as they come; they are
+    kept in memory only when ``data`` holds truth to evaluate them against.
     """
     config = config or RunConfig()
     name = type(estimator).name if estimator is not None else (config.estimator or default_estimator())
@@ -79,7 +90,9 @@ def run(data: ScenarioData, config: RunConfig | None = None, *, estimator: Estim
     factory = motion_factory(cfg) if cfg.motion_model is not None else None
     plugins = {"estimator": attrs.asdict(est.options) if getattr(est, "options", None) is not None else {},
                "motion_model": attrs.asdict(factory.config) if factory is not None else None}
-    rec = Recorder(cfg.bias_log_interval_s)
+    if inputs is not None and (cfg.architecture != "central" or cfg.association != "manager"):
+        raise ConfigurationError("only the TrackManager association of the central architecture is streamed")
+    rec = Recorder(cfg.bias_log_interval_s, sink=sink, keep=data.truth is not None)
     started = _time.perf_counter()
     if cfg.architecture == "distributed":
         counts, coupling = run_distributed(data, cfg, est, factory, rec, progress, cfg.fusion_settings(),
@@ -87,11 +100,13 @@ def run(data: ScenarioData, config: RunConfig | None = None, *, estimator: Estim
     elif cfg.association == "labels":
         counts, coupling = _by_labels(data, cfg, est, rec, progress)
     else:
-        counts, coupling = _by_manager(data, cfg, est, factory, rec, progress)
+        counts, coupling = _by_manager(data, cfg, est, factory, rec, progress, inputs, total)
     seconds = _time.perf_counter() - started
+    rec.flush()
     return RunResult(data=data, config=cfg, plane=SystemPlane(*data.reference), events=rec.events(),
                      biases=rec.biases(), final_biases={r: est.bias(r) for r in radar_ids}, counts=dict(counts),
-                     seconds=seconds, nis=np.asarray(rec.nis, float), coupling=coupling, plugins=plugins)
+                     seconds=seconds, nis=np.asarray(rec.nis, float), coupling=coupling, plugins=plugins,
+                     streamed=sink is not None, track_count=len(rec.track_ids))
 
 
 def _by_labels(data: ScenarioData, cfg: RunConfig, est: Estimator, rec: Recorder,
@@ -203,7 +218,7 @@ def _extrapolate(state: np.ndarray, dt: float) -> np.ndarray:
 
 
 def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: FilterFactory, rec: Recorder,
-                progress: bool) -> tuple[Counter, CouplingGraph]:
+                progress: bool, inputs: Iterable | None = None, total: int | None = None) -> tuple[Counter, CouplingGraph]:
     """Association by the TrackManager; events carry the track filter's state and covariance."""
     mcfg = cfg.manager_settings()
     ident: dict[int, tuple] = {}  # identity of each track at its last event (deleted tracks are gone from mgr)
@@ -220,7 +235,9 @@ def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: Fil
             ident.pop(ev.track, None)
 
     mgr = TrackManager(data.radars, data.reference, mcfg, on_event, estimator=est, filter_factory=factory)
-    for item in tqdm(iter_scenario(data), total=len(data.plots) + len(data.adsb),
+    if inputs is None:
+        inputs, total = iter_scenario(data), len(data.plots) + len(data.adsb)
+    for item in tqdm(inputs, total=total,
                      desc=f"track {cfg.estimator}/{cfg.motion_model}", unit="item",
                      delay=2.0, mininterval=1.0, disable=not progress):
         mgr.process(item)
@@ -239,3 +256,49 @@ def motion_factory(cfg: RunConfig) -> FilterFactory:
     if "q" in option_fields(cls.config_class) and "q" not in options:
         options["q"] = repr(cfg.q)
     return make_filter_factory(cfg.motion_model, options)
+
+
+def streamable(folder: Path | str, config: RunConfig) -> bool:
+    """Whether :func:`replay_folder` can stream the scenario folder ``folder`` under ``config``: the
+    TrackManager association (named, or chosen by ``auto`` because ``plots.csv`` has no ``target``
+    column) and the central architecture."""
+    folder = Path(folder)
+    if config.architecture != "central" or not folder.is_dir() or config.association == "labels":
+        return False
+    if config.association == "manager":
+        return True
+    try:
+        with (folder / "plots.csv").open(encoding="utf-8-sig", newline="") as f:
+            header = next(csv.reader([f.readline()]), [])
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return False  # read whole: the reader names the problem
+    return "target" not in [h.strip() for h in header]
+
+
+def replay_folder(folder: Path | str, config: RunConfig, out: Path | str, *, progress: bool = True) -> RunResult:
+    """Replay the scenario folder ``folder`` into the prepared folder ``out`` (tables, summary, config),
+    streamed when :func:`streamable` (memory flat in the recording's length), else read whole: the
+    same files either way. A file whose kept rows are not in time order cannot be merged as it is
+    read: that run is abandoned and the folder read whole."""
+    if streamable(folder, config):
+        files = open_scenario(folder, skip_bad=config.skip_bad)
+        sink = OutputStream(out, SystemPlane(*files.data.reference))
+        try:
+            result = run(files.data, config, progress=progress, inputs=iter_files(files), sink=sink,
+                         total=files.rows)
+        except NotTimeOrdered as exc:
+            sink.abort(exc)
+            log.info("%s: reading the whole scenario instead of streaming it", exc)
+        except BaseException as exc:
+            sink.abort(exc)
+            raise
+        else:
+            sink.close()
+            result.label_spans = files.label_spans
+            write_outputs(result, out)
+            return result
+    from radartracker.io.sources import read_source
+
+    result = run(read_source(folder, skip_bad=config.skip_bad), config, progress=progress)
+    write_outputs(result, out)
+    return result

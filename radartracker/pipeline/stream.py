@@ -1,14 +1,22 @@
-"""A scenario as the time-ordered stream of domain inputs a TrackManager (or the service) consumes."""
+"""A scenario as the time-ordered stream of domain inputs a TrackManager (or the service) consumes:
+from tables in memory (:func:`iter_scenario`), or from the files block by block (:func:`iter_files`)."""
 
 from __future__ import annotations
 
+import heapq
 import math
-from collections.abc import Iterator
+import operator
+from collections.abc import Iterable, Iterator
 
 import numpy as np
 
 from radartracker.domain import AdsbReport, Plot
-from radartracker.io.tables import ScenarioData
+from radartracker.io.scenario import ScenarioFiles
+from radartracker.io.tables import AdsbTable, PlotTable, ScenarioData
+
+
+class NotTimeOrdered(Exception):
+    """A file's kept rows are not in time order: it cannot be merged block by block (read it whole)."""
 
 
 def scenario_stream(data: ScenarioData) -> list[Plot | AdsbReport]:
@@ -20,17 +28,50 @@ def scenario_stream(data: ScenarioData) -> list[Plot | AdsbReport]:
     return list(iter_scenario(data))
 
 
+def _plots(p: PlotTable, idx: Iterable[int] | None = None) -> Iterator[Plot]:
+    """The rows ``idx`` (default: all) of ``p`` as :class:`Plot` items."""
+    cols = [c.tolist() if idx is None else c[idx].tolist() for c in
+            (p.time, p.radar, p.range_m, p.azimuth_rad, p.altitude_m, p.mode_s, p.mode_3a, p.target)]
+    for t, r, rng, az, alt, ms, m3a, tg in zip(*cols):
+        yield Plot(t, r, rng, az, None if alt != alt else alt, ms, m3a, tg)
+
+
+def _reports(a: AdsbTable, idx: Iterable[int] | None = None) -> Iterator[AdsbReport]:
+    """The rows ``idx`` (default: all) of ``a`` as :class:`AdsbReport` items."""
+    cols = [c.tolist() if idx is None else c[idx].tolist() for c in
+            (a.time, a.icao24, a.lat, a.lon, a.altitude_m, a.nacp)]
+    for t, icao, lat, lon, alt, nacp in zip(*cols):
+        yield AdsbReport(t, icao, lat, lon, None if alt != alt else alt, int(nacp))
+
+
 def iter_scenario(data: ScenarioData) -> Iterator[Plot | AdsbReport]:
     """The items of :func:`scenario_stream`, in the same order, made one at a time as they are consumed
     (a list of every input would grow with the recording's length)."""
     p, a = data.plots, data.adsb
     n = len(p)
-    for i in np.argsort(np.concatenate([p.time, a.time]), kind="stable").tolist():
-        if i < n:
-            yield Plot(float(p.time[i]), p.radar[i], float(p.range_m[i]), float(p.azimuth_rad[i]),
-                       None if math.isnan(p.altitude_m[i]) else float(p.altitude_m[i]), p.mode_s[i], p.mode_3a[i],
-                       p.target[i])
-        else:
-            i -= n
-            yield AdsbReport(float(a.time[i]), a.icao24[i], float(a.lat[i]), float(a.lon[i]),
-                             None if math.isnan(a.altitude_m[i]) else float(a.altitude_m[i]), int(a.nacp[i]))
+    order = np.argsort(np.concatenate([p.time, a.time]), kind="stable")
+    for start in range(0, len(order), 8192):  # converted a slice at a time, never a list of every item
+        sl = order[start:start + 8192]
+        is_plot = sl < n
+        plots, reports = _plots(p, sl[is_plot]), _reports(a, sl[~is_plot] - n)
+        for k in is_plot.tolist():
+            yield next(plots) if k else next(reports)
+
+
+def _ordered(blocks: Iterable, make, name: str) -> Iterator[Plot | AdsbReport]:
+    """The blocks' rows as items, checked to be in time order."""
+    last = -math.inf
+    for table in blocks:
+        t = table.time
+        if len(t) and (t[0] < last or (len(t) > 1 and np.any(t[1:] < t[:-1]))):
+            raise NotTimeOrdered(f"{name} is not in time order")
+        last = t[-1] if len(t) else last
+        yield from make(table)
+
+
+def iter_files(files: ScenarioFiles) -> Iterator[Plot | AdsbReport]:
+    """The items of :func:`scenario_stream` for the opened folder ``files``, in the same order, read block by
+    block: both files must have their kept rows in time order (:class:`NotTimeOrdered` otherwise, raised
+    before any item out of order is given). Plots come before ADS-B reports at equal times."""
+    return heapq.merge(_ordered(files.plot_blocks(), _plots, "plots.csv"),
+                       _ordered(files.adsb_blocks(), _reports, "adsb.csv"), key=operator.attrgetter("time"))
