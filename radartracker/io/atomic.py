@@ -101,8 +101,8 @@ def atomic_folder(path: Path | str) -> Iterator[Path]:
 
 
 # the names atomic_path (a file) and atomic_folder (a folder) give, with the writer's pid; mkstemp adds 8 characters
-_STALE_FILE = re.compile(r"\..+\.(\d+)-[a-z0-9_]{8}" + re.escape(TMP_SUFFIX))
-_STALE_FOLDER = re.compile(r"\..+\.partial-(\d+)-[a-z0-9_]{8}")
+_STALE_FILE = re.compile(r"\..+\.(\d{1,9})-[a-z0-9_]{8}" + re.escape(TMP_SUFFIX))
+_STALE_FOLDER = re.compile(r"\..+\.partial-(\d{1,9})-[a-z0-9_]{8}")
 _swept: set[str] = set()
 
 
@@ -113,7 +113,7 @@ def _remove_stale(folder: Path, *, once: bool = False) -> None:
     if (once and key in _swept) or os.name != "posix":  # no harmless liveness probe elsewhere (Windows)
         return
     _swept.add(key)
-    with suppress(FileNotFoundError):
+    with suppress(OSError):  # tidying up is best effort: it never makes the write itself fail
         for entry in os.scandir(folder):
             is_dir = entry.is_dir(follow_symlinks=False)
             m = (_STALE_FOLDER if is_dir else _STALE_FILE).fullmatch(entry.name)
@@ -122,7 +122,7 @@ def _remove_stale(folder: Path, *, once: bool = False) -> None:
             if is_dir:
                 shutil.rmtree(entry.path, ignore_errors=True)
             else:
-                with suppress(FileNotFoundError):
+                with suppress(OSError):
                     os.unlink(entry.path)
 
 

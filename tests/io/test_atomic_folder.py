@@ -78,7 +78,8 @@ def test_leftovers_of_an_ended_writer_are_removed_and_a_live_ones_kept(tmp_path)
     stale_file.write_text("half a file")
     live_dir = tmp_path / f".other.partial-{alive}-abcd_123"
     live_dir.mkdir()
-    mine = [tmp_path / ".notes", tmp_path / f".plan.{dead}-v2.tmp", tmp_path / "scen.partial-1-abcdefgh"]
+    mine = [tmp_path / ".notes", tmp_path / f".plan.{dead}-v2.tmp", tmp_path / "scen.partial-1-abcdefgh",
+            tmp_path / f".big.{'9' * 30}-abcdefgh.tmp"]  # no pid: os.kill would overflow
     for p in mine:  # a user's files that merely look alike: never touched
         p.write_text("mine")
     with atomic_folder(tmp_path / "scen") as tmp:
