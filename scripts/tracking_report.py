@@ -179,6 +179,22 @@ def main() -> None:
               f"({r['breaks_pct']:.1f} %) | {r['swaps']} | {r['false_confirmed']} | {r['confirmed_tracks']} | "
               f"{r['rmse_m']:.1f} | {r['p95_m']:.1f} | {r['p95_straight_m']:.0f} / {r['p95_turning_m']:.0f} | "
               f"{r['p95_above_7000m_m']:.0f} | {r['gospa_m']:.1f} | {r['ms_per_plot']:.2f} |")
+    done_when(rows, ManagerConfig().motion_model)
+
+
+def done_when(rows: list[dict], default: str) -> None:
+    """The issue's acceptance checks on the rows of the default tracker, printed with their numbers."""
+    print()
+    for r in (r for r in rows if r["tracker"] == f"{default} + GNN"):
+        peer = next((p for p in rows if p["set"] == r["set"] and p["tracker"].startswith("stonesoup")), None)
+        checks = [("breaks <= 2 % of flights", f"{r['breaks']} ({r['breaks_pct']:.1f} %)", r["breaks_pct"] <= 2.0),
+                  ("no false confirmed track", str(r["false_confirmed"]), r["false_confirmed"] == 0),
+                  ("no swap", str(r["swaps"]), r["swaps"] == 0)]
+        if peer is not None:
+            checks.append(("RMSE below Stone Soup GNN's", f"{r['rmse_m']:.1f} vs {peer['rmse_m']:.1f} m",
+                           r["rmse_m"] < peer["rmse_m"]))
+        for what, value, ok in checks:
+            print(f"done-when {r['set']} ({default}): {what}: {value}: {'yes' if ok else 'NO'}")
 
 
 if __name__ == "__main__":
