@@ -172,80 +172,90 @@ class IMMFilter(TrackFilter):
         self.mu0 = mu0 / mu0.sum()
         self.time: float | None = None
         self.mu = self.mu0.copy()
-        self.X = np.zeros((n, self.dim))
+        self.X = np.zeros((n, self.dim))  # mode states, padded (class docstring)
         self.PP = np.zeros((n, self.dim, self.dim))
-        self._out: tuple[np.ndarray, np.ndarray] | None = None  # (χ̂, P̂) of the current state
-        self._pred: tuple | None = None  # (time, c̄, X̄, P̄ of the modes, χ̄, P̄) from the current state
+        self.x, self.P = np.zeros(4), np.zeros((4, 4))  # output (χ̂, P̂) of the current state
+        self._scratch()
+
+    def _scratch(self) -> None:
+        """Buffers of the prediction from the current state to time ``_pred_time`` (nan: none):
+        (c̄, X̄, P̄ of the modes, χ̄, P̄)."""
+        n = len(self.modes)
+        self._pred_time = math.nan
+        self._pred = (np.zeros(n), np.zeros((n, self.dim)), np.zeros((n, self.dim, self.dim)), np.zeros(4),
+                      np.zeros((4, 4)))
 
     # --- IMM cycle -----------------------------------------------------------------------------
     def switching(self, dt: float) -> np.ndarray:
         """Π(Δt): the fixed matrix, or exp(G |Δt|)."""
         return kernels.markov_switching(*self.chain, float(dt))
 
-    def _predicted(self, time: float) -> tuple:
-        """(time, c̄, X̄, P̄, χ̄, P̄): each mode's prediction from its mixed initial condition, and the
+    def _predicted(self, time: float) -> tuple[np.ndarray, ...]:
+        """(c̄, X̄, P̄, χ̄, P̄): each mode's prediction from its mixed initial condition, and the
         predicted mixture; computed once per state and time."""
-        if self._pred is not None and self._pred[0] == time:
-            return self._pred
-        dt = time - self.time
-        if self.kernel_modes is not None:
-            pred = kernels.imm_predict(self.mu, self.X, self.PP, *self.chain, self.kernel_modes, dt)
-        else:
-            cbar, X0, P0 = kernels.imm_mix(self.mu, self.X, self.PP, self.switching(dt))
-            Xp, PPp = np.zeros_like(X0), np.zeros_like(P0)
-            for j, (mode, d) in enumerate(zip(self.modes, self.dims)):
-                Xp[j, :d], PPp[j, :d, :d] = mode.predict(X0[j, :d].copy(), P0[j, :d, :d].copy(), dt)
-            pred = (cbar, Xp, PPp, *kernels.imm_combine(cbar, Xp, PPp))
-        self._pred = (time, *pred)
+        if self._pred_time != time:
+            dt = time - self.time
+            if self.kernel_modes is not None:
+                kernels.imm_predict(self.mu, self.X, self.PP, *self.chain, self.kernel_modes, dt, *self._pred)
+            else:
+                cbar, Xp, PPp, x_bar, P_bar = self._pred
+                cbar[:], X0, P0 = kernels.imm_mix(self.mu, self.X, self.PP, self.switching(dt))
+                Xp[:], PPp[:] = 0.0, 0.0
+                for j, (mode, d) in enumerate(zip(self.modes, self.dims)):
+                    Xp[j, :d], PPp[j, :d, :d] = mode.predict(X0[j, :d].copy(), P0[j, :d, :d].copy(), dt)
+                x_bar[:], P_bar[:] = kernels.imm_combine(cbar, Xp, PPp)
+            self._pred_time = time
         return self._pred
-
-    def _set(self, time: float, mu: np.ndarray, X: np.ndarray, PP: np.ndarray, out: tuple) -> None:
-        self.time, self.mu, self.X, self.PP, self._out, self._pred = time, mu, X, PP, out, None
 
     # --- TrackFilter -----------------------------------------------------------------------------
     def start(self, time: float, z: np.ndarray, R: np.ndarray) -> None:
         time, z, R = check_measurement(time, z, R)
         x, P = start_state(z, R, self.config.prior_sd_velocity_mps)
-        n = len(self.modes)
-        X, PP = np.zeros((n, self.dim)), np.zeros((n, self.dim, self.dim))
-        X[:, :4], PP[:, :4, :4] = x, P
+        self.X[:], self.PP[:] = 0.0, 0.0
+        self.X[:, :4], self.PP[:, :4, :4] = x, P
         if self.dim == 5:  # the turn rate is unknown: ω = 0 ± σ_e in every mode
-            PP[:, 4, 4] = self.entry_var
-        mu = self.mu0.copy()
-        self._set(time, mu, X, PP, kernels.imm_combine(mu, X, PP))
+            self.PP[:, 4, 4] = self.entry_var
+        self.mu = self.mu0.copy()
+        self.x, self.P = kernels.imm_combine(self.mu, self.X, self.PP)
+        self.time, self._pred_time = time, math.nan
 
     def predict(self, time: float) -> tuple[np.ndarray, np.ndarray]:
         time = check_time(time, self.time, self.config.max_gap_s)
-        _, _, _, _, x, P = self._predicted(time)
-        return x.copy(), P.copy()
+        x_bar, P_bar = self._predicted(time)[3:]
+        return x_bar.copy(), P_bar.copy()
 
     def update(self, time: float, z: np.ndarray, R: np.ndarray) -> float:
         time, z, R = check_measurement(time, z, R)
         check_time(time, self.time, self.config.max_gap_s)
-        if self.kernel_modes is not None and (self._pred is None or self._pred[0] != time):
-            mu, X, PP, x, P, S, nis, ok = kernels.imm_cycle(self.mu, self.X, self.PP, *self.chain, self.kernel_modes,
-                                                            self.dims, self.entry_var, time - self.time, z, R)
-        else:  # the prediction innovation screening asked for at this time
-            _, cbar, Xp, PPp, x_bar, P_bar = self._predicted(time)
-            mu, X, PP, x, P, S, nis, ok = kernels.imm_correct(cbar, Xp, PPp, self.dims, self.entry_var, x_bar, P_bar, z, R)
-        if not ok:
-            raise SingularInnovation(f"innovation covariance not positive definite: {S.tolist()}")
-        self._set(time, mu, X, PP, (x, P))
+        if self.kernel_modes is not None and self._pred_time != time:
+            nis, bad = kernels.imm_cycle(self.mu, self.X, self.PP, *self.chain, self.kernel_modes, self.dims,
+                                         self.entry_var, time - self.time, z, R, self.x, self.P, *self._pred)
+        else:  # from the prediction innovation screening asked for at this time
+            nis, bad = kernels.imm_correct(*self._predicted(time), self.dims, self.entry_var, z, R,
+                                           self.mu, self.X, self.PP, self.x, self.P)
+        if bad != -2:  # the state is unchanged; the prediction in _pred is the one that failed
+            P_bad = self._pred[4] if bad == -1 else self._pred[2][bad, :2, :2]
+            self._pred_time = time
+            raise SingularInnovation(f"innovation covariance not positive definite: {(P_bad[:2, :2] + R).tolist()}")
+        self.time, self._pred_time = time, math.nan
         return float(nis)
 
     def estimate(self) -> tuple[float, np.ndarray, np.ndarray]:
         require_started(self.time)
-        x, P = self._out
-        return self.time, x.copy(), P.copy()
+        return self.time, self.x.copy(), self.P.copy()
 
     @property
     def probabilities(self) -> np.ndarray:
         """Current mode probabilities μ."""
         return self.mu.copy()
 
-    # --- snapshots and pickles: the state, not the caches derived from it ---------------------------
+    # --- snapshots and pickles: the state, not the buffers derived from it -------------------------
     def __getstate__(self) -> dict:
-        return {**vars(self), "_pred": None}
+        return {k: v for k, v in vars(self).items() if k not in ("_pred", "_pred_time")}
+
+    def __setstate__(self, state: dict) -> None:
+        vars(self).update(state)
+        self._scratch()
 
     def state_dict(self) -> dict:
         """``time``, ``mu`` and each mode's own ``xs``/``Ps`` (without the padding)."""
@@ -258,17 +268,18 @@ class IMMFilter(TrackFilter):
         configuration and ignored)."""
         n = len(self.modes)
         X, PP = np.zeros((n, self.dim)), np.zeros((n, self.dim, self.dim))
-        if state.get("time") is None:  # never started
-            self._set(None, self.mu0.copy(), X, PP, None)
-            return
-        try:
-            time, mu, xs, Ps = float(state["time"]), np.array(state["mu"], float), state["xs"], state["Ps"]
-            if mu.shape != (n,) or len(xs) != n or len(Ps) != n:
-                raise ValueError(f"expected {n} modes")
-            for j, d in enumerate(self.dims):
-                X[j, :d], PP[j, :d, :d] = xs[j], Ps[j]
-                if d < self.dim:
-                    PP[j, 4, 4] = self.entry_var
-        except (KeyError, TypeError, ValueError) as exc:
-            raise InputError(f"IMMFilter: state does not fit this configuration: {exc}") from None
-        self._set(time, mu, X, PP, kernels.imm_combine(mu, X, PP))
+        time, mu = None, self.mu0.copy()
+        if state.get("time") is not None:
+            try:
+                time, mu, xs, Ps = float(state["time"]), np.array(state["mu"], float), state["xs"], state["Ps"]
+                if mu.shape != (n,) or len(xs) != n or len(Ps) != n:
+                    raise ValueError(f"expected {n} modes")
+                for j, d in enumerate(self.dims):
+                    X[j, :d], PP[j, :d, :d] = xs[j], Ps[j]
+                    if d < self.dim:
+                        PP[j, 4, 4] = self.entry_var
+            except (KeyError, TypeError, ValueError) as exc:
+                raise InputError(f"IMMFilter: state does not fit this configuration: {exc}") from None
+        self.time, self.mu, self.X, self.PP = time, mu, X, PP
+        self.x, self.P = kernels.imm_combine(mu, X, PP) if time is not None else (np.zeros(4), np.zeros((4, 4)))
+        self._pred_time = math.nan

@@ -18,7 +18,8 @@ The equations are those of the numpy code they replace, written out for the smal
   :func:`markov_switching` Π(Δt) = exp(G|Δt|); :func:`imm_predict` — c̄ = μΠ, mixing
   ω_ij = Π_ij μ_i / c̄_j with moment-matched initial conditions, each mode's CV or CT prediction and
   the predicted mixture Σ c̄_j N(ξ̄_j, P̄_j); :func:`imm_correct` — each mode's position update,
-  μ_j ∝ c̄_j N(ν_j; 0, Λ_j) and the moment-matched output; :func:`imm_cycle` both.
+  μ_j ∝ c̄_j N(ν_j; 0, Λ_j) and the moment-matched output; :func:`imm_cycle` both. These write
+  into the caller's arrays: boxing a returned array costs more than the arithmetic.
 * :func:`measurement_ok` — the checks of a position measurement: finite time and z, R finite,
   symmetric (``numpy.allclose`` tolerances) and positive definite.
 """
@@ -265,15 +266,17 @@ def imm_combine(w: np.ndarray, X: np.ndarray, PP: np.ndarray) -> tuple[np.ndarra
 
 
 @njit(cache=True)
-def imm_predict(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, lam: np.ndarray, left: np.ndarray,
-                right: np.ndarray, modes: np.ndarray, dt: float):
-    """(c̄, X̄, P̄ of every mode, combined χ̄, P̄) predicted by ``dt``: switching, mixing, each mode's
-    prediction, and the predicted mixture weighed by c̄ (rows of ``modes``: block comment above)."""
-    cbar, X0, P0 = imm_mix(mu, X, PP, markov_switching(lam, left, right, dt))
-    n, D = X.shape
-    Xp = np.zeros((n, D))
-    PPp = np.zeros((n, D, D))
-    for j in range(n):
+def imm_predict(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, lam: np.ndarray, left: np.ndarray, right: np.ndarray,
+                modes: np.ndarray, dt: float, cbar: np.ndarray, Xp: np.ndarray, PPp: np.ndarray, x_bar: np.ndarray,
+                P_bar: np.ndarray) -> None:
+    """Prediction by ``dt`` written into (c̄, X̄, P̄ of every mode, combined χ̄, P̄): switching, mixing,
+    each mode's prediction, and the predicted mixture weighed by c̄ (``modes``: block comment above).
+    Outputs are written in place: returning arrays from a kernel costs more than computing them."""
+    c, X0, P0 = imm_mix(mu, X, PP, markov_switching(lam, left, right, dt))
+    cbar[:] = c
+    Xp[:] = 0.0
+    PPp[:] = 0.0
+    for j in range(X.shape[0]):
         if modes[j, 0] == 0.0:
             xp, pp = cv_predict(X0[j, :4].copy(), P0[j, :4, :4].copy(), dt, modes[j, 1])
             Xp[j, :4] = xp
@@ -283,32 +286,35 @@ def imm_predict(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, lam: np.ndarray, 
             Xp[j] = xp
             PPp[j] = pp
     x, P = _mix(cbar, Xp, PPp, 4)
-    return cbar, Xp, PPp, x, P
+    x_bar[:] = x
+    P_bar[:] = P
 
 
 @njit(cache=True)
-def imm_correct(cbar: np.ndarray, Xp: np.ndarray, PPp: np.ndarray, dims: np.ndarray, entry_var: float,
-                x_bar: np.ndarray, P_bar: np.ndarray, z: np.ndarray, R: np.ndarray):
-    """(μ, X, PP, χ̂, P̂, Λ, NIS, ok): every mode corrected by position z (:func:`position_update` on its
-    ``dims[j]`` states), μ_j ∝ c̄_j N(ν_j; 0, Λ_j), output χ̂, P̂ moment matched; NIS of the combined
-    prediction (χ̄, P̄). Not ``ok`` when a Λ is not positive definite (Λ returned is that one)."""
+def imm_correct(cbar: np.ndarray, Xp: np.ndarray, PPp: np.ndarray, x_bar: np.ndarray, P_bar: np.ndarray,
+                dims: np.ndarray, entry_var: float, z: np.ndarray, R: np.ndarray, mu: np.ndarray, X: np.ndarray,
+                PP: np.ndarray, x: np.ndarray, P: np.ndarray) -> tuple[float, int]:
+    """Correction by position z of the prediction (c̄, X̄, P̄, χ̄, P̄), written into the state (μ, X, PP)
+    and output (χ̂, P̂): every mode's :func:`position_update` on its ``dims[j]`` states, μ_j ∝ c̄_j
+    N(ν_j; 0, Λ_j), output moment matched. Returns (NIS of the combined prediction, −2), or, leaving
+    the state as it was, (nan, −1) when the combined Λ is not positive definite, (nan, j) when mode j's
+    is not."""
     n, D = Xp.shape
-    X = np.zeros((n, D))
-    PP = np.zeros((n, D, D))
-    mu = np.empty(n)
-    _, _, _, S, nis, _, ok = position_update(x_bar, P_bar, z, R)
+    _, _, _, _, nis, _, ok = position_update(x_bar, P_bar, z, R)
     if not ok:
-        return mu, X, PP, x_bar, P_bar, S, nis, False
+        return math.nan, -1
+    Xn = np.zeros((n, D))
+    PPn = np.zeros((n, D, D))
     logw = np.empty(n)
     for j in range(n):
         d = dims[j]
-        xn, Pn, _, Sj, _, loglik, okj = position_update(Xp[j, :d].copy(), PPp[j, :d, :d].copy(), z, R)
+        xn, Pn, _, _, _, loglik, okj = position_update(Xp[j, :d].copy(), PPp[j, :d, :d].copy(), z, R)
         if not okj:
-            return mu, X, PP, x_bar, P_bar, Sj, nis, False
-        X[j, :d] = xn
-        PP[j, :d, :d] = Pn
+            return math.nan, j
+        Xn[j, :d] = xn
+        PPn[j, :d, :d] = Pn
         if d < D:
-            PP[j, 4, 4] = entry_var
+            PPn[j, 4, 4] = entry_var
         logw[j] = math.log(max(cbar[j], 1e-300)) + loglik
     top = logw.max()
     total = 0.0
@@ -317,13 +323,19 @@ def imm_correct(cbar: np.ndarray, Xp: np.ndarray, PPp: np.ndarray, dims: np.ndar
         total += mu[j]
     for j in range(n):
         mu[j] /= total
-    x, P = _mix(mu, X, PP, 4)
-    return mu, X, PP, x, P, S, nis, True
+    X[:] = Xn
+    PP[:] = PPn
+    xo, Po = _mix(mu, X, PP, 4)
+    x[:] = xo
+    P[:] = Po
+    return nis, -2
 
 
 @njit(cache=True)
 def imm_cycle(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, lam: np.ndarray, left: np.ndarray, right: np.ndarray,
-              modes: np.ndarray, dims: np.ndarray, entry_var: float, dt: float, z: np.ndarray, R: np.ndarray):
-    """One whole IMM cycle, :func:`imm_predict` then :func:`imm_correct` (returns the latter's tuple)."""
-    cbar, Xp, PPp, x_bar, P_bar = imm_predict(mu, X, PP, lam, left, right, modes, dt)
-    return imm_correct(cbar, Xp, PPp, dims, entry_var, x_bar, P_bar, z, R)
+              modes: np.ndarray, dims: np.ndarray, entry_var: float, dt: float, z: np.ndarray, R: np.ndarray,
+              x: np.ndarray, P: np.ndarray, cbar: np.ndarray, Xp: np.ndarray, PPp: np.ndarray, x_bar: np.ndarray,
+              P_bar: np.ndarray) -> tuple[float, int]:
+    """One whole IMM cycle in place: :func:`imm_predict` into (c̄, X̄, P̄, χ̄, P̄), then :func:`imm_correct`."""
+    imm_predict(mu, X, PP, lam, left, right, modes, dt, cbar, Xp, PPp, x_bar, P_bar)
+    return imm_correct(cbar, Xp, PPp, x_bar, P_bar, dims, entry_var, z, R, mu, X, PP, x, P)
