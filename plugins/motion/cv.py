@@ -3,7 +3,8 @@
 χ̄ = A(Δt) χ̂,  P̄ = A P̂ Aᵀ + Q(Δt)  with A, Q of :class:`radartracker.api.MotionModel`
 (computed by the compiled :func:`radartracker.api.kernels.cv_predict`)
 (white acceleration of density q: Q = q [[Δt³/3 I, Δt²/2 I], [Δt²/2 I, Δt I]]), then the position
-correction of :func:`radartracker_plugins.motion.base.position_update`.
+correction of :func:`radartracker_plugins.motion.base.position_update`. The prediction is kept until
+the state changes: the update at the time innovation screening predicted to reuses it.
 """
 
 from __future__ import annotations
@@ -33,22 +34,39 @@ class CVFilter(TrackFilter):
         self.time: float | None = None
         self.x = np.zeros(4)
         self.P = np.eye(4)
+        self._pred: tuple | None = None  # (time, χ̄, P̄) from the current state: screening's, for the update
+
+    def _predicted(self, time: float) -> tuple[np.ndarray, np.ndarray]:
+        if self._pred is None or self._pred[0] != time:
+            self._pred = (time, *kernels.cv_predict(self.x, self.P, time - self.time, self.config.q))
+        return self._pred[1:]
 
     def start(self, time: float, z: np.ndarray, R: np.ndarray) -> None:
         self.time, z, R = check_measurement(time, z, R)
         self.x, self.P = start_state(z, R, self.config.prior_sd_velocity_mps)
+        self._pred = None
 
     def predict(self, time: float) -> tuple[np.ndarray, np.ndarray]:
-        time = check_time(time, self.time, self.config.max_gap_s)
-        return kernels.cv_predict(self.x, self.P, time - self.time, self.config.q)
+        x, P = self._predicted(check_time(time, self.time, self.config.max_gap_s))
+        return x.copy(), P.copy()
 
     def update(self, time: float, z: np.ndarray, R: np.ndarray) -> float:
         time, z, R = check_measurement(time, z, R)
-        x, P = self.predict(time)
+        x, P = self._predicted(check_time(time, self.time, self.config.max_gap_s))
         step = position_update(x, P, z, R)
-        self.time, self.x, self.P = time, step.x, step.P
+        self.time, self.x, self.P, self._pred = time, step.x, step.P, None
         return step.nis
 
     def estimate(self) -> tuple[float, np.ndarray, np.ndarray]:
         require_started(self.time)
         return self.time, self.x.copy(), self.P.copy()
+
+    def __getstate__(self) -> dict:  # pickles and snapshots hold the state, not the cached prediction
+        return {**vars(self), "_pred": None}
+
+    def state_dict(self) -> dict:
+        return {k: v for k, v in super().state_dict().items() if k != "_pred"}
+
+    def load_state_dict(self, state: dict) -> None:
+        super().load_state_dict({k: v for k, v in state.items() if k != "_pred"})
+        self._pred = None

@@ -52,8 +52,8 @@ import numpy as np
 from radartracker.tracking.association import (ALTITUDE_GATE, AltitudeTrack, altitude_d2, altitude_spread, assign,
                                                 assign_tiers, candidate_pairs, gate_costs)
 from radartracker.estimation.coupling import CouplingGraph
-from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, ScreeningConfig, judge,
-                                               normalised_innovation)
+from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, ScreeningConfig,
+                                               bias_corrected, judge, normalised_innovation)
 from radartracker.tracking.admission import ClockConfig, StreamClock
 from radartracker.domain import AdsbReport, BiasState, Plot, Radar, nacp_sigma_m
 from radartracker.errors import PluginError
@@ -517,7 +517,7 @@ class TrackManager:
         radar = src.radar if isinstance(src, Plot) else None
         if radar is not None:
             b = self.estimator.bias(radar)
-            zc, Rc = z - C @ b.bias, R + C @ b.cov @ C.T
+            zc, Rc = bias_corrected(z, C, R, b.bias, b.cov)  # z − C ς̂, R + C P_ς Cᵀ
         else:
             zc, Rc = z, R
         if isinstance(src, PlaneMeasurement):

@@ -10,7 +10,8 @@ from scipy.spatial.distance import mahalanobis
 
 from radartracker.domain import AdsbReport, Plot
 from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, ScreeningConfig,
-                                               extend_run, judge, normalised_innovation, speed_consistent)
+                                               bias_corrected, extend_run, judge, normalised_innovation,
+                                               speed_consistent)
 from radartracker.pipeline.config import RunConfig
 from radartracker.pipeline.run import run
 from radartracker.simulation.scenarios import _icao, build_scenario
@@ -34,6 +35,17 @@ def test_normalised_innovation_is_the_mahalanobis_distance_and_chi2_distributed(
     assert stats.kstest(d2, stats.chi2(2).cdf).pvalue > 1e-3
     assert normalised_innovation(np.array([np.nan, 0.0]), C, R, bias, Pb, pos, Pp) == math.inf
     assert normalised_innovation(z[0], C, -R, bias, Pb, pos, -Pp) == math.inf
+
+
+def test_bias_correction_equals_the_numpy_products():
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        C, Pb = rng.normal(size=(2, 2)) * [1.0, 3e4], rng.normal(size=(2, 2))
+        Pb, R = Pb @ Pb.T * [[25.0, 1e-3], [1e-3, 1e-7]], np.diag(rng.uniform(100, 3000, 2))
+        z, bias = rng.normal(size=2) * 1e5, rng.normal(size=2) * [50.0, 1e-3]
+        zc, Rc = bias_corrected(z, C, R, bias, Pb)
+        np.testing.assert_allclose(zc, z - C @ bias, rtol=1e-14, atol=1e-9)
+        np.testing.assert_allclose(Rc, R + C @ Pb @ C.T, rtol=1e-13)
 
 
 def test_judge_reinitialises_after_a_run_of_consistent_rejections():
