@@ -61,7 +61,7 @@ from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.estimation.kalman import SingularInnovation
 from radartracker.estimation.motion import MotionModel
 from radartracker.estimation.base import Estimator, EstimatorConfig, PlaneMeasurement
-from radartracker.tracking.prepared import PreparedPlot, prepare
+from radartracker.tracking.prepared import PlaneConverter
 from radartracker.tracking.filters import MotionConfig, TrackFilter
 from radartracker.tracking.snapshot import load_manager, save_manager
 from radartracker.registry import (available_estimators, load_motion_model, make_estimator, make_filter_factory,
@@ -172,6 +172,7 @@ class TrackManager:
         self.reference = reference
         self.frames = {r.id: RadarFrame(r.lat, r.lon, r.height_m, self.plane) for r in radars}
         self._north = {rid: self._grid_north(r) for rid, r in self.radars.items()}
+        self._converter = PlaneConverter(radars, self.frames, self.plane)  # a frame's plots and ADS-B in one pass
         rids = list(self.radars)  # radar constants as arrays by row, for per-frame geometry (_geometry)
         self._radar_rows = {"row": {rid: k for k, rid in enumerate(rids)},
                             "xy": np.array([self.frames[rid].xy for rid in rids], float).reshape(len(rids), 2),
@@ -321,25 +322,27 @@ class TrackManager:
         fs = self.config.frame_s
         t_a, t_b = frame * fs, (frame + 1) * fs
         items, self._frame_items = self._frame_items, []
-        if any(type(i) is Plot for i in items):  # convert everything waiting at once (tracking.prepared)
-            items = self._prepare_waiting(items)
         live = list(self.tracks.values())
         pred = self._predict(live, 0.5 * (t_a + t_b))
         updates: list[tuple] = []  # (time, seq, track or None, measurement, plot-or-report)
         assigned: dict[str, set[int]] = {}
         by_radar: dict[str, list[Plot]] = {}  # the frame's plots of each radar, in order (one pass, not one per radar)
+        reports = []
         for p in items:
             if isinstance(p, Plot):
                 by_radar.setdefault(p.radar, []).append(p)
+            elif isinstance(p, AdsbReport):
+                reports.append(p)
+        converted, adsb_xy = self._convert_frame(by_radar, reports, live)
         for rid in self.radars:
             plots = by_radar.get(rid, [])
             for p in plots:
                 self._phase[rid] = self._phase.get(rid, 0j) * 0.98 + np.exp(
                     1j * (p.azimuth_rad - 2 * math.pi * p.time / self.radars[rid].period_s))
             if plots:
-                assigned[rid] = self._associate(rid, plots, live, pred, updates)
-        for rep in (i for i in items if isinstance(i, AdsbReport)):
-            updates.append(self._adsb_measurement(rep))
+                assigned[rid] = self._associate(rid, plots, converted[rid], live, pred, updates)
+        for rep, xy in zip(reports, adsb_xy):
+            updates.append(self._adsb_measurement(rep, xy))
         for m in (i for i in items if isinstance(i, PlaneMeasurement)):
             updates.append(self._position_measurement(m, live, pred))
         self._misses(live, pred, assigned, t_a, t_b)
@@ -394,32 +397,40 @@ class TrackManager:
             pred.update((k, c[k]) for k in ("row", "period", "max_range"))
         return pred
 
-    def _convert(self, rid: str, plots: list[Plot], live: list[ManagedTrack]) -> tuple[np.ndarray, ...]:
+    def _convert_frame(self, by_radar: dict[str, list[Plot]], reports: list[AdsbReport],
+                       live: list[ManagedTrack]) -> tuple[dict[str, tuple], np.ndarray]:
+        """Every plot of the frame in the plane (z, C_s, R, valid by radar) and the ADS-B positions, in one
+        pass (:class:`~radartracker.tracking.prepared.PlaneConverter`). A plot is converted at its Mode C
+        altitude, else its Mode S track's, else ``primary_altitude_m`` with that guess's spread added to R."""
+        plots = [p for ps in by_radar.values() for p in ps]
+        if not plots and not reports:
+            return {}, np.zeros((0, 2))
         by_code = {t.mode_s: t for t in live if t.mode_s} if any(p.altitude_m is None and p.mode_s for p in plots) else {}
         alt = np.array([p.altitude_m if p.altitude_m is not None else
                         (by_code[p.mode_s].altitude_m if p.mode_s in by_code and by_code[p.mode_s].altitude_m
-                         is not None else self.config.primary_altitude_m) for p in plots])
-        if all(isinstance(p, PreparedPlot) and p.assumed_altitude_m == a for p, a in zip(plots, alt)):
-            # converted ahead in bulk at the same altitude (radartracker.tracking.prepared)
-            z, C, R = (np.array([p.z for p in plots]), np.array([p.C for p in plots]), np.array([p.R for p in plots]))
-            ok = np.array([p.valid for p in plots], bool)
-        else:
-            rho = np.array([p.range_m for p in plots])
-            theta = np.array([p.azimuth_rad for p in plots])
-            frame = self.frames[rid]
-            z, ok = frame.to_plane(rho, theta, alt)
-            C = frame.bias_jacobian(z, rho, alt)
-            R = C @ self.radars[rid].W @ np.swapaxes(C, 1, 2)
+                         is not None else self.config.primary_altitude_m) for p in plots], float)
+        rows = np.fromiter((self._converter.row[p.radar] for p in plots), np.int64, len(plots))
+        rho = np.fromiter((p.range_m for p in plots), float, len(plots))
+        theta = np.fromiter((p.azimuth_rad for p in plots), float, len(plots))
+        lat = np.fromiter((r.lat for r in reports), float, len(reports))
+        lon = np.fromiter((r.lon for r in reports), float, len(reports))
+        z, C, R, ok, adsb_xy = self._converter.convert(rows, rho, theta, alt, lat, lon)
         # an assumed altitude is uncertain: near the radar its error moves the plot by km along the beam
-        guess = np.array([p.altitude_m is None for p in plots]) & (alt == self.config.primary_altitude_m)
-        if guess.any():
-            rho = np.array([p.range_m for p in plots])[guess]
-            R[guess] += altitude_spread(C[guess], rho, alt[guess], self.radars[rid].height_m,
-                                        self.config.primary_altitude_sd_m)
-        return z, C, R, ok
+        guess = np.fromiter((p.altitude_m is None for p in plots), bool, len(plots)) & (alt == self.config.primary_altitude_m)
+        out, k = {}, 0
+        for rid, ps in by_radar.items():
+            sl = slice(k, k + len(ps))
+            k += len(ps)
+            Rr, g = R[sl], guess[sl]
+            if g.any():
+                Rr[g] += altitude_spread(C[sl][g], rho[sl][g], alt[sl][g], self.radars[rid].height_m,
+                                         self.config.primary_altitude_sd_m)
+            out[rid] = (z[sl], C[sl], Rr, ok[sl])
+        return out, adsb_xy
 
-    def _associate(self, rid: str, plots: list[Plot], live: list[ManagedTrack], pred: dict, updates: list) -> set[int]:
-        z, C, R, ok = self._convert(rid, plots, live)
+    def _associate(self, rid: str, plots: list[Plot], converted: tuple, live: list[ManagedTrack], pred: dict,
+                   updates: list) -> set[int]:
+        z, C, R, ok = converted
         index = pred["index"]
         taken: set[int] = set()
         rest: list[int] = []
@@ -468,20 +479,11 @@ class TrackManager:
                 updates.append((plots[k].time, next(self._seq), tr, (z[k], C[k], R[k]), plots[k]))
         return {live[i].id for i in taken}
 
-    def _adsb_measurement(self, rep: AdsbReport) -> tuple:
-        x, y = self.plane.to_plane(rep.lat, rep.lon)
+    def _adsb_measurement(self, rep: AdsbReport, xy: np.ndarray) -> tuple:
+        """An ADS-B report (plane position ``xy``, converted with the frame's plots) for its Mode S track."""
         sd = nacp_sigma_m(rep.nacp)
         tr = self._track_with_code(rep.icao24)
-        return (rep.time, next(self._seq), tr, (np.array([float(x), float(y)]), np.zeros((2, 2)), np.eye(2) * sd * sd), rep)
-
-    def _prepare_waiting(self, items: list) -> list:
-        """``items`` with their plots, and the plots waiting in the reorder heap, converted in one call per radar."""
-        waiting = [k for k, e in enumerate(self._heap) if type(e[2]) is Plot]
-        done = prepare(items + [self._heap[k][2] for k in waiting], self.frames, self.radars,
-                       self.config.primary_altitude_m)
-        for k, p in zip(waiting, done[len(items):]):
-            self._heap[k] = (*self._heap[k][:2], p)
-        return done[:len(items)]
+        return (rep.time, next(self._seq), tr, (xy.copy(), np.zeros((2, 2)), np.eye(2) * sd * sd), rep)
 
     def _track_with_code(self, code: str | None) -> ManagedTrack | None:
         """The live track with Mode S address ``code`` (at most one: a code's track is looked up before

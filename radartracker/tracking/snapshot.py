@@ -56,7 +56,8 @@ FORMAT_VERSION = 1
 _HEADER = struct.Struct(">8sIQ32s")
 _PACKAGES = ("radartracker.", "radartracker_plugins.")
 # rebuilt by the constructor from (radars, reference, config), or not part of the state
-_REBUILT = frozenset({"config", "radars", "reference", "plane", "frames", "_north", "_filter_cls", "on_event"})
+_REBUILT = frozenset({"config", "radars", "reference", "plane", "frames", "_north", "_radar_rows", "_converter",
+                      "_filter_cls", "on_event"})
 _COUNT = re.compile(r"count\((-?\d+)(?:, (-?\d+))?\)")
 
 

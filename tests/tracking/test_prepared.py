@@ -1,38 +1,45 @@
-"""Plots converted in bulk equal the manager's per-frame conversion of a few plots at a time."""
+"""A frame's plots of every radar converted in one pass equal RadarFrame's conversion radar by radar."""
 
 import numpy as np
 
+from radartracker.domain import AdsbReport, Plot
 from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.pipeline.stream import scenario_stream
 from radartracker.simulation.scenarios import build_scenario
-from radartracker.tracking.prepared import PreparedPlot, prepare
-from radartracker.domain import Plot
+from radartracker.tracking.prepared import PlaneConverter
 
 
-def test_bulk_conversion_equals_small_groups():
+def test_one_pass_over_all_radars_equals_radar_frame_per_radar():
     data = build_scenario("tracking", seed=2, duration=120.0).run()
-    plots = [p for p in scenario_stream(data) if isinstance(p, Plot)]
-    plots.append(Plot(50.0, "A", 30e3, 1.0, None, "abcdef"))  # no altitude, Mode S: its track's altitude
+    items = list(scenario_stream(data))
+    plots = [p for p in items if isinstance(p, Plot)]
+    reports = [r for r in items if isinstance(r, AdsbReport)]
+    plots.append(Plot(50.0, data.radars[0].id, 300.0, 1.0, 9000.0))  # no point at 300 m slant range and 9 km: invalid
+    assert len({p.radar for p in plots}) > 1 and reports and any(p.altitude_m is None for p in plots)
     plane = SystemPlane(*data.reference)
     frames = {r.id: RadarFrame(r.lat, r.lon, r.height_m, plane) for r in data.radars}
-    radars = {r.id: r for r in data.radars}
-    done = prepare(plots, frames, radars, 6000.0)
-    assert type(done[-1]) is Plot and all(isinstance(p, PreparedPlot) for p in done[:-1])
-    assert any(p.altitude_m is None for p in done[:-1])  # primary plots are converted at the default altitude
-    for k in range(0, len(plots) - 1, 3):  # groups of three, as a frame would see them
-        ks = [j for j in range(k, min(k + 3, len(plots) - 1)) if plots[j].radar == plots[k].radar]
-        group = [plots[j] for j in ks]
-        rho = np.array([p.range_m for p in group])
-        theta = np.array([p.azimuth_rad for p in group])
-        alt = np.array([6000.0 if p.altitude_m is None else p.altitude_m for p in group])
-        frame = frames[plots[k].radar]
-        z, ok = frame.to_plane(rho, theta, alt)
-        C = frame.bias_jacobian(z, rho, alt)
-        R = C @ radars[plots[k].radar].W @ np.swapaxes(C, 1, 2)
-        got = [done[j] for j in ks]
-        assert [p.time for p in got] == [p.time for p in group]
-        np.testing.assert_allclose([p.z for p in got], z, rtol=0, atol=1e-9)
-        np.testing.assert_allclose([p.C for p in got], C, rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose([p.R for p in got], R, rtol=1e-12, atol=1e-9)
-        assert [p.valid for p in got] == list(ok)
-        assert all(p.assumed_altitude_m == a for p, a in zip(got, alt))
+    conv = PlaneConverter(data.radars, frames, plane)
+    rng = np.random.default_rng(0)
+    alt = np.array([6000.0 if p.altitude_m is None else p.altitude_m for p in plots]) + rng.uniform(-50, 50, len(plots))
+    rows = np.array([conv.row[p.radar] for p in plots])
+    rho = np.array([p.range_m for p in plots])
+    theta = np.array([p.azimuth_rad for p in plots])
+    z, C, R, ok, xy = conv.convert(rows, rho, theta, alt, np.array([r.lat for r in reports]),
+                                   np.array([r.lon for r in reports]))
+    assert not ok[-1] and ok[:-1].all()
+    for radar in data.radars:  # the straightforward way: RadarFrame, one radar at a time
+        k = np.flatnonzero(rows == conv.row[radar.id])
+        frame = frames[radar.id]
+        zr, okr = frame.to_plane(rho[k], theta[k], alt[k])
+        Cr = frame.bias_jacobian(zr, rho[k], alt[k])
+        Rr = Cr @ radar.W @ np.swapaxes(Cr, 1, 2)
+        np.testing.assert_allclose(z[k], zr, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(C[k], Cr, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(R[k], Rr, rtol=1e-12, atol=1e-9)
+        assert list(ok[k]) == list(okr)
+    for r, p in zip(reports, xy):
+        assert tuple(p) == tuple(float(v) for v in plane.to_plane(r.lat, r.lon))
+    # no plots, only ADS-B: nothing to locate
+    z0, C0, R0, ok0, xy0 = conv.convert(rows[:0], rho[:0], theta[:0], alt[:0], np.array([reports[0].lat]),
+                                        np.array([reports[0].lon]))
+    assert z0.shape == (0, 2) and C0.shape == (0, 2, 2) and ok0.shape == (0,) and tuple(xy0[0]) == tuple(xy[0])
