@@ -296,6 +296,8 @@ def read_config(path: Path | str) -> RunConfig:
         doc = json.loads(path.read_text(encoding="utf-8-sig"))
     except json.JSONDecodeError as exc:
         raise ConfigurationError(f"{path}: not JSON ({exc.msg}, line {exc.lineno})") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigurationError(f"{path}: not a UTF-8 text file (byte {exc.start})") from None
     if not isinstance(doc, dict) or doc.get("format") != CONFIG_FORMAT:
         raise ConfigurationError(f"{path}: not a radartracker run configuration (no \"format\": \"{CONFIG_FORMAT}\")")
     if doc.get("version") != CONFIG_VERSION:

@@ -117,9 +117,9 @@ def test_replay_with_a_header_only_truth_file(inputs, tmp_path, capsys):
                  "--estimator", "decoupled"]) in (0, 2)
 
 
-@pytest.mark.xfail(strict=True, raises=UnicodeDecodeError,
-                   reason="pipeline/config.py read_config: a non-UTF-8 --config file is decoded unguarded")
-def test_replay_with_a_binary_config_file(inputs, tmp_path):
+def test_replay_with_a_binary_config_file(inputs, tmp_path, capsys):
     (tmp_path / "config.json").write_bytes(bytes(range(256)))
     assert main(["--quiet", "replay", str(inputs / "scen"), "--out", str(tmp_path / "out"),
                  "--config", str(tmp_path / "config.json")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "config.json" in err[0] and "UTF-8" in err[0]
