@@ -1,11 +1,176 @@
-"""Plain blocks of plots.csv and adsb.csv converted column by column (placeholder: row by row)."""
+"""Plain blocks of ``plots.csv`` and ``adsb.csv`` converted column by column with pyarrow.
+
+A block (whole lines, no quote or blank line: :mod:`radartracker.io.csvblocks`) is converted here only
+when every one of its rows would be kept, with the same values, by the row-by-row checks of
+:class:`~radartracker.io.scenario.PlotReader` / :class:`~radartracker.io.scenario.AdsbReader`, whose
+state (latest times, duplicate keys, stream clock) is then carried on as they would carry it. Otherwise
+the functions return ``None`` and the block is read row by row, which names the file, line and field of
+each bad row and counts it under ``--skip-bad``: the columnar path only ever accepts. What it asks:
+
+* numbers match a plain decimal syntax (``-12.5``, ``1e3``), a subset of what ``float()`` reads, and are
+  finite; pyarrow and ``float()`` both round such text correctly, so to the same double;
+* ranges, codes (hex Mode S / ICAO, octal Mode 3/A, already lower case or not) and radar ids as the
+  row checks ask, with no space around a field (the row checks strip it);
+* plots: times in order within the block and not before any radar's latest time, so the per-radar
+  order holds, and the stream clock (median of the last rows) admits each time: for sorted times the
+  median of a window is its middle element;
+* no row equal to another row of the block, nor to a kept row it would be a duplicate of.
+"""
 
 from __future__ import annotations
 
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.csv as pacsv
 
-def plots(reader, text):
-    return None
+from radartracker.io.tables import AdsbTable, PlotTable
+
+_DECIMAL = r"^-?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$"  # RE2: \d is [0-9] only
+_LABEL = r"^[!-~]*$"  # printable ASCII without space: nothing for str.strip() to remove
 
 
-def adsb(reader, text):
-    return None
+def _read(header: list[str], text: str) -> pa.Table | None:
+    """The block's fields as strings, or ``None`` if a row has the wrong number of fields."""
+    try:
+        return pacsv.read_csv(
+            pa.py_buffer(text.encode()),
+            read_options=pacsv.ReadOptions(column_names=header, use_threads=False),
+            parse_options=pacsv.ParseOptions(quote_char=False, newlines_in_values=False, ignore_empty_lines=False),
+            convert_options=pacsv.ConvertOptions(column_types={c: pa.string() for c in header},
+                                                 strings_can_be_null=False, quoted_strings_can_be_null=False))
+    except pa.ArrowInvalid:
+        return None
+
+
+def _all(mask: pa.Array) -> bool:
+    return bool(pc.all(mask).as_py()) if len(mask) else True
+
+
+def _numbers(col: pa.ChunkedArray, *, optional: bool = False) -> np.ndarray | None:
+    """The column as floats (NaN where empty, if ``optional``), or ``None`` unless every value is plain."""
+    ok = pc.match_substring_regex(col, _DECIMAL)
+    empty = pc.equal(col, "")
+    if not _all(pc.or_(ok, empty) if optional else ok):
+        return None
+    if optional:
+        col = pc.if_else(empty, pa.scalar(None, pa.string()), col)
+    try:
+        v = pc.cast(col, pa.float64()).to_numpy(zero_copy_only=False)
+    except pa.ArrowInvalid:
+        return None
+    finite = np.isfinite(v)
+    return v if (finite | np.isnan(v)).all() and (optional or finite.all()) else None
+
+
+def _codes(col: pa.ChunkedArray, pattern: str, *, optional: bool = True) -> np.ndarray | None:
+    """Lower-case codes (``None`` where empty, if ``optional``), or ``None`` unless every value matches."""
+    ok = pc.match_substring_regex(col, pattern)
+    if not _all(pc.or_(ok, pc.equal(col, "")) if optional else ok):
+        return None
+    out = pc.utf8_lower(col).to_numpy(zero_copy_only=False)
+    out[out == ""] = None
+    return out
+
+
+def _objects(col: pa.ChunkedArray) -> np.ndarray:
+    return col.to_numpy(zero_copy_only=False).astype(object)
+
+
+def plots(reader, first: int, text: str) -> PlotTable | None:
+    """``text`` (a plain block of ``plots.csv`` whose first line is ``first``) as a table, with ``reader``'s
+    state carried on; ``None`` (``reader`` untouched) where it must be read row by row."""
+    tab = _read(reader.rows.header, text)
+    if tab is None or not len(tab):
+        return None
+    t = _numbers(tab["time"])
+    if t is None or np.any(t[1:] < t[:-1]):
+        return None
+    if reader.last_time and t[0] < max(v[0] for v in reader.last_time.values()):
+        return None
+    radar = tab["radar"]
+    if not _all(pc.is_in(radar, value_set=pa.array(sorted(reader.radar_ids), pa.string()))):
+        return None
+    rng, az = _numbers(tab["range_m"]), _numbers(tab["azimuth_deg"])
+    alt = _numbers(tab["altitude_m"], optional=True)
+    ms, m3a = _codes(tab["mode_s"], r"^[0-9a-fA-F]{6}$"), _codes(tab["mode_3a"], r"^[0-7]{4}$")
+    if any(v is None for v in (rng, az, alt, ms, m3a)) or not ((rng >= 0).all() and ((az >= 0) & (az < 360)).all()):
+        return None
+    if reader.has_target:
+        if not _all(pc.match_substring_regex(tab["target"], _LABEL)):
+            return None
+        target = _objects(tab["target"])
+        target[target == ""] = None
+    else:
+        target = np.full(len(t), None, object)
+    lines = text.split("\n")[:-1]
+    rid = _objects(radar)
+    if len(set(lines)) != len(lines) or not _clock_admits(reader.clock, t):
+        return None
+    for i in np.flatnonzero(t == t[0]).tolist():  # only the first time can equal a radar's latest time
+        last = reader.last_time.get(rid[i])
+        if last is not None and last[0] == t[i] and lines[i] in reader.same_time[rid[i]]:
+            return None
+    # accepted: carry the state on as the row checks would
+    _clock_take(reader.clock, t)
+    for r in np.unique(rid).tolist():
+        idx = np.flatnonzero(rid == r)
+        tl = t[idx[-1]]
+        keys = {lines[i] for i in idx[t[idx] == tl].tolist()}
+        if r in reader.last_time and reader.last_time[r][0] == tl:
+            keys |= reader.same_time[r]
+        reader.same_time[r], reader.last_time[r] = keys, (float(tl), first + int(idx[-1]))
+    reader.kept += len(t)
+    return PlotTable(time=t, radar=rid, range_m=rng, azimuth_rad=np.radians(az), altitude_m=alt, mode_s=ms,
+                     mode_3a=m3a, target=target)
+
+
+def _clock_admits(clock, t: np.ndarray) -> bool:
+    """Whether the stream clock admits every time of the sorted ``t`` directly (no pending run)."""
+    state = clock.state_dict()
+    recent = np.asarray(state["recent"], float)
+    if state["run"] or np.any(recent[1:] < recent[:-1]) or (len(recent) and recent[-1] > t[0]):
+        return False
+    arr = np.concatenate([recent, t])
+    before = np.arange(len(recent), len(arr))  # how many times precede each of t
+    m = np.minimum(before, clock.config.window)
+    ok = m == 0
+    mid = before - m + (m - 1) // 2  # the median_low of the last m times (sorted)
+    ok[~ok] = t[~ok] <= arr[mid[~ok]] + clock.config.max_ahead_s
+    return bool(ok.all())
+
+
+def _clock_take(clock, t: np.ndarray) -> None:
+    state = clock.state_dict()
+    window = clock.config.window
+    clock.load_state_dict({"recent": (state["recent"] + t[-window:].tolist())[-window:], "run": []})
+
+
+def adsb(reader, first: int, text: str) -> AdsbTable | None:
+    """``text`` (a plain block of ``adsb.csv``) as a table, with ``reader``'s state carried on; ``None``
+    (``reader`` untouched) where it must be read row by row."""
+    tab = _read(reader.rows.header, text)
+    if tab is None or not len(tab):
+        return None
+    t, lat, lon = _numbers(tab["time"]), _numbers(tab["lat"]), _numbers(tab["lon"])
+    alt, nacp = _numbers(tab["altitude_m"], optional=True), _numbers(tab["nacp"])
+    icao = _codes(tab["icao24"], r"^[0-9a-fA-F]{6}$", optional=False)
+    if any(v is None for v in (t, lat, lon, alt, nacp, icao)):
+        return None
+    if not ((np.abs(lat) <= 90).all() and (np.abs(lon) <= 180).all() and ((nacp >= 1) & (nacp <= 11)).all()
+            and (nacp == np.floor(nacp)).all()):
+        return None
+    lines = text.split("\n")[:-1]
+    if len(set(lines)) != len(lines) or any(k in reader.seen for k in lines):
+        return None
+    if reader.latest_only:  # the keys of the last run of equal times, as the row checks keep them
+        j = len(t) - 1
+        while j > 0 and t[j - 1] == t[-1]:
+            j -= 1
+        keys = set(lines[j:])
+        reader.seen = keys | reader.seen if j == 0 and reader.seen_time == t[-1] else keys
+        reader.seen_time = float(t[-1])
+    else:
+        reader.seen.update(lines)
+    reader.kept += len(t)
+    return AdsbTable(time=t, icao24=icao, lat=lat, lon=lon, altitude_m=alt, nacp=nacp.astype(int))

@@ -15,6 +15,7 @@ from __future__ import annotations
 import codecs
 import csv
 import io
+import itertools
 import math
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
@@ -147,7 +148,8 @@ class Rows:
 
     def blocks(self) -> Iterator[tuple[int | None, str | None, Iterable[tuple[int, dict]]]]:
         """``(first line, text, rows)`` per block: ``text`` (whole lines, none blank) is given for a plain
-        block only, else ``None``; ``rows`` are the block's ``(line, row)`` pairs, made lazily."""
+        block only, else ``None``; ``rows`` are the block's ``(line, row)`` pairs, made lazily (use them
+        all before asking for the next block)."""
         if self._reader is None:
             while True:
                 if self._pending is not None:
@@ -162,14 +164,9 @@ class Rows:
                     continue
                 self._reader, self._base = csv.reader(self._lines(text)), line - 1
                 break
-        batch: list[tuple[int, dict]] = []
-        for row in self._csv_rows():
-            batch.append(row)
-            if len(batch) >= ROWS_PER_BATCH:
-                yield None, None, batch
-                batch = []
-        if batch:
-            yield None, None, batch
+        rows = self._csv_rows()  # batches made lazily: a row's error comes after the rows before it are used
+        while (head := next(rows, None)) is not None:
+            yield None, None, itertools.chain([head], itertools.islice(rows, ROWS_PER_BATCH - 1))
 
     def _split(self, first: int, text: str) -> Iterator[tuple[int, dict]]:
         header, n = self.header, len(self.header)

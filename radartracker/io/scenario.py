@@ -215,8 +215,8 @@ def plot_blocks(path: Path, radar_ids: set[str], skip: Skipper, *, block_bytes: 
     column by column). A file without a usable row is an error (nothing to track)."""
     rows = Rows(path, PLOT_COLUMNS, skip, block_bytes=block_bytes)
     reader = PlotReader(rows, radar_ids)
-    for _, text, block in rows.blocks():
-        table = columnar.plots(reader, text) if fast and text is not None else None
+    for first, text, block in rows.blocks():
+        table = columnar.plots(reader, first, text) if fast and text is not None else None
         if table is None:
             reader.add(block)
             table = reader.take()
@@ -233,8 +233,8 @@ def adsb_blocks(path: Path, skip: Skipper, *, block_bytes: int = BLOCK_BYTES, fa
     """``adsb.csv`` as tables of the rows kept, block by block, in file order (see :class:`AdsbReader`)."""
     rows = Rows(path, ADSB_COLUMNS, skip, block_bytes=block_bytes)
     reader = AdsbReader(rows, latest_only=latest_only)
-    for _, text, block in rows.blocks():
-        table = columnar.adsb(reader, text) if fast and text is not None else None
+    for first, text, block in rows.blocks():
+        table = columnar.adsb(reader, first, text) if fast and text is not None else None
         if table is None:
             reader.add(block)
             table = reader.take()
