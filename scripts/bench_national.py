@@ -16,7 +16,7 @@ replay (association by truth label) without and with its evaluation against trut
 
 Times are CPU times of the process (``time.process_time``), so that a shared, loaded machine gives
 comparable numbers; ``seconds`` and ``realtime_factor_wall`` are wall-clock. One JSON line per size
-(with the 1-minute load average).
+(with the 1-minute load average, and ``startup_cpu_s``: the CPU time of a ``radartracker --help`` process).
 """
 
 from __future__ import annotations
@@ -53,6 +53,14 @@ def filterpy_cycle_us(n: int = 20_000, repeat: int = 5) -> float:
             kf.update(z)
         times.append((time.process_time() - t0) / n * 1e6)
     return float(np.median(times))
+
+
+def startup_cpu_s() -> float:
+    """CPU seconds (user + system) of a ``radartracker --help`` process: the imports every command starts with."""
+    proc = subprocess.Popen([sys.executable, "-c", "from radartracker.cli import main; main(['--help'])"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    _, _, usage = os.wait4(proc.pid, 0)
+    return usage.ru_utime + usage.ru_stime
 
 
 def child_generate(args: argparse.Namespace) -> None:
@@ -147,6 +155,7 @@ def main() -> None:
         args.aircraft, args.minutes = args.aircraft[0], args.minutes[0]
         {"generate": child_generate, "replay": child_replay, "labelled": child_labelled}[args.mode](args)
         return
+    startup = startup_cpu_s()
     for minutes in args.minutes:
         for n in args.aircraft:
             with tempfile.TemporaryDirectory(prefix="bench_national_") as tmp:
@@ -163,7 +172,7 @@ def main() -> None:
                     "filterpy_us": round(res["filterpy_us"], 2), "ratio": round(us / res["filterpy_us"], 2),
                     "realtime_factor": round(minutes * 60.0 / res["cpu_seconds"], 1),
                     "realtime_factor_wall": round(minutes * 60.0 / res["seconds"], 1), "peak_rss_mb": round(rss_mb, 1),
-                    "load1": os.getloadavg()[0]}
+                    "startup_cpu_s": round(startup, 2), "load1": os.getloadavg()[0]}
             if args.quality and res.get("tracking"):
                 line["tracking"] = {k: res["tracking"][k] for k in ("breaks", "false_tracks", "swaps",
                                                                      "confirmed_tracks", "position_rmse_m")}
