@@ -43,11 +43,12 @@ def register_serve(sub: argparse._SubParsersAction) -> None:
                    help="CAT062 on each track update (as soon as the tracker's frame is processed), every "
                         "--period, or both (default both: docs/service.md)")
     p.add_argument("--reorder-window", type=float, default=None, metavar="S",
-                   help="seconds the tracker holds inputs to put them in time order (default: the replay's, 2); "
-                        "shorter lowers the latency, and late inputs are counted as plots_late/adsb_late")
+                   help="seconds the tracker holds inputs to put them in time order (default 0.5 for live data; "
+                        "a replay's is 2; on resume: the checkpoint's); inputs more out of order are counted as "
+                        "plots_late/adsb_late")
     p.add_argument("--frame-s", type=float, default=None, metavar="S",
-                   help="seconds of input the tracker processes together (default: the replay's, 0.5); "
-                        "an input waits for the end of its frame")
+                   help="seconds of input the tracker processes together (default 0.25 for live data; a replay's "
+                        "is 0.5; on resume: the checkpoint's); an input waits for the end of its frame")
     p.add_argument("--checkpoint-s", type=float, default=60.0, help="seconds between checkpoints (default 60)")
     p.add_argument("--queue", type=int, default=50_000, help="datagrams the queue holds before dropping (default 50000)")
     p.add_argument("--day-start", type=_day_start, default=None, metavar="DATE|SECONDS",

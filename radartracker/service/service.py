@@ -44,6 +44,10 @@ from radartracker.tracking.manager import TrackEvent, TrackManager, default_esti
 log = logging.getLogger(__name__)
 
 PUBLISH_MODES = ("update", "periodic", "both")
+# The tracker's reordering window and frame for live data (a replay's are 2 s and 0.5 s), chosen by
+# measurement (docs/service.md, "Reorder window and frame"): twice the largest lateness measured on
+# the loopback feed, and a frame short enough for p99 latency below 1 s on national traffic.
+LIVE_TRACKER = {"reorder_window_s": 0.5, "frame_s": 0.25}
 _CHANGED = frozenset({"confirmed", "updated", "coasting"})  # events after which a track is sent on update
 
 
@@ -86,7 +90,10 @@ class ServiceConfig:
 
 
 class Service:
-    """A running surveillance service (see the module notes); :meth:`run` until ``stop`` is set."""
+    """A running surveillance service (see the module notes); :meth:`run` until ``stop`` is set.
+
+    ``manager``: :class:`ManagerConfig` settings over :data:`LIVE_TRACKER` and the replay's own; on
+    resume the checkpoint's hold, and naming different ones is refused."""
 
     def __init__(self, config: ServiceConfig, radars: list[Radar], sites: dict[tuple[int, int], str], *,
                  estimator: str | None = None, motion_model: str | None = None, manager: dict | None = None) -> None:
@@ -102,7 +109,7 @@ class Service:
             self.base.update(state["counts"])
             self.resumed_from = folder.name
         else:
-            self.manager = build_manager(radars, estimator, motion_model, manager)
+            self.manager = build_manager(radars, estimator, motion_model, LIVE_TRACKER | (manager or {}))
         self.queue: queue.Queue = queue.Queue(config.queue_size)
         clock = ReceiveClock() if config.day_start is None else DayClock(config.day_start)
         self.decoder = Decoder(sites, clock)
@@ -341,6 +348,7 @@ class Service:
         self._refresh_view()
         mc = self.manager.config
         return self.view | {"estimator": mc.estimator, "motion_model": mc.motion_model,
+                            "tracker_settings": {"reorder_window_s": mc.reorder_window_s, "frame_s": mc.frame_s},
                             "started": self.started, "stopped": time.time(), "resumed_from": self.resumed_from,
                             "last_checkpoint": f"checkpoint-{self.checkpoint_seq:06d}",
                             "last_publication_records": self.publisher.last_records, "biases": self.biases_json}

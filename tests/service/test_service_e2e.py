@@ -132,7 +132,8 @@ def check_against_replay(recording: Path, summary: dict, datagrams: list[bytes],
     data = read_asterix(recording, day_start=0.0)
     assert sum(1 for a in data.aircraft if a.mode_3a) > 0  # Mode 3/A kept by the import
     replay = run(data, RunConfig(association="manager", estimator=summary["estimator"],
-                                 motion_model=summary["motion_model"]), progress=False)
+                                 motion_model=summary["motion_model"], manager=summary["tracker_settings"]),
+                 progress=False)
     assert summary["tracker"] == replay.counts
 
     records = [r for d in datagrams for r in asterix4py.AsterixParser(d).get_result().values()]
@@ -180,7 +181,6 @@ def published_late(recording: Path, summary: dict, datagrams: list[bytes]) -> li
     largest step of the newest record time over one datagram of the recording (in send order)."""
     from radartracker.service.decoder import DayClock, Decoder
     from radartracker.service.sender import datagrams as recording_datagrams
-    from radartracker.tracking.manager import ManagerConfig
 
     _, sites = read_sites(Path(str(recording) + ".radars.csv"))
     decoder, newest, step = Decoder(sites, DayClock(0.0)), -float("inf"), 0.0
@@ -189,15 +189,14 @@ def published_late(recording: Path, summary: dict, datagrams: list[bytes]) -> li
         if times and newest > -float("inf"):
             step = max(step, max(times) - newest)
         newest = max([newest, *times])
-    mc = ManagerConfig()
-    bound = mc.frame_s + mc.reorder_window_s + step
+    bound = summary["tracker_settings"]["frame_s"] + summary["tracker_settings"]["reorder_window_s"] + step
     published: dict[int, list[float]] = {}
     for d in datagrams:
         for r in asterix4py.AsterixParser(d).get_result().values():
             published.setdefault(r["040"]["TrkN"], []).append(r["070"]["ToT"])
     data = read_asterix(recording, day_start=0.0)
-    ev = run(data, RunConfig(association="manager", estimator=summary["estimator"],
-                             motion_model=summary["motion_model"]), progress=False).events
+    ev = run(data, RunConfig(association="manager", estimator=summary["estimator"], motion_model=summary["motion_model"],
+                             manager=summary["tracker_settings"]), progress=False).events
     return [(int(ev.track[i]), float(ev.time[i]), bound) for i in range(len(ev.time))
             if ev.kind[i] in ("confirmed", "updated")
             and not any(ev.time[i] - T_TOL <= t <= ev.time[i] + bound for t in published.get(int(ev.track[i]), ()))]
