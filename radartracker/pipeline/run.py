@@ -275,17 +275,19 @@ def streamable(folder: Path | str, config: RunConfig) -> bool:
     return "target" not in [h.strip() for h in header]
 
 
-def replay_folder(folder: Path | str, config: RunConfig, out: Path | str, *, progress: bool = True) -> RunResult:
+def replay_folder(folder: Path | str, config: RunConfig, out: Path | str, *, progress: bool = True,
+                  prefetch: bool = False) -> RunResult:
     """Replay the scenario folder ``folder`` into the prepared folder ``out`` (tables, summary, config),
     streamed when :func:`streamable` (memory flat in the recording's length), else read whole: the
     same files either way. A file whose kept rows are not in time order cannot be merged as it is
-    read: that run is abandoned and the folder read whole."""
+    read: that run is abandoned and the folder read whole. ``prefetch``: see
+    :func:`radartracker.pipeline.stream.iter_files`."""
     if streamable(folder, config):
         files = open_scenario(folder, skip_bad=config.skip_bad)
         sink = OutputStream(out, SystemPlane(*files.data.reference))
         try:
-            result = run(files.data, config, progress=progress, inputs=iter_files(files), sink=sink,
-                         total=files.rows)
+            result = run(files.data, config, progress=progress, inputs=iter_files(files, prefetch=prefetch),
+                         sink=sink, total=files.rows)
         except NotTimeOrdered as exc:
             sink.abort(exc)
             log.info("%s: reading the whole scenario instead of streaming it", exc)

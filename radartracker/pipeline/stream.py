@@ -6,6 +6,8 @@ from __future__ import annotations
 import heapq
 import math
 import operator
+import queue
+import threading
 from collections.abc import Iterable, Iterator
 
 import numpy as np
@@ -69,9 +71,53 @@ def _ordered(blocks: Iterable, make, name: str) -> Iterator[Plot | AdsbReport]:
         yield from make(table)
 
 
-def iter_files(files: ScenarioFiles) -> Iterator[Plot | AdsbReport]:
+def iter_files(files: ScenarioFiles, *, prefetch: bool = False) -> Iterator[Plot | AdsbReport]:
     """The items of :func:`scenario_stream` for the opened folder ``files``, in the same order, read block by
     block: both files must have their kept rows in time order (:class:`NotTimeOrdered` otherwise, raised
-    before any item out of order is given). Plots come before ADS-B reports at equal times."""
-    return heapq.merge(_ordered(files.plot_blocks(), _plots, "plots.csv"),
-                       _ordered(files.adsb_blocks(), _reports, "adsb.csv"), key=operator.attrgetter("time"))
+    before any item out of order is given). Plots come before ADS-B reports at equal times.
+
+    ``prefetch`` reads and converts the next blocks in a background thread while the current ones are
+    used (measured in docs/performance.md: it does not pay, so it is off by default)."""
+    plots, adsb = files.plot_blocks(), files.adsb_blocks()
+    if prefetch:
+        plots, adsb = _prefetch(plots), _prefetch(adsb)
+    return heapq.merge(_ordered(plots, _plots, "plots.csv"), _ordered(adsb, _reports, "adsb.csv"),
+                       key=operator.attrgetter("time"))
+
+
+_END = object()
+
+
+def _prefetch(blocks: Iterator, depth: int = 2) -> Iterator:
+    """``blocks`` made by a background thread, at most ``depth`` ahead; an error is raised where it came."""
+    q: queue.Queue = queue.Queue(depth)
+    stop = threading.Event()
+
+    def work() -> None:
+        try:
+            for b in blocks:
+                while not stop.is_set():
+                    try:
+                        q.put((b, None), timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+                if stop.is_set():
+                    return
+            q.put((_END, None))
+        except BaseException as exc:  # handed to the consumer, raised there in order
+            q.put((_END, exc))
+
+    thread = threading.Thread(target=work, name="prefetch", daemon=True)
+    thread.start()
+    try:
+        while True:
+            b, exc = q.get()
+            if exc is not None:
+                raise exc
+            if b is _END:
+                return
+            yield b
+    finally:
+        stop.set()
+

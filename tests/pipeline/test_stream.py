@@ -54,10 +54,11 @@ def _same(a, b):
     assert _summary(a) == _summary(b)
 
 
-def test_items_from_the_files_are_those_of_the_tables(unlabelled):
+@pytest.mark.parametrize("prefetch", [False, True])
+def test_items_from_the_files_are_those_of_the_tables(unlabelled, prefetch):
     data = read_scenario(unlabelled)
     want = scenario_stream(data)
-    got = list(iter_files(open_scenario(unlabelled, block_bytes=4096)))
+    got = list(iter_files(open_scenario(unlabelled, block_bytes=4096), prefetch=prefetch))
     assert len(got) == len(want) == len(data.plots) + len(data.adsb) > 500
     assert got == want
 
@@ -94,8 +95,9 @@ def test_files_out_of_time_order_are_read_whole(unlabelled, whole, tmp_path):
     head, *rows = (unlabelled / "plots.csv").read_text().splitlines(keepends=True)
     rows.sort(key=lambda r: r.split(",")[1])
     (folder / "plots.csv").write_text(head + "".join(rows))
-    with pytest.raises(NotTimeOrdered):
-        list(iter_files(open_scenario(folder)))
+    for prefetch in (False, True):
+        with pytest.raises(NotTimeOrdered):
+            list(iter_files(open_scenario(folder, block_bytes=4096), prefetch=prefetch))
     out = prepare(tmp_path / "out")
     replay_folder(folder, MANAGER, out, progress=False)
     assert not [p for p in out.iterdir() if p.name.endswith(".tmp")]
@@ -148,9 +150,10 @@ def test_a_failed_streamed_run_leaves_no_table(unlabelled, tmp_path):
     lines[len(lines) // 2] = lines[len(lines) // 2].replace(",", ",x", 1)  # unknown radar, half-way
     (folder / "plots.csv").write_text("".join(lines))
     out = prepare(tmp_path / "out")
-    with pytest.raises(FormatError, match=f"plots.csv.*line {len(lines) // 2 + 1}.*radar"):
-        replay_folder(folder, MANAGER, out, progress=False)
-    assert list(out.iterdir()) == []
+    for prefetch in (False, True):  # an error in the reading thread is raised in the replay's
+        with pytest.raises(FormatError, match=f"plots.csv.*line {len(lines) // 2 + 1}.*radar"):
+            replay_folder(folder, MANAGER, out, progress=False, prefetch=prefetch)
+        assert list(out.iterdir()) == []
 
 
 def test_recorder_hands_on_and_drops_rows():
