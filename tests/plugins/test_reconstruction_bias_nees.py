@@ -59,7 +59,7 @@ def test_joint_bias_nees_is_chi2_from_the_true_segment_structure():
 def test_joint_bias_nees_is_chi2_with_the_full_search():
     nees = []
     for seed in range(100, 130):
-        data, _ = biased_scenario(seed, 300.0)
+        data, _ = biased_scenario(seed, 200.0)
         tracks, _, _ = scenario_tracks(data)
         recs = {r.key: r for r in run_many(tracks, CFG, None, progress=False)}
         _, biases, _, _ = joint_rounds(tracks, recs, CFG)
