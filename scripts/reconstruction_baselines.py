@@ -16,7 +16,8 @@ Errors are horizontal distances from the reference at the plot times; velocity e
 the recorded ground speed and track (linearly interpolated between reports) or the simulated truth. Prints one JSON line per flight
 and method, one per group (pooled), the cost per flight-hour, and a Markdown table (per flight and
 pooled), and how hard each real reference curve accelerates (its |d²p/dt²|: OpenSky positions hold
-and jump, so the curve through them is not always flyable). ``--jump-sd 0,1,3`` runs the reconstruction once per prior strength (0 = no prior).
+and jump, so the curve through them is not always flyable). ``--jump-sd 0,1,3`` runs the reconstruction once per prior strength (0 = no prior; the
+column of the configuration's default strength is ``rec``).
 Usage: nice python scripts/reconstruction_baselines.py [--paris N] [--cal N] [--sim N] [--window S]
        [--workers W] [--max-u A] [--max-w A] [--jump-sd LIST] [--seed S] [--dump OUT.npz]
 """
@@ -197,10 +198,11 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--max-u", type=float, default=9.5)
     ap.add_argument("--max-w", type=float, default=2.0)
-    ap.add_argument("--jump-sd", default="0", help="comma-separated prior strengths (m/s²; 0 = no prior)")
+    ap.add_argument("--jump-sd", default=f"{ReconstructionConfig().jump_sd:g}",
+                    help="comma-separated prior strengths (m/s²; 0 = no prior; default: the configuration's)")
     ap.add_argument("--dump", type=Path, default=None,
-                    help="write per-plot series (times, errors per method, radar, reference acceleration, "
-                         "switch times) to this .npz for analysis")
+                    help="write per-plot series (times, plots, reference, estimates and errors per method, radar, "
+                         "reference acceleration, switch times) to this .npz for analysis")
     ap.add_argument("--reference-only", action="store_true",
                     help="print how hard each real flight's reference accelerates, and stop")
     args = ap.parse_args()
@@ -222,7 +224,7 @@ def main() -> None:
     extra: dict[str, dict] = {pt.key: {} for pt in tracks}
     cost = {}
     for js in (float(v) for v in args.jump_sd.split(",")):
-        name = "rec" if js == 0 else f"rec_jump{js:g}"
+        name = "rec" if js == ReconstructionConfig().jump_sd else f"rec_jump{js:g}"  # "rec": the default
         cfg = ReconstructionConfig(max_u=args.max_u, max_w=args.max_w, jump_sd=js)
         t0, c0 = time.perf_counter(), time.process_time()
         with executor("process", args.workers) as ex:
@@ -232,6 +234,7 @@ def main() -> None:
                     continue
                 st = sample(r.control, r.plots.t)
                 SERIES[f"{r.key}|{name}|switches"] = np.array([s.t_start for s in r.control][1:])
+                SERIES[f"{r.key}|{name}|xy"] = st[:, :2]
                 errs[r.key][name] = np.hypot(*(st[:, :2] - truth[r.key]).T)
                 if r.key in VELOCITY:
                     verrs[r.key][name] = np.hypot(*(np.column_stack([st[:, 3] * np.sin(st[:, 2]), st[:, 3] * np.cos(st[:, 2])])
@@ -246,6 +249,7 @@ def main() -> None:
     for pt in tracks:
         for name, xs in (("cv_rts", tuned_rts(pt.t, pt.z, pt.R)[0]), ("imm", imm_smooth(pt.t, pt.z, pt.R)[0])):
             errs[pt.key][name] = np.hypot(*(xs[:, :2] - truth[pt.key]).T)
+            SERIES[f"{pt.key}|{name}|xy"] = xs[:, :2]
             if pt.key in VELOCITY:
                 verrs[pt.key][name] = np.hypot(*(xs[:, 2:] - VELOCITY[pt.key]).T)
         errs[pt.key]["plots"] = np.hypot(*(pt.z - truth[pt.key]).T)
@@ -271,6 +275,7 @@ def main() -> None:
     if args.dump:
         for pt in tracks:
             SERIES[f"{pt.key}|t"], SERIES[f"{pt.key}|radar"] = pt.t, np.asarray(pt.radar, str)
+            SERIES[f"{pt.key}|truth"], SERIES[f"{pt.key}|z"] = truth[pt.key], pt.z
             for m, e in errs[pt.key].items():
                 SERIES[f"{pt.key}|{m}|err"] = e
         np.savez_compressed(args.dump, **SERIES)

@@ -4,7 +4,7 @@ The same real flights (OpenSky Network, radar plots simulated as in reconstructi
 reconstructed serially in this process, then on a Dask LocalCluster of 2 single-threaded workers.
 Prints JSON lines. ``--module`` benchmarks another copy of the plugin (e.g. the code before a change,
 extracted with ``git show`` into a package on PYTHONPATH) on the same flights, for before/after figures.
-Usage: python scripts/reconstruction_bench.py [--flights N] [--workers W] [--module PACKAGE]
+Usage: python scripts/reconstruction_bench.py [--flights N] [--workers W] [--module PACKAGE] [--jump-sd A]
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--module", default="radartracker_plugins.reconstruction", help="the plugin package to time")
     ap.add_argument("--engines", default="serial,dask", help="comma-separated: serial, dask")
+    ap.add_argument("--jump-sd", type=float, default=None, help="control-jump prior (m/s²); default: the configuration's")
     args = ap.parse_args()
     pkg = importlib.import_module(args.module)
     engine_mod = importlib.import_module(f"{args.module}.engine")
@@ -37,7 +38,7 @@ def main() -> None:
     ids = sorted(k for k in allf if k.startswith("paris-"))[: args.flights]
     tracks, _ = flights_to_plots({k: allf[k] for k in ids}, 0, 3)
     hours = sum(pt.duration for pt in tracks) / 3600
-    cfg = ReconstructionConfig(max_u=9.5)
+    cfg = ReconstructionConfig(max_u=9.5, **({} if args.jump_sd is None else {"jump_sd": args.jump_sd}))
     times = {}
     for engine, workers in ((e, None if e == "serial" else args.workers) for e in args.engines.split(",")):
         with executor(engine, workers) as ex:
@@ -46,6 +47,7 @@ def main() -> None:
             times[engine] = time.perf_counter() - t0
             cpu = time.process_time() - c0  # this process only: meaningful for the serial engine
         print(json.dumps({"module": args.module, "engine": engine, "workers": workers or 1, "flights": n,
+                          "jump_sd": getattr(cfg, "jump_sd", None),
                           "flight_hours": round(hours, 2),
                           "wall_s": round(times[engine], 1), "s_per_flight_hour": round(times[engine] / hours, 1),
                           **({"cpu_s_per_flight_hour": round(cpu / hours, 1)} if engine == "serial" else {})}))

@@ -48,8 +48,9 @@ def register_reconstruct(sub: argparse._SubParsersAction) -> None:
                    help=".new4 input: radars.csv (scenario format); <radar>_r.new4 plots then get R from the "
                         "radar's range/azimuth sigma, and the plots of all radars of one folder are fused")
     p.add_argument("--flights", default=None, metavar="ID,...", help="reconstruct only these aircraft keys")
-    p.add_argument("--jump-sd", type=float, default=0.0, metavar="MPS2",
-                   help="prior sd of each control jump (m/s², MAP fit); 0: no prior (default)")
+    p.add_argument("--jump-sd", type=float, default=None, metavar="MPS2",
+                   help="prior sd of each control jump (m/s², MAP fit); 0: no prior "
+                        "(default: ReconstructionConfig's 2, chosen by measurement in docs/reconstruction.md)")
     p.add_argument("--no-figures", action="store_true", help="skip the per-aircraft figures")
     p.add_argument("--quiet", action="store_true", help="no progress bar, no Dask logs")
     p.set_defaults(func=_cmd_reconstruct)
@@ -113,7 +114,8 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
         raise ConfigurationError("give at most one of --truth-biases, --biases, --estimate-biases")
     try:
         cfg = ReconstructionConfig(max_u=args.max_u, max_w=args.max_w, loss=args.loss, hypotheses=args.hypotheses,
-                                   grid_dt=args.grid, shooting=not args.no_shooting, jump_sd=args.jump_sd)
+                                   grid_dt=args.grid, shooting=not args.no_shooting,
+                                   **({} if args.jump_sd is None else {"jump_sd": args.jump_sd}))
     except (ValueError, TypeError) as exc:
         raise ConfigurationError(str(exc)) from None
     if args.quiet:
