@@ -186,10 +186,12 @@ class CoupledSparseEstimator(Estimator):
     def update(self, m: PlaneMeasurement) -> Innovation:
         """One measurement: :meth:`update_many`'s kernel step called directly (the TrackManager's path,
         one call per measurement, where building the batch arrays cost more than the update)."""
-        s = self._slot(m.aircraft)
-        j = -1 if m.radar is None else self._radar_index(m.radar)
+        s = self._ac[m.aircraft] if m.aircraft in self._ac else self._slot(m.aircraft)  # (KeyError naming it)
+        j = -1 if m.radar is None else self._rad[m.radar] if m.radar in self._rad else self._radar_index(m.radar)
         t = float(m.time)
-        z, C, R = (np.ascontiguousarray(a, dtype=float) for a in (m.z, m.C, m.R))
+        z = np.ascontiguousarray(m.z, dtype=float)
+        C = np.ascontiguousarray(m.C, dtype=float)
+        R = np.ascontiguousarray(m.R, dtype=float)
         if z.shape != (2,) or C.shape != (2, 2) or R.shape != (2, 2):  # as update_many's batch would refuse it
             nu, lam, nis = self.update_many([t], [m.aircraft], [m.radar], z[None], C[None], R[None])
             return Innovation(nu[0], lam[0], float(nis[0]))

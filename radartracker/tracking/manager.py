@@ -70,6 +70,7 @@ from radartracker.registry import (available_estimators, load_motion_model, make
 log = logging.getLogger(__name__)
 EVENT_KINDS = ("created", "confirmed", "updated", "coasting", "deleted")
 _ZERO2, _ZERO22 = np.zeros(2), np.zeros((2, 2))
+_INPUT_KINDS = {"p": "plots", "a": "adsb", "m": "positions"}  # admission key tag → counting name
 # exact estimators first, the scalable one before the dense one (docs/estimators.md); decoupled is a last resort
 PREFERRED_ESTIMATORS = ("coupled-sparse", "coupled", "blom", "decoupled")
 
@@ -284,7 +285,7 @@ class TrackManager:
             key = ("m", item.aircraft, item.time, float(item.z[0]), float(item.z[1]))
         else:
             return self._reject("invalid_input", item)
-        kind = {"p": "plots", "a": "adsb", "m": "positions"}[key[0]]
+        kind = _INPUT_KINDS[key[0]]
         if self._newest is not None and item.time > self._newest + self.config.max_time_jump_s:
             return self._reject(f"{kind}_time_jump", item)
         if item.time <= self._horizon:
@@ -393,7 +394,12 @@ class TrackManager:
             c = self._radar_rows
             d = pred["pos"][None, :, :] - c["xy"][:, None, :]
             pred["range"] = np.hypot(d[..., 0], d[..., 1])
-            pred["az"] = np.mod(np.arctan2(d[..., 0], d[..., 1]) - c["north"][:, None], 2 * math.pi)
+            # azimuths only where misses look (within 0.98 of the radar's range); NaN elsewhere
+            near = pred["range"] < 0.98 * c["max_range"][:, None]
+            az = np.full(near.shape, np.nan)
+            north = np.broadcast_to(c["north"][:, None], near.shape)
+            az[near] = np.mod(np.arctan2(d[..., 0][near], d[..., 1][near]) - north[near], 2 * math.pi)
+            pred["az"] = az
             pred.update((k, c[k]) for k in ("row", "period", "max_range"))
         return pred
 
