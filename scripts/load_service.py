@@ -383,7 +383,7 @@ def main() -> None:
     ap.add_argument("--publish-mode", default=None, choices=("update", "periodic", "both"),
                     help="the service's --publish-mode (default: its default)")
     ap.add_argument("--speeds", default="1,1.5", help="time scales to try, comma separated")
-    ap.add_argument("--period", type=float, default=1.0, help="the service's CAT062 period (s)")
+    ap.add_argument("--period", type=float, default=4.0, help="the service's CAT062 period (s; its default 4)")
     ap.add_argument("--checkpoint-s", type=float, default=10.0)
     ap.add_argument("--reorder-window", type=float, default=None, help="the tracker's reorder window (s; default 2)")
     ap.add_argument("--core", type=int, default=1, help="CPU the service is pinned to (-1: not pinned)")
