@@ -11,7 +11,8 @@ residuals instead::
 
 Each residual depends on one or two segments only, so the problem is far less nonlinear. The
 result is handed back as a single-shooting parameter vector (S_0, u, w, switch times), whose own
-refinement then removes the remaining continuity gaps.
+refinement then removes the remaining continuity gaps. The control-jump prior is not part of this
+stage (it fits the plots alone); the single-shooting refinement after it is the MAP fit.
 """
 
 from __future__ import annotations
