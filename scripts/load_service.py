@@ -17,7 +17,7 @@ the service with SIGTERM and prints one JSON line:
   for the next periodic publication (``--period``);
 * ``input_lateness_s`` and ``records_later_than_s``: how out of order the records arrive (the
   service's histogram: newest record time received before a record − its time), and how many a
-  reorder window of each bucket's length would count as late; ``inputs_late``: those the tracker
+  reorder window of each bucket's length could count as late (an upper bound); ``inputs_late``: those the tracker
   did count as late (``plots_late`` + ``adsb_late``) with the window of the run;
 * ``service_cpu_s`` (its own and its checkpoint children's, from its first datagram: the start-up
   — imports, restore — is ``service_startup_cpu_s``), per record, and the rate one core
@@ -214,7 +214,7 @@ def histogram_quantiles(metrics: str, name: str = "radartracker_processing_laten
 
 def later_than(metrics: str, name: str = "radartracker_input_lateness_seconds") -> dict[str, int]:
     """Records whose lateness (newest record time received before them − their time) exceeds each
-    bucket bound: what a reorder window of that many seconds would count as late."""
+    bucket bound: at most what a reorder window of that many seconds would count as late."""
     b = sorted((float(m.group(1)), float(m.group(2))) for m in re.finditer(
         rf'{name}_bucket{{le="([^"]+)"}} ([0-9.e+]+)', metrics.replace('le="+Inf"', 'le="inf"')))
     total = b[-1][1] if b else 0.0

@@ -44,8 +44,8 @@ def register_serve(sub: argparse._SubParsersAction) -> None:
                         "--period, or both (default both: docs/service.md)")
     p.add_argument("--reorder-window", type=float, default=None, metavar="S",
                    help="seconds the tracker holds inputs to put them in time order (default 0.5 for live data; "
-                        "a replay's is 2; on resume: the checkpoint's); inputs more out of order are counted as "
-                        "plots_late/adsb_late")
+                        "a replay's is 2; on resume: the checkpoint's); inputs more out of order can be counted "
+                        "as plots_late/adsb_late")
     p.add_argument("--frame-s", type=float, default=None, metavar="S",
                    help="seconds of input the tracker processes together (default 0.25 for live data; a replay's "
                         "is 0.5; on resume: the checkpoint's); an input waits for the end of its frame")

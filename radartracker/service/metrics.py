@@ -16,7 +16,8 @@ radartracker_tracks                        gauge    ``status``: tentative, confi
 radartracker_processing_latency_seconds    histo.   datagram receipt → its records handed to the tracker
 radartracker_input_lateness_seconds        histo.   per record: the newest record time received before it
                                                     − its time (how out of order the feed arrives: the
-                                                    reorder window needed; > the window → counted late)
+                                                    reorder window needed: only records later than
+                                                    the window can be counted late)
 radartracker_checkpoints_total             counter  ``outcome``: written (since start), skipped_busy, failed
 =========================================  =======  ==================================================
 """

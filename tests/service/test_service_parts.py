@@ -175,3 +175,29 @@ def test_score_command_scores_a_cat062_capture_as_the_replay_evaluates_itself(tm
     assert got["position_rmse_m"] == pytest.approx(expected["position_rmse_m"], abs=0.5)
     (tmp_path / "empty.ast").write_bytes(b"")
     assert main(["score", str(tmp_path / "empty.ast"), "--scenario", str(tmp_path / "sc")]) == 2
+
+
+def test_lateness_histogram_counts_how_out_of_order_records_arrive(tmp_path):
+    """Records at 10, 12, 11, 9.5, 13 s arrive 0, 0, 1, 2.5, 0 s behind the newest before them; with a
+    0.5 s window the tracker has released up to 11 s when 9.5 arrives, so that one alone is late."""
+    from radartracker.service import Service, ServiceConfig
+    from radartracker.simulation.scenarios import build_scenario
+
+    radars = build_scenario("tracking", seed=1, duration=60).run().radars
+    ep = parse_endpoint("udp://127.0.0.1:0")
+    cfg = ServiceConfig((ep,), parse_endpoint("udp://127.0.0.1:9"), tmp_path / "state", day_start=0.0)
+    svc = Service(cfg, radars, {(0, 1): radars[0].id}, manager={"reorder_window_s": 0.5})
+    try:
+        for t in (10.0, 12.0, 11.0, 9.5, 13.0):
+            svc._handle(time.time(), time.monotonic(), ep,
+                        next(datablocks(CAT048, [cat048_record(t, 0, 1, 50_000.0, 1.0)])))
+    finally:
+        for sock in [*svc.sockets.values(), svc.publisher.sock]:
+            sock.close()
+    sample = svc.metrics.registry.get_sample_value
+    assert sample("radartracker_input_lateness_seconds_count") == 5
+    assert sample("radartracker_input_lateness_seconds_sum") == pytest.approx(3.5)
+    assert sample("radartracker_input_lateness_seconds_bucket", {"le": "0.0"}) == 3
+    assert sample("radartracker_input_lateness_seconds_bucket", {"le": "1.0"}) == 4
+    assert svc.manager.accounting().get("plots_late") == 1
+    assert svc.decoder.counts["records_to_tracker"] == 5
