@@ -1,5 +1,6 @@
 """IMM and the coordinated-turn model against FilterPy's IMMEstimator, finite differences, the
-closed-form kinematic integration, the plain CV filter, and a 3°/s turn."""
+closed-form kinematic integration, the plain CV filter, a 3°/s turn, and (in the TrackManager) a
+plain-numpy IMM."""
 
 from __future__ import annotations
 
@@ -12,11 +13,16 @@ from scipy.linalg import expm
 
 from radartracker.geometry.kinematics import propagate
 from radartracker.estimation.motion import MotionModel
-from radartracker.api import ConfigurationError
+from radartracker.api import ConfigurationError, TrackFilter
+from radartracker.pipeline.stream import scenario_stream
+from radartracker.registry import make_filter_factory
+from radartracker.simulation.scenarios import build_scenario
+from radartracker.tracking.manager import ManagerConfig, TrackManager, motion_q
 from radartracker.simulation.simulator import KinematicTrajectory, Leg
 from radartracker_plugins.motion import CTMode, CVConfig, CVFilter, CVMode, IMMConfig, IMMFilter
 from radartracker_plugins.motion.ct import ct_noise, ct_transition
 from tests.plugins.test_motion import assert_close, cv_track, manoeuvre_track, run
+from tests.tracking.test_kernels import imm_correction, imm_prediction, switching_matrix
 
 
 @pytest.mark.parametrize("w", [0.0, 1e-7, -3e-6, math.radians(3.0), -math.radians(6.0), 0.4])
@@ -174,3 +180,68 @@ def test_switching_matrix_equals_scipy_expm():
     np.fill_diagonal(G, -1 / tau)
     for dt in (0.0, 0.7, 7.3, 400.0):
         np.testing.assert_allclose(f.switching(dt), expm(G * dt), atol=1e-12)
+
+
+class NumpyIMM(TrackFilter):
+    """The default IMM (CV + CT, sojourn-time chain) in plain numpy: the equations of the module
+    docstring as written in tests/tracking/test_kernels.py, none of the plugin's code."""
+
+    name = "numpy-imm"
+
+    def __init__(self, config: IMMConfig) -> None:
+        self.config_class = type(config)
+        super().__init__(config)
+        self.modes = [("cv", config.q), ("ct", config.q_turn, config.turn_rate_sd)]
+        self.tau = np.array([120.0, 30.0])
+        self.entry_var = config.turn_rate_entry_sd**2
+        self.time = None
+
+    def start(self, time, z, R):
+        x, P = np.array([z[0], z[1], 0.0, 0.0]), np.zeros((4, 4))
+        P[:2, :2], P[2:, 2:] = R, self.config.prior_sd_velocity_mps**2 * np.eye(2)
+        self.time, self.mu = float(time), self.tau / self.tau.sum()
+        self.xs, self.Ps = [x, np.append(x, 0.0)], [P, np.pad(P, (0, 1))]
+        self.Ps[1][4, 4] = self.entry_var
+
+    def _prediction(self, time):
+        if abs(time - self.time) > self.config.max_gap_s:
+            raise ValueError("gap")
+        dt = time - self.time
+        return imm_prediction(self.mu, self.xs, self.Ps, switching_matrix(self.tau, dt), self.modes, dt, self.entry_var)
+
+    def predict(self, time):
+        return self._prediction(time)[2:]
+
+    def update(self, time, z, R):
+        mu, states, _, _, nis = imm_correction(*self._prediction(time), np.asarray(z, float), np.asarray(R, float))
+        self.time, self.mu = float(time), mu
+        self.xs, self.Ps = [s[0] for s in states], [s[1] for s in states]
+        return nis
+
+    def estimate(self):
+        x = sum(m * s[:4] for m, s in zip(self.mu, self.xs))
+        P = sum(m * (C[:4, :4] + np.outer(s[:4] - x, s[:4] - x)) for m, s, C in zip(self.mu, self.xs, self.Ps))
+        return self.time, x, P
+
+
+def test_manager_events_and_biases_with_imm_equal_a_numpy_imm():
+    """The TrackManager with the compiled IMM (one prediction per input shared by screening and
+    update) and with :class:`NumpyIMM`: the same events and biases on a scenario with manoeuvres."""
+    data = build_scenario("manoeuvres", seed=4, duration=150.0).run()
+    config = ManagerConfig(motion_model="imm")
+    imm_config = make_filter_factory("imm", motion_q(config), config.motion).config  # the manager's own
+    assert imm_config.q == config.estimator_config.motion.q
+
+    def replay(factory=None):
+        mgr = TrackManager(data.radars, data.reference, config, filter_factory=factory)
+        events = mgr.process_many(scenario_stream(data))
+        return events, {rid: mgr.estimator.bias(rid) for rid in mgr.radars}, mgr.accounting()
+
+    fast, fast_b, fast_n = replay()
+    ref, ref_b, ref_n = replay(lambda: NumpyIMM(imm_config))
+    assert len(fast) > 200 and fast_n == ref_n
+    assert [(e.time, e.track, e.kind, e.status) for e in fast] == [(e.time, e.track, e.kind, e.status) for e in ref]
+    np.testing.assert_allclose([e.state for e in fast], [e.state for e in ref], rtol=1e-9, atol=1e-6)
+    for rid in ref_b:
+        np.testing.assert_allclose(fast_b[rid].bias, ref_b[rid].bias, rtol=1e-8, atol=1e-12)
+        np.testing.assert_allclose(fast_b[rid].cov, ref_b[rid].cov, rtol=1e-8, atol=1e-18)
