@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 
+import attrs
 import numpy as np
 import pytest
 from filterpy.kalman import IMMEstimator, KalmanFilter
@@ -245,3 +246,42 @@ def test_manager_events_and_biases_with_imm_equal_a_numpy_imm():
     for rid in ref_b:
         np.testing.assert_allclose(fast_b[rid].bias, ref_b[rid].bias, rtol=1e-8, atol=1e-12)
         np.testing.assert_allclose(fast_b[rid].cov, ref_b[rid].cov, rtol=1e-8, atol=1e-18)
+
+
+@attrs.frozen
+class PythonCT:
+    """A mode filter the IMM calls through ``predict`` (the same CT model, in numpy)."""
+
+    q: float = 1.0
+    turn_rate_sd: float = math.radians(0.5)
+    dim = 5
+
+    def predict(self, x, P, dt):
+        f, F = ct_transition(x, dt)
+        return f, F @ P @ F.T + ct_noise(dt, self.q, self.turn_rate_sd)
+
+
+def test_prediction_kept_for_the_update_and_python_modes_equal_the_compiled_cycle():
+    """Predicting first (as screening does, and at other times) leaves the update bit for bit what
+    the one-call cycle gives; a mode called in Python gives the compiled cycle's results."""
+    t, _, zs, Rs = manoeuvre_track(np.random.default_rng(21))
+    plain, screened = IMMFilter(), IMMFilter()
+    python = IMMFilter(IMMConfig(modes=(CVMode(), PythonCT())))
+    for f in (plain, screened, python):
+        f.start(t[0], zs[0], Rs[0])
+    for k in range(1, len(t)):
+        screened.predict(t[k] - 1.5)
+        x, P = screened.predict(t[k])
+        x[:] = 0.0  # the caller's copy: changing it changes nothing
+        nis = [f.update(t[k], zs[k], Rs[k]) for f in (plain, screened, python)]
+        assert nis[0] == nis[1] and nis[2] == pytest.approx(nis[0], rel=1e-7)
+        for a, b in zip(plain.estimate(), screened.estimate()):
+            np.testing.assert_array_equal(a, b)
+        np.testing.assert_allclose(python.estimate()[1], plain.estimate()[1], rtol=1e-10, atol=1e-7)
+        np.testing.assert_allclose(python.probabilities, plain.probabilities, rtol=1e-8, atol=1e-12)
+    restored = IMMFilter()
+    restored.load_state_dict(screened.state_dict())
+    for a, b in zip(restored.estimate(), screened.estimate()):
+        np.testing.assert_array_equal(a, b)
+    for a, b in zip(restored.predict(t[-1] + 4.0), screened.predict(t[-1] + 4.0)):
+        np.testing.assert_array_equal(a, b)
