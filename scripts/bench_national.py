@@ -10,7 +10,9 @@ default motion model: reading, conversion, association, filters, estimator, even
 folder holds no truth, so nothing is evaluated), after
 timing one FilterPy ``KalmanFilter`` predict+update cycle (4-state CV, 2-D position) in that same
 process, so ``ratio`` = µs per input / µs per FilterPy cycle holds on any machine. Peak RSS is the
-replay child's maximum resident set (``wait4``). ``--quality`` keeps the labels and adds the track
+replay child's maximum resident set (``wait4``); the replay streams the folder (read in blocks, outputs
+written as they come: docs/performance.md, "Memory flat in the recording's length"), so it should not
+grow with ``--minutes``. ``--quality`` keeps the labels and adds the track
 metrics of the TrackManager replay (breaks, false tracks); ``--labelled`` also times the labelled
 replay (association by truth label) without and with its evaluation against truth.
 

@@ -71,8 +71,8 @@ def run_child(mode: str, folder: Path, prefetch: bool) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("mode", nargs="?", default="bench", choices=("bench", "read", "replay"))
-    ap.add_argument("--aircraft", type=int, default=200)
-    ap.add_argument("--minutes", type=float, default=9.0)
+    ap.add_argument("--aircraft", type=int, default=200, help="size of the simulated traffic (without --folder)")
+    ap.add_argument("--minutes", type=float, default=9.0, help="its duration (without --folder)")
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--prefetch", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--folder", type=Path, help="an existing scenario folder (else one is simulated)")
@@ -90,7 +90,8 @@ def main() -> None:
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         for _ in range(args.repeat):
             for mode, prefetch in (("read", False), ("read", True), ("replay", False), ("replay", True)):
-                line = {"aircraft": args.aircraft, "minutes": args.minutes} | run_child(mode, folder, prefetch)
+                size = {"folder": str(args.folder)} if args.folder else {"aircraft": args.aircraft, "minutes": args.minutes}
+                line = size | run_child(mode, folder, prefetch)
                 print(json.dumps(line), flush=True)
                 if args.out:
                     with args.out.open("a") as f:
