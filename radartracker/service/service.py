@@ -85,7 +85,7 @@ class ServiceConfig:
     sac: int = 0
     sic: int = 100
     interface: str = "0.0.0.0"  # joins the listened multicast groups and sends the published one
-    # chosen by measurement: docs/service.md, "Load test"
+    # chosen by measurement: docs/service.md, "Reorder window and frame (what chose the defaults)"
     publish_mode: str = attrs.field(default="both", validator=attrs.validators.in_(PUBLISH_MODES))
 
 
