@@ -69,9 +69,11 @@ def _tod(cat: int, rec) -> float | None:
 
 def send(path: Path | str, to: Endpoint, speed: float = 1.0, interface: str = "0.0.0.0") -> dict:
     """Send the recording to ``to`` (a multicast group out of ``interface``); returns the datagrams,
-    records and bytes sent and the seconds it took."""
+    records and bytes sent, the datagrams refused, and the seconds it took. A datagram is refused when
+    the destination answered an earlier one with "port unreachable" (nobody listening, e.g. a service
+    being restarted): the kernel reports it on the next send, which then sends nothing; sending goes on."""
     sock = open_sender(to, interface=interface)
-    sent = {"datagrams": 0, "records": 0, "bytes": 0}
+    sent = {"datagrams": 0, "records": 0, "bytes": 0, "datagrams_refused": 0}
     start, t0, last, days = time.monotonic(), None, None, 0.0
     try:
         for tod, n, payload in datagrams(path):
@@ -83,7 +85,11 @@ def send(path: Path | str, to: Endpoint, speed: float = 1.0, interface: str = "0
                 delay = start + (tod + days - t0) / speed - time.monotonic()
                 if delay > 0:
                     time.sleep(delay)
-            sock.send(payload)
+            try:
+                sock.send(payload)
+            except ConnectionRefusedError:
+                sent["datagrams_refused"] += 1
+                continue
             sent["datagrams"] += 1
             sent["records"] += n
             sent["bytes"] += len(payload)

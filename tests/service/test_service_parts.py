@@ -201,3 +201,19 @@ def test_lateness_histogram_counts_how_out_of_order_records_arrive(tmp_path):
     assert sample("radartracker_input_lateness_seconds_bucket", {"le": "1.0"}) == 4
     assert svc.manager.accounting().get("plots_late") == 1
     assert svc.decoder.counts["records_to_tracker"] == 5
+
+
+def test_send_goes_on_when_nobody_listens(tmp_path, capsys):
+    """To a loopback port with no listener each datagram draws "port unreachable", which the kernel
+    reports on the next send: those are counted as refused and sending goes on to the end."""
+    import json
+
+    recs = [cat048_record(10.0 + k, 0, 1, 50_000.0, 1.0) for k in range(6)]
+    (tmp_path / "r.ast").write_bytes(b"".join(next(datablocks(CAT048, [r])) for r in recs))
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    assert main(["send", str(tmp_path / "r.ast"), "--to", f"udp://127.0.0.1:{port}", "--speed", "0"]) == 0
+    sent = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert sent["datagrams"] + sent["datagrams_refused"] == 6 and sent["datagrams_refused"] > 0
+    assert sent["records"] == sent["datagrams"]  # one record each: refused ones are not counted as sent
