@@ -90,7 +90,8 @@ def main() -> None:
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         for _ in range(args.repeat):
             for mode, prefetch in (("read", False), ("read", True), ("replay", False), ("replay", True)):
-                size = {"folder": str(args.folder)} if args.folder else {"aircraft": args.aircraft, "minutes": args.minutes}
+                size = ({"folder": str(args.folder)} if args.folder
+                        else {"aircraft": args.aircraft, "minutes": args.minutes})
                 line = size | run_child(mode, folder, prefetch)
                 print(json.dumps(line), flush=True)
                 if args.out:

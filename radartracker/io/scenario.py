@@ -19,7 +19,6 @@ import csv
 import json
 import logging
 import math
-from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
@@ -138,7 +137,8 @@ class PlotReader:
                                       f"{last_time[rid][1]} of the same radar", "time_backwards")
                 if not clock.admit(t):  # one far-off time stamp must not make the good rows after it "backwards"
                     raise FormatError(rows.name, line, "time", f"{t} is more than {clock.config.max_ahead_s:g} s "
-                                      f"ahead of the stream time {clock.now} (median of the last rows read)", "time_jump")
+                                      f"ahead of the stream time {clock.now} (median of the last rows read)",
+                                      "time_jump")
                 rng = rows.number(row, line, "range_m", check=_nonneg)
                 az = rows.number(row, line, "azimuth_deg", check=_range(0, 360, hi_open=True))
                 alt = rows.number(row, line, "altitude_m", optional=True)
@@ -338,13 +338,14 @@ def _meta(folder: Path) -> tuple[dict[str, Any], list[Radar]]:
     return meta, read_radars(folder / "radars.csv")
 
 
-def _scenario(folder: Path, meta: dict, radars: list[Radar], plots: PlotTable, adsb: AdsbTable, skips: dict[str, Skipper],
-              ) -> ScenarioData:
+def _scenario(folder: Path, meta: dict, radars: list[Radar], plots: PlotTable, adsb: AdsbTable,
+              skips: dict[str, Skipper]) -> ScenarioData:
     ids = {r.id for r in radars}
     truth = read_truth(folder / "truth.csv", skips["truth"]) if (folder / "truth.csv").exists() else None
     tb = read_truth_biases(folder / "truth_biases.csv", ids) if (folder / "truth_biases.csv").exists() else None
     # documented default reference: the centroid of the radar sites
-    reference = meta.get("reference") or (float(np.mean([r.lat for r in radars])), float(np.mean([r.lon for r in radars])))
+    reference = meta.get("reference") or (float(np.mean([r.lat for r in radars])),
+                                           float(np.mean([r.lon for r in radars])))
     return ScenarioData(reference=reference, radars=radars, plots=plots, adsb=adsb, truth=truth,
                         truth_biases=tb, aircraft=meta.get("aircraft", []), name=meta.get("name", folder.name),
                         skipped=_skipped(skips))

@@ -218,7 +218,8 @@ def _extrapolate(state: np.ndarray, dt: float) -> np.ndarray:
 
 
 def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: FilterFactory, rec: Recorder,
-                progress: bool, inputs: Iterable | None = None, total: int | None = None) -> tuple[Counter, CouplingGraph]:
+                progress: bool, inputs: Iterable | None = None,
+                total: int | None = None) -> tuple[Counter, CouplingGraph]:
     """Association by the TrackManager; events carry the track filter's state and covariance."""
     mcfg = cfg.manager_settings()
     ident: dict[int, tuple] = {}  # identity of each track at its last event (deleted tracks are gone from mgr)

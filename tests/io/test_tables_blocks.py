@@ -133,7 +133,8 @@ def test_random_line_edits(folder, tmp_path_factory, data):
             assert _outcome(work, skip_bad, block_bytes=block_bytes, fast=True) == want
 
 
-@pytest.mark.parametrize("text", ["a,b\n1,2\n\n3,4\n", 'a,b\n1,"x\ny"\n3,4', "a,b\r\n1,2\r\n3,4\n", "a,b\n1,2\n3\n4,5,6\n"])
+@pytest.mark.parametrize("text", ["a,b\n1,2\n\n3,4\n", 'a,b\n1,"x\ny"\n3,4', "a,b\r\n1,2\r\n3,4\n",
+                                  "a,b\n1,2\n3\n4,5,6\n"])
 def test_rows_and_line_numbers_are_csv_modules(tmp_path, text):
     """Rows and line numbers as csv.reader over the whole text gives them (blank lines left out)."""
     path = tmp_path / "t.csv"
