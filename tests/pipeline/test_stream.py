@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from radartracker.cli import main
+from radartracker.domain import AdsbReport, Plot
 from radartracker.errors import FormatError
 from radartracker.geometry.plane import SystemPlane
 from radartracker.io.scenario import open_scenario, read_scenario, write_scenario
@@ -52,6 +53,20 @@ def _same(a, b):
     for name in TABLES:
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
     assert _summary(a) == _summary(b)
+
+
+def test_scenario_stream_is_the_stable_time_sort_of_plots_then_adsb():
+    """Against the straightforward construction: one stable sort, one item per index."""
+    d = build_scenario("demo", seed=2, duration=120.0).run()
+    p, a = d.plots, d.adsb
+    opt = (lambda v: None if np.isnan(v) else float(v))
+    want = [Plot(float(p.time[i]), p.radar[i], float(p.range_m[i]), float(p.azimuth_rad[i]), opt(p.altitude_m[i]),
+                 p.mode_s[i], p.mode_3a[i], p.target[i]) if i < len(p) else
+            AdsbReport(float(a.time[i - len(p)]), a.icao24[i - len(p)], float(a.lat[i - len(p)]),
+                       float(a.lon[i - len(p)]), opt(a.altitude_m[i - len(p)]), int(a.nacp[i - len(p)]))
+            for i in np.argsort(np.concatenate([p.time, a.time]), kind="stable")]
+    got = scenario_stream(d)
+    assert got == want and len(got) > 500 and any(isinstance(x, AdsbReport) for x in got)
 
 
 @pytest.mark.parametrize("prefetch", [False, True])
