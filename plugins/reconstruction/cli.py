@@ -50,7 +50,7 @@ def register_reconstruct(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--flights", default=None, metavar="ID,...", help="reconstruct only these aircraft keys")
     p.add_argument("--jump-sd", type=float, default=None, metavar="MPS2",
                    help="prior sd of each control jump (m/s², MAP fit); 0: no prior "
-                        "(default: ReconstructionConfig's 2, chosen by measurement in docs/reconstruction.md)")
+                        "(default: ReconstructionConfig's 0, chosen by measurement in docs/reconstruction.md)")
     p.add_argument("--no-figures", action="store_true", help="skip the per-aircraft figures")
     p.add_argument("--quiet", action="store_true", help="no progress bar, no Dask logs")
     p.set_defaults(func=_cmd_reconstruct)

@@ -29,7 +29,7 @@ class ReconstructionConfig:
     see :mod:`.shooting`); ``loss``/``loss_c`` choose the weight (see :mod:`.weight`);
     ``grid_dt`` is the geometric-track spacing (s); ``hypotheses`` the most segment counts
     optimised (see :mod:`.hypotheses`); ``max_segments`` caps the segment count; ``complexity`` the
-    per-parameter penalty factor on ln n (1 = BIC); ``jump_sd`` (m/s², 0 = off; default 2) the prior sd of each
+    per-parameter penalty factor on ln n (1 = BIC); ``jump_sd`` (m/s², 0 = off, the default) the prior sd of each
     control jump u_k − u_{k−1}, w_k − w_{k−1} — piecewise-constant-acceleration process noise, so
     the fit is a MAP fit (see :func:`.fit.jump_prior`).
     """
@@ -62,4 +62,4 @@ class ReconstructionConfig:
     hypotheses: int = attrs.field(default=10, validator=_pos)
     max_segments: int = attrs.field(default=80, validator=_pos)
     complexity: float = attrs.field(default=1.0, validator=attrs.validators.ge(0.0))
-    jump_sd: float = attrs.field(default=2.0, validator=attrs.validators.ge(0.0))  # chosen by measurement: docs/reconstruction.md
+    jump_sd: float = attrs.field(default=0.0, validator=attrs.validators.ge(0.0))  # off: measured in docs/reconstruction.md
