@@ -117,23 +117,36 @@ class CoupledSparseEstimator(Estimator):
         self._alloc(0, 0)
 
     # --- storage -----------------------------------------------------------------------------
+    _STORE = ("_Yxx", "_Yxb", "_ex", "_tx", "_Ybb", "_eb", "_S", "_sv", "_Pb", "_bh", "_nk", "_rk", "_ctr")
+
     def _alloc(self, cap: int, m: int) -> None:
-        """(Re)allocate for ``cap`` aircraft slots and ``m`` radars, keeping the contents."""
-        old = getattr(self, "_Yxx", None)
+        """(Re)allocate for ``cap`` aircraft slots and ``m`` radars, keeping the contents: every array a view
+        into one float and one int buffer (``_F``, ``_I``; layout ``_kernels.carve``)."""
         nb, mm = 2 * m, max(m, 1)
-        Yxx, ex, tx = np.zeros((cap, 4, 4)), np.zeros((cap, 4)), np.zeros(cap)
-        nk, rk, Yxb = np.full(cap, -1, np.int64), np.zeros((cap, mm), np.int64), np.zeros((cap, 4, 2 * mm))
-        glob = [np.zeros((nb, nb)), np.zeros(nb), np.zeros((nb, nb)), np.zeros(nb), np.zeros((nb, nb)), np.zeros(nb)]
-        if old is not None:
-            c0, m0 = self._Yxx.shape[0], self._Ybb.shape[0] // 2
-            Yxx[:c0], ex[:c0], tx[:c0], nk[:c0] = self._Yxx, self._ex, self._tx, self._nk
-            rk[:c0, :self._rk.shape[1]] = self._rk
-            Yxb[:c0, :, :self._Yxb.shape[2]] = self._Yxb
-            for new, cur in zip(glob, (self._Ybb, self._eb, self._S, self._sv, self._Pb, self._bh)):
-                new[tuple(slice(0, 2 * m0) for _ in new.shape)] = cur
-        self._Yxx, self._ex, self._tx, self._nk, self._rk, self._Yxb = Yxx, ex, tx, nk, rk, Yxb
-        self._Ybb, self._eb, self._S, self._sv, self._Pb, self._bh = glob
+        nf, ni = K.storage_sizes(cap, mm, nb)
+        F, I = np.zeros(nf), np.zeros(ni, np.int64)
+        new = K.carve(F, I, cap, mm, nb)
+        new[10][:] = -1  # nk: free slot
+        for name, dst in zip(self._STORE, new):
+            src = getattr(self, name, None)
+            if src is not None:  # what is kept: the old extent of each array
+                dst[tuple(slice(0, n) for n in src.shape)] = src
+            setattr(self, name, dst)
+        self._F, self._I, self._dims = F, I, (cap, mm, nb)
         self._work = K.Work(m)
+
+    def state_dict(self) -> dict:
+        """The default state without the buffers behind the arrays (rebuilt from them on load)."""
+        return {k: v for k, v in super().state_dict().items() if k not in ("_F", "_I")}
+
+    def load_state_dict(self, state: dict) -> None:
+        super().load_state_dict(state)
+        self._alloc(self._Yxx.shape[0], self._Ybb.shape[0] // 2)  # the loaded arrays into packed storage
+
+    def __setstate__(self, state: dict) -> None:
+        """copy.deepcopy: the copied arrays no longer share one buffer; pack them again."""
+        self.__dict__.update(state)
+        self._alloc(self._Yxx.shape[0], self._Ybb.shape[0] // 2)
 
     def add_radar(self, radar: str) -> None:
         if radar in self._rad:
@@ -197,9 +210,9 @@ class CoupledSparseEstimator(Estimator):
             return Innovation(nu[0], lam[0], float(nis[0]))
         nu, lam = np.zeros(2), np.zeros((2, 2))
         w = self._work
-        code, nis = K.update_one(self._Yxx, self._Yxb, self._ex, self._tx, self._nk, self._rk, self._Ybb, self._eb,
-                                 self._S, self._sv, self._Pb, self._bh, self._ctr, s, j, t, z, C, R, self._q, nu, lam,
-                                 w.f4, w.V, w.G, w.W, w.v4, w.idx, w.Kb, w.LS, w.LSi)
+        cap, mm, nb = self._dims
+        code, nis = K.update_packed(self._F, self._I, cap, mm, nb, w.flat, w.nbw, w.idx, s, j, t, z, C, R, self._q,
+                                    nu, lam)
         if code == K.OK or code in (K.ERR_LAMBDA, K.ERR_S, K.ERR_REBUILD):  # applied, or predicted: as update_many
             self._bias_time = t if not t <= self._bias_time else self._bias_time  # NaN at first, like np.fmax
         if code != K.OK:
