@@ -166,7 +166,8 @@ class IMMFilter(TrackFilter):
             B = (np.ones((n, n)) - n * np.eye(n)) / max(n - 1, 1)
             d = np.sqrt(1.0 / tau)
             lam, U = np.linalg.eigh(d[:, None] * B * d[None, :])
-            self.chain = (np.minimum(lam, 0.0), np.ascontiguousarray(d[:, None] * U), np.ascontiguousarray(U.T / d[None, :]))
+            self.chain = (np.minimum(lam, 0.0), np.ascontiguousarray(d[:, None] * U),
+                          np.ascontiguousarray(U.T / d[None, :]))
             default_mu = tau / tau.sum()
         mu0 = np.asarray(c.initial_probabilities if c.initial_probabilities is not None else default_mu, float)
         self.mu0 = mu0 / mu0.sum()
