@@ -14,7 +14,7 @@ faster than 1°/s, and above 7000 m, where the en-route flights have left their 
 no aircraft any plot or report saw).
 
 Usage: python scripts/tracking_report.py [--sets approach enroute pairs] [--models imm cv adaptive]
-       [--approach-s 1800] [--enroute-s 1800] [--no-stonesoup] [--mode-s] [--stonesoup-save DIR | --stonesoup-load DIR]
+       [--approach-s 1800] [--enroute-s 3600] [--no-stonesoup] [--mode-s] [--stonesoup-save DIR | --stonesoup-load DIR]
 (``--models`` with no name runs Stone Soup alone: a long Stone Soup run can go in a separate process,
 saved with the plots' digest, and be loaded by the report run on the same plots.)
 """
@@ -130,7 +130,7 @@ def main() -> None:
     ap.add_argument("--estimator", default="coupled-sparse")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--approach-s", type=float, default=1800.0)
-    ap.add_argument("--enroute-s", type=float, default=1800.0)
+    ap.add_argument("--enroute-s", type=float, default=3600.0)  # the issue's hour
     ap.add_argument("--max-flights", type=int, default=None)
     ap.add_argument("--no-stonesoup", action="store_true")
     ap.add_argument("--stonesoup-save", type=Path, help="also write Stone Soup's tracks to DIR/SET.npz")
