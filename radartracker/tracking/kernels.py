@@ -239,6 +239,28 @@ def markov_switching(lam: np.ndarray, left: np.ndarray, right: np.ndarray, dt: f
 
 
 @njit(cache=True)
+def _take(X: np.ndarray, PP: np.ndarray, j: int, d: int) -> tuple[np.ndarray, np.ndarray]:
+    """Copies of X[j, :d] and PP[j, :d, :d] (explicit loops: numba compiles slice copies of 3-D arrays
+    into a lot of code, seconds of first-run compile for each)."""
+    x = np.empty(d)
+    P = np.empty((d, d))
+    for a in range(d):
+        x[a] = X[j, a]
+        for b in range(d):
+            P[a, b] = PP[j, a, b]
+    return x, P
+
+
+@njit(cache=True)
+def _put(X: np.ndarray, PP: np.ndarray, j: int, x: np.ndarray, P: np.ndarray) -> None:
+    """X[j, :d] = x and PP[j, :d, :d] = P, d = len(x) (loops, as :func:`_take`)."""
+    for a in range(x.shape[0]):
+        X[j, a] = x[a]
+        for b in range(x.shape[0]):
+            PP[j, a, b] = P[a, b]
+
+
+@njit(cache=True)
 def imm_mix(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, Pi: np.ndarray):
     """c̄ = μ Π and each mode's mixed initial condition: ω_ij = Π_ij μ_i / c̄_j (e_j if c̄_j = 0),
     (X⁰_j, P⁰_j) = moment match of Σ_i ω_ij N(X_i, PP_i)."""
@@ -252,10 +274,12 @@ def imm_mix(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, Pi: np.ndarray):
     w = np.empty(n)
     for j in range(n):
         for i in range(n):
-            w[i] = Pi[i, j] * mu[i] / cbar[j] if cbar[j] > 0 else (1.0 if i == j else 0.0)
+            if cbar[j] > 0:
+                w[i] = Pi[i, j] * mu[i] / cbar[j]
+            else:
+                w[i] = 1.0 if i == j else 0.0
         x0, p0 = _mix(w, X, PP, D)
-        X0[j] = x0
-        P0[j] = p0
+        _put(X0, P0, j, x0, p0)
     return cbar, X0, P0
 
 
@@ -273,21 +297,25 @@ def imm_predict(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, lam: np.ndarray, 
     each mode's prediction, and the predicted mixture weighed by c̄ (``modes``: block comment above).
     Outputs are written in place: returning arrays from a kernel costs more than computing them."""
     c, X0, P0 = imm_mix(mu, X, PP, markov_switching(lam, left, right, dt))
-    cbar[:] = c
-    Xp[:] = 0.0
-    PPp[:] = 0.0
-    for j in range(X.shape[0]):
+    n, D = X.shape
+    for j in range(n):
+        cbar[j] = c[j]
+        for a in range(D):
+            Xp[j, a] = 0.0
+            for b in range(D):
+                PPp[j, a, b] = 0.0
         if modes[j, 0] == 0.0:
-            xp, pp = cv_predict(X0[j, :4].copy(), P0[j, :4, :4].copy(), dt, modes[j, 1])
-            Xp[j, :4] = xp
-            PPp[j, :4, :4] = pp
+            x0, p0 = _take(X0, P0, j, 4)
+            xp, pp = cv_predict(x0, p0, dt, modes[j, 1])
         else:
-            xp, pp = ct_predict(X0[j].copy(), P0[j].copy(), dt, modes[j, 1], modes[j, 2])
-            Xp[j] = xp
-            PPp[j] = pp
+            x0, p0 = _take(X0, P0, j, 5)
+            xp, pp = ct_predict(x0, p0, dt, modes[j, 1], modes[j, 2])
+        _put(Xp, PPp, j, xp, pp)
     x, P = _mix(cbar, Xp, PPp, 4)
-    x_bar[:] = x
-    P_bar[:] = P
+    for a in range(4):
+        x_bar[a] = x[a]
+        for b in range(4):
+            P_bar[a, b] = P[a, b]
 
 
 @njit(cache=True)
@@ -307,13 +335,12 @@ def imm_correct(cbar: np.ndarray, Xp: np.ndarray, PPp: np.ndarray, x_bar: np.nda
     PPn = np.zeros((n, D, D))
     logw = np.empty(n)
     for j in range(n):
-        d = dims[j]
-        xn, Pn, _, _, _, loglik, okj = position_update(Xp[j, :d].copy(), PPp[j, :d, :d].copy(), z, R)
+        xj, Pj = _take(Xp, PPp, j, dims[j])
+        xn, Pn, _, _, _, loglik, okj = position_update(xj, Pj, z, R)
         if not okj:
             return math.nan, j
-        Xn[j, :d] = xn
-        PPn[j, :d, :d] = Pn
-        if d < D:
+        _put(Xn, PPn, j, xn, Pn)
+        if dims[j] < D:
             PPn[j, 4, 4] = entry_var
         logw[j] = math.log(max(cbar[j], 1e-300)) + loglik
     top = logw.max()
@@ -323,11 +350,15 @@ def imm_correct(cbar: np.ndarray, Xp: np.ndarray, PPp: np.ndarray, x_bar: np.nda
         total += mu[j]
     for j in range(n):
         mu[j] /= total
-    X[:] = Xn
-    PP[:] = PPn
+        for a in range(D):
+            X[j, a] = Xn[j, a]
+            for b in range(D):
+                PP[j, a, b] = PPn[j, a, b]
     xo, Po = _mix(mu, X, PP, 4)
-    x[:] = xo
-    P[:] = Po
+    for a in range(4):
+        x[a] = xo[a]
+        for b in range(4):
+            P[a, b] = Po[a, b]
     return nis, -2
 
 
