@@ -27,7 +27,7 @@ import attrs
 import numpy as np
 
 from radartracker.domain import Aircraft, Radar
-from radartracker.errors import FormatError
+from radartracker.errors import FormatError, InputError
 from radartracker.io import columnar
 from radartracker.io.atomic import atomic_folder
 from radartracker.io.csvblocks import BLOCK_BYTES, Rows, Skipper, read_text
@@ -332,6 +332,9 @@ def read_meta(path: Path) -> dict[str, Any]:
 
 
 def _meta(folder: Path) -> tuple[dict[str, Any], list[Radar]]:
+    if folder.is_file():  # e.g. `replay plots.csv`: name what a scenario is rather than "does not exist"
+        raise InputError(f"{folder} is a file, not a scenario folder (docs/formats.md; an ASTERIX recording "
+                         f"ends in .ast, .pcap, .ff or .final)")
     if not folder.is_dir():
         raise FileNotFoundError(f"scenario folder {folder} does not exist")
     meta = read_meta(folder / "scenario.json") if (folder / "scenario.json").exists() else {}

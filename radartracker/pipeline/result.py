@@ -104,7 +104,7 @@ class RunResult:
     @functools.cached_property
     def _assessment(self) -> tuple[dict, np.ndarray, np.ndarray] | None:
         d, est = self.data, self.tracks
-        if d.truth is None or not len(est):
+        if d.truth is None or not len(d.truth) or not len(est):  # a truth.csv of only a header: nothing to score
             return None
         paths = TruthPaths.from_table(d.truth, self.plane)
         spans = self.label_spans if self.label_spans is not None else label_spans(d.plots.time, d.plots.target)
