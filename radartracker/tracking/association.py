@@ -106,18 +106,27 @@ class AltitudeTrack:
     def start(cls, time: float, h: float) -> AltitudeTrack:
         return cls(time, np.array([h, 0.0]), np.diag([MODE_C_VAR, VERTICAL_RATE_SD**2]))
 
-    def predict(self, time: float) -> tuple[np.ndarray, np.ndarray]:
+    def predicted(self, time: float) -> tuple[float, float, float, float, float]:
+        """(h̄, ḣ̄, P̄_hh, P̄_hḣ, P̄_ḣḣ) at ``time``, written out in scalars (a 2×2 numpy product per plot
+        cost more than the arithmetic)."""
         dt = max(time - self.time, 0.0)
-        A = np.array([[1.0, dt], [0.0, 1.0]])
-        Q = VERTICAL_Q * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
-        return A @ self.x, A @ self.P @ A.T + Q
+        h, v = self.x.tolist()
+        (p00, p01), (_, p11) = self.P.tolist()
+        q = VERTICAL_Q
+        return (h + v * dt, v, p00 + 2.0 * dt * p01 + dt * dt * p11 + q * dt**3 / 3,
+                p01 + dt * p11 + q * dt**2 / 2, p11 + q * dt)
+
+    def predict(self, time: float) -> tuple[np.ndarray, np.ndarray]:
+        h, v, p00, p01, p11 = self.predicted(time)
+        return np.array([h, v]), np.array([[p00, p01], [p01, p11]])
 
     def update(self, time: float, h: float) -> None:
-        x, P = self.predict(time)
-        k = P[:, 0] / (P[0, 0] + MODE_C_VAR)
-        self.x = x + k * (h - x[0])
-        self.P = P - np.outer(k, P[0])
-        self.P = 0.5 * (self.P + self.P.T)
+        hp, v, p00, p01, p11 = self.predicted(time)
+        s = p00 + MODE_C_VAR
+        k0, k1, e = p00 / s, p01 / s, h - hp
+        c01 = 0.5 * ((p01 - k0 * p01) + (p01 - k1 * p00))
+        self.x = np.array([hp + k0 * e, v + k1 * e])
+        self.P = np.array([[p00 - k0 * p00, c01], [c01, p11 - k1 * p01]])
         self.time = max(time, self.time)
 
 
@@ -132,8 +141,8 @@ def altitude_d2(h_plot: np.ndarray, tracks: list[AltitudeTrack | None], times: n
     out = np.full(len(h_plot), np.nan)
     for n, (h, trk, t) in enumerate(zip(h_plot, tracks, times)):
         if trk is not None and np.isfinite(h):
-            x, P = trk.predict(t)
-            out[n] = (h - x[0]) ** 2 / (P[0, 0] + MODE_C_VAR)
+            hp, _, p00, _, _ = trk.predicted(t)
+            out[n] = (h - hp) ** 2 / (p00 + MODE_C_VAR)
     return out
 
 

@@ -78,6 +78,9 @@ def test_altitude_filter_equals_filterpy():
         kf.F = np.array([[1.0, dt], [0.0, 1.0]])
         kf.Q = VERTICAL_Q * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
         kf.predict()
+        hp, v, p00, p01, p11 = ours.predicted(t[k])  # what gating uses
+        np.testing.assert_allclose([hp, v], kf.x, rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose([[p00, p01], [p01, p11]], kf.P, rtol=1e-12, atol=1e-9)
         kf.update(h[k])
         ours.update(t[k], h[k])
         np.testing.assert_allclose(ours.x, kf.x, rtol=1e-10, atol=1e-8)
