@@ -164,11 +164,12 @@ def main() -> None:
                     save_tracks(args.stonesoup_save / f"{name}.npz", tracks, plots_digest(data), wall)
             emit({"set": name, "tracker": tracker, **evaluate(data, tracks), "plots": n_plots,
                   "ms_per_plot": 1e3 * wall / n_plots, "plots_digest": plots_digest(data)[:12]})
-    if args.mode_s:
+    if args.mode_s:  # the en-route set again with Mode S, for each motion model (the default among them)
         data = build("enroute", args, mode_s=True)
-        tracks, biases, wall = run_manager(data, ManagerConfig(estimator=args.estimator))
-        emit({"set": "enroute+modeS", "tracker": "default", **evaluate(data, tracks), **biases, "plots": len(data.plots),
-              "ms_per_plot": 1e3 * wall / len(data.plots)})
+        for model in args.models or [ManagerConfig().motion_model]:
+            tracks, biases, wall = run_manager(data, ManagerConfig(estimator=args.estimator, motion_model=model))
+            emit({"set": "enroute+modeS", "tracker": f"{model} + GNN", **evaluate(data, tracks), **biases,
+                  "plots": len(data.plots), "ms_per_plot": 1e3 * wall / len(data.plots)})
     print()
     print("| set | tracker | flights | continuity min | breaks (% flights) | swaps | false confirmed | "
           "confirmed tracks | RMSE (m) | p95 (m) | p95 straight / turning (m) | p95 above 7000 m (m) | GOSPA (m) | "
