@@ -124,18 +124,23 @@ class RadarFrame:
         (d the plane distance, c the central angle, a and b the geocentric radii of radar and
         aircraft).
         """
-        p = np.asarray(p, float)
-        rho = np.asarray(rho, float)
-        dp = p - self.xy
-        d = np.linalg.norm(dp, axis=-1)
-        a = _EARTH_RADIUS_M + self.height_m
-        b = _EARTH_RADIUS_M + np.asarray(alt, float)
-        cos_c = np.clip((a * a + b * b - rho * rho) / (2 * a * b), -1.0, 1.0)
-        c = np.arccos(cos_c)
-        safe_c = np.maximum(c, 1e-12)
-        dd_drho = np.where(c > 1e-9, (d / safe_c) * rho / (a * b * np.sin(safe_c)), 1.0)
-        u = dp / np.maximum(d, 1e-9)[..., None]
-        J = np.empty(p.shape[:-1] + (2, 2))
-        J[..., :, 0] = u * dd_drho[..., None]
-        J[..., :, 1] = dp @ _OMEGA.T
-        return J
+        return bias_jacobian(self.xy, self.height_m, np.asarray(p, float), np.asarray(rho, float),
+                             np.asarray(alt, float))
+
+
+def bias_jacobian(radar_xy: np.ndarray, radar_height_m, p: np.ndarray, rho: np.ndarray, alt: np.ndarray) -> np.ndarray:
+    """C_s (…, 2, 2) of :meth:`RadarFrame.bias_jacobian` for radars at plane positions ``radar_xy``
+    (2 or …, 2) and heights ``radar_height_m`` (one radar, or one per plot)."""
+    dp = p - radar_xy
+    d = np.linalg.norm(dp, axis=-1)
+    a = _EARTH_RADIUS_M + radar_height_m
+    b = _EARTH_RADIUS_M + alt
+    cos_c = np.clip((a * a + b * b - rho * rho) / (2 * a * b), -1.0, 1.0)
+    c = np.arccos(cos_c)
+    safe_c = np.maximum(c, 1e-12)
+    dd_drho = np.where(c > 1e-9, (d / safe_c) * rho / (a * b * np.sin(safe_c)), 1.0)
+    u = dp / np.maximum(d, 1e-9)[..., None]
+    J = np.empty(p.shape[:-1] + (2, 2))
+    J[..., :, 0] = u * dd_drho[..., None]
+    J[..., :, 1] = dp @ _OMEGA.T
+    return J

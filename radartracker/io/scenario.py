@@ -215,13 +215,7 @@ def plot_blocks(path: Path, radar_ids: set[str], skip: Skipper, *, block_bytes: 
     column by column). A file without a usable row is an error (nothing to track)."""
     rows = Rows(path, PLOT_COLUMNS, skip, block_bytes=block_bytes)
     reader = PlotReader(rows, radar_ids)
-    for first, text, block in rows.blocks():
-        table = columnar.plots(reader, first, text) if fast and text is not None else None
-        if table is None:
-            reader.add(block)
-            table = reader.take()
-        if len(table):
-            yield table
+    yield from _tables(rows, reader, columnar.plots if fast else None)
     if not reader.kept:
         bad = sum(n for k, n in skip.counts.items() if k.startswith(f"{rows.name}:"))
         raise FormatError(rows.name, None, None, "no usable plot rows" + (f" ({bad} skipped)" if bad else
@@ -232,9 +226,14 @@ def adsb_blocks(path: Path, skip: Skipper, *, block_bytes: int = BLOCK_BYTES, fa
                 latest_only: bool = False) -> Iterator[AdsbTable]:
     """``adsb.csv`` as tables of the rows kept, block by block, in file order (see :class:`AdsbReader`)."""
     rows = Rows(path, ADSB_COLUMNS, skip, block_bytes=block_bytes)
-    reader = AdsbReader(rows, latest_only=latest_only)
+    yield from _tables(rows, AdsbReader(rows, latest_only=latest_only), columnar.adsb if fast else None)
+
+
+def _tables(rows: Rows, reader, columns) -> Iterator:
+    """The non-empty tables of ``rows``' blocks: a plain block through ``columns`` (pyarrow) when it
+    takes it, any other block row by row through ``reader``."""
     for first, text, block in rows.blocks():
-        table = columnar.adsb(reader, first, text) if fast and text is not None else None
+        table = columns(reader, first, text) if columns is not None and text is not None else None
         if table is None:
             reader.add(block)
             table = reader.take()

@@ -24,7 +24,7 @@ import numpy as np
 from pyproj import Transformer
 
 from radartracker.domain import Radar
-from radartracker.geometry.plane import _EARTH_RADIUS_M, _OMEGA, RadarFrame, SystemPlane
+from radartracker.geometry.plane import _EARTH_RADIUS_M, RadarFrame, SystemPlane, bias_jacobian
 
 _CART = ("+proj=pipeline +step +proj=unitconvert +xy_in=deg +xy_out=rad +step +proj=cart +ellps=WGS84")
 
@@ -84,19 +84,7 @@ class PlaneConverter:
 
     def bias_jacobian(self, rows: np.ndarray, p: np.ndarray, rho: np.ndarray, alt: np.ndarray) -> np.ndarray:
         """C_s (n, 2, 2) at plane positions ``p`` (RadarFrame.bias_jacobian, same steps)."""
-        dp = p - self.xy[rows]
-        d = np.linalg.norm(dp, axis=-1)
-        a = _EARTH_RADIUS_M + self.height[rows]
-        b = _EARTH_RADIUS_M + alt
-        cos_c = np.clip((a * a + b * b - rho * rho) / (2 * a * b), -1.0, 1.0)
-        c = np.arccos(cos_c)
-        safe_c = np.maximum(c, 1e-12)
-        dd_drho = np.where(c > 1e-9, (d / safe_c) * rho / (a * b * np.sin(safe_c)), 1.0)
-        u = dp / np.maximum(d, 1e-9)[..., None]
-        J = np.empty(p.shape[:-1] + (2, 2))
-        J[..., :, 0] = u * dd_drho[..., None]
-        J[..., :, 1] = dp @ _OMEGA.T
-        return J
+        return bias_jacobian(self.xy[rows], self.height[rows], p, rho, alt)
 
     def convert(self, rows: np.ndarray, rho: np.ndarray, theta: np.ndarray, alt: np.ndarray,
                 lat: np.ndarray | None = None, lon: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
