@@ -131,6 +131,22 @@ def _cat021(buf: bytes, w: dict[str, int]) -> dict:
             "nacp": nacp}
 
 
+def _walk(block: bytes, uap) -> list[tuple[dict, int, int]] | None:
+    """(item offsets, start, end) of each record of a data block; ``None`` when a record runs past the
+    block or uses an item the fast path does not read."""
+    out, off, end = [], 3, len(block)
+    try:
+        while off < end:
+            where, nxt = _items(block, off, uap)
+            if nxt > end:
+                return None
+            out.append((where, off, nxt))
+            off = nxt
+    except (_Unsupported, IndexError):
+        return None
+    return out
+
+
 def decode_block_fast(block: bytes) -> tuple[int, list[dict]] | None:
     """(category, record dicts as :func:`~radartracker.io.asterix.decode_cat048` / ``decode_cat021``
     give them) of a CAT048 or CAT021 data block; ``None`` when libasterix must decode it."""
@@ -138,17 +154,12 @@ def decode_block_fast(block: bytes) -> tuple[int, list[dict]] | None:
     if cat not in (48, 21):
         return None
     uap, read = (_UAP048, _cat048) if cat == 48 else (_UAP021, _cat021)
-    out, off, end = [], 3, len(block)
+    if (records := _walk(block, uap)) is None:
+        return None
     try:
-        while off < end:
-            where, nxt = _items(block, off, uap)
-            if nxt > end:
-                return None
-            out.append(read(block, where))
-            off = nxt
+        return cat, [read(block, where) for where, _, _ in records]
     except (_Unsupported, IndexError):
         return None
-    return cat, out
 
 
 def split_block_fast(block: bytes) -> tuple[int, list[tuple[bytes, float | None]]] | None:
@@ -158,18 +169,13 @@ def split_block_fast(block: bytes) -> tuple[int, list[tuple[bytes, float | None]
     if cat not in (48, 21):
         return None
     uap, tod_item = (_UAP048, "140") if cat == 48 else (_UAP021, "071")
-    out, off, end = [], 3, len(block)
-    try:
-        while off < end:
-            where, nxt = _items(block, off, uap)
-            if nxt > end:
-                return None
-            tod = _u(block, where[tod_item], 3) / 128 if tod_item in where else None
-            out.append((block[off:nxt], tod))
-            off = nxt
-    except (_Unsupported, IndexError):
+    if (records := _walk(block, uap)) is None:
         return None
-    return cat, out
+    try:
+        return cat, [(block[a:b], _u(block, where[tod_item], 3) / 128 if tod_item in where else None)
+                     for where, a, b in records]
+    except IndexError:
+        return None
 
 
 # --- encoding (the load generator and the publisher) ---------------------------------------------
