@@ -17,6 +17,7 @@ from radartracker.estimation.motion import MotionModel
 from radartracker.geometry.kinematics import propagate
 from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.io.atomic import atomic_open, atomic_path, prepare_output_folder, replace_outputs, write_text
+from radartracker.io.csvblocks import read_text
 from radartracker.io.recording import TrackPoints, read_new4, write_plt
 from radartracker.io.scenario import read_radars, read_scenario
 from radartracker.io.tables import ScenarioData
@@ -31,6 +32,6 @@ __all__ = [
     "SimAircraft", "SimRadar", "Simulator", "SingularInnovation", "SystemPlane", "TrackFilter", "TrackPoints",
     "convert_plots", "correct", "fill_altitudes", "gain", "nacp_sigma_m", "nis", "plot_keys", "propagate",
     "read_new4", "read_radars", "read_scenario", "symmetrize", "validated_prior", "write_plt", "kernels",
-    "atomic_open", "atomic_path", "prepare_output_folder", "write_text", "replace_outputs",
+    "atomic_open", "atomic_path", "prepare_output_folder", "write_text", "replace_outputs", "read_text",
     "KinematicTrajectory", "Leg",
 ]

@@ -18,7 +18,7 @@ from .dynamic import TrackFix
 from .frame import TriangulationFrame
 from .sensors import Bearing, DirectionFinder
 from .static import Fix
-from radartracker.api import FormatError, atomic_open
+from radartracker.api import FormatError, atomic_open, read_text
 
 STATION_COLUMNS = ("id", "lat_deg", "lon_deg", "height_m", "sigma_azimuth_deg", "sigma_elevation_deg")
 BEARING_COLUMNS = ("time_s", "station", "azimuth_deg", "elevation_deg")
@@ -30,19 +30,9 @@ TRACK_COLUMNS = ("target", "time_s", "lat_deg", "lon_deg", "height_m", "east_m",
 _UPPER = np.triu_indices(3)
 
 
-def _text(path: Path) -> str:
-    """UTF-8 text, with or without a byte-order mark; a non-UTF-8 file is named with the line."""
-    data = path.read_bytes()
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = data[:exc.start].count(b"\n") + 1
-        raise FormatError(path.name, line, None, f"not UTF-8 text (byte {exc.start} is {data[exc.start]:#04x})") from None
-
-
 def _rows(path: Path, required: tuple[str, ...]) -> Iterator[tuple[int, dict[str, str] | str]]:
     """(line number, row) of each data line; instead of the row, what is wrong with its field count."""
-    text = _text(path)
+    text = read_text(path)
     lines = ((i, line) for i, line in enumerate(text.splitlines(), 1) if line.strip() and not line.startswith("#"))
     try:
         lineno, header = next(lines)
