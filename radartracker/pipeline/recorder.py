@@ -48,9 +48,13 @@ class Events:
     def take(self, mask: np.ndarray) -> Events:
         return Events(**{f.name: getattr(self, f.name)[mask] for f in attrs.fields(Events)})
 
+    def estimate_mask(self) -> np.ndarray:
+        """Which events are track estimates (``confirmed`` and ``updated``)."""
+        return np.fromiter((k in TRACK_KINDS for k in self.kind.tolist()), bool, len(self.kind))
+
     def estimates(self) -> Events:
         """The track estimates (``confirmed`` and ``updated`` events)."""
-        return self.take(np.isin(self.kind.astype(str), TRACK_KINDS))
+        return self.take(self.estimate_mask())
 
 
 @attrs.frozen
@@ -90,24 +94,40 @@ class Recorder:
         self.track_ids: set[int] = set()
         self.nis: list[float] = []
 
-    def event(self, time: float, track: int, kind: str, status: str, state: np.ndarray, cov: np.ndarray | None,
+    def event(self, time: float, track: int, kind: str, status: str, state, cov: np.ndarray | None,
               altitude_m: float | None, mode_s: str | None, mode_3a: str | None, target: object = None) -> None:
+        """Record one event: ``state`` a tuple of four floats or an array (its first four values), ``cov``
+        a 4×4 array or ``None`` (recorded as NaN). Numbers are copied as bytes, not one numpy scalar each."""
         n = self._num
-        n["time"].append(float(time))
-        n["state"].extend(np.asarray(state, float).ravel()[:4])
-        n["cov"].extend(_NAN16 if cov is None else np.asarray(cov, float).ravel())
-        n["altitude_m"].append(math.nan if altitude_m is None else float(altitude_m))
-        self._track.append(int(track))
-        for k, v in (("kind", kind), ("status", status), ("mode_s", mode_s), ("mode_3a", mode_3a), ("target", target)):
-            self._obj[k].append(v)
+        n["time"].append(time)
+        if type(state) is tuple:
+            n["state"].extend(state[:4])
+        else:
+            n["state"].frombytes(np.asarray(state, float).ravel()[:4].tobytes())
+        if cov is None:
+            n["cov"].extend(_NAN16)
+        else:
+            n["cov"].frombytes(np.asarray(cov, float).tobytes())
+        n["altitude_m"].append(math.nan if altitude_m is None else altitude_m)
+        self._track.append(track)
+        o = self._obj
+        o["kind"].append(kind)
+        o["status"].append(status)
+        o["mode_s"].append(mode_s)
+        o["mode_3a"].append(mode_3a)
+        o["target"].append(target)
         if kind in TRACK_KINDS:
-            self.track_ids.add(int(track))
+            self.track_ids.add(track)
         if self.sink is not None and len(self._track) - self._sent[0] >= self.flush_every:
             self.flush()
 
+    def bias_due(self, radar: str, time: float) -> bool:
+        """Whether :meth:`bias` would record ``radar``'s bias at ``time`` (ask before building the state)."""
+        return time - self._bias_last.get(radar, -math.inf) >= self.bias_log_interval_s
+
     def bias(self, time: float, state: BiasState) -> None:
         """Record ``state`` unless this radar was recorded less than the interval before ``time``."""
-        if time - self._bias_last.get(state.radar, -math.inf) >= self.bias_log_interval_s:
+        if self.bias_due(state.radar, time):
             self._bias.append((float(time), state.radar, np.asarray(state.bias, float), np.asarray(state.cov, float)))
             self._bias_last[state.radar] = time
             if self.sink is not None and len(self._bias) - self._sent[1] >= self.flush_every:

@@ -217,6 +217,9 @@ def _extrapolate(state: np.ndarray, dt: float) -> np.ndarray:
     return np.concatenate([state[:2] + state[2:] * max(dt, 0.0), state[2:]])
 
 
+_NO_IDENT = (None, None, None)
+
+
 def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: FilterFactory, rec: Recorder,
                 progress: bool, inputs: Iterable | None = None,
                 total: int | None = None) -> tuple[Counter, CouplingGraph]:
@@ -228,12 +231,16 @@ def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: Fil
         tr = mgr.tracks.get(ev.track)
         cov = None
         if tr is not None:
-            ident[ev.track] = (tr.altitude_m, tr.mode_s, tr.mode_3a)
-            t0, _, P = tr.filter.estimate()
-            cov = P if t0 == ev.time else None
-        rec.event(ev.time, ev.track, ev.kind, ev.status, np.asarray(ev.state), cov, *ident.get(ev.track, (None,) * 3))
-        if ev.kind == "deleted":
-            ident.pop(ev.track, None)
+            idt = ident[ev.track] = (tr.altitude_m, tr.mode_s, tr.mode_3a)
+            # the manager's estimate of the filter, read for this event (ManagedTrack.estimate)
+            t0, _, P = tr.estimate or tr.filter.estimate()
+            if t0 == ev.time:
+                cov = P
+        elif ev.kind == "deleted":
+            idt = ident.pop(ev.track, _NO_IDENT)
+        else:
+            idt = ident.get(ev.track, _NO_IDENT)
+        rec.event(ev.time, ev.track, ev.kind, ev.status, ev.state, cov, *idt)
 
     mgr = TrackManager(data.radars, data.reference, mcfg, on_event, estimator=est, filter_factory=factory)
     if inputs is None:
@@ -243,7 +250,7 @@ def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: Fil
                      delay=2.0, mininterval=1.0, disable=not progress):
         mgr.process(item)
         rid = getattr(item, "radar", None)
-        if rid is not None:
+        if rid is not None and rec.bias_due(rid, item.time):
             rec.bias(item.time, est.bias(rid))
     mgr.flush()
     return Counter(mgr.accounting()), mgr.coupling
