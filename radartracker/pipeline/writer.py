@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 from contextlib import ExitStack
 from pathlib import Path
 
@@ -38,25 +37,45 @@ def prepare(out: Path | str, *, overwrite: bool = False) -> Path:
     return prepare_output_folder(out, OUTPUT_FILES, overwrite=overwrite)
 
 
-def _num(v: float, spec: str) -> str:
-    return format(v, spec) if math.isfinite(v) else ""
+def _optional(col: np.ndarray, spec: str) -> list[str]:
+    """``col`` formatted with the %-``spec``, empty where not finite."""
+    values = col.tolist()
+    finite = np.isfinite(col)
+    if finite.all():
+        return list(map(spec.__mod__, values))
+    return [spec % v if f else "" for v, f in zip(values, finite.tolist())]
 
 
-def _rows(ev: Events, plane, with_kind: bool):
-    lat, lon = plane.to_geodetic(ev.state[:, 0], ev.state[:, 1]) if len(ev) else (np.empty(0), np.empty(0))
-    sd = np.sqrt(np.stack([ev.cov[:, 0, 0], ev.cov[:, 1, 1]], axis=-1)) if len(ev) else np.empty((0, 2))
-    for i in range(len(ev)):
-        x = ev.state[i]
-        kind = f"{ev.kind[i]},{ev.status[i]}," if with_kind else ""
-        yield (f"{ev.time[i]:.3f},{ev.track[i]},{kind}{lat[i]:.8f},{lon[i]:.8f},{x[0]:.2f},{x[1]:.2f},{x[2]:.3f},"
-               f"{x[3]:.3f},{_num(sd[i, 0], '.2f')},{_num(sd[i, 1], '.2f')},{_num(ev.altitude_m[i], '.1f')},"
-               f"{ev.mode_s[i] or ''},{ev.mode_3a[i] or ''}\n")
+def _text(col: np.ndarray) -> list[str]:
+    return [v or "" for v in col.tolist()]
 
 
-def _bias_rows(b: BiasLog):
-    for t, r, v, P in zip(b.time, b.radar, b.value, b.cov):
-        yield (f"{t:.3f},{r},{v[0]:.3f},{math.degrees(v[1]):.6f},{math.sqrt(P[0, 0]):.3f},"
-               f"{math.degrees(math.sqrt(P[1, 1])):.6f}\n")
+def _rows(ev: Events, plane) -> tuple[list[str], list[str]]:
+    """The rows of ``events.csv`` and of ``tracks.csv`` (the track estimates among them) for ``ev``.
+
+    Each event is formatted once, column by column from Python floats (no numpy scalar per value): a
+    ``tracks.csv`` row is its ``events.csv`` row without kind and status."""
+    if not len(ev):
+        return [], []
+    lat, lon = plane.to_geodetic(ev.state[:, 0], ev.state[:, 1])
+    head = list(map("%.3f,%d,".__mod__, zip(ev.time.tolist(), ev.track.tolist())))
+    s = ev.state.T.tolist()
+    tail = list(map("%.8f,%.8f,%.2f,%.2f,%.3f,%.3f,%s,%s,%s,%s,%s\n".__mod__,
+                    zip(lat.tolist(), lon.tolist(), *s, _optional(np.sqrt(ev.cov[:, 0, 0]), "%.2f"),
+                        _optional(np.sqrt(ev.cov[:, 1, 1]), "%.2f"), _optional(ev.altitude_m, "%.1f"),
+                        _text(ev.mode_s), _text(ev.mode_3a))))
+    events = [f"{h}{k},{st},{t}" for h, k, st, t in zip(head, ev.kind.tolist(), ev.status.tolist(), tail)]
+    est = np.flatnonzero(ev.estimate_mask()).tolist()
+    return events, [head[i] + tail[i] for i in est]
+
+
+def _bias_rows(b: BiasLog) -> list[str]:
+    if not len(b.time):
+        return []
+    v, sd = b.value, np.sqrt(b.cov[:, [0, 1], [0, 1]])
+    return list(map("%.3f,%s,%.3f,%.6f,%.3f,%.6f\n".__mod__,
+                    zip(b.time.tolist(), b.radar.tolist(), v[:, 0].tolist(), np.degrees(v[:, 1]).tolist(),
+                        sd[:, 0].tolist(), np.degrees(sd[:, 1]).tolist())))
 
 
 class OutputStream:
@@ -75,8 +94,9 @@ class OutputStream:
             f.write(",".join(cols) + "\n")
 
     def events(self, ev: Events) -> None:
-        self._events.writelines(_rows(ev, self.plane, True))
-        self._tracks.writelines(_rows(ev.estimates(), self.plane, False))
+        events, tracks = _rows(ev, self.plane)
+        self._events.writelines(events)
+        self._tracks.writelines(tracks)
 
     def biases(self, b: BiasLog) -> None:
         self._biases.writelines(_bias_rows(b))
@@ -94,12 +114,13 @@ def write_outputs(result: RunResult, out: Path | str, *, figures: bool = False) 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     if not result.streamed:
+        events, tracks = _rows(result.events, result.plane)
         with atomic_open(out / "tracks.csv", "w", encoding="utf-8") as f:
             f.write(",".join(TRACK_COLUMNS) + "\n")
-            f.writelines(_rows(result.tracks, result.plane, False))
+            f.writelines(tracks)
         with atomic_open(out / "events.csv", "w", encoding="utf-8") as f:
             f.write(",".join(EVENT_COLUMNS) + "\n")
-            f.writelines(_rows(result.events, result.plane, True))
+            f.writelines(events)
         with atomic_open(out / "biases.csv", "w", encoding="utf-8") as f:
             f.write(",".join(BIAS_COLUMNS) + "\n")
             f.writelines(_bias_rows(result.biases))
