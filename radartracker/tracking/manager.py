@@ -337,13 +337,16 @@ class TrackManager:
         converted, adsb_xy = self._convert_frame(by_radar, reports, live)
         for rid in self.radars:
             plots = by_radar.get(rid, [])
-            for p in plots:
-                self._phase[rid] = self._phase.get(rid, 0j) * 0.98 + np.exp(
-                    1j * (p.azimuth_rad - 2 * math.pi * p.time / self.radars[rid].period_s))
             if plots:
+                self._track_phase(rid, plots)
                 assigned[rid] = self._associate(rid, plots, converted[rid], live, pred, updates)
-        for rep, xy in zip(reports, adsb_xy):
-            updates.append(self._adsb_measurement(rep, xy))
+        if reports:
+            sd2 = np.fromiter((nacp_sigma_m(r.nacp) for r in reports), float, len(reports)) ** 2
+            R = np.zeros((len(reports), 2, 2))
+            R[:, 0, 0] = R[:, 1, 1] = sd2
+            C = np.zeros((len(reports), 2, 2))
+            for k, rep in enumerate(reports):  # views of the frame's arrays: nothing writes into a measurement
+                updates.append((rep.time, next(self._seq), self._track_with_code(rep.icao24), (adsb_xy[k], C[k], R[k]), rep))
         for m in (i for i in items if isinstance(i, PlaneMeasurement)):
             updates.append(self._position_measurement(m, live, pred))
         self._misses(live, pred, assigned, t_a, t_b)
@@ -363,15 +366,19 @@ class TrackManager:
         """Straight-line extrapolation of every live track to ``t`` (for search, misses, coverage), as
         arrays over the frame's tracks; the filters' own predictions are computed only for gating candidates."""
         n = len(live)
-        est = [self._estimate_of(tr) for tr in live]
-        t0 = np.fromiter((e[0] for e in est), float, n)
-        x = np.array([e[1][:4] for e in est]).reshape(n, 4)
+        est = [tr.estimate or self._estimate_of(tr) for tr in live]
+        t0 = np.array([e[0] for e in est], float).reshape(n)
+        try:  # one array of the states when every filter's has the same length (one motion model)
+            x = np.array([e[1] for e in est], float).reshape(n, -1)[:, :4]
+        except ValueError:
+            x = np.array([e[1][:4] for e in est], float).reshape(n, 4)
         pos = x[:, :2] + x[:, 2:] * np.maximum(t - t0, 0.0)[:, None]
         # identities are fixed while a frame is associated: index them once per frame, not per radar
-        index = {t.mode_s: i for i, t in enumerate(live) if t.mode_s}
-        codes = np.array([t.mode_3a for t in live], object)
+        mode_s = [tr.mode_s for tr in live]
+        index = {m: i for i, m in enumerate(mode_s) if m}
+        codes = np.array([tr.mode_3a for tr in live], object)
         return {"pos": pos, "t": t, "exact": {}, "index": index, "codes": codes,
-                "mode_s": np.array([t.mode_s is not None for t in live], bool)}
+                "mode_s": np.array([m is not None for m in mode_s], bool).reshape(n)}
 
     @staticmethod
     def _exact(live: list[ManagedTrack], pred: dict, idx: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -483,13 +490,17 @@ class TrackManager:
                     self.counts["plots_near_confirmed_track"] += 1
                     continue
                 updates.append((plots[k].time, next(self._seq), tr, (z[k], C[k], R[k]), plots[k]))
-        return {live[i].id for i in taken}
+        return taken
 
-    def _adsb_measurement(self, rep: AdsbReport, xy: np.ndarray) -> tuple:
-        """An ADS-B report (plane position ``xy``, converted with the frame's plots) for its Mode S track."""
-        sd = nacp_sigma_m(rep.nacp)
-        tr = self._track_with_code(rep.icao24)
-        return (rep.time, next(self._seq), tr, (xy.copy(), np.zeros((2, 2)), np.eye(2) * sd * sd), rep)
+    def _track_phase(self, rid: str, plots: list[Plot]) -> None:
+        """The radar's antenna phase φ (α(t) = φ + 2πt/T), smoothed over its plots in order:
+        p ← 0.98 p + exp(i(θ − 2πt/T)), the exponentials of a frame's plots in one array call."""
+        theta = np.fromiter((p.azimuth_rad for p in plots), float, len(plots))
+        t = np.fromiter((p.time for p in plots), float, len(plots))
+        phase = self._phase.get(rid, 0j)
+        for e in np.exp(1j * (theta - 2 * math.pi * t / self.radars[rid].period_s)).tolist():
+            phase = phase * 0.98 + e
+        self._phase[rid] = phase
 
     def _track_with_code(self, code: str | None) -> ManagedTrack | None:
         """The live track with Mode S address ``code`` (at most one: a code's track is looked up before
@@ -650,16 +661,18 @@ class TrackManager:
         start = np.angle(np.array([self._phase[rid] for rid in rids]))[:, None] + 2 * math.pi * t_a / period
         swept = np.mod(g["az"][k] - start, 2 * math.pi) < 2 * math.pi * (t_b - t_a) / period
         missed = swept & (g["range"][k] < 0.98 * g["max_range"][k, None])
-        for r in np.flatnonzero(missed.any(axis=1)):
-            hit = assigned.get(rids[r], set())
-            for i in np.flatnonzero(missed[r]):
-                tr = live[i]
-                if tr.id in hit or tr.id not in self.tracks or tr.created >= t_a:
-                    continue
-                tr.history.append(False)
-                if tr.status == "confirmed":
-                    tr.status = "coasting"
-                    self._emit(t_b, tr, "coasting")
+        if not missed.any():
+            return
+        for r, rid in enumerate(rids):  # a plot of this radar in the frame: not missed
+            if rid in assigned:
+                missed[r, list(assigned[rid])] = False
+        missed &= np.array([tr.created < t_a for tr in live], bool)[None, :]  # started in this frame: not missed
+        for r, i in zip(*np.nonzero(missed)):  # radar by radar, as the antennas swept
+            tr = live[i]
+            tr.history.append(False)
+            if tr.status == "confirmed":
+                tr.status = "coasting"
+                self._emit(t_b, tr, "coasting")
 
     def _sweep(self, live: list[ManagedTrack], pred: dict, now: float) -> None:
         """Delete tracks that cannot be confirmed any more, are stale or left every radar's coverage

@@ -125,7 +125,7 @@ class LoopManager(TrackManager):
             swept = np.mod(az - start, 2 * np.pi) < 2 * np.pi * (t_b - t_a) / radar.period_s
             for i in np.flatnonzero(swept & (rng < 0.98 * radar.max_range_m)):
                 tr = live[i]
-                if tr.id in assigned.get(rid, set()) or tr.id not in self.tracks or tr.created >= t_a:
+                if i in assigned.get(rid, set()) or tr.id not in self.tracks or tr.created >= t_a:
                     continue
                 tr.history.append(False)
                 if tr.status == "confirmed":
