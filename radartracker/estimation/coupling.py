@@ -38,10 +38,17 @@ def _radar_node(radar: str | None) -> str:
 
 
 class CouplingGraph:
-    """Radar–aircraft coupling graph, kept current as tracks are created and deleted."""
+    """Radar–aircraft coupling graph, kept current as tracks are created and deleted.
+
+    ``graph`` is read freely but changed only through these methods: :meth:`observe` keeps the attribute
+    dicts of the pairs it has seen (O(1) dict updates per measurement, no node names or graph lookups)."""
 
     def __init__(self, radars: list[str] | tuple[str, ...] = ()) -> None:
         self.graph = nx.Graph()
+        # the graph's own attribute dicts of each aircraft's edges, by aircraft node then radar, and of each
+        # source's node, by radar: observe() of a known pair updates them without names or graph lookups
+        self._edges: dict[str, dict[str | None, dict]] = {}
+        self._sources: dict[str | None, dict] = {}
         self.graph.add_node(ADSB, kind="reference", label=ADSB, measurements=0)
         for r in radars:
             self.add_radar(r)
@@ -54,22 +61,29 @@ class CouplingGraph:
 
     def observe(self, aircraft: Hashable, radar: str | None, time: float) -> None:
         """Record one measurement of ``aircraft`` by ``radar`` (``None``: ADS-B) at ``time``."""
-        a, r = _aircraft_node(aircraft), _radar_node(radar)
-        if a not in self.graph:
-            self.add_aircraft(aircraft)
-        if r not in self.graph:
-            self.add_radar(radar)
-        self.graph.nodes[r]["measurements"] += 1
-        data = self.graph.get_edge_data(a, r)
-        if data is None:
-            self.graph.add_edge(a, r, kind="observation", count=1, last_time=float(time))
-        else:
-            data["count"] += 1
-            data["last_time"] = max(data["last_time"], float(time))
+        a = _aircraft_node(aircraft)
+        edges = self._edges.get(a)
+        data = None if edges is None else edges.get(radar)
+        if data is None:  # a new pair: through the graph, then cached
+            r = _radar_node(radar)
+            if a not in self.graph:
+                self.add_aircraft(aircraft)
+            if r not in self.graph:
+                self.add_radar(radar)
+            data = self.graph.get_edge_data(a, r)
+            if data is None:
+                self.graph.add_edge(a, r, kind="observation", count=0, last_time=float(time))
+                data = self.graph.get_edge_data(a, r)
+            self._edges.setdefault(a, {})[radar] = data
+            self._sources[radar] = self.graph.nodes[r]
+        self._sources[radar]["measurements"] += 1
+        data["count"] += 1
+        data["last_time"] = max(data["last_time"], float(time))
 
     def remove_aircraft(self, key: Hashable) -> None:
         """Marginalise aircraft ``key``: join the sources it linked, then drop its node."""
         a = _aircraft_node(key)
+        self._edges.pop(a, None)
         edges = self.graph.edges(a, data=True)
         last = {src: d["last_time"] for _, src, d in edges}
         for u, v in combinations(sorted(last), 2):
@@ -99,6 +113,7 @@ class CouplingGraph:
                 # one attribute dict shared by both directions, as networkx keeps it
                 g._adj[u][v] = edges.setdefault(frozenset((u, v)), dict(d))
         self.graph = g
+        self._edges, self._sources = {}, {}
 
     # --- diagnostics -------------------------------------------------------------------------------
     def components(self) -> list[set[str]]:

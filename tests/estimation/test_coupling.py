@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from itertools import combinations
 
 import networkx as nx
 import numpy as np
@@ -106,3 +107,62 @@ def test_replay_writes_graphml_and_observability(tmp_path):
         obs = json.loads((tmp_path / name / "summary.json").read_text())["observability"]
         assert {r["status"] for r in obs["radars"].values()} == {status}
         assert sum(r["measurements"] for r in obs["radars"].values()) == result.counts["plots_used"]
+
+
+def _reference_observe(g: nx.Graph, aircraft, radar, time) -> None:
+    """observe() written straight on networkx (the graph's definition, without CouplingGraph's caches)."""
+    a, r = f"aircraft:{aircraft}", ADSB if radar is None else f"radar:{radar}"
+    if a not in g:
+        g.add_node(a, kind="aircraft", label=str(aircraft))
+    if r not in g:
+        g.add_node(r, kind="radar", label=str(radar), measurements=0)
+    g.nodes[r]["measurements"] += 1
+    if g.has_edge(a, r):
+        g.edges[a, r]["count"] += 1
+        g.edges[a, r]["last_time"] = max(g.edges[a, r]["last_time"], float(time))
+    else:
+        g.add_edge(a, r, kind="observation", count=1, last_time=float(time))
+
+
+def test_cached_observations_give_the_graph_built_straight_on_networkx(tmp_path):
+    """Oracle: the same random observations, removals (also of keys observed again later, and of keys
+    written alike, 7 and "7"), new radars and a snapshot round trip, applied to a plain networkx graph:
+    equal state dicts (node and neighbour order included) and byte-identical GraphML."""
+    rng = np.random.default_rng(11)
+    g = CouplingGraph(["R1", "R2", "R3"])
+    ref = nx.Graph()
+    ref.add_node(ADSB, kind="reference", label=ADSB, measurements=0)
+    for r in ("R1", "R2", "R3"):
+        ref.add_node(f"radar:{r}", kind="radar", label=r, measurements=0)
+    keys = [7, "7", 8, "x", 9]
+    for step in range(600):
+        u = rng.random()
+        key = keys[rng.integers(len(keys))]
+        if u < 0.05 and f"aircraft:{key}" in ref:
+            g.remove_aircraft(key)
+            edges = ref.edges(f"aircraft:{key}", data=True)
+            last = {src: d["last_time"] for _, src, d in edges}
+            for p, q in combinations(sorted(last), 2):
+                t = max(last[p], last[q])
+                if ref.has_edge(p, q):
+                    ref.edges[p, q]["count"] += 1
+                    ref.edges[p, q]["last_time"] = max(ref.edges[p, q]["last_time"], t)
+                else:
+                    ref.add_edge(p, q, kind="marginalised", count=1, last_time=t)
+            ref.remove_node(f"aircraft:{key}")
+        elif u < 0.08:  # into a new graph, or into the same one (its caches must go)
+            g2 = CouplingGraph() if u < 0.065 else g
+            g2.load_state_dict(g.state_dict())
+            g = g2
+        else:
+            radar = [None, "R1", "R2", "R3", "R4"][rng.integers(5)]
+            t = float(rng.uniform(0, 100))
+            g.observe(key, radar, t)
+            _reference_observe(ref, key, radar, t)
+    mine = g.state_dict()
+    assert mine == {"nodes": [(n, dict(d)) for n, d in ref.nodes(data=True)],
+                    "adj": [(u, [(v, dict(d)) for v, d in nbrs.items()]) for u, nbrs in ref.adj.items()]}
+    assert any(d["kind"] == "marginalised" for *_, d in ref.edges(data=True))
+    g.write_graphml(tmp_path / "a.graphml")
+    nx.write_graphml(ref, str(tmp_path / "b.graphml"))
+    assert (tmp_path / "a.graphml").read_bytes() == (tmp_path / "b.graphml").read_bytes()
