@@ -134,10 +134,14 @@ class CoupledSparseEstimator(Estimator):
             setattr(self, name, dst)
         self._F, self._I, self._dims = F, I, (cap, mm, nb)
         self._work = K.Work(m)
+        # bias_arrays(): read-only views of each radar's block of ς̂ and P_ς, by radar index
+        self._bias_views = [(self._bh[2 * j:2 * j + 2], self._Pb[2 * j:2 * j + 2, 2 * j:2 * j + 2]) for j in range(m)]
+        for v in self._bias_views:
+            v[0].flags.writeable = v[1].flags.writeable = False
 
     def state_dict(self) -> dict:
-        """The default state without the buffers behind the arrays (rebuilt from them on load)."""
-        return {k: v for k, v in super().state_dict().items() if k not in ("_F", "_I")}
+        """The default state without the buffers behind the arrays and the views into them (rebuilt on load)."""
+        return {k: v for k, v in super().state_dict().items() if k not in ("_F", "_I", "_bias_views")}
 
     def load_state_dict(self, state: dict) -> None:
         super().load_state_dict(state)
@@ -197,8 +201,8 @@ class CoupledSparseEstimator(Estimator):
 
     # --- filter ------------------------------------------------------------------------------
     def update(self, m: PlaneMeasurement) -> Innovation:
-        """One measurement: :meth:`update_many`'s kernel step called directly (the TrackManager's path,
-        one call per measurement, where building the batch arrays cost more than the update)."""
+        """One measurement: :meth:`update_many`'s kernel step called directly (one call per measurement,
+        where building the batch arrays cost more than the update)."""
         s = self._ac[m.aircraft] if m.aircraft in self._ac else self._slot(m.aircraft)  # (KeyError naming it)
         j = -1 if m.radar is None else self._rad[m.radar] if m.radar in self._rad else self._radar_index(m.radar)
         t = float(m.time)
@@ -209,6 +213,20 @@ class CoupledSparseEstimator(Estimator):
             nu, lam, nis = self.update_many([t], [m.aircraft], [m.radar], z[None], C[None], R[None])
             return Innovation(nu[0], lam[0], float(nis[0]))
         nu, lam = np.zeros(2), np.zeros((2, 2))
+        return Innovation(nu, lam, self._step(s, j, t, z, C, R, nu, lam, m.aircraft, m.radar))
+
+    def update_arrays(self, time: float, aircraft: Hashable, radar: str | None, z: np.ndarray, C: np.ndarray,
+                      R: np.ndarray) -> None:
+        """The TrackManager's path (:meth:`Estimator.update_arrays`): the kernel step on the caller's arrays,
+        ν and Λ into scratch space."""
+        s = self._ac[aircraft] if aircraft in self._ac else self._slot(aircraft)
+        j = -1 if radar is None else self._rad[radar] if radar in self._rad else self._radar_index(radar)
+        w = self._work
+        self._step(s, j, float(time), z, C, R, w.nu, w.lam, aircraft, radar)
+
+    def _step(self, s: int, j: int, t: float, z: np.ndarray, C: np.ndarray, R: np.ndarray, nu: np.ndarray,
+              lam: np.ndarray, aircraft: Hashable, radar: str | None) -> float:
+        """The compiled update of slot ``s`` by radar index ``j`` (−1: unbiased); ν, Λ into ``nu``, ``lam``; NIS."""
         w = self._work
         cap, mm, nb = self._dims
         code, nis = K.update_packed(self._F, self._I, cap, mm, nb, w.flat, w.nbw, w.idx, s, j, t, z, C, R, self._q,
@@ -216,8 +234,8 @@ class CoupledSparseEstimator(Estimator):
         if code == K.OK or code in (K.ERR_LAMBDA, K.ERR_S, K.ERR_REBUILD):  # applied, or predicted: as update_many
             self._bias_time = t if not t <= self._bias_time else self._bias_time  # NaN at first, like np.fmax
         if code != K.OK:
-            raise self._failure(code, 0, m.aircraft, m.radar, t)
-        return Innovation(nu, lam, float(nis))
+            raise self._failure(code, 0, aircraft, radar, t)
+        return float(nis)
 
     def update_many(self, time: Sequence[float], aircraft: Sequence[Hashable], radar: Sequence[str | None],
                     z: np.ndarray, C: np.ndarray, R: np.ndarray) -> Innovation:
@@ -285,6 +303,10 @@ class CoupledSparseEstimator(Estimator):
     def bias(self, radar: str) -> BiasState:
         j = 2 * self._radar_index(radar)
         return BiasState(radar, self._bias_time, self._bh[j:j + 2].copy(), self._Pb[j:j + 2, j:j + 2].copy())
+
+    def bias_arrays(self, radar: str) -> tuple[np.ndarray, np.ndarray]:
+        """Read-only views of ``radar``'s ς̂ and P_ς in the estimator's storage (:meth:`Estimator.bias_arrays`)."""
+        return self._bias_views[self._rad[radar] if radar in self._rad else self._radar_index(radar)]
 
     def joint(self, keys: list[Hashable] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(ξ̂, P̂) over ``keys`` (default: all, in insertion order) then all radars, as ``coupled.joint``.

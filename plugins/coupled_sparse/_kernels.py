@@ -217,6 +217,7 @@ class Work:
         self.flat = np.zeros(work_size(self.nbw))
         self.f4, self.V, self.G, self.W, self.v4, self.Kb, self.LS, self.LSi = carve_work(self.flat, self.nbw)
         self.idx = np.zeros(self.nbw, np.int64)
+        self.nu, self.lam = np.zeros(2), np.zeros((2, 2))  # ν, Λ of an update whose caller does not read them
 
 
 @njit(cache=True)

@@ -159,6 +159,13 @@ class Estimator(abc.ABC):
             nu.append(inn.nu), lam.append(inn.S), nis.append(inn.nis)
         return Innovation(np.reshape(nu, (-1, 2)), np.reshape(lam, (-1, 2, 2)), np.asarray(nis, float))
 
+    def update_arrays(self, time: float, aircraft: Hashable, radar: str | None, z: np.ndarray, C: np.ndarray,
+                      R: np.ndarray) -> None:
+        """``update`` of one measurement given as its fields, for a caller that built them itself (float
+        arrays: z (2,), C and R (2, 2)) and does not read the innovation, as the TrackManager: an estimator
+        may skip building the measurement, checking the arrays and returning ν, Λ. Default: ``update``."""
+        self.update(PlaneMeasurement(time, aircraft, radar, z, C, R))
+
     @abc.abstractmethod
     def aircraft(self, key: Hashable) -> AircraftEstimate:
         """The current estimate of aircraft ``key`` at its own epoch."""
@@ -166,6 +173,13 @@ class Estimator(abc.ABC):
     @abc.abstractmethod
     def bias(self, radar: str) -> BiasState:
         """The current bias estimate of ``radar``."""
+
+    def bias_arrays(self, radar: str) -> tuple[np.ndarray, np.ndarray]:
+        """(ς̂, P_ς) of ``radar`` for reading at once (bias correction of one measurement, gating): arrays
+        that may be the estimator's own, read-only, changing with the next update — copy them to keep them.
+        Default: the fields of :meth:`bias`."""
+        b = self.bias(radar)
+        return b.bias, b.cov
 
     @property
     @abc.abstractmethod

@@ -382,3 +382,63 @@ def test_single_update_equals_the_batch_step_bit_for_bit():
         assert ba.time == bb.time
         np.testing.assert_array_equal(ba.bias, bb.bias)
         np.testing.assert_array_equal(ba.cov, bb.cov)
+
+
+def test_manager_path_update_arrays_and_bias_arrays_equal_update_and_bias():
+    """update_arrays() (the TrackManager's path: no PlaneMeasurement, no checks, ν and Λ not returned) leaves
+    exactly the state update() leaves, and raises its errors; bias_arrays() are read-only views equal to
+    bias()'s copies that follow updates, storage growth, deep copies and snapshot round trips."""
+    import copy
+
+    sc = make_linear_scenario(n_aircraft=4, n_radars=3, duration=60.0, rng=5, q=0.3, adsb_aircraft=2)
+    cfg = EstimatorConfig(motion=MotionModel(0.3))
+    ref, fast = (make_estimator("coupled-sparse", cfg, sc.radar_ids, {"refresh_every": "5"}) for _ in range(2))
+    for e in (ref, fast):
+        for k, x in sc.initial.items():
+            e.add_aircraft(k, 0.0, x, P0)
+
+    def same_biases(a, b):
+        for r in sc.radar_ids:
+            mean, cov = b.bias_arrays(r)
+            np.testing.assert_array_equal(mean, a.bias(r).bias)
+            np.testing.assert_array_equal(cov, a.bias(r).cov)
+
+    views = [fast.bias_arrays(r) for r in sc.radar_ids]
+    for i, m in enumerate(sc.measurements):
+        ref.update(m)
+        fast.update_arrays(m.time, m.aircraft, m.radar, m.z, m.C, m.R)
+        if i % 25 == 0:
+            same_biases(ref, fast)
+    for (mean, cov), r in zip(views, sc.radar_ids):  # the views taken at the start follow the updates
+        np.testing.assert_array_equal(mean, ref.bias(r).bias)
+        with pytest.raises(ValueError, match="read-only"):
+            cov[0, 0] = 0.0
+    a, b = ref.information(), fast.information()
+    np.testing.assert_array_equal(a["Ybb"], b["Ybb"])
+    np.testing.assert_array_equal(a["eta_b"], b["eta_b"])
+    for key in a["aircraft"]:
+        np.testing.assert_array_equal(a["aircraft"][key][0], b["aircraft"][key][0])
+        np.testing.assert_array_equal(a["aircraft"][key][2], b["aircraft"][key][2])
+    assert ref.bias(sc.radar_ids[0]).time == fast.bias(sc.radar_ids[0]).time
+    m = sc.measurements[-1]
+    for bad_R, err in ((-np.eye(2), SingularInformation), (np.full((2, 2), np.nan), ValueError)):
+        with pytest.raises(err) as want:
+            ref.update(PlaneMeasurement(m.time + 1.0, m.aircraft, m.radar, m.z, m.C, bad_R))
+        with pytest.raises(err) as got:
+            fast.update_arrays(m.time + 1.0, m.aircraft, m.radar, m.z, m.C, bad_R)
+        assert str(got.value) == str(want.value)
+    with pytest.raises(KeyError, match="not being estimated"):
+        fast.update_arrays(m.time, "nobody", m.radar, m.z, m.C, m.R)
+    for k in range(40):  # storage grows (every array re-carved): the views are rebuilt
+        for e in (ref, fast):
+            e.add_aircraft(("new", k), m.time, np.zeros(4), P0)
+    same_biases(ref, fast)
+    twin = copy.deepcopy(fast)
+    restored = make_estimator("coupled-sparse", cfg, sc.radar_ids, {"refresh_every": "5"})
+    restored.load_state_dict(fast.state_dict())
+    assert "_bias_views" not in fast.state_dict()
+    for e in (ref, twin, restored):
+        e.update(m)
+    for e in (twin, restored):
+        same_biases(ref, e)
+        assert not np.shares_memory(e.bias_arrays(sc.radar_ids[0])[0], fast.bias_arrays(sc.radar_ids[0])[0])
