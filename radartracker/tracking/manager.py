@@ -71,6 +71,7 @@ log = logging.getLogger(__name__)
 EVENT_KINDS = ("created", "confirmed", "updated", "coasting", "deleted")
 _ZERO2, _ZERO22 = np.zeros(2), np.zeros((2, 2))
 _INPUT_KINDS = {"p": "plots", "a": "adsb", "m": "positions"}  # admission key tag → counting name
+_USED = {kind: f"{kind}_used" for kind in _INPUT_KINDS.values()}
 # exact estimators first, the scalable one before the dense one (docs/estimators.md); decoupled is a last resort
 PREFERRED_ESTIMATORS = ("coupled-sparse", "coupled", "blom", "decoupled")
 
@@ -535,8 +536,8 @@ class TrackManager:
         z, C, R = meas
         radar = src.radar if isinstance(src, Plot) else None
         if radar is not None:
-            b = self.estimator.bias(radar)
-            zc, Rc = bias_corrected(z, C, R, b.bias, b.cov)  # z − C ς̂, R + C P_ς Cᵀ
+            bias, bias_cov = self.estimator.bias_arrays(radar)
+            zc, Rc = bias_corrected(z, C, R, bias, bias_cov)  # z − C ς̂, R + C P_ς Cᵀ
         else:
             zc, Rc = z, R
         if isinstance(src, PlaneMeasurement):
@@ -597,13 +598,12 @@ class TrackManager:
             tr.n_adsb += 1
             tr.altitude_m = src.altitude_m if src.altitude_m is not None else tr.altitude_m
         tr.history.append(True)
-        m = PlaneMeasurement(src.time, tr.id, radar, z, C, R)
         if tr.status == "tentative":
-            tr.pending.append((m, kind))
+            tr.pending.append((PlaneMeasurement(src.time, tr.id, radar, z, C, R), kind))
             if sum(tr.history) >= self.config.confirm_m:
                 self._confirm(tr)
         else:
-            self._estimate(m, kind)
+            self._estimate(src.time, tr.id, radar, z, C, R, kind)
             tr.status = "confirmed"
             self._emit(src.time, tr, "updated")
 
@@ -631,22 +631,25 @@ class TrackManager:
             raise self._plugin_failed(f"estimator {self.estimator.name!r}", tr.id, first.time, exc) from exc
         self.coupling.add_aircraft(tr.id)
         for m, kind in tr.pending:
-            self._estimate(m, kind)
+            self._estimate(m.time, m.aircraft, m.radar, m.z, m.C, m.R, kind)
         tr.pending = []
         tr.status = "confirmed"
         self._emit(tr.last_update, tr, "confirmed")
 
-    def _estimate(self, m: PlaneMeasurement, kind: str) -> None:
+    def _estimate(self, time: float, aircraft: int, radar: str | None, z: np.ndarray, C: np.ndarray, R: np.ndarray,
+                  kind: str) -> None:
+        """One measurement of a confirmed track to the estimator (its fields: no PlaneMeasurement built, the
+        arrays are the manager's own) and the coupling graph."""
         try:
-            self.estimator.update(m)
+            self.estimator.update_arrays(time, aircraft, radar, z, C, R)
         except SingularInnovation as exc:
             self.counts[f"{kind}_singular"] += 1
-            log.warning("estimator refused a measurement of track %s: %s", m.aircraft, exc)
+            log.warning("estimator refused a measurement of track %s: %s", aircraft, exc)
             return
         except Exception as exc:
-            raise self._plugin_failed(f"estimator {self.estimator.name!r}", m.aircraft, m.time, exc) from exc
-        self.coupling.observe(m.aircraft, m.radar, m.time)
-        self.counts[f"{kind}_used"] += 1
+            raise self._plugin_failed(f"estimator {self.estimator.name!r}", aircraft, time, exc) from exc
+        self.coupling.observe(aircraft, radar, time)
+        self.counts[_USED[kind]] += 1
 
     # --- misses, deletion, events ------------------------------------------------------------------
     def _misses(self, live: list[ManagedTrack], pred: dict, assigned: dict[str, set[int]], t_a: float, t_b: float) -> None:
