@@ -46,6 +46,7 @@ class StreamClock:
         self.config = config or ClockConfig()
         self._recent: deque[float] = deque(maxlen=self.config.window)
         self._run: list[float] = []
+        self._low = -math.inf  # at most the least time of the window, so at most T (−∞: not known)
 
     @property
     def now(self) -> float:
@@ -56,10 +57,21 @@ class StreamClock:
         """True if ``t`` is admitted (and becomes part of the clock); False if it is too far ahead."""
         if not math.isfinite(t):
             return False
-        if not self._recent or t <= self.now + self.config.max_ahead_s:
-            self._recent.append(t)
+        ahead = self.config.max_ahead_s
+        # t <= _low + ahead <= T + ahead admits most inputs at the cost of one comparison
+        if t > self._low + ahead and self._recent:  # not settled: the bound made the window's least time,
+            self._low = min(self._recent)  # then T itself
+            if t > self._low + ahead and t > self.now + ahead:
+                return self._ahead(t)
+        self._recent.append(t)
+        if t < self._low:
+            self._low = t
+        if self._run:
             self._run = []
-            return True
+        return True
+
+    def _ahead(self, t: float) -> bool:
+        """``t`` is ahead of the stream time: rejected, unless it completes a run that steps the clock."""
         if self._run and abs(t - self._run[0]) > self.config.max_ahead_s:
             self._run = []
         self._run.append(t)
@@ -67,6 +79,7 @@ class StreamClock:
             return False
         self._recent.clear()
         self._recent.extend(self._run)
+        self._low = min(self._run)
         self._run = []
         return True
 
@@ -77,3 +90,4 @@ class StreamClock:
     def load_state_dict(self, state: dict) -> None:
         self._recent = deque((float(t) for t in state["recent"]), maxlen=self.config.window)
         self._run = [float(t) for t in state["run"]]
+        self._low = -math.inf

@@ -1,6 +1,7 @@
 """Robust stream clock: a far-off time stamp is rejected and costs no good input (issue 12 §2)."""
 
 import math
+import statistics
 
 import numpy as np
 import pytest
@@ -71,6 +72,54 @@ def test_state_dict_round_trip():
     a.admit(1e9)
     b.load_state_dict(a.state_dict())
     assert [a.admit(t) for t in (20.0, 2e9, 2e9 + 1)] == [b.admit(t) for t in (20.0, 2e9, 2e9 + 1)]
+
+
+class _RuleClock:
+    """The rule of the module docstring taken literally: the median of the window for every input."""
+
+    def __init__(self, cfg: ClockConfig) -> None:
+        self.cfg, self.recent, self.run = cfg, [], []
+
+    def admit(self, t: float) -> bool:
+        if not math.isfinite(t):
+            return False
+        if not self.recent or t <= statistics.median_low(self.recent) + self.cfg.max_ahead_s:
+            self.recent, self.run = (self.recent + [t])[-self.cfg.window:], []
+            return True
+        self.run = ([] if self.run and abs(t - self.run[0]) > self.cfg.max_ahead_s else self.run) + [t]
+        if len(self.run) < self.cfg.step_after:
+            return False
+        self.recent, self.run = self.run[-self.cfg.window:], []
+        return True
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_clock_decisions_are_those_of_the_median_rule(seed):
+    """The clock admits most inputs on a lower bound of its window; every decision and the state must be
+    those of taking the median each time (oracle above), on streams with jitter, backward times, far-off
+    stamps, runs that step the clock, non-finite stamps and a state round trip halfway."""
+    rng = np.random.default_rng(seed)
+    cfg = ClockConfig(max_ahead_s=float(rng.choice([5.0, 300.0])), window=int(rng.integers(1, 12)),
+                      step_after=int(rng.integers(1, 5)))
+    # forwards or backwards in time (every input below the window's least time), from far before time 0
+    noise = float(rng.choice([0.1, 8.0]))
+    t = (seed % 2 * 2 - 1) * np.cumsum(rng.exponential(1.0, 3000)) + rng.uniform(-noise, noise, 3000) - 1e6
+    far = rng.random(3000) < 0.05  # far off, and just within or beyond max_ahead_s of the others
+    t[far] += rng.choice([-1e4, 1e4, 1e9, -1.0, 1.0, 0.3], far.sum()) + cfg.max_ahead_s * rng.choice([0.0, 1.0], far.sum())
+    for start in rng.integers(0, 3000, 4):  # a recording resuming later: the whole stream steps
+        t[start:] += 1e5
+    t[rng.integers(0, 3000, 5)] = rng.choice([math.nan, math.inf, -math.inf], 5)
+    clock, rule = StreamClock(cfg), _RuleClock(cfg)
+    got, want = [], []
+    for i, x in enumerate(t.tolist()):
+        if i == 1500:
+            clock2 = StreamClock(cfg)
+            clock2.load_state_dict(clock.state_dict())
+            clock = clock2
+        got.append(clock.admit(x))
+        want.append(rule.admit(x))
+        assert clock.state_dict() == {"recent": rule.recent, "run": rule.run}
+    assert got == want and 0 < sum(want) < len(want)
 
 
 def _plots(demo_data, limit_s: float) -> list[Plot]:
