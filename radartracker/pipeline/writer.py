@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from radartracker.io.atomic import atomic_open, atomic_path, prepare_output_folder, write_text
+from radartracker.pipeline.csvtext import Table
 from radartracker.pipeline.recorder import BiasLog, Events
 from radartracker.pipeline.result import RunResult
 
@@ -37,45 +38,35 @@ def prepare(out: Path | str, *, overwrite: bool = False) -> Path:
     return prepare_output_folder(out, OUTPUT_FILES, overwrite=overwrite)
 
 
-def _optional(col: np.ndarray, spec: str) -> list[str]:
-    """``col`` formatted with the %-``spec``, empty where not finite."""
-    values = col.tolist()
-    finite = np.isfinite(col)
-    if finite.all():
-        return list(map(spec.__mod__, values))
-    return [spec % v if f else "" for v, f in zip(values, finite.tolist())]
-
-
 def _text(col: np.ndarray) -> list[str]:
-    return [v or "" for v in col.tolist()]
+    return [str(v) if v else "" for v in col.tolist()]
 
 
-def _rows(ev: Events, plane) -> tuple[list[str], list[str]]:
-    """The rows of ``events.csv`` and of ``tracks.csv`` (the track estimates among them) for ``ev``.
-
-    Each event is formatted once, column by column from Python floats (no numpy scalar per value): a
-    ``tracks.csv`` row is its ``events.csv`` row without kind and status."""
+def _rows(ev: Events, plane) -> tuple[str, str]:
+    """The rows of ``events.csv`` and of ``tracks.csv`` (the track estimates among them, without kind
+    and status) for ``ev``: the columns made once, the rows written by a compiled loop
+    (:mod:`radartracker.pipeline.csvtext`, the bytes of Python's ``%.<d>f``)."""
     if not len(ev):
-        return [], []
+        return "", ""
     lat, lon = plane.to_geodetic(ev.state[:, 0], ev.state[:, 1])
-    head = list(map("%.3f,%d,".__mod__, zip(ev.time.tolist(), ev.track.tolist())))
-    s = ev.state.T.tolist()
-    tail = list(map("%.8f,%.8f,%.2f,%.2f,%.3f,%.3f,%s,%s,%s,%s,%s\n".__mod__,
-                    zip(lat.tolist(), lon.tolist(), *s, _optional(np.sqrt(ev.cov[:, 0, 0]), "%.2f"),
-                        _optional(np.sqrt(ev.cov[:, 1, 1]), "%.2f"), _optional(ev.altitude_m, "%.1f"),
-                        _text(ev.mode_s), _text(ev.mode_3a))))
-    events = [f"{h}{k},{st},{t}" for h, k, st, t in zip(head, ev.kind.tolist(), ev.status.tolist(), tail)]
-    est = np.flatnonzero(ev.estimate_mask()).tolist()
-    return events, [head[i] + tail[i] for i in est]
+    s = ev.state
+    with np.errstate(invalid="ignore"):  # a negative variance: no standard deviation, an empty field
+        sd_x, sd_y = np.sqrt(ev.cov[:, 0, 0]), np.sqrt(ev.cov[:, 1, 1])
+    t = (Table(len(ev)).number(ev.time, 3).integer(ev.track).text(list(map(str, ev.kind.tolist())))
+         .text(list(map(str, ev.status.tolist()))).number(lat, 8).number(lon, 8).number(s[:, 0], 2)
+         .number(s[:, 1], 2).number(s[:, 2], 3).number(s[:, 3], 3).number(sd_x, 2, optional=True)
+         .number(sd_y, 2, optional=True).number(ev.altitude_m, 1, optional=True).text(_text(ev.mode_s))
+         .text(_text(ev.mode_3a)))
+    return t.rows(), t.rows(np.flatnonzero(ev.estimate_mask()), [0, 1, *range(4, 15)])
 
 
-def _bias_rows(b: BiasLog) -> list[str]:
+def _bias_rows(b: BiasLog) -> str:
     if not len(b.time):
-        return []
-    v, sd = b.value, np.sqrt(b.cov[:, [0, 1], [0, 1]])
-    return list(map("%.3f,%s,%.3f,%.6f,%.3f,%.6f\n".__mod__,
-                    zip(b.time.tolist(), b.radar.tolist(), v[:, 0].tolist(), np.degrees(v[:, 1]).tolist(),
-                        sd[:, 0].tolist(), np.degrees(sd[:, 1]).tolist())))
+        return ""
+    with np.errstate(invalid="ignore"):
+        sd = np.sqrt(b.cov[:, [0, 1], [0, 1]])
+    return (Table(len(b.time)).number(b.time, 3).text(list(map(str, b.radar.tolist()))).number(b.value[:, 0], 3)
+            .number(np.degrees(b.value[:, 1]), 6).number(sd[:, 0], 3).number(np.degrees(sd[:, 1]), 6).rows())
 
 
 class OutputStream:
@@ -95,11 +86,11 @@ class OutputStream:
 
     def events(self, ev: Events) -> None:
         events, tracks = _rows(ev, self.plane)
-        self._events.writelines(events)
-        self._tracks.writelines(tracks)
+        self._events.write(events)
+        self._tracks.write(tracks)
 
     def biases(self, b: BiasLog) -> None:
-        self._biases.writelines(_bias_rows(b))
+        self._biases.write(_bias_rows(b))
 
     def close(self) -> None:
         self._stack.close()
@@ -117,13 +108,13 @@ def write_outputs(result: RunResult, out: Path | str, *, figures: bool = False) 
         events, tracks = _rows(result.events, result.plane)
         with atomic_open(out / "tracks.csv", "w", encoding="utf-8") as f:
             f.write(",".join(TRACK_COLUMNS) + "\n")
-            f.writelines(tracks)
+            f.write(tracks)
         with atomic_open(out / "events.csv", "w", encoding="utf-8") as f:
             f.write(",".join(EVENT_COLUMNS) + "\n")
-            f.writelines(events)
+            f.write(events)
         with atomic_open(out / "biases.csv", "w", encoding="utf-8") as f:
             f.write(",".join(BIAS_COLUMNS) + "\n")
-            f.writelines(_bias_rows(result.biases))
+            f.write(_bias_rows(result.biases))
     with atomic_path(out / "coupling.graphml") as tmp:
         result.coupling.write_graphml(tmp)
     if figures:

@@ -1,0 +1,166 @@
+"""CSV rows of numbers and short texts written by one compiled loop, with the bytes Python's ``%``
+formatting gives: ``'%.<d>f' % x`` is x rounded to d decimals, correctly (half to even, on the exact
+binary value).
+
+A column of floats with ``d`` decimals becomes integers n = rint(p), p = x·10^d, in numpy: 10^d is
+exact, so p is within half an ulp of the exact product and rint(p) is its correct rounding unless p
+lies within an ulp of a half-integer. Those few values, the values beyond 2^50, and the non-finite
+ones ('nan', 'inf', '-inf', or an empty field for an optional column) are formatted by Python itself
+and copied as text. The compiled loop writes, row after row, the sign, the digits of n with the
+decimal point d places from the right, the texts and the separators.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+_POW10 = 10 ** np.arange(19, dtype=np.int64)  # the exact powers of ten up to 10^18
+_EXACT = 2.0**50  # beyond this |x·10^d| the rounding is left to Python
+_DIGITS, _BLANK, _TEXT = 0, 1, 2  # how a number is written
+
+
+class Table:
+    """The columns of one CSV table, added in order (:meth:`number`, :meth:`text`), then :meth:`rows`."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self._kind: list[int] = []  # 0 number, 1 text, per output column
+        self._num: list[np.ndarray] = []
+        self._neg: list[np.ndarray] = []
+        self._flag: list[np.ndarray] = []
+        self._dec: list[int] = []
+        self._texts: list[list[str] | None] = []  # each text column; each number column's texts (by row) or None
+        self._packed: tuple | None = None  # the texts in one buffer (_pack), made by the first rows()
+
+    def number(self, x, decimals: int, *, optional: bool = False) -> Table:
+        """A column of numbers written as ``'%.<decimals>f' % x``; ``optional``: empty where not finite."""
+        x = np.asarray(x, float)
+        p = x * float(_POW10[decimals])
+        a = np.abs(p)
+        with np.errstate(invalid="ignore"):
+            near_tie = np.abs(p - np.floor(p) - 0.5) <= 2.0 * np.spacing(a)
+            slow = ~(a < _EXACT) | near_tie  # includes NaN and ±inf
+        flag = np.full(self.n, _DIGITS, np.int8)
+        texts = [""] * self.n if slow.any() else None
+        for i in np.flatnonzero(slow).tolist():
+            v = float(x[i])
+            if optional and not np.isfinite(v):
+                flag[i] = _BLANK
+            else:
+                flag[i] = _TEXT
+                texts[i] = "%.*f" % (decimals, v)
+        n = np.where(slow, 0.0, np.rint(a)).astype(np.int64)
+        self._kind.append(0)
+        self._num.append(n)
+        self._neg.append(np.signbit(x))
+        self._flag.append(flag)
+        self._dec.append(decimals)
+        self._texts.append(texts)
+        return self
+
+    def integer(self, x) -> Table:
+        """A column of integers (``'%d'``), written exactly."""
+        x = np.asarray(x, np.int64)
+        self._kind.append(0)
+        self._num.append(np.abs(x))
+        self._neg.append(x < 0)
+        self._flag.append(np.full(self.n, _DIGITS, np.int8))
+        self._dec.append(0)
+        self._texts.append(None)
+        return self
+
+    def text(self, values: list[str]) -> Table:
+        """A column of texts, written as they are (the caller makes them strings)."""
+        self._kind.append(1)
+        self._texts.append(values)
+        return self
+
+    def rows(self, select: np.ndarray | None = None, columns: list[int] | None = None) -> str:
+        """The rows ``select`` (all by default; each row ended by a newline) of the columns ``columns``
+        (all by default, else their numbers in the order added)."""
+        select = np.arange(self.n) if select is None else np.asarray(select, np.int64)
+        if not len(select):
+            return ""
+        cols = np.arange(len(self._kind)) if columns is None else np.asarray(columns, np.int64)
+        kinds = np.array(self._kind, np.int64)
+        index = np.cumsum(kinds == 0) - 1  # a number column's row in num, neg, flag and dec
+        if self._packed is None:
+            self._packed = _pack(self._texts, self.n)
+        start, end, buf = self._packed
+        n_num = len(self._num)
+        num = np.array(self._num, np.int64).reshape(n_num, self.n)
+        neg = np.array(self._neg, np.bool_).reshape(n_num, self.n)
+        flag = np.array(self._flag, np.int8).reshape(n_num, self.n)
+        dec = np.array(self._dec, np.int64)
+        out = np.empty(len(select) * (24 * n_num + len(cols)) + len(buf), np.uint8)
+        used = _write(cols, kinds, index, num, neg, flag, dec, _POW10, buf, start, end, select, out)
+        return out[:used].tobytes().decode("utf-8")
+
+
+def _pack(columns: list[list[str] | None], n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The texts of every column (``None``: none) in one UTF-8 buffer, with each one's start and end.
+
+    A column is encoded in one call, its texts joined by newlines (a byte no multi-byte UTF-8 character
+    contains), unless one of them holds a newline itself."""
+    start = np.zeros((len(columns), n), np.int64)
+    end = np.zeros((len(columns), n), np.int64)
+    parts, offset = [], 0
+    for c, col in enumerate(columns):
+        if col is None or not n:
+            continue
+        data = "\n".join(col).encode("utf-8")
+        cuts = np.flatnonzero(np.frombuffer(data, np.uint8) == 10)
+        if len(cuts) == n - 1:
+            start[c, 1:], end[c, :-1], end[c, -1] = cuts + 1, cuts, len(data)
+        else:
+            lengths = np.array([len(t.encode("utf-8")) for t in col], np.int64)
+            end[c] = np.cumsum(lengths)
+            start[c] = end[c] - lengths
+            data = "".join(col).encode("utf-8")
+        start[c] += offset
+        end[c] += offset
+        offset += len(data)
+        parts.append(data)
+    return start, end, np.frombuffer(b"".join(parts), np.uint8)
+
+
+@njit(cache=True)
+def _write(cols, kinds, index, num, neg, flag, dec, pow10, buf, start, end, select, out):  # pragma: no cover (compiled)
+    """Write rows ``select`` of columns ``cols`` into ``out``; returns the bytes written."""
+    pos = 0
+    for r in select:
+        for i in range(len(cols)):
+            c = cols[i]
+            if i:
+                out[pos] = 44  # ,
+                pos += 1
+            k = index[c]
+            if kinds[c] == 0 and flag[k, r] == 0:
+                if neg[k, r]:
+                    out[pos] = 45  # -
+                    pos += 1
+                v = num[k, r]
+                d = dec[k]
+                m = d + 1  # digits written: at least one before the point
+                while m < 19 and v >= pow10[m]:
+                    m += 1
+                pos += m
+                if d > 0:
+                    pos += 1
+                j = pos - 1
+                for q in range(m):
+                    if q == d and d > 0:
+                        out[j] = 46  # .
+                        j -= 1
+                    w = v // 10
+                    out[j] = 48 + v - 10 * w
+                    v = w
+                    j -= 1
+            elif kinds[c] == 1 or flag[k, r] == 2:
+                for j in range(start[c, r], end[c, r]):
+                    out[pos] = buf[j]
+                    pos += 1
+        out[pos] = 10  # newline
+        pos += 1
+    return pos
