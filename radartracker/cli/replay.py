@@ -119,10 +119,17 @@ def _cmd_replay(args: argparse.Namespace) -> int:
             print(f"warning: {args.scenario} holds CAT048 track reports (I161); the central architecture reads "
                   "their positions as plots; --architecture distributed fuses them as tracks", file=sys.stderr)
         data = None if args.scenario.is_dir() and not args.plots else read_source(args.scenario, skip_bad=config.skip_bad)
+    progress = not getattr(args, "quiet", False)
+    if progress and sys.stderr.isatty():  # compile (first run) or load the kernels before the progress bar
+        from radartracker.pipeline.run import streamable
+        from radartracker.pipeline.warmup import warm_up
+
+        warm_up(config, labelled=data.plots.has_truth_labels if data is not None
+                else not streamable(args.scenario, config) and config.association != "manager")
     if data is None:  # a scenario folder: streamed when it can be (pipeline.run.replay_folder)
-        result = replay_folder(args.scenario, config, out, progress=not getattr(args, "quiet", False))
+        result = replay_folder(args.scenario, config, out, progress=progress)
     else:
-        result = run(data, config, progress=not getattr(args, "quiet", False), local_tracks=local)
+        result = run(data, config, progress=progress, local_tracks=local)
         write_outputs(result, out, figures=args.plots)
     print(f"{result.config.association} association, estimator {result.config.estimator}"
           + (f", motion model {result.config.motion_model}" if result.config.motion_model else ""))
@@ -157,7 +164,12 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         data = build_scenario("demo", seed=args.seed).run()
         write_scenario(scen_dir, data)
         data = read_source(scen_dir)  # through the public file format, as a user would
-        result = run(data, RunConfig(estimator=args.estimator), progress=not getattr(args, "quiet", False))
+        config, progress = RunConfig(estimator=args.estimator), not getattr(args, "quiet", False)
+        if progress and sys.stderr.isatty():  # compile (first run) or load the kernels before the progress bar
+            from radartracker.pipeline.warmup import warm_up
+
+            warm_up(config, labelled=data.plots.has_truth_labels)
+        result = run(data, config, progress=progress)
         print(f"demo: scenario 'demo' ({len(data.radars)} radars, {len(data.plots)} plots, "
               f"{len(data.adsb)} ADS-B reports), estimator '{result.estimator_name}'")
         write_outputs(result, out, figures=args.out is not None)

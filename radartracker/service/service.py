@@ -110,6 +110,13 @@ class Service:
             self.resumed_from = folder.name
         else:
             self.manager = build_manager(radars, estimator, motion_model, LIVE_TRACKER | (manager or {}))
+        from radartracker.pipeline.config import RunConfig
+        from radartracker.pipeline.warmup import warm_up
+
+        # kernels compiled or loaded before listening: the first datagrams are not held up by them
+        mc = self.manager.config
+        warm_up(RunConfig(association="manager", estimator=mc.estimator, motion_model=mc.motion_model,
+                          manager=LIVE_TRACKER | (manager or {})))
         self.queue: queue.Queue = queue.Queue(config.queue_size)
         clock = ReceiveClock() if config.day_start is None else DayClock(config.day_start)
         self.decoder = Decoder(sites, clock)
