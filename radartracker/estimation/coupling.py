@@ -45,10 +45,9 @@ class CouplingGraph:
 
     def __init__(self, radars: list[str] | tuple[str, ...] = ()) -> None:
         self.graph = nx.Graph()
-        # the graph's own attribute dicts of each aircraft's edges, by aircraft node then radar, and of each
-        # source's node, by radar: observe() of a known pair updates them without names or graph lookups
-        self._edges: dict[str, dict[str | None, dict]] = {}
-        self._sources: dict[str | None, dict] = {}
+        # by aircraft node, then radar: the graph's own attribute dicts of that edge and of the radar's node,
+        # so observe() of a known pair updates them without graph lookups
+        self._edges: dict[str, dict[str | None, tuple[dict, dict]]] = {}
         self.graph.add_node(ADSB, kind="reference", label=ADSB, measurements=0)
         for r in radars:
             self.add_radar(r)
@@ -61,24 +60,28 @@ class CouplingGraph:
 
     def observe(self, aircraft: Hashable, radar: str | None, time: float) -> None:
         """Record one measurement of ``aircraft`` by ``radar`` (``None``: ADS-B) at ``time``."""
-        a = _aircraft_node(aircraft)
-        edges = self._edges.get(a)
-        data = None if edges is None else edges.get(radar)
-        if data is None:  # a new pair: through the graph, then cached
-            r = _radar_node(radar)
-            if a not in self.graph:
-                self.add_aircraft(aircraft)
-            if r not in self.graph:
-                self.add_radar(radar)
-            data = self.graph.get_edge_data(a, r)
-            if data is None:
-                self.graph.add_edge(a, r, kind="observation", count=0, last_time=float(time))
-                data = self.graph.get_edge_data(a, r)
-            self._edges.setdefault(a, {})[radar] = data
-            self._sources[radar] = self.graph.nodes[r]
-        self._sources[radar]["measurements"] += 1
-        data["count"] += 1
-        data["last_time"] = max(data["last_time"], float(time))
+        a = f"aircraft:{aircraft}"  # _aircraft_node, written out: this runs once per measurement
+        try:
+            edge, source = self._edges[a][radar]
+        except KeyError:  # a new pair: through the graph, then cached
+            edge, source = self._pair(aircraft, radar, time)
+        source["measurements"] += 1
+        edge["count"] += 1
+        t = float(time)
+        if t > edge["last_time"]:
+            edge["last_time"] = t
+
+    def _pair(self, aircraft: Hashable, radar: str | None, time: float) -> tuple[dict, dict]:
+        """The attribute dicts of the edge (aircraft, radar), made with count 0 if new, and of the radar's node."""
+        a, r = _aircraft_node(aircraft), _radar_node(radar)
+        if a not in self.graph:
+            self.add_aircraft(aircraft)
+        if r not in self.graph:
+            self.add_radar(radar)
+        if not self.graph.has_edge(a, r):
+            self.graph.add_edge(a, r, kind="observation", count=0, last_time=float(time))
+        pair = self._edges.setdefault(a, {})[radar] = (self.graph.edges[a, r], self.graph.nodes[r])
+        return pair
 
     def remove_aircraft(self, key: Hashable) -> None:
         """Marginalise aircraft ``key``: join the sources it linked, then drop its node."""
@@ -113,7 +116,7 @@ class CouplingGraph:
                 # one attribute dict shared by both directions, as networkx keeps it
                 g._adj[u][v] = edges.setdefault(frozenset((u, v)), dict(d))
         self.graph = g
-        self._edges, self._sources = {}, {}
+        self._edges = {}
 
     # --- diagnostics -------------------------------------------------------------------------------
     def components(self) -> list[set[str]]:
