@@ -329,12 +329,14 @@ class TrackManager:
         updates: list[tuple] = []  # (time, seq, track or None, measurement, plot-or-report)
         assigned: dict[str, set[int]] = {}
         by_radar: dict[str, list[Plot]] = {}  # the frame's plots of each radar, in order (one pass, not one per radar)
-        reports = []
+        reports, positions = [], []
         for p in items:
             if isinstance(p, Plot):
                 by_radar.setdefault(p.radar, []).append(p)
             elif isinstance(p, AdsbReport):
                 reports.append(p)
+            else:
+                positions.append(p)
         converted, adsb_xy = self._convert_frame(by_radar, reports, live)
         for rid in self.radars:
             plots = by_radar.get(rid, [])
@@ -348,11 +350,12 @@ class TrackManager:
             C = np.zeros((len(reports), 2, 2))
             for k, rep in enumerate(reports):  # views of the frame's arrays: nothing writes into a measurement
                 updates.append((rep.time, next(self._seq), self._track_with_code(rep.icao24), (adsb_xy[k], C[k], R[k]), rep))
-        for m in (i for i in items if isinstance(i, PlaneMeasurement)):
+        for m in positions:
             updates.append(self._position_measurement(m, live, pred))
         self._misses(live, pred, assigned, t_a, t_b)
-        for upd in sorted(updates, key=lambda u: (u[0], u[1])):
-            self._apply(*upd[2:])
+        updates.sort()  # by (time, seq): seq is unique, so the tracks and measurements are never compared
+        for _, _, tr, meas, src in updates:
+            self._apply(tr, meas, src)
         self._sweep(live, pred, t_b)
 
     @staticmethod
