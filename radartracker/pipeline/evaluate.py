@@ -109,7 +109,9 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
     within ``c`` of one of the ``sensed`` aircraft (those any plot or report observed; default: every
     aircraft of ``paths``) where it has truth — so a track confirmed during its aircraft's grace
     period, on an aircraft seen only by ADS-B, or a second track on an aircraft follows it. A *false
-    track* follows no aircraft for at least half of its life.
+    track* follows no aircraft for at least half of its life up to its last estimate (what measurements
+    support: a track coasts ``delete_after_s`` after its last plot, also when its aircraft has
+    vanished, as simulated flights do at their end).
     """
     from scipy.optimize import linear_sum_assignment
 
@@ -127,7 +129,6 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
     for q, tid in enumerate(tids):
         trk_pos[q], trk_live[q] = tracks[tid].at(grid)
     assigned = np.full((len(targets), n_g), -1)  # track index held by each target
-    t_assigned = np.zeros(len(tids), int)
     track_targets: list[set[int]] = [set() for _ in tids]
     g, sq = np.zeros(n_g), []
     for k in range(n_g):
@@ -155,12 +156,15 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
         g[k] = gospa(np.array(d2), len(live_t) - len(rows), len(live_k) - len(rows), c)
         sq.extend(d2)
         assigned[rows, k] = cols
-        np.add.at(t_assigned, np.asarray(cols, int), 1)
         for r, q in zip(rows, cols):
             track_targets[q].add(r)
-    t_alive = trk_live.sum(axis=1)
-    t_follows = t_assigned + _unassigned_near(trk_pos, trk_live, assigned, paths,
-                                              paths.paths if sensed is None else sensed, grid, c2)
+    held = np.zeros(trk_live.shape, bool)
+    r, k = np.nonzero(assigned >= 0)
+    held[assigned[r, k], k] = True
+    judged = _supported(tracks, tids, trk_live, grid)
+    t_alive = judged.sum(axis=1)
+    t_follows = (held & judged).sum(axis=1) + _unassigned_near(trk_pos, judged, held, paths,
+                                                               paths.paths if sensed is None else sensed, grid, c2)
     tid_of = np.array(tids + [-1])  # index -1 stays -1
     assigned = tid_of[assigned]
     per_target = {}
@@ -188,13 +192,20 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
     }
 
 
-def _unassigned_near(trk_pos: np.ndarray, trk_live: np.ndarray, assigned: np.ndarray, paths: TruthPaths,
+def _supported(tracks: dict[int, TrackHistory], tids: list[int], trk_live: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """Per track, the grid times of its life up to its last estimate (at least its first grid time): what
+    its measurements support. After that it coasts until deleted, also when its aircraft has vanished."""
+    last = np.array([tracks[tid].times[-1] for tid in tids], float).reshape(len(tids), 1)
+    out = trk_live & (grid[None, :] <= last)
+    lone = np.flatnonzero(~out.any(axis=1) & trk_live.any(axis=1))
+    out[lone, np.argmax(trk_live[lone], axis=1)] = True
+    return out
+
+
+def _unassigned_near(trk_pos: np.ndarray, trk_live: np.ndarray, held: np.ndarray, paths: TruthPaths,
                      sensed: Iterable[str], grid: np.ndarray, c2: float) -> np.ndarray:
-    """Per track, the grid times it is alive, not assigned, and within c of a sensed aircraft's truth
-    (only those times are searched: few, so the cost stays linear in the grid)."""
-    held = np.zeros(trk_live.shape, bool)
-    r, k = np.nonzero(assigned >= 0)
-    held[assigned[r, k], k] = True
+    """Per track, the grid times it is alive (``trk_live``), not assigned (``held``), and within c of a
+    sensed aircraft's truth (only those times are searched: few, so the cost stays linear in the grid)."""
     names = [tg for tg in sensed if tg in paths.paths]
     out = np.zeros(len(trk_live), int)
     if not names:

@@ -20,11 +20,14 @@ def naive_track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, obse
     g, sq = np.zeros(len(grid)), []
     tpos = {tid: tracks[tid].at(grid) for tid in tids}
     truth = {tg: paths.state_at(tg, grid) for tg in targets}
+    # a track is judged over its life up to its last estimate (at least its first grid time)
+    judged = {tid: [k for k in range(len(grid)) if tpos[tid][1][k] and grid[k] <= tracks[tid].times[-1]]
+              or [k for k in range(len(grid)) if tpos[tid][1][k]][:1] for tid in tids}
     for k, t in enumerate(grid):
         live_t = [tg for tg in targets if observed[tg][0] <= t <= observed[tg][1] and truth[tg][1][k]]
         live_k = [tid for tid in tids if tpos[tid][1][k]]
         for tid in live_k:
-            t_alive[tid] += 1
+            t_alive[tid] += k in judged[tid]
         if not live_t and not live_k:
             continue
         P = np.array([truth[tg][0][k, :2] for tg in live_t]).reshape(-1, 2)
@@ -60,7 +63,7 @@ def naive_track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, obse
     # a track follows an aircraft where it is assigned or within c of any aircraft of the truth
     held = {(tid, k) for a in assigned.values() for k, tid in enumerate(a) if tid >= 0}
     every = {tg: paths.state_at(tg, grid) for tg in paths.paths}
-    follows = {tid: sum(1 for k in range(len(grid)) if tpos[tid][1][k] and (
+    follows = {tid: sum(1 for k in judged[tid] if (
         (tid, k) in held or any(every[tg][1][k] and np.hypot(*(tpos[tid][0][k] - every[tg][0][k, :2])) < c
                                 for tg in every))) for tid in tids}
     return {

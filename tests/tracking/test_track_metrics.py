@@ -45,6 +45,25 @@ def test_false_and_late_tracks():
     assert m["per_target"]["b"]["continuity"] == 0.8
 
 
+def test_a_track_coasting_after_its_aircraft_vanished_is_not_false():
+    # aircraft "c" flies 0-30 s then vanishes (a simulated flight's end); its track's last estimate is at
+    # 30 s and it coasts, extrapolated, until deleted at 75 s: 45 of its 76 s far from every aircraft
+    t = np.arange(0.0, 31.0, 1.0)
+    paths = dict(truth().paths, c=(t, np.stack([t * 100.0, np.full_like(t, -20000.0)], axis=1),
+                                   np.tile([100.0, 0.0], (len(t), 1))))
+    times = np.arange(0.0, 31.0, 4.0)
+    states = np.stack([times * 100.0, np.full_like(times, -20000.0), np.full_like(times, 100.0),
+                       np.full_like(times, 300.0)], axis=1)  # its velocity is wrong northwards: it drifts
+    tracks = {1: track(0.0), 2: track(5000.0), 3: TrackHistory(times, states, 0.0, 75.0)}
+    obs = dict(OBS, c=(0.0, 30.0))
+    assert track_metrics(tracks, TruthPaths(paths), obs, GRID)["false_tracks"] == 0
+    # the same track updated (estimates) far from every aircraft during its life is false
+    off = states.copy()
+    off[:, 1] = -40000.0
+    tracks[3] = TrackHistory(times, off, 0.0, 75.0)
+    assert track_metrics(tracks, TruthPaths(paths), obs, GRID)["false_tracks"] == 1
+
+
 def test_gospa_definition():
     # two assigned pairs at 3 m and 4 m, one missed target, c = 10: sqrt(9 + 16 + 100/2)
     assert gospa(np.array([9.0, 16.0]), 1, 0, 10.0) == pytest.approx(np.sqrt(75.0), rel=1e-12)
