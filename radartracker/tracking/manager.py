@@ -61,6 +61,7 @@ from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.estimation.kalman import SingularInnovation
 from radartracker.estimation.motion import MotionModel
 from radartracker.estimation.base import Estimator, EstimatorConfig, PlaneMeasurement
+from radartracker.tracking.coverage import sweep
 from radartracker.tracking.prepared import PlaneConverter
 from radartracker.tracking.filters import MotionConfig, TrackFilter
 from radartracker.tracking.snapshot import load_manager, save_manager
@@ -175,7 +176,7 @@ class TrackManager:
         self.frames = {r.id: RadarFrame(r.lat, r.lon, r.height_m, self.plane) for r in radars}
         self._north = {rid: self._grid_north(r) for rid, r in self.radars.items()}
         self._converter = PlaneConverter(radars, self.frames, self.plane)  # a frame's plots and ADS-B in one pass
-        rids = list(self.radars)  # radar constants as arrays by row, for per-frame geometry (_geometry)
+        rids = list(self.radars)  # radar constants as arrays by row, for per-frame geometry (_coverage)
         self._radar_rows = {"row": {rid: k for k, rid in enumerate(rids)},
                             "xy": np.array([self.frames[rid].xy for rid in rids], float).reshape(len(rids), 2),
                             "north": np.array([self._north[rid] for rid in rids], float),
@@ -326,6 +327,7 @@ class TrackManager:
         items, self._frame_items = self._frame_items, []
         live = list(self.tracks.values())
         pred = self._predict(live, 0.5 * (t_a + t_b))
+        pred["span"] = (t_a, t_b)
         updates: list[tuple] = []  # (time, seq, track or None, measurement, plot-or-report)
         assigned: dict[str, set[int]] = {}
         by_radar: dict[str, list[Plot]] = {}  # the frame's plots of each radar, in order (one pass, not one per radar)
@@ -398,21 +400,21 @@ class TrackManager:
                     cache[i] = (np.full(2, np.nan), np.zeros(2), np.eye(2))
         return tuple(np.array([cache[i][k] for i in idx]) for k in range(3))
 
-    def _geometry(self, pred: dict) -> dict[str, np.ndarray]:
-        """Range and grid azimuth (from true north) of every track of the frame from every radar, arrays
-        (radars × tracks) computed once per frame for misses and coverage; radar constants by row."""
-        if "range" not in pred:
-            c = self._radar_rows
-            d = pred["pos"][None, :, :] - c["xy"][:, None, :]
-            pred["range"] = np.hypot(d[..., 0], d[..., 1])
-            # azimuths only where misses look (within 0.98 of the radar's range); NaN elsewhere
-            near = pred["range"] < 0.98 * c["max_range"][:, None]
-            az = np.full(near.shape, np.nan)
-            north = np.broadcast_to(c["north"][:, None], near.shape)
-            az[near] = np.mod(np.arctan2(d[..., 0][near], d[..., 1][near]) - north[near], 2 * math.pi)
-            pred["az"] = az
-            pred.update((k, c[k]) for k in ("row", "period", "max_range"))
-        return pred
+    def _coverage(self, pred: dict) -> tuple[np.ndarray, np.ndarray]:
+        """Which radar's antenna swept which of the frame's tracks (radars × tracks, rows of radars without
+        a phase all False) and which tracks some radar covers, in one compiled pass per frame
+        (:func:`radartracker.tracking.coverage.sweep`); the frame is ``pred["span"]``."""
+        if "covered" not in pred:
+            c, (t_a, t_b) = self._radar_rows, pred["span"]
+            m, n = len(c["period"]), len(pred["pos"])
+            start = np.angle(np.array([self._phase.get(rid, 0j) for rid in self.radars], complex).reshape(m))
+            start = start + 2 * math.pi * t_a / c["period"]
+            swept, covered = np.zeros((m, n), bool), np.zeros(n, bool)
+            sweep(np.ascontiguousarray(pred["pos"], float), c["xy"], c["north"], c["max_range"], start,
+                  2 * math.pi * (t_b - t_a) / c["period"], np.array([rid in self._phase for rid in self.radars], bool),
+                  swept, covered)
+            pred["swept"], pred["covered"] = swept, covered
+        return pred["swept"], pred["covered"]
 
     def _convert_frame(self, by_radar: dict[str, list[Plot]], reports: list[AdsbReport],
                        live: list[ManagedTrack]) -> tuple[dict[str, tuple], np.ndarray]:
@@ -656,22 +658,19 @@ class TrackManager:
 
     # --- misses, deletion, events ------------------------------------------------------------------
     def _misses(self, live: list[ManagedTrack], pred: dict, assigned: dict[str, set[int]], t_a: float, t_b: float) -> None:
-        """Tracks in a radar's coverage whose azimuth its antenna swept in [t_a, t_b) without a plot:
-        one array pass over (radars with a phase) × (the frame's tracks), then a loop over those only."""
-        rids = [rid for rid in self.radars if rid in self._phase]
-        if not live or not rids:
+        """Tracks in a radar's coverage whose azimuth its antenna swept in [t_a, t_b) without a plot
+        (``assigned``: the indices in ``live`` of the tracks each radar's plots went to): one array pass
+        over radars × the frame's tracks (:meth:`_coverage`), then a loop over the misses only."""
+        if not live or not self._phase:
             return
-        g = self._geometry(pred)
-        k = np.array([g["row"][rid] for rid in rids])
-        period = g["period"][k, None]
-        start = np.angle(np.array([self._phase[rid] for rid in rids]))[:, None] + 2 * math.pi * t_a / period
-        swept = np.mod(g["az"][k] - start, 2 * math.pi) < 2 * math.pi * (t_b - t_a) / period
-        missed = swept & (g["range"][k] < 0.98 * g["max_range"][k, None])
+        missed = self._coverage(pred)[0].copy()
         if not missed.any():
             return
-        for r, rid in enumerate(rids):  # a plot of this radar in the frame: not missed
-            if rid in assigned:
-                missed[r, list(assigned[rid])] = False
+        row = self._radar_rows["row"]  # a plot of this radar in the frame: not missed
+        hits = [(row[rid], i) for rid, taken in assigned.items() for i in taken]
+        if hits:
+            r, i = np.array(hits, np.int64).T
+            missed[r, i] = False
         missed &= np.array([tr.created < t_a for tr in live], bool)[None, :]  # started in this frame: not missed
         for r, i in zip(*np.nonzero(missed)):  # radar by radar, as the antennas swept
             tr = live[i]
@@ -686,8 +685,7 @@ class TrackManager:
         if not live:
             return
         cfg = self.config
-        g = self._geometry(pred)
-        covered = (g["range"] <= g["max_range"][:, None]).any(axis=0)
+        covered = self._coverage(pred)[1]
         n = len(live)
         last = np.fromiter((tr.last_update for tr in live), float, n)
         quiet = np.fromiter((tr.n_adsb == 0 for tr in live), bool, n)
