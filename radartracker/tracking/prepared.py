@@ -54,13 +54,16 @@ class PlaneConverter:
         self.trig = np.array(trig, float).reshape(len(fr), 4)
         self._cart = Transformer.from_pipeline(_CART)
 
-    def geodetic(self, rows: np.ndarray, rho: np.ndarray, theta: np.ndarray, elev: np.ndarray) -> tuple:
-        """WGS84 (lat, lon, h) of polar points (ρ, θ, ε) of radars ``rows`` (RadarFrame.geodetic of
-        RadarFrame._enu_from_polar)."""
+    def _polar(self, rows: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, ...]:
+        """What does not change along Newton's iterations: sin θ, cos θ and the radars' constants by plot."""
+        return (np.sin(theta), np.cos(theta), *self.trig[rows].T, *self.origin[rows].T)
+
+    def geodetic(self, polar: tuple[np.ndarray, ...], rho: np.ndarray, elev: np.ndarray) -> tuple:
+        """WGS84 (lat, lon, h) of polar points (ρ, θ, ε) (``polar``: :meth:`_polar` of the radars and θ;
+        RadarFrame.geodetic of RadarFrame._enu_from_polar)."""
+        st, ct, sp, cp, sl, cl, X0, Y0, Z0 = polar
         ce = np.cos(elev)
-        e, n, u = rho * ce * np.sin(theta), rho * ce * np.cos(theta), rho * np.sin(elev)
-        sp, cp, sl, cl = (self.trig[rows, k] for k in range(4))
-        X0, Y0, Z0 = (self.origin[rows, k] for k in range(3))
+        e, n, u = rho * ce * st, rho * ce * ct, rho * np.sin(elev)
         X = X0 - e * sl - n * sp * cl + u * cp * cl
         Y = Y0 + e * cl - n * sp * sl + u * cp * sl
         Z = Z0 + n * cp + u * sp
@@ -75,10 +78,11 @@ class PlaneConverter:
         sin_e = (b * b - a * a - rho * rho) / (2 * a * np.maximum(rho, 1e-9))
         valid = np.abs(sin_e) < 1.0
         elev = np.arcsin(np.clip(sin_e, -1.0, 1.0))
+        polar = self._polar(rows, theta)
         for _ in range(iterations):
-            _, _, h = self.geodetic(rows, rho, theta, elev)
+            _, _, h = self.geodetic(polar, rho, elev)
             elev = elev - (h - alt) / np.maximum(rho * np.cos(elev), 1.0)
-        lat, lon, h = self.geodetic(rows, rho, theta, elev)
+        lat, lon, h = self.geodetic(polar, rho, elev)
         valid &= np.abs(h - alt) < 0.01
         return lat, lon, valid
 
