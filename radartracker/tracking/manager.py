@@ -340,10 +340,10 @@ class TrackManager:
             else:
                 positions.append(p)
         converted, adsb_xy = self._convert_frame(by_radar, reports, live)
+        self._track_phases(by_radar)
         for rid in self.radars:
             plots = by_radar.get(rid, [])
             if plots:
-                self._track_phase(rid, plots)
                 assigned[rid] = self._associate(rid, plots, converted[rid], live, pred, updates)
         if reports:
             sd2 = np.fromiter((nacp_sigma_m(r.nacp) for r in reports), float, len(reports)) ** 2
@@ -498,15 +498,24 @@ class TrackManager:
                 updates.append((plots[k].time, next(self._seq), tr, (z[k], C[k], R[k]), plots[k]))
         return taken
 
-    def _track_phase(self, rid: str, plots: list[Plot]) -> None:
-        """The radar's antenna phase φ (α(t) = φ + 2πt/T), smoothed over its plots in order:
-        p ← 0.98 p + exp(i(θ − 2πt/T)), the exponentials of a frame's plots in one array call."""
-        theta = np.fromiter((p.azimuth_rad for p in plots), float, len(plots))
-        t = np.fromiter((p.time for p in plots), float, len(plots))
-        phase = self._phase.get(rid, 0j)
-        for e in np.exp(1j * (theta - 2 * math.pi * t / self.radars[rid].period_s)).tolist():
-            phase = phase * 0.98 + e
-        self._phase[rid] = phase
+    def _track_phases(self, by_radar: dict[str, list[Plot]]) -> None:
+        """Each radar's antenna phase φ (α(t) = φ + 2πt/T), smoothed over its plots in order:
+        p ← 0.98 p + exp(i(θ − 2πt/T)), the exponentials of all the frame's plots in one array call."""
+        plots = [p for ps in by_radar.values() for p in ps]
+        if not plots:
+            return
+        n = len(plots)
+        theta = np.fromiter((p.azimuth_rad for p in plots), float, n)
+        t = np.fromiter((p.time for p in plots), float, n)
+        period = np.repeat([self.radars[rid].period_s for rid in by_radar], [len(ps) for ps in by_radar.values()])
+        terms = np.exp(1j * (theta - 2 * math.pi * t / period)).tolist()
+        k = 0
+        for rid, ps in by_radar.items():
+            phase = self._phase.get(rid, 0j)
+            for e in terms[k:k + len(ps)]:
+                phase = phase * 0.98 + e
+            self._phase[rid] = phase
+            k += len(ps)
 
     def _track_with_code(self, code: str | None) -> ManagedTrack | None:
         """The live track with Mode S address ``code`` (at most one: a code's track is looked up before
