@@ -179,12 +179,19 @@ class IMMFilter(TrackFilter):
         self._scratch()
 
     def _scratch(self) -> None:
-        """Buffers of the prediction from the current state to time ``_pred_time`` (nan: none):
-        (c̄, X̄, P̄ of the modes, χ̄, P̄)."""
-        n = len(self.modes)
+        """The state (μ, X, PP, χ̂, P̂) moved into one buffer with the prediction from it to time
+        ``_pred_time`` (nan: none), ``_pred`` = (c̄, X̄, P̄ of the modes, χ̄, P̄), and the settings the
+        packed kernels take (:func:`radartracker.api.kernels.imm_views`)."""
+        n, D = len(self.modes), self.dim
+        self._buf = np.zeros(2 * (n + n * D + n * D * D + 20))
+        state, self._pred = kernels.imm_views(self._buf, n, D)
+        for view, value in zip(state, (self.mu, self.X, self.PP, self.x, self.P)):
+            view[...] = value
+        self.mu, self.X, self.PP, self.x, self.P = state
         self._pred_time = math.nan
-        self._pred = (np.zeros(n), np.zeros((n, self.dim)), np.zeros((n, self.dim, self.dim)), np.zeros(4),
-                      np.zeros((4, 4)))
+        self._max_gap = self.config.max_gap_s
+        self._k = (kernels.imm_constants(self.kernel_modes, self.dims, self.entry_var, *self.chain)
+                   if self.kernel_modes is not None else None)
 
     # --- IMM cycle -----------------------------------------------------------------------------
     def switching(self, dt: float) -> np.ndarray:
@@ -196,8 +203,8 @@ class IMMFilter(TrackFilter):
         predicted mixture; computed once per state and time."""
         if self._pred_time != time:
             dt = time - self.time
-            if self.kernel_modes is not None:
-                kernels.imm_predict(self.mu, self.X, self.PP, *self.chain, self.kernel_modes, dt, *self._pred)
+            if self._k is not None:
+                kernels.imm_advance(self._buf, self._k, dt)
             else:
                 cbar, Xp, PPp, x_bar, P_bar = self._pred
                 cbar[:], X0, P0 = kernels.imm_mix(self.mu, self.X, self.PP, self.switching(dt))
@@ -216,24 +223,61 @@ class IMMFilter(TrackFilter):
         self.X[:, :4], self.PP[:, :4, :4] = x, P
         if self.dim == 5:  # the turn rate is unknown: ω = 0 ± σ_e in every mode
             self.PP[:, 4, 4] = self.entry_var
-        self.mu = self.mu0.copy()
-        self.x, self.P = kernels.imm_combine(self.mu, self.X, self.PP)
+        self.mu[:] = self.mu0
+        self.x[:], self.P[:] = kernels.imm_combine(self.mu, self.X, self.PP)
         self.time, self._pred_time = time, math.nan
 
+    def _checked_time(self, time: float) -> float:
+        """``time`` as :func:`check_time` accepts it (the common case tested inline: a call costs more)."""
+        t0 = self.time
+        if t0 is None or not abs(time - t0) <= self._max_gap:  # also a nan or infinite time
+            return check_time(time, t0, self._max_gap)
+        return float(time)
+
     def predict(self, time: float) -> tuple[np.ndarray, np.ndarray]:
-        time = check_time(time, self.time, self.config.max_gap_s)
-        x_bar, P_bar = self._predicted(time)[3:]
+        x_bar, P_bar = self._predicted(self._checked_time(time))[3:]
         return x_bar.copy(), P_bar.copy()
 
+    def screen(self, time: float, z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray,
+               bias_cov: np.ndarray, gate: float | None = None) -> tuple[float, np.ndarray, np.ndarray, bool]:
+        """:meth:`TrackFilter.screen` in one compiled call (bias correction, prediction, d² and the update
+        when it passes ``gate``); a prediction not used is kept for the update at ``time``."""
+        if self._k is None:
+            return super().screen(time, z, C, R, bias, bias_cov, gate)
+        time = self._checked_time(time)
+        zc, Rc = np.empty(2), np.empty((2, 2))
+        d2, nis, bad = kernels.imm_screen(self._buf, self._k, time - self.time, self._pred_time == time, z, C, R,
+                                          bias, bias_cov, zc, Rc, -1.0 if gate is None else gate)
+        self._pred_time = time
+        if bad == -4:
+            return d2, zc, Rc, False
+        if bad == -3:  # a measurement the kernel's checks refused: the update with its messages
+            self.update(time, zc, Rc)
+        else:
+            self._corrected(time, nis, bad, Rc)
+        return d2, zc, Rc, True
+
     def update(self, time: float, z: np.ndarray, R: np.ndarray) -> float:
-        time, z, R = check_measurement(time, z, R)
-        check_time(time, self.time, self.config.max_gap_s)
-        if self.kernel_modes is not None and self._pred_time != time:
-            nis, bad = kernels.imm_cycle(self.mu, self.X, self.PP, *self.chain, self.kernel_modes, self.dims,
-                                         self.entry_var, time - self.time, z, R, self.x, self.P, *self._pred)
-        else:  # from the prediction innovation screening asked for at this time
-            nis, bad = kernels.imm_correct(*self._predicted(time), self.dims, self.entry_var, z, R,
-                                           self.mu, self.X, self.PP, self.x, self.P)
+        t0, bad = self.time, -3
+        if (self._k is not None and t0 is not None and abs(time - t0) <= self._max_gap and type(z) is np.ndarray
+                and type(R) is np.ndarray and z.ndim == 1 and R.ndim == 2):  # the checks in the kernel
+            time = float(time)
+            nis, bad = kernels.imm_update(self._buf, self._k, time - t0, self._pred_time == time,
+                                          np.asarray(z, float), np.asarray(R, float))
+        if bad == -3:  # any other input, or one the kernel refused: the checks with their messages
+            time, z, R = check_measurement(time, z, R)
+            check_time(time, t0, self._max_gap)
+            if self.kernel_modes is not None and self._pred_time != time:
+                nis, bad = kernels.imm_cycle(self.mu, self.X, self.PP, *self.chain, self.kernel_modes, self.dims,
+                                             self.entry_var, time - t0, z, R, self.x, self.P, *self._pred)
+            else:  # from the prediction innovation screening asked for at this time
+                nis, bad = kernels.imm_correct(*self._predicted(time), self.dims, self.entry_var, z, R,
+                                               self.mu, self.X, self.PP, self.x, self.P)
+        return self._corrected(time, nis, bad, R)
+
+    def _corrected(self, time: float, nis: float, bad: int, R: np.ndarray) -> float:
+        """After a correction at ``time`` (code ``bad`` of :func:`~radartracker.api.kernels.imm_correct`):
+        the new epoch and the NIS, or SingularInnovation with the state unchanged."""
         if bad != -2:  # the state is unchanged; the prediction in _pred is the one that failed
             P_bad = self._pred[4] if bad == -1 else self._pred[2][bad, :2, :2]
             self._pred_time = time
@@ -252,7 +296,7 @@ class IMMFilter(TrackFilter):
 
     # --- snapshots and pickles: the state, not the buffers derived from it -------------------------
     def __getstate__(self) -> dict:
-        return {k: v for k, v in vars(self).items() if k not in ("_pred", "_pred_time")}
+        return {k: v for k, v in vars(self).items() if k not in ("_buf", "_pred", "_pred_time", "_k", "_max_gap")}
 
     def __setstate__(self, state: dict) -> None:
         vars(self).update(state)
@@ -281,6 +325,6 @@ class IMMFilter(TrackFilter):
                         PP[j, 4, 4] = self.entry_var
             except (KeyError, TypeError, ValueError) as exc:
                 raise InputError(f"IMMFilter: state does not fit this configuration: {exc}") from None
-        self.time, self.mu, self.X, self.PP = time, mu, X, PP
-        self.x, self.P = kernels.imm_combine(mu, X, PP) if time is not None else (np.zeros(4), np.zeros((4, 4)))
+        self.time, self.mu[:], self.X[:], self.PP[:] = time, mu, X, PP
+        self.x[:], self.P[:] = kernels.imm_combine(mu, X, PP) if time is not None else (0.0, 0.0)
         self._pred_time = math.nan

@@ -74,8 +74,13 @@ class ScreeningConfig:
     adsb_max_speed_mps: float = attrs.field(default=600.0, validator=attrs.validators.gt(0.0))
     speed_sigmas: float = attrs.field(default=5.0, validator=attrs.validators.gt(0.0))
 
-    def gate(self, kind: str) -> float:
-        return {"plots": self.gate_plots, "adsb": self.gate_adsb, "positions": self.gate_positions}[kind]
+    def gate(self, kind: str, tentative: bool = False) -> float:
+        """The d² gate of a measurement of ``kind`` ("plots", "adsb", "positions") of a (tentative) track."""
+        if tentative:
+            return self.gate_tentative
+        if kind == "plots":
+            return self.gate_plots
+        return self.gate_adsb if kind == "adsb" else {"positions": self.gate_positions}[kind]
 
 
 def normalised_innovation(z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray,
@@ -99,7 +104,23 @@ def _innovation_d2(z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray
         m1 = C[i, 0] * bias_cov[0, 1] + C[i, 1] * bias_cov[1, 1]
         for j in range(2):
             S[i, j] = (pos_cov[i, j] + (m0 * C[j, 0] + m1 * C[j, 1])) + R[i, j]
-    s00, s11, s01 = S[0, 0], S[1, 1], 0.5 * (S[0, 1] + S[1, 0])
+    return _d2(n0, n1, S[0, 0], S[1, 1], 0.5 * (S[0, 1] + S[1, 0]))
+
+
+@njit(cache=True)
+def position_d2(z: np.ndarray, R: np.ndarray, pos: np.ndarray, pos_cov: np.ndarray) -> float:
+    """d² of an unbiased (or already bias-corrected) position: :func:`normalised_innovation` with C = 0,
+    the same operations (the zero terms added as 0.0, so the results are equal bit for bit)."""
+    n0 = (z[0] - pos[0]) - 0.0
+    n1 = (z[1] - pos[1]) - 0.0
+    s01 = ((pos_cov[0, 1] + 0.0) + R[0, 1])
+    s10 = ((pos_cov[1, 0] + 0.0) + R[1, 0])
+    return _d2(n0, n1, (pos_cov[0, 0] + 0.0) + R[0, 0], (pos_cov[1, 1] + 0.0) + R[1, 1], 0.5 * (s01 + s10))
+
+
+@njit(cache=True)
+def _d2(n0: float, n1: float, s00: float, s11: float, s01: float) -> float:
+    """νᵀ S⁻¹ ν for symmetric 2×2 S (∞ unless positive definite and finite)."""
     det = s00 * s11 - s01 * s01
     if not (s00 > 0.0 and det > 0.0):
         return math.inf
@@ -113,13 +134,20 @@ def bias_corrected(z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray
     """(z − C ς̂, R + C P_ς Cᵀ): a radar measurement corrected by its radar's bias estimate (compiled)."""
     zc = np.empty(2)
     Rc = np.empty((2, 2))
+    bias_correct_into(z, C, R, bias, bias_cov, zc, Rc)
+    return zc, Rc
+
+
+@njit(cache=True)
+def bias_correct_into(z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray,
+                      zc: np.ndarray, Rc: np.ndarray) -> None:
+    """:func:`bias_corrected` written into ``zc`` and ``Rc``."""
     for i in range(2):
         zc[i] = z[i] - (C[i, 0] * bias[0] + C[i, 1] * bias[1])
         m0 = C[i, 0] * bias_cov[0, 0] + C[i, 1] * bias_cov[1, 0]
         m1 = C[i, 0] * bias_cov[0, 1] + C[i, 1] * bias_cov[1, 1]
         for j in range(2):
             Rc[i, j] = R[i, j] + (m0 * C[j, 0] + m1 * C[j, 1])
-    return zc, Rc
 
 
 Rejected = list[tuple[float, np.ndarray, float]]  # (time, position, σ) of consecutive rejected measurements
@@ -134,7 +162,7 @@ def judge(config: ScreeningConfig, kind: str, d2: float, run: Rejected, identifi
     ``reinit_after`` consecutive, mutually consistent rejections of an identified aircraft (the run
     ends), else REJECT.
     """
-    if d2 <= (config.gate_tentative if tentative else config.gate(kind)):
+    if d2 <= config.gate(kind, tentative):
         return ACCEPT, []
     run = extend_run(config, run, time, z, R)
     if identified and len(run) >= config.reinit_after:

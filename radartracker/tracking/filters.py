@@ -13,6 +13,7 @@ import attrs
 import numpy as np
 
 from radartracker.errors import ConfigurationError
+from radartracker.estimation.screening import bias_corrected, position_d2
 from radartracker.estimation.state import default_load_state_dict, default_state_dict
 
 _positive = attrs.validators.gt(0.0)
@@ -73,3 +74,25 @@ class TrackFilter(abc.ABC):
     @abc.abstractmethod
     def estimate(self) -> tuple[float, np.ndarray, np.ndarray]:
         """(time, χ, P) of the current estimate (copies)."""
+
+    def screen(self, time: float, z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray,
+               bias_cov: np.ndarray, gate: float | None = None) -> tuple[float, np.ndarray, np.ndarray, bool]:
+        """Innovation screening of a measurement of a sensor with bias estimate (ς̂, P_ς), and its update
+        when it passes ``gate``: (d², z_c, R_c, updated) with (float arrays; C = 0 for an unbiased sensor)::
+
+            z_c = z − C ς̂,  R_c = R + C P_ς Cᵀ,  d² = (z_c − p̄)ᵀ (P̄_pp + R_c)⁻¹ (z_c − p̄)
+
+        (p̄, P̄_pp) the position part of :meth:`predict` to ``time``, d² = ∞ if the sum is not positive
+        definite (:mod:`radartracker.estimation.screening`). If d² ≤ ``gate`` the filter is updated,
+        ``update(time, z_c, R_c)``, and ``updated`` is True; else (or with no gate) it is unchanged and the
+        caller may update it later with (z_c, R_c). Raises what ``predict`` and ``update`` raise.
+        This default is built on ``predict`` and ``update``; a model may override it, e.g. with one
+        compiled call that predicts once for both.
+        """
+        zc, Rc = bias_corrected(z, C, R, bias, bias_cov)
+        x, P = self.predict(time)
+        d2 = position_d2(zc, Rc, np.ascontiguousarray(x[:2], float), np.ascontiguousarray(P[:2, :2], float))
+        if gate is not None and d2 <= gate:
+            self.update(time, zc, Rc)
+            return d2, zc, Rc, True
+        return d2, zc, Rc, False

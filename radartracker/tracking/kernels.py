@@ -22,6 +22,12 @@ The equations are those of the numpy code they replace, written out for the smal
   into the caller's arrays: boxing a returned array costs more than the arithmetic.
 * :func:`measurement_ok` — the checks of a position measurement: finite time and z, R finite,
   symmetric (``numpy.allclose`` tolerances) and positive definite.
+* a filter's IMM state packed in one buffer (:func:`imm_views`, :func:`imm_constants`), so that one
+  call passes two arrays instead of fourteen (each array argument costs ~0.15 µs to type and unbox):
+  :func:`imm_advance` (prediction), :func:`imm_update` (the measurement checks and the correction,
+  from the kept prediction or in one cycle), :func:`imm_screen` (bias correction of a radar
+  measurement, prediction, its d² (:mod:`radartracker.estimation.screening`) and the update when
+  it passes the gate).
 """
 
 from __future__ import annotations
@@ -30,6 +36,8 @@ import math
 
 import numpy as np
 from numba import njit
+
+from radartracker.estimation.screening import bias_correct_into, position_d2
 
 _LOG_2PI = math.log(2.0 * math.pi)
 _SMALL = 1e-4  # |ωT| below which the CT Taylor series are used (as plugins/motion/ct.py)
@@ -370,3 +378,96 @@ def imm_cycle(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, lam: np.ndarray, le
     """One whole IMM cycle in place: :func:`imm_predict` into (c̄, X̄, P̄, χ̄, P̄), then :func:`imm_correct`."""
     imm_predict(mu, X, PP, lam, left, right, modes, dt, cbar, Xp, PPp, x_bar, P_bar)
     return imm_correct(cbar, Xp, PPp, x_bar, P_bar, dims, entry_var, z, R, mu, X, PP, x, P)
+
+
+# --- packed IMM state: one buffer per filter (μ, X, PP, χ̂, P̂, then the prediction c̄, X̄, P̄, χ̄, P̄) ----------
+@njit(cache=True)
+def _imm_block(buf: np.ndarray, o: int, n: int, D: int):
+    """Views (weights n, states n×D, covariances n×D×D, χ 4, P 4×4) of ``buf`` from offset ``o``."""
+    a = buf[o:o + n]
+    o += n
+    b = buf[o:o + n * D].reshape((n, D))
+    o += n * D
+    c = buf[o:o + n * D * D].reshape((n, D, D))
+    o += n * D * D
+    return a, b, c, buf[o:o + 4], buf[o + 4:o + 20].reshape((4, 4))
+
+
+@njit(cache=True)
+def imm_views(buf: np.ndarray, n: int, D: int):
+    """Views of the packed buffer of an IMM with ``n`` modes of padded size ``D``: the state
+    (μ, X, PP, χ̂, P̂) and the prediction (c̄, X̄, P̄, χ̄, P̄); ``buf`` must hold
+    2 (n + nD + nD² + 20) numbers. Called from Python once per filter to make its attributes."""
+    return _imm_block(buf, 0, n, D), _imm_block(buf, n + n * D + n * D * D + 20, n, D)
+
+
+def imm_constants(modes: np.ndarray, dims: np.ndarray, entry_var: float, lam: np.ndarray, left: np.ndarray,
+                  right: np.ndarray) -> np.ndarray:
+    """The settings of an IMM in one array for the packed kernels: [n, D, σ_e², len(λ), modes rows
+    (kind, q, turn_rate_sd), dims, λ, L, R] (``markov_switching``'s chain; an empty λ: L is the fixed Π)."""
+    n = len(dims)
+    return np.concatenate([[n, max(dims), entry_var, len(lam)], np.ravel(modes), dims, lam, np.ravel(left),
+                           np.ravel(right)]).astype(float)
+
+
+@njit(cache=True)
+def _imm_settings(k: np.ndarray):
+    """(n, D, σ_e², modes, dims, λ, L, R) from :func:`imm_constants`."""
+    n, D, m = int(k[0]), int(k[1]), int(k[3])
+    o = 4
+    modes = k[o:o + 3 * n].reshape((n, 3))
+    o += 3 * n
+    dims = np.empty(n, np.int64)
+    for j in range(n):
+        dims[j] = int(k[o + j])
+    o += n
+    lam = k[o:o + m]
+    o += m
+    left = k[o:o + n * n].reshape((n, n))
+    o += n * n
+    right = k[o:o + m * m].reshape((m, m))
+    return n, D, k[2], modes, dims, lam, left, right
+
+
+@njit(cache=True)
+def imm_advance(buf: np.ndarray, k: np.ndarray, dt: float) -> None:
+    """:func:`imm_predict` by ``dt`` of the packed state into its prediction."""
+    n, D, _, modes, _, lam, left, right = _imm_settings(k)
+    (mu, X, PP, _, _), (cbar, Xp, PPp, x_bar, P_bar) = imm_views(buf, n, D)
+    imm_predict(mu, X, PP, lam, left, right, modes, dt, cbar, Xp, PPp, x_bar, P_bar)
+
+
+@njit(cache=True)
+def imm_screen(buf: np.ndarray, k: np.ndarray, dt: float, predicted: bool, z: np.ndarray, C: np.ndarray,
+               R: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray, zc: np.ndarray, Rc: np.ndarray,
+               gate: float) -> tuple[float, float, int]:
+    """Innovation screening, and the update when it passes: the bias-corrected measurement (zc = z − C ς̂,
+    Rc = R + C P_ς Cᵀ, written out), its d² against the predicted position (S = P̄_pp + Rc; the
+    prediction by ``dt`` made first unless ``predicted``) and, if d² ≤ ``gate``, :func:`imm_update` from
+    that prediction. Returns (d², NIS, code): code −4 when not updated, else :func:`imm_update`'s."""
+    bias_correct_into(z, C, R, bias, bias_cov, zc, Rc)
+    if not predicted:
+        imm_advance(buf, k, dt)
+    n, D = int(k[0]), int(k[1])
+    _, (_, _, _, x_bar, P_bar) = imm_views(buf, n, D)
+    d2 = position_d2(zc, Rc, x_bar, P_bar)
+    if not d2 <= gate:
+        return d2, math.nan, -4
+    nis, code = imm_update(buf, k, dt, True, zc, Rc)
+    return d2, nis, code
+
+
+@njit(cache=True)
+def imm_update(buf: np.ndarray, k: np.ndarray, dt: float, predicted: bool, z: np.ndarray,
+               R: np.ndarray) -> tuple[float, int]:
+    """Correction of the packed state by position z: from the kept prediction if ``predicted``, else
+    :func:`imm_cycle` by ``dt``. Returns :func:`imm_correct`'s (NIS, code), or (nan, −3), the state
+    untouched, when (z, R) fails :func:`measurement_ok`."""
+    if measurement_ok(0.0, z, R) != 0:
+        return math.nan, -3
+    n, D, entry_var, modes, dims, lam, left, right = _imm_settings(k)
+    (mu, X, PP, x, P), (cbar, Xp, PPp, x_bar, P_bar) = imm_views(buf, n, D)
+    if predicted:
+        return imm_correct(cbar, Xp, PPp, x_bar, P_bar, dims, entry_var, z, R, mu, X, PP, x, P)
+    return imm_cycle(mu, X, PP, lam, left, right, modes, dims, entry_var, dt, z, R, x, P, cbar, Xp, PPp, x_bar,
+                     P_bar)

@@ -53,7 +53,7 @@ from radartracker.tracking.association import (ALTITUDE_GATE, AltitudeTrack, alt
                                                 assign_tiers, candidate_pairs, gate_costs)
 from radartracker.estimation.coupling import CouplingGraph
 from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, ScreeningConfig,
-                                               bias_corrected, judge, normalised_innovation)
+                                               bias_corrected, judge)
 from radartracker.tracking.admission import ClockConfig, StreamClock
 from radartracker.domain import AdsbReport, BiasState, Plot, Radar, nacp_sigma_m
 from radartracker.errors import PluginError
@@ -551,9 +551,10 @@ class TrackManager:
         radar = src.radar if isinstance(src, Plot) else None
         if radar is not None:
             bias, bias_cov = self.estimator.bias_arrays(radar)
-            zc, Rc = bias_corrected(z, C, R, bias, bias_cov)  # z − C ς̂, R + C P_ς Cᵀ
         else:
-            zc, Rc = z, R
+            bias, bias_cov = _ZERO2, _ZERO22
+        zc = Rc = None  # z − C ς̂, R + C P_ς Cᵀ: from screening, else made below
+        updated = False  # by screening, when the measurement passed
         if isinstance(src, PlaneMeasurement):
             code = src.aircraft if isinstance(src.aircraft, str) else None
         else:
@@ -569,7 +570,9 @@ class TrackManager:
             if why is not None:
                 self.counts[why] += 1
                 return
-            verdict = ACCEPT if tr is None else self._screen(tr, zc, Rc, src.time, kind)
+            verdict = ACCEPT
+            if tr is not None:
+                verdict, zc, Rc, updated = self._screen(tr, z, C, R, bias, bias_cov, src.time, kind)
             if verdict == REJECT:
                 return
             if verdict == REINIT:  # the track, not its measurements, is wrong: start again from this one
@@ -578,6 +581,8 @@ class TrackManager:
                 self.counts["tracks_reinitialised"] += 1
                 self._delete(tr, src.time)
                 tr = None
+        if zc is None:
+            zc, Rc = bias_corrected(z, C, R, bias, bias_cov) if radar is not None else (z, R)
         if tr is None:
             filt = self._filter_cls()
             try:
@@ -588,7 +593,7 @@ class TrackManager:
                               history=deque(maxlen=self.config.confirm_n))
             self.tracks[tr.id] = tr
             self._emit(src.time, tr, "created")
-        else:
+        elif not updated:
             try:
                 tr.estimate = None
                 tr.filter.update(src.time, zc, Rc)
@@ -621,19 +626,25 @@ class TrackManager:
             tr.status = "confirmed"
             self._emit(src.time, tr, "updated")
 
-    def _screen(self, tr: ManagedTrack, zc: np.ndarray, Rc: np.ndarray, t: float, kind: str) -> str:
-        """Screening verdict for a bias-corrected measurement (zc, Rc = R + C P_ς Cᵀ) of track ``tr``:
-        d² against the track filter's prediction, so S = P̄_pp + C P_ς Cᵀ + R."""
+    def _screen(self, tr: ManagedTrack, z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray,
+                bias_cov: np.ndarray, t: float, kind: str) -> tuple[str, np.ndarray | None, np.ndarray | None, bool]:
+        """Screening verdict for measurement (z, C, R) of track ``tr`` with its radar's bias estimate, the
+        bias-corrected (zc, Rc = R + C P_ς Cᵀ) it judged (None, None when the filter refuses the step) and
+        whether the filter took it: d² against the track filter's prediction, so S = P̄_pp + C P_ς Cᵀ + R,
+        and a measurement in the gate updates the filter in the same call (:meth:`TrackFilter.screen`)
+        unless it is older than the track's estimate (judged against that, then updated at its time)."""
+        cfg, tentative, t_est = self.config.screening, tr.status == "tentative", self._estimate_of(tr)[0]
+        gate = cfg.gate(kind, tentative) if t >= t_est else None
         try:
-            x, P = tr.filter.predict(max(t, self._estimate_of(tr)[0]))
+            if gate is not None:
+                tr.estimate = None
+            d2, zc, Rc, updated = tr.filter.screen(max(t, t_est), z, C, R, bias, bias_cov, gate)
         except ValueError:  # the filter refuses this step; its update refuses it too and counts it
-            return ACCEPT
-        d2 = normalised_innovation(zc, _ZERO22, Rc, _ZERO2, _ZERO22, x[:2], P[:2, :2])
-        verdict, tr.rejected = judge(self.config.screening, kind, d2, tr.rejected, tr.mode_s is not None,
-                                     tr.status == "tentative", t, zc, Rc)
+            return ACCEPT, None, None, False
+        verdict, tr.rejected = judge(cfg, kind, d2, tr.rejected, tr.mode_s is not None, tentative, t, zc, Rc)
         if verdict == REJECT:
             self.counts[f"{kind}_outlier"] += 1
-        return verdict
+        return verdict, zc, Rc, updated
 
     def _confirm(self, tr: ManagedTrack) -> None:
         first = tr.pending[0][0]

@@ -11,7 +11,7 @@ from scipy.spatial.distance import mahalanobis
 from radartracker.domain import AdsbReport, Plot
 from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, ScreeningConfig,
                                                bias_corrected, extend_run, judge, normalised_innovation,
-                                               speed_consistent)
+                                               position_d2, speed_consistent)
 from radartracker.pipeline.config import RunConfig
 from radartracker.pipeline.run import run
 from radartracker.simulation.scenarios import _icao, build_scenario
@@ -46,6 +46,29 @@ def test_bias_correction_equals_the_numpy_products():
         zc, Rc = bias_corrected(z, C, R, bias, Pb)
         np.testing.assert_allclose(zc, z - C @ bias, rtol=1e-14, atol=1e-9)
         np.testing.assert_allclose(Rc, R + C @ Pb @ C.T, rtol=1e-13)
+
+
+def test_position_d2_is_the_unbiased_case_bit_for_bit():
+    """position_d2 (a corrected position) equals normalised_innovation with C = 0 exactly, non-PD included."""
+    rng = np.random.default_rng(3)
+    zero2, zero22 = np.zeros(2), np.zeros((2, 2))
+    for k in range(200):
+        A, B = rng.normal(size=(2, 2)), rng.normal(size=(2, 2))
+        R, P = A @ A.T * 900.0, B @ B.T * 400.0
+        if k % 10 == 0:  # not positive definite, zero or with signed zeros
+            R, P = (-R, P) if k % 20 else (np.array([[0.0, -0.0], [-0.0, 0.0]]), np.zeros((2, 2)))
+        z, pos = rng.normal(size=2) * 1e4, rng.normal(size=2) * 1e4
+        want = normalised_innovation(z, zero22, R, zero2, zero22, pos, P)
+        assert position_d2(z, R, pos, P) == want
+        assert want == math.inf or want == pytest.approx(float((z - pos) @ np.linalg.solve(P + R, z - pos)), rel=1e-9)
+
+
+def test_gate_by_kind_and_tentative():
+    cfg = ScreeningConfig(gate_plots=1.0, gate_adsb=2.0, gate_positions=3.0, gate_tentative=4.0)
+    assert [cfg.gate(k) for k in ("plots", "adsb", "positions")] == [1.0, 2.0, 3.0]
+    assert {cfg.gate(k, True) for k in ("plots", "adsb", "positions")} == {4.0}
+    with pytest.raises(KeyError):
+        cfg.gate("bearings")
 
 
 def test_judge_reinitialises_after_a_run_of_consistent_rejections():

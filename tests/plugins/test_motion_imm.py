@@ -4,6 +4,7 @@ plain-numpy IMM."""
 
 from __future__ import annotations
 
+import copy
 import math
 
 import attrs
@@ -285,3 +286,45 @@ def test_prediction_kept_for_the_update_and_python_modes_equal_the_compiled_cycl
         np.testing.assert_array_equal(a, b)
     for a, b in zip(restored.predict(t[-1] + 4.0), screened.predict(t[-1] + 4.0)):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("modes", [None, (CVMode(), PythonCT())])
+def test_screen_in_one_call_equals_the_default_on_predict_and_update(modes):
+    """IMMFilter.screen (one compiled call: bias correction, prediction, d², update in the gate) gives
+    bit for bit what TrackFilter.screen's default gives through predict and update, and the d² of
+    screening's equations on numpy (solve); outside the gate the filter is unchanged, and the
+    measurement it returns updates it later as in one call. A deep copy (pickle state) continues
+    identically on its own buffer."""
+    rng = np.random.default_rng(5)
+    t, _, zs, Rs = manoeuvre_track(rng)
+    config = IMMConfig() if modes is None else IMMConfig(modes=modes)
+    fast, ref = IMMFilter(config), IMMFilter(config)
+    for f in (fast, ref):
+        f.start(t[0], zs[0], Rs[0])
+    C, bias, bias_cov = np.array([[0.8, 2e4], [-0.6, 3e4]]), np.array([30.0, -4e-4]), np.diag([50.0, 2e-8])
+    rejected = 0
+    for k in range(1, len(t)):
+        z = zs[k] + C @ bias + (rng.normal(size=2) * 2e3 if k % 7 == 0 else 0.0)  # every 7th: a gross error
+        gate = 30.0 if k % 3 else None
+        got = fast.screen(t[k], z, C, Rs[k], bias, bias_cov, gate)
+        want = TrackFilter.screen(ref, t[k], z, C, Rs[k], bias, bias_cov, gate)
+        assert got[0] == want[0] and got[3] == want[3]
+        for a, b in zip(got[1:3], want[1:3]):
+            np.testing.assert_array_equal(a, b)
+        zc, Rc = z - C @ bias, Rs[k] + C @ bias_cov @ C.T
+        np.testing.assert_allclose(got[1], zc, rtol=1e-13)
+        np.testing.assert_allclose(got[2], Rc, rtol=1e-13)
+        x, P = ref.predict(t[k]) if not got[3] else (None, None)
+        if x is not None:
+            nu = zc - x[:2]
+            assert got[0] == pytest.approx(float(nu @ np.linalg.solve(P[:2, :2] + Rc, nu)), rel=1e-9)
+            rejected += gate is not None
+            if got[0] < 500.0:  # not a gross error: used after screening, at the same time
+                assert fast.update(t[k], got[1], got[2]) == ref.update(t[k], want[1], want[2])
+        assert fast.time == ref.time
+        for a, b in zip(fast.estimate(), ref.estimate()):
+            np.testing.assert_array_equal(a, b)
+        if k == 40:
+            old, fast = fast, copy.deepcopy(fast)
+            assert not np.shares_memory(fast.X, old.X) and np.shares_memory(fast.X, fast._buf)
+    assert rejected >= 5

@@ -226,3 +226,72 @@ def test_imm_mixing_with_an_unreachable_mode_and_a_singular_update():
     assert math.isnan(nis) and bad == -1
     for a, b in zip(state, (mu, X, PP, np.ones(4), np.eye(4))):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("modes", MODE_SETS)
+def test_packed_imm_kernels_equal_the_array_kernels(modes):
+    """imm_advance / imm_update / imm_screen on one packed buffer give, bit for bit, imm_predict,
+    imm_correct, imm_cycle on separate arrays and screening's bias correction and d²; a measurement
+    outside the gate or failing the checks leaves the state as it was."""
+    from radartracker.estimation.screening import bias_corrected, normalised_innovation
+
+    rng = np.random.default_rng(11)
+    modes = MODE_SETS[modes]
+    n, entry_var = len(modes), 0.035**2
+    dims = np.array([4 if m[0] == "cv" else 5 for m in modes])
+    D = dims.max()
+    chain = kernel_chain(rng.uniform(10, 150, n))
+    kmodes = np.array([[0.0 if m[0] == "cv" else 1.0, m[1], m[2] if len(m) > 2 else 0.0] for m in modes])
+    k = kernels.imm_constants(kmodes, dims, entry_var, *chain)
+    buf = np.zeros(2 * (n + n * D + n * D * D + 20))
+    state, pred = kernels.imm_views(buf, n, D)
+    state[0][:] = rng.dirichlet(np.ones(n))
+    state[1][:] = np.concatenate([rng.normal(size=(n, 2)) * 1e4, rng.normal(size=(n, 2)) * 200,
+                                  np.zeros((n, D - 4))], axis=1)
+    for j in range(n):
+        state[2][j] = correlated(rng, np.array([1e4, 1e4, 400, 400, entry_var][:D]))
+    state[3][:], state[4][:] = kernels.imm_combine(state[0], state[1], state[2])
+    assert all(np.shares_memory(a, buf) for a in (*state, *pred))
+    dt = 4.5
+    z, R = state[3][:2] + rng.normal(size=2) * 300, spd(rng, 2, 80.0)
+    C, bias, bias_cov = rng.normal(size=(2, 2)) * [1.0, 3e4], np.array([40.0, 1e-3]), np.diag([100.0, 1e-7])
+
+    ref_pred = tuple(np.zeros_like(a) for a in pred)
+    kernels.imm_predict(*(a.copy() for a in state[:3]), *chain, kmodes, dt, *ref_pred)
+    kernels.imm_advance(buf, k, dt)
+    for a, b in zip(pred, ref_pred):
+        np.testing.assert_array_equal(a, b)
+
+    def corrected(predicted):
+        out = tuple(a.copy() for a in state)
+        if predicted:
+            res = kernels.imm_correct(*(a.copy() for a in ref_pred), dims, entry_var, zc, Rc, *out)
+        else:
+            res = kernels.imm_cycle(*out[:3], *chain, kmodes, dims, entry_var, dt, zc, Rc, *out[3:],
+                                    *(np.zeros_like(a) for a in pred))
+        return res, out
+
+    zc, Rc = bias_corrected(z, C, R, bias, bias_cov)
+    d2 = normalised_innovation(zc, np.zeros((2, 2)), Rc, np.zeros(2), np.zeros((2, 2)), ref_pred[3][:2],
+                               ref_pred[4][:2, :2])
+    before = buf.copy()
+    zk, Rk = np.empty(2), np.empty((2, 2))
+    for predicted in (True, False):  # outside the gate: the corrected measurement and d², nothing else
+        res = kernels.imm_screen(buf, k, dt, predicted, z, C, R, bias, bias_cov, zk, Rk, d2 * 0.999)
+        assert res[0] == d2 and res[2] == -4
+        np.testing.assert_array_equal(zk, zc)
+        np.testing.assert_array_equal(Rk, Rc)
+        np.testing.assert_array_equal(buf, before)
+    assert kernels.imm_update(buf, k, dt, True, np.array([np.nan, 0.0]), Rc)[1] == -3
+    assert kernels.imm_update(buf, k, dt, False, zc, -Rc)[1] == -3
+    np.testing.assert_array_equal(buf, before)
+    for predicted, call in [(True, lambda: kernels.imm_update(buf, k, dt, True, zc, Rc)),
+                            (False, lambda: kernels.imm_update(buf, k, dt, False, zc, Rc)),
+                            (True, lambda: kernels.imm_screen(buf, k, dt, True, z, C, R, bias, bias_cov, zk, Rk, d2)[1:]),
+                            (False, lambda: kernels.imm_screen(buf, k, dt, False, z, C, R, bias, bias_cov, zk, Rk,
+                                                               d2)[1:])]:
+        buf[:] = before
+        (nis, bad), out = corrected(predicted)
+        assert bad == -2 and call() == (nis, bad)
+        for a, b in zip(state, out):
+            np.testing.assert_array_equal(a, b)
