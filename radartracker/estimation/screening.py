@@ -189,7 +189,12 @@ def speed_consistent(config: ScreeningConfig, dt: float, a: np.ndarray, sd_a: fl
                      sd_b: float) -> bool:
     """Two positions of one aircraft ``dt`` s apart agree: ‖b − a‖ ≤ v_max·|dt| + k·√(σ_a² + σ_b²)."""
     allowance = config.adsb_max_speed_mps * abs(dt) + config.speed_sigmas * math.hypot(sd_a, sd_b)
-    return bool(np.hypot(*(np.asarray(b, float) - a)) <= allowance)
+    (ax, ay), (bx, by) = a, b
+    dx, dy = float(bx) - float(ax), float(by) - float(ay)
+    d = math.hypot(dx, dy)  # within an ulp or two of numpy's (C library) hypot, which decides near the limit
+    if abs(d - allowance) <= 1e-15 * d:
+        d = float(np.hypot(dx, dy))
+    return d <= allowance
 
 
 class AdsbPlausibility:
@@ -203,7 +208,7 @@ class AdsbPlausibility:
 
     def __init__(self, config: ScreeningConfig) -> None:
         self.config = config
-        self._last: dict[str, tuple[float, np.ndarray, float]] = {}
+        self._last: dict[str, tuple[float, tuple[float, float], float]] = {}  # (time, position, σ) by address
         self._fails: dict[str, Rejected] = {}
 
     def check(self, icao24: str, time: float, xy: np.ndarray, sd: float, nacp: int) -> str | None:
@@ -211,13 +216,15 @@ class AdsbPlausibility:
         if nacp < self.config.adsb_min_nacp:
             return "adsb_low_nacp"
         last = self._last.get(icao24)
-        if last is not None and not speed_consistent(self.config, time - last[0], last[1], last[2], xy, sd):
+        here = (float(xy[0]), float(xy[1]))
+        if last is not None and not speed_consistent(self.config, time - last[0], last[1], last[2], here, sd):
             run = extend_run(self.config, self._fails.get(icao24, []), time, xy, np.eye(2) * sd * sd)
             if len(run) < self.config.reinit_after:
                 self._fails[icao24] = run
                 return "adsb_implausible_speed"
-        self._fails.pop(icao24, None)
-        self._last[icao24] = (time, np.asarray(xy, float), sd)
+        if self._fails:
+            self._fails.pop(icao24, None)
+        self._last[icao24] = (time, here, sd)
         if len(self._last) > 20_000:  # forget addresses silent for an hour
             self._last = {k: v for k, v in self._last.items() if time - v[0] < 3600.0}
             self._fails = {k: v for k, v in self._fails.items() if k in self._last}
@@ -225,7 +232,7 @@ class AdsbPlausibility:
 
     def state_dict(self) -> dict:
         """The state as plain values (for TrackManager snapshots)."""
-        def plain(entry: tuple[float, np.ndarray, float]) -> list:
+        def plain(entry: tuple) -> list:
             return [entry[0], [float(v) for v in entry[1]], entry[2]]
 
         return {"last": {k: plain(e) for k, e in self._last.items()},
@@ -235,7 +242,7 @@ class AdsbPlausibility:
         def typed(entry: list) -> tuple[float, np.ndarray, float]:
             return float(entry[0]), np.array(entry[1], float), float(entry[2])
 
-        self._last = {k: typed(v) for k, v in state["last"].items()}
+        self._last = {k: (float(v[0]), tuple(float(c) for c in v[1]), float(v[2])) for k, v in state["last"].items()}
         self._fails = {k: [typed(e) for e in run] for k, run in state["fails"].items()}
 
 

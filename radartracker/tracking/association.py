@@ -95,23 +95,36 @@ class AltitudeTrack:
 
     Prediction over Δt: h̄ = h + ḣ Δt, P̄ = A P Aᵀ + q_h [[Δt³/3, Δt²/2], [Δt²/2, Δt]]; a Mode C
     report h_k (variance ``MODE_C_VAR``: 100 ft quantisation, (30.48 m)²/12) corrects it. In
-    gating, d_h² = (h_k − h̄)² / (P̄_hh + r) is χ²₁ for the track's own plots.
+    gating, d_h² = (h_k − h̄)² / (P̄_hh + r) is χ²₁ for the track's own plots. The state is held in
+    scalars (x = [h, v], P = [[p00, p01], [p01, p11]]): 2×2 numpy arrays per plot cost more than the
+    arithmetic.
     """
 
     time: float
-    x: np.ndarray
-    P: np.ndarray
+    h: float
+    v: float
+    p00: float
+    p01: float
+    p11: float
 
     @classmethod
     def start(cls, time: float, h: float) -> AltitudeTrack:
-        return cls(time, np.array([h, 0.0]), np.diag([MODE_C_VAR, VERTICAL_RATE_SD**2]))
+        return cls(time, float(h), 0.0, MODE_C_VAR, 0.0, VERTICAL_RATE_SD**2)
+
+    @property
+    def x(self) -> np.ndarray:
+        """[h, ḣ]."""
+        return np.array([self.h, self.v])
+
+    @property
+    def P(self) -> np.ndarray:
+        """Covariance of [h, ḣ]."""
+        return np.array([[self.p00, self.p01], [self.p01, self.p11]])
 
     def predicted(self, time: float) -> tuple[float, float, float, float, float]:
-        """(h̄, ḣ̄, P̄_hh, P̄_hḣ, P̄_ḣḣ) at ``time``, written out in scalars (a 2×2 numpy product per plot
-        cost more than the arithmetic)."""
+        """(h̄, ḣ̄, P̄_hh, P̄_hḣ, P̄_ḣḣ) at ``time``."""
         dt = max(time - self.time, 0.0)
-        h, v = self.x.tolist()
-        (p00, p01), (_, p11) = self.P.tolist()
+        h, v, p00, p01, p11 = self.h, self.v, self.p00, self.p01, self.p11
         q = VERTICAL_Q
         return (h + v * dt, v, p00 + 2.0 * dt * p01 + dt * dt * p11 + q * dt**3 / 3,
                 p01 + dt * p11 + q * dt**2 / 2, p11 + q * dt)
@@ -124,9 +137,8 @@ class AltitudeTrack:
         hp, v, p00, p01, p11 = self.predicted(time)
         s = p00 + MODE_C_VAR
         k0, k1, e = p00 / s, p01 / s, h - hp
-        c01 = 0.5 * ((p01 - k0 * p01) + (p01 - k1 * p00))
-        self.x = np.array([hp + k0 * e, v + k1 * e])
-        self.P = np.array([[p00 - k0 * p00, c01], [c01, p11 - k1 * p01]])
+        self.h, self.v = hp + k0 * e, v + k1 * e
+        self.p00, self.p01, self.p11 = p00 - k0 * p00, 0.5 * ((p01 - k0 * p01) + (p01 - k1 * p00)), p11 - k1 * p01
         self.time = max(time, self.time)
 
 

@@ -118,6 +118,23 @@ def test_adsb_plausibility():
     assert not speed_consistent(cfg, 10.0, np.zeros(2), 30.0, np.array([6500.0, 0.0]), 30.0)
 
 
+def test_speed_consistent_decides_as_numpy_hypot_at_the_limit():
+    """The scalar test decides as ‖b − a‖ by numpy.hypot ≤ allowance, also a ulp either side of the limit
+    (math.hypot and the C library's hypot differ in the last bit for ~0.1 % of inputs)."""
+    rng = np.random.default_rng(8)
+    cfg = ScreeningConfig(adsb_max_speed_mps=600.0, speed_sigmas=5.0)
+    sd = 30.0
+    for _ in range(3000):
+        a, b = rng.normal(size=2) * 1e5, rng.normal(size=2) * 1e5
+        d = float(np.hypot(*(b - a)))
+        for limit in (d, np.nextafter(d, 0.0), np.nextafter(d, np.inf), d * (1 + 1e-12), d * 0.9):
+            dt = (limit - cfg.speed_sigmas * math.hypot(sd, sd)) / cfg.adsb_max_speed_mps
+            allowance = cfg.adsb_max_speed_mps * abs(dt) + cfg.speed_sigmas * math.hypot(sd, sd)
+            want = bool(np.hypot(*(b - a)) <= allowance)
+            assert speed_consistent(cfg, dt, a, sd, b, sd) == want
+            assert speed_consistent(cfg, dt, tuple(a), sd, tuple(b), sd) == want
+
+
 def _items(data):
     p, a = data.plots, data.adsb
     items = [Plot(float(p.time[i]), p.radar[i], float(p.range_m[i]), float(p.azimuth_rad[i]),
