@@ -1,14 +1,15 @@
 """Domain objects: radars, aircraft, plots, ADS-B reports, tracks and bias states.
 
 Internally SI (metres, seconds, radians). Construction validates every field and raises
-``ValueError`` naming the field, so a bad number never turns into a silent NaN later.
+``ValueError`` naming the field, so a bad number never turns into a silent NaN later; plots and
+ADS-B reports made from columns (:func:`plots_from_columns`) are checked column by column instead.
 Degrees, feet and knots appear only at the I/O edges (see :mod:`radartracker.formats`).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Hashable
+from collections.abc import Callable, Hashable
 from typing import Any
 
 import attrs
@@ -151,6 +152,96 @@ class AdsbReport:
     lon: float = attrs.field(validator=_longitude)
     altitude_m: float | None = attrs.field(default=None, validator=_finite)
     nacp: int = attrs.field(default=8, validator=attrs.validators.in_(range(1, 12)))
+
+
+def _unchecked(cls: type) -> Callable[..., Any]:
+    """A function making ``cls`` (a slotted attrs class) from its field values in order, setting its slots
+    without running converters or validators. Only for :func:`plots_from_columns` and
+    :func:`reports_from_columns`, once every value has passed the validators' rules."""
+    names = [a.name for a in attrs.fields(cls)]
+    scope = {"_new": object.__new__, "_cls": cls} | {f"_set_{n}": cls.__dict__[n].__set__ for n in names}
+    body = "".join(f"    _set_{n}(self, {n})\n" for n in names)
+    exec(f"def make({', '.join(names)}):\n    self = _new(_cls)\n{body}    return self\n", scope)  # as attrs does
+    return scope["make"]
+
+
+_make_plot, _make_report = _unchecked(Plot), _unchecked(AdsbReport)
+
+
+def _numbers(col: Any, lo: float = -math.inf, hi: float = math.inf, *, hi_open: bool = False,
+             optional: bool = False) -> list | None:
+    """The values of a numeric array column as the constructor gets them (``None`` for NaN if ``optional``),
+    or ``None`` unless each passes ``_finite`` and lies in [lo, hi] (or [lo, hi))."""
+    if not isinstance(col, np.ndarray) or col.dtype.kind not in "fiu":
+        return None
+    v = col.astype(float)
+    nan = np.isnan(v)
+    has_nan = bool(nan.any())
+    if (has_nan and not optional) or np.isinf(v).any():
+        return None
+    w = v[~nan] if has_nan else v
+    if not ((w >= lo) & ((w < hi) if hi_open else (w <= hi))).all():
+        return None
+    if not has_nan:
+        return col.tolist()
+    out = col.astype(object)
+    out[nan] = None
+    return out.tolist()
+
+
+def _labels(col: Any, validator: Callable, field: attrs.Attribute, types: frozenset) -> list | None:
+    """The values of an object array column, or ``None`` unless each is of one of ``types`` and passes
+    ``validator`` unchanged (each distinct value checked once)."""
+    if not isinstance(col, np.ndarray):
+        return None
+    values = col.tolist()
+    if not set(map(type, values)) <= types:
+        return None
+    try:
+        for v in set(values):
+            validator(None, field, v)
+    except ValueError:
+        return None
+    return values
+
+
+_STR, _STR_OR_NONE = frozenset({str}), frozenset({str, type(None)})
+
+
+def plots_from_columns(time: np.ndarray, radar: np.ndarray, range_m: np.ndarray, azimuth_rad: np.ndarray,
+                       altitude_m: np.ndarray, mode_s: np.ndarray, mode_3a: np.ndarray,
+                       target: np.ndarray) -> list[Plot]:
+    """``Plot(...)`` of each row of these columns (arrays; ``altitude_m`` NaN where absent), in order.
+
+    The columns are checked whole against the rules of Plot's validators (numbers as arrays; radar ids
+    and codes with the validators themselves, once per distinct value). When every row passes, the
+    objects are made without running the validators again field by field (most of the cost of reading
+    them, issue 13); otherwise each row goes through ``Plot(...)``, which raises the first bad row's error.
+    """
+    f = attrs.fields(Plot)
+    cols = (_numbers(time), _labels(radar, _nonempty, f.radar, _STR), _numbers(range_m, 0.0),
+            _numbers(azimuth_rad, 0.0, TWO_PI, hi_open=True), _numbers(altitude_m, optional=True),
+            _labels(mode_s, _mode_s, f.mode_s, _STR_OR_NONE), _labels(mode_3a, _mode_3a, f.mode_3a, _STR_OR_NONE),
+            target.tolist() if isinstance(target, np.ndarray) else None)
+    if any(c is None for c in cols):
+        return [Plot(t, r, rng, az, None if alt != alt else alt, ms, m3a, tg) for t, r, rng, az, alt, ms, m3a, tg
+                in zip(*(c.tolist() for c in (time, radar, range_m, azimuth_rad, altitude_m, mode_s, mode_3a,
+                                                target)))]
+    return list(map(_make_plot, *cols))
+
+
+def reports_from_columns(time: np.ndarray, icao24: np.ndarray, lat: np.ndarray, lon: np.ndarray,
+                         altitude_m: np.ndarray, nacp: np.ndarray) -> list[AdsbReport]:
+    """``AdsbReport(...)`` of each row of these columns (``nacp`` made an ``int``), checked as
+    :func:`plots_from_columns` checks plots."""
+    f = attrs.fields(AdsbReport)
+    ok_nacp = isinstance(nacp, np.ndarray) and nacp.dtype.kind in "iu" and bool(((nacp >= 1) & (nacp <= 11)).all())
+    cols = (_numbers(time), _labels(icao24, _mode_s, f.icao24, _STR_OR_NONE), _numbers(lat, -90.0, 90.0),
+            _numbers(lon, -180.0, 180.0), _numbers(altitude_m, optional=True), nacp.tolist() if ok_nacp else None)
+    if any(c is None for c in cols):
+        return [AdsbReport(t, icao, la, lo, None if alt != alt else alt, int(n)) for t, icao, la, lo, alt, n
+                in zip(*(c.tolist() for c in (time, icao24, lat, lon, altitude_m, nacp)))]
+    return list(map(_make_report, *cols))
 
 
 # NACp → 95 % horizontal position bound EPU (m), DO-260B table; σ per axis = EPU / 2.448

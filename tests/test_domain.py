@@ -80,3 +80,137 @@ def test_bias_state_and_track():
     assert tr.last_time == 1.0 and tr.sd == [(3.0, 4.0)]
     with pytest.raises(ValueError):
         Track("x", status="lost")
+
+
+# --- Plot / AdsbReport made from columns (the reader's path, issue 13) ------------------------------
+
+def _plot_columns(n: int, seed: int) -> dict:
+    rng = np.random.default_rng(seed)
+    alt = rng.uniform(0.0, 12e3, n)
+    alt[rng.random(n) < 0.3] = math.nan
+    codes = np.array([None, "4b1a2c", "00ff09", "abcdef"], object)
+    return dict(time=np.sort(rng.uniform(-10.0, 1e5, n)), radar=np.array(["R1", "R 2", "é"], object)[rng.integers(0, 3, n)],
+                range_m=np.concatenate([[0.0], rng.uniform(0.0, 4e5, n - 1)]),
+                azimuth_rad=np.concatenate([[0.0, np.nextafter(2 * math.pi, 0)], rng.uniform(0, 2 * math.pi, n - 2)]),
+                altitude_m=alt, mode_s=codes[rng.integers(0, 4, n)],
+                mode_3a=np.array([None, "7777", "0123"], object)[rng.integers(0, 3, n)],
+                target=np.array([None, "ac1", 7], object)[rng.integers(0, 3, n)])
+
+
+def _report_columns(n: int, seed: int) -> dict:
+    rng = np.random.default_rng(seed)
+    alt = rng.uniform(0.0, 12e3, n)
+    alt[rng.random(n) < 0.3] = math.nan
+    return dict(time=np.sort(rng.uniform(0.0, 1e5, n)), icao24=np.array([None, "4b1a2c", "abcdef"], object)[rng.integers(0, 3, n)],
+                lat=np.concatenate([[-90.0, 90.0], rng.uniform(-90, 90, n - 2)]),
+                lon=np.concatenate([[-180.0, 180.0], rng.uniform(-180, 180, n - 2)]),
+                altitude_m=alt, nacp=rng.integers(1, 12, n))
+
+
+def _one_by_one(cls, cols: dict) -> list:
+    """The straightforward construction the columns' path must equal: the validating constructor per row."""
+    rows = zip(*(c.tolist() for c in cols.values()))
+    if cls is Plot:
+        return [Plot(t, r, rng, az, None if alt != alt else alt, ms, m3a, tg) for t, r, rng, az, alt, ms, m3a, tg in rows]
+    return [AdsbReport(t, i, la, lo, None if alt != alt else alt, int(n)) for t, i, la, lo, alt, n in rows]
+
+
+def _error(f, *a):
+    try:
+        f(*a)
+    except ValueError as exc:
+        return str(exc)
+    return None
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_columns_give_the_objects_of_the_validating_constructor(seed):
+    from radartracker.domain import plots_from_columns, reports_from_columns
+
+    pc, ac = _plot_columns(500, seed), _report_columns(500, seed)
+    for cols, f, cls in ((pc, plots_from_columns, Plot), (ac, reports_from_columns, AdsbReport)):
+        got, want = f(*cols.values()), _one_by_one(cls, cols)
+        assert got == want and [hash(x) for x in got] == [hash(x) for x in want]
+        assert [[type(v) for v in attrs_values(x)] for x in got] == [[type(v) for v in attrs_values(x)] for x in want]
+        with pytest.raises(attrs_frozen_error()):
+            got[0].time = 1.0
+
+
+def attrs_values(x) -> tuple:
+    import attrs
+
+    return attrs.astuple(x, recurse=False)
+
+
+def attrs_frozen_error():
+    import attrs
+
+    return attrs.exceptions.FrozenInstanceError
+
+
+BAD_PLOT_VALUES = [("time", math.inf), ("time", math.nan), ("time", "1.0"), ("radar", ""), ("radar", " "), ("radar", 5),
+                   ("range_m", -1e-9), ("range_m", math.inf), ("azimuth_rad", 2 * math.pi), ("azimuth_rad", -1e-12),
+                   ("altitude_m", math.inf), ("altitude_m", -math.inf), ("mode_s", "4b1a2"), ("mode_s", "4b1a2g"),
+                   ("mode_s", 123456), ("mode_3a", "7778"), ("mode_3a", "777"), ("mode_3a", 7777)]
+BAD_REPORT_VALUES = [("time", math.nan), ("icao24", "xyz123"), ("icao24", ""), ("lat", 90.000001), ("lat", math.nan), ("lat", "45"),
+                     ("lon", -180.5), ("altitude_m", math.inf), ("nacp", 0), ("nacp", 12)]
+
+
+@pytest.mark.parametrize("field,value", BAD_PLOT_VALUES + [("r", v) for v in BAD_REPORT_VALUES])
+def test_columns_with_a_bad_row_raise_what_the_constructor_raises(field, value):
+    """The unchecked construction is reachable only when every row passes: one bad value in row 123 gives
+    the validating constructor's error for that row (the rows before it made as usual)."""
+    from radartracker.domain import plots_from_columns, reports_from_columns
+
+    if field == "r":
+        (field, value), cols, f, cls = value, _report_columns(300, 1), reports_from_columns, AdsbReport
+    else:
+        cols, f, cls = _plot_columns(300, 1), plots_from_columns, Plot
+    # of its own dtype (a float or an int in a numeric column, anything in an object one); a text among numbers
+    col = cols[field].astype(object) if isinstance(value, str) and cols[field].dtype != object else cols[field].copy()
+    col[123] = value
+    cols[field] = col
+    want = _error(_one_by_one, cls, cols)
+    assert want is not None and field in want
+    assert _error(f, *cols.values()) == want
+
+
+def _upper(col):
+    return np.array([None if v is None else v.upper() for v in col], object)
+
+
+def _np_str(col):  # a str subclass, which the converters' lower() makes a str
+    return np.array([None if v is None else np.str_(v) for v in col], object)
+
+
+@pytest.mark.parametrize("kind,field,change", [
+    ("p", "mode_s", _upper), ("p", "mode_s", _np_str), ("p", "radar", _np_str), ("p", "range_m", lambda c: c.astype(np.int64)),
+    ("p", "azimuth_rad", lambda c: np.where(c < 6.28, c, 1.0).astype(np.float32)), ("p", "time", lambda c: c.astype(object)),
+    ("p", "altitude_m", lambda c: np.nan_to_num(c).astype(np.int32)), ("a", "icao24", _upper), ("a", "icao24", _np_str),
+    ("a", "nacp", lambda c: c.astype(float)), ("a", "nacp", lambda c: c.astype(np.uint8)), ("a", "lat", list)])
+def test_columns_the_constructor_converts_or_accepts_are_made_by_it(kind, field, change):
+    """Codes to lower, str subclasses, integer, float32 and object columns: what the checked path does not
+    take the validating constructor makes; the same objects, with values of the same types, either way."""
+    from radartracker.domain import plots_from_columns, reports_from_columns
+
+    cols, f, cls = ((_plot_columns(200, 4), plots_from_columns, Plot) if kind == "p" else
+                    (_report_columns(200, 4), reports_from_columns, AdsbReport))
+    cols[field] = change(cols[field])
+    if isinstance(cols[field], list):  # not an array: neither path takes it
+        with pytest.raises(AttributeError):
+            f(*cols.values())
+        return
+    got, want = f(*cols.values()), _one_by_one(cls, cols)
+    assert got == want
+    assert [[type(v) for v in attrs_values(x)] for x in got] == [[type(v) for v in attrs_values(x)] for x in want]
+
+
+def test_unchecked_construction_is_private_to_the_columns_path():
+    """Nothing but plots_from_columns / reports_from_columns (after their checks) makes objects unchecked."""
+    import pathlib
+    import re
+
+    root = pathlib.Path(__file__).resolve().parents[1]
+    users = sorted(str(p.relative_to(root)) for d in ("radartracker", "plugins") for p in (root / d).rglob("*.py")
+                   if re.search(r"_make_plot|_make_report|_unchecked", p.read_text(encoding="utf-8")))
+    assert users == ["radartracker/domain.py"]

@@ -3,16 +3,15 @@ from tables in memory (:func:`iter_scenario`), or from the files block by block 
 
 from __future__ import annotations
 
-import heapq
+import itertools
 import math
-import operator
 import queue
 import threading
 from collections.abc import Iterable, Iterator
 
 import numpy as np
 
-from radartracker.domain import AdsbReport, Plot
+from radartracker.domain import AdsbReport, Plot, plots_from_columns, reports_from_columns
 from radartracker.io.scenario import ScenarioFiles
 from radartracker.io.tables import AdsbTable, PlotTable, ScenarioData
 
@@ -30,45 +29,79 @@ def scenario_stream(data: ScenarioData) -> list[Plot | AdsbReport]:
     return list(iter_scenario(data))
 
 
-def _plots(p: PlotTable, idx: Iterable[int] | None = None) -> Iterator[Plot]:
-    """The rows ``idx`` (default: all) of ``p`` as :class:`Plot` items."""
-    cols = [c.tolist() if idx is None else c[idx].tolist() for c in
-            (p.time, p.radar, p.range_m, p.azimuth_rad, p.altitude_m, p.mode_s, p.mode_3a, p.target)]
-    for t, r, rng, az, alt, ms, m3a, tg in zip(*cols):
-        yield Plot(t, r, rng, az, None if alt != alt else alt, ms, m3a, tg)
+def _plots(p: PlotTable, idx: slice | np.ndarray = slice(None)) -> list[Plot]:
+    """The rows ``idx`` (default: all) of ``p`` as :class:`Plot` items (checked column by column)."""
+    return plots_from_columns(p.time[idx], p.radar[idx], p.range_m[idx], p.azimuth_rad[idx], p.altitude_m[idx],
+                              p.mode_s[idx], p.mode_3a[idx], p.target[idx])
 
 
-def _reports(a: AdsbTable, idx: Iterable[int] | None = None) -> Iterator[AdsbReport]:
-    """The rows ``idx`` (default: all) of ``a`` as :class:`AdsbReport` items."""
-    cols = [c.tolist() if idx is None else c[idx].tolist() for c in
-            (a.time, a.icao24, a.lat, a.lon, a.altitude_m, a.nacp)]
-    for t, icao, lat, lon, alt, nacp in zip(*cols):
-        yield AdsbReport(t, icao, lat, lon, None if alt != alt else alt, int(nacp))
+def _reports(a: AdsbTable, idx: slice | np.ndarray = slice(None)) -> list[AdsbReport]:
+    """The rows ``idx`` (default: all) of ``a`` as :class:`AdsbReport` items (checked column by column)."""
+    return reports_from_columns(a.time[idx], a.icao24[idx], a.lat[idx], a.lon[idx], a.altitude_m[idx], a.nacp[idx])
+
+
+def _interleaved(plots: list[Plot], reports: list[AdsbReport], order: np.ndarray) -> list[Plot | AdsbReport]:
+    """``plots + reports`` taken in ``order`` (indices into that concatenation)."""
+    return list(map((plots + reports).__getitem__, order.tolist()))
 
 
 def iter_scenario(data: ScenarioData) -> Iterator[Plot | AdsbReport]:
-    """The items of :func:`scenario_stream`, in the same order, made one at a time as they are consumed
+    """The items of :func:`scenario_stream`, in the same order, made a slice at a time as they are consumed
     (a list of every input would grow with the recording's length)."""
     p, a = data.plots, data.adsb
     n = len(p)
     order = np.argsort(np.concatenate([p.time, a.time]), kind="stable")
-    for start in range(0, len(order), 8192):  # converted a slice at a time, never a list of every item
-        sl = order[start:start + 8192]
-        is_plot = sl < n
-        plots, reports = _plots(p, sl[is_plot]), _reports(a, sl[~is_plot] - n)
-        for k in is_plot.tolist():
-            yield next(plots) if k else next(reports)
+
+    def chunks() -> Iterator[list]:
+        for start in range(0, len(order), 8192):
+            sl = order[start:start + 8192]
+            is_plot = sl < n
+            # plot rows first in the concatenation, each kind in order: its k-th row goes where its k-th flag is
+            pick = np.empty(len(sl), int)
+            pick[is_plot] = np.arange(int(is_plot.sum()))
+            pick[~is_plot] = np.arange(int(is_plot.sum()), len(sl))
+            yield _interleaved(_plots(p, sl[is_plot]), _reports(a, sl[~is_plot] - n), pick)
+
+    return itertools.chain.from_iterable(chunks())
 
 
-def _ordered(blocks: Iterable, make, name: str) -> Iterator[Plot | AdsbReport]:
-    """The blocks' rows as items, checked to be in time order."""
+def _ordered(blocks: Iterable, name: str) -> Iterator:
+    """The non-empty blocks, each checked to be in time order after the ones before."""
     last = -math.inf
     for table in blocks:
         t = table.time
-        if len(t) and (t[0] < last or (len(t) > 1 and np.any(t[1:] < t[:-1]))):
+        if len(t) and (t[0] < last or np.any(t[1:] < t[:-1])):
             raise NotTimeOrdered(f"{name} is not in time order")
-        last = t[-1] if len(t) else last
-        yield from make(table)
+        if len(t):
+            last = t[-1]
+            yield table
+
+
+def _merged(plot_tables: Iterator[PlotTable], adsb_tables: Iterator[AdsbTable]) -> Iterator[list]:
+    """The rows of two time-ordered streams of non-empty tables as lists of items, in the order of a stable
+    merge by time (a plot before a report at the same time), a pair of blocks at a time.
+
+    The last time of the block at hand bounds what its file may still give (+inf once it has ended): a plot
+    can go once its time is <= that of the ADS-B file, a report once its time is < that of the plot file.
+    The rows that can go are merged by one stable sort, which uses up at least one of the two blocks."""
+    p, a = next(plot_tables, None), next(adsb_tables, None)
+    i = j = 0
+    while p is not None or a is not None:
+        p_last = p.time[-1] if p is not None else math.inf
+        a_last = a.time[-1] if a is not None else math.inf
+        i2 = i + int(np.searchsorted(p.time[i:], a_last, side="right")) if p is not None else 0
+        j2 = j + int(np.searchsorted(a.time[j:], p_last, side="left")) if a is not None else 0
+        plots = _plots(p, slice(i, i2)) if i2 > i else []
+        reports = _reports(a, slice(j, j2)) if j2 > j else []
+        if plots and reports:
+            yield _interleaved(plots, reports, np.argsort(np.concatenate([p.time[i:i2], a.time[j:j2]]), kind="stable"))
+        else:
+            yield plots or reports
+        i, j = i2, j2
+        if p is not None and i == len(p):
+            p, i = next(plot_tables, None), 0
+        if a is not None and j == len(a):
+            a, j = next(adsb_tables, None), 0
 
 
 def iter_files(files: ScenarioFiles, *, prefetch: bool = False) -> Iterator[Plot | AdsbReport]:
@@ -81,8 +114,7 @@ def iter_files(files: ScenarioFiles, *, prefetch: bool = False) -> Iterator[Plot
     plots, adsb = files.plot_blocks(), files.adsb_blocks()
     if prefetch:
         plots, adsb = _prefetch(plots), _prefetch(adsb)
-    return heapq.merge(_ordered(plots, _plots, "plots.csv"), _ordered(adsb, _reports, "adsb.csv"),
-                       key=operator.attrgetter("time"))
+    return itertools.chain.from_iterable(_merged(_ordered(plots, "plots.csv"), _ordered(adsb, "adsb.csv")))
 
 
 _END = object()
