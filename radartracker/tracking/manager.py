@@ -211,9 +211,13 @@ class TrackManager:
         """Admit one plot or ADS-B report; return the events it caused (possibly none yet)."""
         self._events = []
         if self._admit(item):
-            heapq.heappush(self._heap, (item.time, next(self._seq), item))
-            self._newest = item.time if self._newest is None else max(self._newest, item.time)
-            self._release(self._newest - self.config.reorder_window_s)
+            t = item.time
+            heapq.heappush(self._heap, (t, next(self._seq), item))
+            if self._newest is None or t > self._newest:
+                self._newest = t
+            until = self._newest - self.config.reorder_window_s
+            if self._heap[0][0] <= until:  # else nothing to release
+                self._release(until)
         return self._events
 
     def process_many(self, items: Iterable[Plot | AdsbReport]) -> list[TrackEvent]:
@@ -278,25 +282,27 @@ class TrackManager:
     # --- admission and reordering ----------------------------------------------------------------
     def _admit(self, item: object) -> bool:
         if isinstance(item, Plot):
+            t = item.time
             if item.radar not in self.radars:
                 return self._reject("plots_unknown_radar", item)
-            key = ("p", item.radar, item.time, item.range_m, item.azimuth_rad)
+            key = ("p", item.radar, t, item.range_m, item.azimuth_rad)
         elif isinstance(item, AdsbReport):
-            key = ("a", item.icao24, item.time, item.lat, item.lon)
+            t = item.time
+            key = ("a", item.icao24, t, item.lat, item.lon)
         elif isinstance(item, PlaneMeasurement) and item.radar is None and _finite_position(item):
-            key = ("m", item.aircraft, item.time, float(item.z[0]), float(item.z[1]))
+            t = item.time
+            key = ("m", item.aircraft, t, float(item.z[0]), float(item.z[1]))
         else:
             return self._reject("invalid_input", item)
-        kind = _INPUT_KINDS[key[0]]
-        if self._newest is not None and item.time > self._newest + self.config.max_time_jump_s:
-            return self._reject(f"{kind}_time_jump", item)
-        if item.time <= self._horizon:
-            return self._reject(f"{kind}_late", item)
+        if self._newest is not None and t > self._newest + self.config.max_time_jump_s:
+            return self._reject(f"{_INPUT_KINDS[key[0]]}_time_jump", item)
+        if t <= self._horizon:
+            return self._reject(f"{_INPUT_KINDS[key[0]]}_late", item)
         if key in self._recent:
-            return self._reject(f"{kind}_duplicate", item)
-        if not self.clock.admit(item.time):
-            return self._reject(f"{kind}_time_jump", item)
-        self._recent[key] = item.time
+            return self._reject(f"{_INPUT_KINDS[key[0]]}_duplicate", item)
+        if not self.clock.admit(t):
+            return self._reject(f"{_INPUT_KINDS[key[0]]}_time_jump", item)
+        self._recent[key] = t
         return True
 
     def _reject(self, reason: str, item: object) -> bool:
@@ -306,16 +312,18 @@ class TrackManager:
         return False
 
     def _release(self, until: float) -> None:
-        while self._heap and self._heap[0][0] <= until:
-            t, _, item = heapq.heappop(self._heap)
+        heap, frame_s = self._heap, self.config.frame_s
+        while heap and heap[0][0] <= until:
+            t, _, item = heapq.heappop(heap)
             self._horizon = t
-            frame = math.floor(t / self.config.frame_s)
-            if self._frame is None:
-                self._frame = frame
-            while frame > self._frame:
-                self._run_frame(self._frame)
-                # frames without input still sweep the antennas (misses) — a long gap is one sweep
-                self._frame = self._frame + 1 if frame - self._frame < 240 else frame
+            frame = math.floor(t / frame_s)
+            if frame != self._frame:  # the first input, or one past the frame being gathered
+                if self._frame is None:
+                    self._frame = frame
+                while frame > self._frame:
+                    self._run_frame(self._frame)
+                    # frames without input still sweep the antennas (misses) — a long gap is one sweep
+                    self._frame = self._frame + 1 if frame - self._frame < 240 else frame
             self._frame_items.append(item)
         if len(self._recent) > 10_000:  # forget duplicates older than the horizon
             self._recent = {k: t for k, t in self._recent.items() if t > self._horizon}
