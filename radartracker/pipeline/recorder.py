@@ -67,7 +67,7 @@ class BiasLog:
     cov: np.ndarray
 
 
-_NAN16 = (math.nan,) * 16
+_NAN16 = np.full(16, math.nan).tobytes()  # the covariance of an event without one
 FLUSH_EVERY = 8192  # rows handed to the sink at a time
 
 
@@ -104,10 +104,7 @@ class Recorder:
             n["state"].extend(state[:4])
         else:
             n["state"].frombytes(np.asarray(state, float).ravel()[:4].tobytes())
-        if cov is None:
-            n["cov"].extend(_NAN16)
-        else:
-            n["cov"].frombytes(np.asarray(cov, float).tobytes())
+        n["cov"].frombytes(_NAN16 if cov is None else np.asarray(cov, float).tobytes())
         n["altitude_m"].append(math.nan if altitude_m is None else altitude_m)
         self._track.append(track)
         o = self._obj

@@ -208,7 +208,7 @@ def _by_labels(data: ScenarioData, cfg: RunConfig, est: Estimator, rec: Recorder
         if new:
             rec.event(t, tid, "created", "confirmed", x.state, x.cov, *idt)
         rec.event(t, tid, "confirmed" if new else "updated", "confirmed", x.state, x.cov, *idt)
-        if radar is not None:
+        if radar is not None and rec.bias_due(radar, t):
             rec.bias(t, est.bias(radar))
     return counts, coupling
 
