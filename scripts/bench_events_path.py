@@ -1,0 +1,156 @@
+"""Benchmark: the events-and-outputs part of ``radartracker replay FOLDER --manager``, in CPU µs per input.
+
+    python scripts/bench_events_path.py FOLDER [--repeat 3]
+
+FOLDER is an unlabelled scenario folder (``scripts/bench_national.py`` writes them). That part is what
+follows the TrackManager's ``_emit``: the run's ``on_event`` (covariance and identity of the event's
+track), ``Recorder.event``, the per-plot bias logging, the recorder handing rows on, the writing of
+``events.csv``, ``tracks.csv`` and ``biases.csv``, and the end of the run (``coupling.graphml``,
+``summary.json``, ``config.json``).
+
+It is isolated as follows. One real run records, for every input, the events the TrackManager emitted
+and the state of each event's track at that moment (its estimate (t, x, P) and identity). Then
+``replay_folder`` runs with a stand-in for the TrackManager that emits those events again, for the same
+inputs, after reading the track's estimate as the manager does (``filter.estimate()`` copying x and P,
+as the IMM's does): everything else is the real code. Its CPU time, minus that of reading the folder
+through the same stand-in without ``on_event``, divided by the inputs, is ``path_us``; ``tables_us``
+is the part spent in ``OutputStream`` (formatting and writing the three tables). Times are
+``time.process_time`` (minimum over ``--repeat`` runs) on whatever load the machine has: one JSON line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import tempfile
+import time
+from pathlib import Path
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("folder", type=Path)
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+
+    from radartracker.estimation.coupling import CouplingGraph
+    from radartracker.io.scenario import open_scenario
+    from radartracker.pipeline import run as runmod
+    from radartracker.pipeline import writer
+    from radartracker.pipeline.config import RunConfig, resolve
+    from radartracker.pipeline.stream import iter_files
+    from radartracker.registry import make_estimator
+    from radartracker.tracking.manager import TrackManager, default_estimator
+
+    config = RunConfig(association="manager")
+    files = open_scenario(args.folder)
+    cfg = resolve(config, files.data, default_estimator())
+    est = make_estimator(cfg.estimator, cfg.estimator_settings(), [r.id for r in files.data.radars],
+                         cfg.estimator_options)
+    per_item: list[list] = []
+    current: list = []
+
+    def capture(ev) -> None:
+        tr = mgr.tracks.get(ev.track)
+        if tr is None:
+            current.append((ev, None))
+            return
+        t, x, P = TrackManager._estimate_of(tr)
+        current.append((ev, _Track((t, x.copy(), P.copy()), tr.altitude_m, tr.mode_s, tr.mode_3a)))
+
+    mgr = TrackManager(files.data.radars, files.data.reference, cfg.manager_settings(), capture, estimator=est,
+                       filter_factory=runmod.motion_factory(cfg))
+    for item in iter_files(files):
+        mgr.process(item)
+        per_item.append(current[:])
+        current.clear()
+    mgr.flush()
+    last = current[:]
+    inputs, events = len(per_item), sum(map(len, per_item)) + len(last)
+
+    class StandIn:
+        """Emits the recorded events of each input, as the TrackManager did."""
+
+        def __init__(self, radars, reference, config=None, on_event=None, *, estimator=None, filter_factory=None):
+            self.on_event, self.tracks, self.k = on_event, {}, 0
+            self.coupling = CouplingGraph([r.id for r in radars])
+
+        def _emit(self, evs) -> None:
+            for ev, tr in evs:
+                if tr is None:
+                    self.tracks.pop(ev.track, None)
+                else:
+                    tr.estimate = tr.filter.estimate()  # the manager's read (ManagedTrack.estimate)
+                    self.tracks[ev.track] = tr
+                if self.on_event is not None:
+                    self.on_event(ev)
+
+        def process(self, item) -> None:
+            self._emit(per_item[self.k])
+            self.k += 1
+
+        def flush(self) -> None:
+            self._emit(last)
+
+        def accounting(self) -> dict:
+            return {}
+
+    tables = [0.0]
+
+    def timed(f):
+        def g(*a):
+            c = time.process_time()
+            f(*a)
+            tables[0] += time.process_time() - c
+        return g
+
+    runmod.TrackManager = StandIn
+    writer.OutputStream.events = timed(writer.OutputStream.events)
+    writer.OutputStream.biases = timed(writer.OutputStream.biases)
+    whole, alone, in_tables = [], [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(args.repeat + 1):  # the first: a warm-up
+            out = writer.prepare(Path(tmp) / "out", overwrite=True)
+            tables[0] = 0.0
+            c = time.process_time()
+            with contextlib.redirect_stdout(io.StringIO()):
+                runmod.replay_folder(args.folder, config, out, progress=False)
+            whole.append(time.process_time() - c)
+            in_tables.append(tables[0])
+            c = time.process_time()
+            f = open_scenario(args.folder)
+            m = StandIn(f.data.radars, f.data.reference)
+            for item in iter_files(f):
+                m.process(item)
+            m.flush()
+            alone.append(time.process_time() - c)
+    w, a, t = min(whole[1:]), min(alone[1:]), min(in_tables[1:])
+    print(json.dumps({"folder": str(args.folder), "inputs": inputs, "events": events,
+                      "path_us": round((w - a) / inputs * 1e6, 2), "tables_us": round(t / inputs * 1e6, 2),
+                      "replay_standin_us": round(w / inputs * 1e6, 2), "reading_standin_us": round(a / inputs * 1e6, 2)}))
+
+
+class _Filter:
+    __slots__ = ("e",)
+
+    def __init__(self, e: tuple) -> None:
+        self.e = e
+
+    def estimate(self) -> tuple:
+        return self.e[0], self.e[1].copy(), self.e[2].copy()
+
+
+class _Track:
+    """What ``on_event`` reads of a ManagedTrack."""
+
+    __slots__ = ("estimate", "filter", "altitude_m", "mode_s", "mode_3a")
+
+    def __init__(self, estimate: tuple, altitude_m, mode_s, mode_3a) -> None:
+        self.estimate, self.filter = None, _Filter(estimate)
+        self.altitude_m, self.mode_s, self.mode_3a = altitude_m, mode_s, mode_3a
+
+
+if __name__ == "__main__":
+    main()
