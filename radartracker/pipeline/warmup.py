@@ -59,7 +59,10 @@ def _exercise(config: RunConfig, labelled: bool) -> None:
     if not labelled:
         data.plots.target = np.full(len(data.plots), None, dtype=object)
         data.truth = None
-    run(data, config, progress=False)
+    result = run(data, config, progress=False)
+    from radartracker.pipeline.writer import table_rows
+
+    table_rows(result.events, result.biases, result.plane)  # the tables' compiled row writer (csvtext)
     name = config.estimator or default_estimator()
     cfg = resolve(config, data, name)
     radar = data.radars[0].id

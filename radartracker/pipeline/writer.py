@@ -69,6 +69,11 @@ def _bias_rows(b: BiasLog) -> str:
             .number(np.degrees(b.value[:, 1]), 6).number(sd[:, 0], 3).number(np.degrees(sd[:, 1]), 6).rows())
 
 
+def table_rows(ev: Events, biases: BiasLog, plane) -> tuple[str, str, str]:
+    """The rows (without header) of ``events.csv``, ``tracks.csv`` and ``biases.csv``."""
+    return (*_rows(ev, plane), _bias_rows(biases))
+
+
 class OutputStream:
     """``tracks.csv``, ``events.csv`` and ``biases.csv`` written as a run goes: each to a temporary file in
     the output folder, renamed over its name by :meth:`close` once complete (as every output file is,
@@ -105,7 +110,7 @@ def write_outputs(result: RunResult, out: Path | str, *, figures: bool = False) 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     if not result.streamed:
-        events, tracks = _rows(result.events, result.plane)
+        events, tracks, biases = table_rows(result.events, result.biases, result.plane)
         with atomic_open(out / "tracks.csv", "w", encoding="utf-8") as f:
             f.write(",".join(TRACK_COLUMNS) + "\n")
             f.write(tracks)
@@ -114,7 +119,7 @@ def write_outputs(result: RunResult, out: Path | str, *, figures: bool = False) 
             f.write(events)
         with atomic_open(out / "biases.csv", "w", encoding="utf-8") as f:
             f.write(",".join(BIAS_COLUMNS) + "\n")
-            f.write(_bias_rows(result.biases))
+            f.write(biases)
     with atomic_path(out / "coupling.graphml") as tmp:
         result.coupling.write_graphml(tmp)
     if figures:

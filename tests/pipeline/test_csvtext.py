@@ -93,3 +93,28 @@ def test_event_and_bias_tables_are_those_of_the_per_row_formatter():
 def _bias(radar: str, rng: np.random.Generator) -> BiasState:
     return BiasState(radar, 0.0, np.array([rng.normal(0, 100), rng.normal(0, 1e-3)]),
                      np.diag([rng.uniform(1, 100), rng.uniform(1e-9, 1e-6)]))
+
+
+CHILD = r"""
+import json, numpy as np
+from radartracker.pipeline import csvtext
+from radartracker.pipeline.config import RunConfig
+from radartracker.pipeline.warmup import warm_up
+warm_up(RunConfig(association="manager"), notice=False)
+before = len(csvtext._write.signatures)
+t = csvtext.Table(3).number(np.array([1.5, -2.0, np.nan]), 2, optional=True).integer(np.arange(3)).text(["a", "é", ""])
+t.rows(); t.rows([2, 0], [2, 0])
+print(json.dumps([before, len(csvtext._write.signatures)]))
+"""
+
+
+def test_the_warm_up_readies_the_row_writer():
+    """A replay's first table rows are not compiled inside the run (the warm-up wrote the tiny run's)."""
+    import json
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", CHILD], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    before, after = json.loads(out.stdout.strip().splitlines()[-1])
+    assert before == after == 1
