@@ -68,13 +68,16 @@ def _codes(col: pa.ChunkedArray, pattern: str, *, optional: bool = True) -> np.n
     ok = pc.match_substring_regex(col, pattern)
     if not _all(pc.or_(ok, pc.equal(col, "")) if optional else ok):
         return None
-    out = pc.utf8_lower(col).to_numpy(zero_copy_only=False)
-    out[out == ""] = None
-    return out
+    return _objects(col, lower=True)[0]
 
 
-def _objects(col: pa.ChunkedArray) -> np.ndarray:
-    return col.to_numpy(zero_copy_only=False).astype(object)
+def _objects(col: pa.ChunkedArray, *, lower: bool = False) -> tuple[np.ndarray, np.ndarray, list]:
+    """The column as an object array (lower case if ``lower``, ``None`` where empty), its values' indices in
+    the list of its distinct values, and that list: one str object per distinct value, not per row."""
+    enc = pc.dictionary_encode(col.combine_chunks())
+    values = [v or None for v in (pc.utf8_lower(enc.dictionary) if lower else enc.dictionary).to_pylist()]
+    code = enc.indices.to_numpy(zero_copy_only=False)
+    return np.array(values, object)[code], code, values
 
 
 def plots(reader, first: int, text: str) -> PlotTable | None:
@@ -99,27 +102,28 @@ def plots(reader, first: int, text: str) -> PlotTable | None:
     if reader.has_target:
         if not _all(pc.match_substring_regex(tab["target"], _LABEL)):
             return None
-        target = _objects(tab["target"])
-        target[target == ""] = None
+        target = _objects(tab["target"])[0]
     else:
         target = np.full(len(t), None, object)
     lines = text.split("\n")[:-1]
-    rid = _objects(radar)
+    rid, code, names = _objects(radar)
     if len(set(lines)) != len(lines) or not _clock_admits(reader.clock, t):
         return None
     for i in np.flatnonzero(t == t[0]).tolist():  # only the first time can equal a radar's latest time
         last = reader.last_time.get(rid[i])
         if last is not None and last[0] == t[i] and lines[i] in reader.same_time[rid[i]]:
             return None
-    # accepted: carry the state on as the row checks would
+    # accepted: carry the state on as the row checks would: each radar's last row, and its rows at that
+    # row's time (within the stretch of the sorted times equal to it)
     _clock_take(reader.clock, t)
-    for r in np.unique(rid).tolist():
-        idx = np.flatnonzero(rid == r)
-        tl = t[idx[-1]]
-        keys = {lines[i] for i in idx[t[idx] == tl].tolist()}
+    last_rows = len(t) - 1 - np.unique(code[::-1], return_index=True)[1]  # distinct codes: 0, 1, …
+    for k, (r, il) in enumerate(zip(names, last_rows.tolist())):
+        tl = t[il]
+        lo = int(np.searchsorted(t, tl, side="left"))
+        keys = {lines[i] for i in (lo + np.flatnonzero(code[lo:il + 1] == k)).tolist()}
         if r in reader.last_time and reader.last_time[r][0] == tl:
             keys |= reader.same_time[r]
-        reader.same_time[r], reader.last_time[r] = keys, (float(tl), first + int(idx[-1]))
+        reader.same_time[r], reader.last_time[r] = keys, (float(tl), first + il)
     reader.kept += len(t)
     return PlotTable(time=t, radar=rid, range_m=rng, azimuth_rad=np.radians(az), altitude_m=alt, mode_s=ms,
                      mode_3a=m3a, target=target)
@@ -161,7 +165,7 @@ def adsb(reader, first: int, text: str) -> AdsbTable | None:
             and (nacp == np.floor(nacp)).all()):
         return None
     lines = text.split("\n")[:-1]
-    if len(set(lines)) != len(lines) or any(k in reader.seen for k in lines):
+    if len(distinct := set(lines)) != len(lines) or not distinct.isdisjoint(reader.seen):
         return None
     if reader.latest_only:  # the keys of the last run of equal times, as the row checks keep them
         j = len(t) - 1
