@@ -32,11 +32,15 @@ def sweep(pos: np.ndarray, radar_xy: np.ndarray, north: np.ndarray, max_range: n
     ``start[r]``: α_r(t_a); ``width[r]``: 2π (t_b − t_a)/T_r."""
     m, n = radar_xy.shape[0], pos.shape[0]
     covered[:] = False
+    swept[:, :] = False
     for r in range(m):
         near = 0.98 * max_range[r]
+        far = (max_range[r] * (1.0 + 1e-9)) ** 2  # beyond: out of range whatever the rounding of hypot
         for i in range(n):
             dx = pos[i, 0] - radar_xy[r, 0]
             dy = pos[i, 1] - radar_xy[r, 1]
+            if dx * dx + dy * dy > far:
+                continue
             rng = math.hypot(dx, dy)
             if rng <= max_range[r]:
                 covered[i] = True
