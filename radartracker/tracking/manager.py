@@ -194,7 +194,8 @@ class TrackManager:
         self.on_event = on_event
         self._ids = itertools.count(1)
         self._seq = itertools.count()
-        self._heap: list = []
+        self._queue: deque = deque()  # admitted inputs no earlier than any before them (most), oldest first
+        self._heap: list = []  # the others, as (time, arrival number, input)
         self._newest: float | None = None
         self._horizon = -math.inf  # everything at or before this time has been released
         self._recent: dict[tuple, float] = {}
@@ -212,12 +213,12 @@ class TrackManager:
         self._events = []
         if self._admit(item):
             t = item.time
-            heapq.heappush(self._heap, (t, next(self._seq), item))
-            if self._newest is None or t > self._newest:
+            if self._newest is None or t >= self._newest:
+                self._queue.append(item)
                 self._newest = t
-            until = self._newest - self.config.reorder_window_s
-            if self._heap[0][0] <= until:  # else nothing to release
-                self._release(until)
+            else:
+                heapq.heappush(self._heap, (t, next(self._seq), item))
+            self._release(self._newest - self.config.reorder_window_s)
         return self._events
 
     def process_many(self, items: Iterable[Plot | AdsbReport]) -> list[TrackEvent]:
@@ -268,7 +269,7 @@ class TrackManager:
             if tr.status == "tentative":
                 for _, kind in tr.pending:
                     out[f"{kind}_in_tentative_tracks"] += 1
-        out["waiting_in_reorder_window"] = len(self._heap) + len(self._frame_items)
+        out["waiting_in_reorder_window"] = len(self._queue) + len(self._heap) + len(self._frame_items)
         return {k: v for k, v in out.items() if v}
 
     def biases(self) -> dict[str, BiasState]:
@@ -312,9 +313,19 @@ class TrackManager:
         return False
 
     def _release(self, until: float) -> None:
-        heap, frame_s = self._heap, self.config.frame_s
-        while heap and heap[0][0] <= until:
-            t, _, item = heapq.heappop(heap)
+        """Hand the inputs up to ``until`` to their frames in (time, arrival) order. An input waits in the heap
+        only if it came after a later one, so an input of the queue comes first at equal times."""
+        queue, heap, frame_s = self._queue, self._heap, self.config.frame_s
+        while True:
+            if queue and (not heap or queue[0].time <= heap[0][0]):
+                if queue[0].time > until:
+                    break
+                item = queue.popleft()
+                t = item.time
+            elif heap and heap[0][0] <= until:
+                t, _, item = heapq.heappop(heap)
+            else:
+                break
             self._horizon = t
             frame = math.floor(t / frame_s)
             if frame != self._frame:  # the first input, or one past the frame being gathered

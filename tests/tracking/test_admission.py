@@ -122,6 +122,49 @@ def test_clock_decisions_are_those_of_the_median_rule(seed):
     assert got == want and 0 < sum(want) < len(want)
 
 
+def _reference_release(times: list[float], window: float) -> tuple[list[int], int]:
+    """The reordering rule taken literally: an input waits until the newest time is ``window`` past it, inputs
+    go in (time, arrival) order, and one at or before the last time gone is late. Arrival numbers in the
+    order they go, and the number of late inputs."""
+    waiting, gone, horizon, newest, late = [], [], -math.inf, -math.inf, 0
+    for k, t in enumerate(times):
+        if t <= horizon:
+            late += 1
+            continue
+        waiting = sorted(waiting + [(t, k)])
+        newest = max(newest, t)
+        while waiting and waiting[0][0] <= newest - window:
+            horizon, k_gone = waiting.pop(0)
+            gone.append(k_gone)
+    return gone + [k for _, k in waiting], late
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_manager_releases_in_time_then_arrival_order(demo_data, seed):
+    """Most inputs come in order and wait in a queue, the others in a heap: the frames must get them in
+    (time, arrival) order all the same, with many equal times, and late ones counted (oracle above)."""
+    rng = np.random.default_rng(seed)
+    n = 3000
+    times = (np.round(np.arange(n) * 0.05 + rng.choice([0.0, 0.0, -1.0, -2.5], n) * rng.random(n), 1)).tolist()
+    radar = demo_data.radars[0].id
+    items = [Plot(t, radar, 1000.0 + k, 1.0) for k, t in enumerate(times)]  # distinct: no duplicates
+    mgr = TrackManager(demo_data.radars, demo_data.reference)
+    got: list[Plot] = []
+
+    def run_frame(frame: int) -> None:
+        got.extend(mgr._frame_items)
+        mgr._frame_items = []
+
+    mgr._run_frame = run_frame
+    for item in items:
+        mgr.process(item)
+    mgr.flush()
+    want, late = _reference_release(times, mgr.config.reorder_window_s)
+    assert [items[k] for k in want] == got
+    assert mgr.counts.get("plots_late", 0) == late > 0
+    assert len(got) + late == n
+
+
 def _plots(demo_data, limit_s: float) -> list[Plot]:
     p = demo_data.plots
     out = [Plot(float(p.time[i]), p.radar[i], float(p.range_m[i]), float(p.azimuth_rad[i]),
