@@ -12,6 +12,8 @@ decimal point d places from the right, the texts and the separators.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -45,7 +47,7 @@ class Table:
         texts = [""] * self.n if slow.any() else None
         for i in np.flatnonzero(slow).tolist():
             v = float(x[i])
-            if optional and not np.isfinite(v):
+            if optional and not math.isfinite(v):
                 flag[i] = _BLANK
             else:
                 flag[i] = _TEXT
@@ -136,7 +138,7 @@ def _write(cols, kinds, index, num, neg, flag, dec, pow10, buf, start, end, sele
                 out[pos] = 44  # ,
                 pos += 1
             k = index[c]
-            if kinds[c] == 0 and flag[k, r] == 0:
+            if kinds[c] == 0 and flag[k, r] == 0:  # _DIGITS
                 if neg[k, r]:
                     out[pos] = 45  # -
                     pos += 1
@@ -157,7 +159,7 @@ def _write(cols, kinds, index, num, neg, flag, dec, pow10, buf, start, end, sele
                     out[j] = 48 + v - 10 * w
                     v = w
                     j -= 1
-            elif kinds[c] == 1 or flag[k, r] == 2:
+            elif kinds[c] == 1 or flag[k, r] == 2:  # a text, or a number's _TEXT (nothing for _BLANK)
                 for j in range(start[c, r], end[c, r]):
                     out[pos] = buf[j]
                     pos += 1
