@@ -147,6 +147,13 @@ class RestoresWithoutCovariance(CVFilter):
         super().load_state_dict({k: v for k, v in state.items() if k != "P"})
 
 
+class ScreenWithoutBiasCovariance(CVFilter):
+    """A faster screen that forgets the bias covariance in R_c."""
+
+    def screen(self, time, z, C, R, bias, bias_cov, gate=None):
+        return super().screen(time, z, C, R, bias, np.zeros((2, 2)), gate)
+
+
 class WrongCovariance(CVFilter):
     def start(self, time, z, R):
         super().start(time, z, R)
@@ -154,6 +161,7 @@ class WrongCovariance(CVFilter):
 
 
 @pytest.mark.parametrize("cls, check", [(WrongCovariance, "contract"), (AcceptsNaN, "errors"), (PredictMoves, "reads"),
+                                        (ScreenWithoutBiasCovariance, "screen"),
                                         (OverconfidentCV, "filterpy"), (OverconfidentCV, "consistency"),
                                         (RestoresWithoutCovariance, "snapshot")])
 def test_broken_motion_model_fails_its_check(cls, check):

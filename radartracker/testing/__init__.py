@@ -38,7 +38,9 @@ Estimator checks (``ESTIMATOR_CHECKS``):
 Motion-model checks (``MOTION_CHECKS``): ``contract`` (typed ``config_class``, refuses another
 config type, ``predict`` before ``start`` fails), ``errors`` (non-finite or malformed z, R, time and a
 gap beyond ``max_gap_s`` raise ValueError and leave the filter unchanged), ``reads`` (``predict`` and
-``estimate`` change nothing; ``update``'s NIS is that of ``predict``'s output), ``filterpy`` (for a
+``estimate`` change nothing; ``update``'s NIS is that of ``predict``'s output), ``screen`` (``screen``'s
+bias correction and d² are screening's equations on ``predict``'s output; outside the gate nothing
+changes, inside it the filter is updated as ``update`` does), ``filterpy`` (for a
 single-Gaussian filter, ``kalman_update=True``: the update is FilterPy's Kalman correction of
 ``predict``'s (χ̄, P̄)), ``hygiene`` (symmetric positive definite finite covariances through a 2 g
 manoeuvre, repeated times and a long gap), ``consistency`` (on straight constant-velocity flight with

@@ -14,7 +14,7 @@ from radartracker.testing.common import (H, CheckFailed, close, fail, identical,
                                          run_checks)
 from radartracker.tracking.filters import MotionConfig, TrackFilter
 
-MOTION_CHECKS = ("contract", "errors", "reads", "filterpy", "hygiene", "consistency", "snapshot")
+MOTION_CHECKS = ("contract", "errors", "reads", "screen", "filterpy", "hygiene", "consistency", "snapshot")
 
 
 def _run_filter(f: TrackFilter, t: np.ndarray, zs: np.ndarray, Rs: np.ndarray) -> list[float]:
@@ -122,6 +122,32 @@ def _check_motion_reads(cls: type[TrackFilter], config: MotionConfig, owner: str
         raise fail(owner, check, f"update's NIS {got} is not that of predict's output ({expected})")
 
 
+def _check_motion_screen(cls: type[TrackFilter], config: MotionConfig, owner: str) -> None:
+    check = "screen"
+    rng = np.random.default_rng(31)
+    t, _, zs, Rs = _track(rng, 12, 1.0, config.prior_sd_velocity_mps)
+    f = cls(config)
+    _run_filter(f, t[:6], zs[:6], Rs[:6])
+    C, bias, bias_cov = np.array([[0.8, 2e4], [-0.6, 3e4]]), np.array([30.0, -4e-4]), np.diag([50.0, 2e-8])
+    z = zs[6] + C @ bias
+    zc, Rc = z - C @ bias, Rs[6] + C @ bias_cov @ C.T
+    x, P = f.predict(t[6])
+    nu = zc - x[:2]
+    d2 = float(nu @ np.linalg.solve(P[:2, :2] + Rc, nu))
+    before, twin = _filter_state(f), copy.deepcopy(f)
+    for gate in (None, 0.5 * d2):
+        got = f.screen(t[6], z, C, Rs[6], bias, bias_cov, gate)
+        if not (close(got[0], d2) and close(got[1], zc) and close(got[2], Rc) and got[3] is False):
+            raise fail(owner, check, f"screen with gate {gate} gave {got}, expected d² {d2}, z_c {zc}, R_c {Rc}, "
+                                     "not updated")
+        if not identical(_filter_state(f), before):
+            raise fail(owner, check, "a measurement outside the gate changed the filter")
+    got = f.screen(t[6], z, C, Rs[6], bias, bias_cov, 2.0 * d2)
+    twin.update(t[6], zc, Rc)
+    if not (got[3] is True and all(close(a, b) for a, b in zip(_filter_state(f), _filter_state(twin)))):
+        raise fail(owner, check, "a measurement in the gate must update the filter as update(time, z_c, R_c) does")
+
+
 def _check_motion_filterpy(cls: type[TrackFilter], config: MotionConfig, owner: str) -> None:
     KalmanFilter = kalman_filter_class()
     check = "filterpy"
@@ -201,6 +227,7 @@ def _check_motion_snapshot(cls: type[TrackFilter], config: MotionConfig, owner: 
 
 
 _MOTION_RUNNERS = {"contract": _check_motion_contract, "errors": _check_motion_errors, "reads": _check_motion_reads,
+                   "screen": _check_motion_screen,
                    "filterpy": _check_motion_filterpy, "hygiene": _check_motion_hygiene,
                    "consistency": _check_motion_consistency, "snapshot": _check_motion_snapshot}
 
