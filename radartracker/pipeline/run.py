@@ -304,8 +304,9 @@ def replay_folder(folder: Path | str, config: RunConfig, out: Path | str, *, pro
             sink.abort(exc)
             raise
         else:
-            sink.close()
             result.label_spans = files.label_spans
+            result.summary()  # evaluated before the tables replace an earlier run's (write_outputs)
+            sink.close()
             write_outputs(result, out)
             return result
     from radartracker.io.sources import read_source

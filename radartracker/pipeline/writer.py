@@ -34,8 +34,16 @@ BIAS_COLUMNS = ("time", "radar", "range_bias_m", "azimuth_bias_deg", "sd_range_m
 
 
 def prepare(out: Path | str, *, overwrite: bool = False) -> Path:
-    """The output folder, created and writable, without earlier results (``overwrite`` removes them)."""
-    return prepare_output_folder(out, OUTPUT_FILES, overwrite=overwrite)
+    """The output folder, created and writable; earlier results are refused, or with ``overwrite`` kept
+    until this run's files replace them (:func:`retire_earlier`): a run that fails leaves them intact."""
+    return prepare_output_folder(out, OUTPUT_FILES, overwrite=overwrite, keep_earlier=True)
+
+
+def retire_earlier(out: Path) -> None:
+    """Mark the folder as not holding a finished run before this run's first file replaces an earlier
+    one: ``config.json``, written last, goes first (a kill while files are replaced leaves no folder
+    that looks complete)."""
+    (out / "config.json").unlink(missing_ok=True)
 
 
 def _text(col: np.ndarray) -> list[str]:
@@ -80,7 +88,8 @@ class OutputStream:
     :mod:`radartracker.io.atomic`); :meth:`abort` removes them. Rows as :func:`write_outputs` writes them."""
 
     def __init__(self, out: Path | str, plane) -> None:
-        out, self.plane = Path(out), plane
+        self.out, self.plane = Path(out), plane
+        out = self.out
         out.mkdir(parents=True, exist_ok=True)
         self._stack = ExitStack()
         self._tracks, self._events, self._biases = (
@@ -98,6 +107,7 @@ class OutputStream:
         self._biases.write(_bias_rows(b))
 
     def close(self) -> None:
+        retire_earlier(self.out)
         self._stack.close()
 
     def abort(self, exc: BaseException) -> None:
@@ -105,10 +115,13 @@ class OutputStream:
 
 
 def write_outputs(result: RunResult, out: Path | str, *, figures: bool = False) -> None:
-    """Write the run's files into ``out`` (prepared by :func:`prepare`; created if missing); the three
-    tables only if the run did not write them as it went (``result.streamed``)."""
+    """Write the run's files into ``out`` (prepared by :func:`prepare`; created if missing), each replacing
+    the earlier run's atomically, ``config.json`` last; the three tables only if the run did not write
+    them as it went (``result.streamed``)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    summary = result.summary()  # the evaluation, before any earlier file is replaced
+    retire_earlier(out)
     if not result.streamed:
         events, tracks, biases = table_rows(result.events, result.biases, result.plane)
         with atomic_open(out / "tracks.csv", "w", encoding="utf-8") as f:
@@ -127,7 +140,9 @@ def write_outputs(result: RunResult, out: Path | str, *, figures: bool = False) 
 
         plot_biases(result, out / "biases.png")
         plot_tracks_over_truth(result, out / "tracks.png")
-    summary = result.summary()
+    else:  # an earlier run's figures would pass for this run's
+        for name in ("biases.png", "tracks.png"):
+            (out / name).unlink(missing_ok=True)
     for w in summary["consistency"]["warnings"]:
         log.warning("%s: %s", result.data.name or "run", w)
     write_text(out / "summary.json", json.dumps(summary, indent=1, allow_nan=False) + "\n")

@@ -184,3 +184,32 @@ def test_convert_killed_mid_write_leaves_no_output_and_the_rerun_matches_an_unin
     rerun, fresh = _tree(tmp_path / "new"), _tree(tmp_path / "fresh" / "new")
     assert rerun.pop("report.json") and fresh.pop("report.json")  # differ only in the seconds taken
     assert rerun == fresh and any(name.endswith(".new4") for name in rerun)
+
+
+@pytest.mark.parametrize("streamed", [True, False])
+def test_replay_overwrite_that_fails_keeps_the_earlier_run(tmp_path, capsys, monkeypatch, tiny_data, streamed):
+    """``replay --overwrite`` keeps the earlier run's files until this run's replace them: a failure during the
+    computation (streamed: after part of the tables was written; read whole: in the evaluation) leaves the
+    earlier run byte for byte, a success leaves only this run's files (the earlier figures go)."""
+    from radartracker.pipeline.result import RunResult
+    from radartracker.tracking.manager import TrackManager
+
+    scen, out = tmp_path / "scen", tmp_path / "out"
+    write_scenario(scen, tiny_data)
+    how = ["--association", "manager"] if streamed else []
+    assert main(["replay", str(scen), "--out", str(out), "--quiet", "--plots", *how]) == 0
+    earlier = _tree(out)
+    assert "biases.png" in earlier and "config.json" in earlier
+
+    def fail(*args, **kwargs):
+        raise _disk_full()
+
+    monkeypatch.setattr(TrackManager if streamed else RunResult, "flush" if streamed else "summary", fail)
+    capsys.readouterr()
+    assert main(["replay", str(scen), "--out", str(out), "--quiet", "--overwrite", "--q", "9", *how]) == 2
+    _one_error_line(capsys, "No space left")
+    assert _tree(out) == earlier
+    monkeypatch.undo()
+    assert main(["replay", str(scen), "--out", str(out), "--quiet", "--overwrite", "--q", "9", *how]) == 0
+    now = _tree(out)
+    assert set(now) == set(earlier) - {"biases.png", "tracks.png"} and now["config.json"] != earlier["config.json"]
