@@ -11,7 +11,8 @@ a new ``coupled-sparse`` estimator and coupling graph in two ways, after a warm-
 * ``kernel``: the compiled step ``update_packed`` alone on the same arrays.
 
 Both include the (rare) add/remove of aircraft, so their difference is the per-measurement overhead
-around the kernel; they run in turns of 256 calls, so a changing load on a shared machine hits both alike. One JSON line per repeat: CPU µs per measurement (``time.process_time``), and whether
+around the kernel; they run in turns of 256 calls, so a changing load on a shared machine hits both alike.
+One JSON line per repeat: CPU µs per measurement (``time.process_time``), and whether
 both replays end in the same estimator state (bit for bit).
 """
 

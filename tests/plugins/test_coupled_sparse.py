@@ -345,7 +345,7 @@ def test_dense_information_is_an_arrowhead_unless_biases_drift():
 
 
 def test_single_update_equals_the_batch_step_bit_for_bit():
-    """update() (the TrackManager's one-measurement path, which calls the kernel step directly) gives
+    """update() (one measurement: the kernel step called directly, as update_arrays, the TrackManager's path) gives
     exactly update_many()'s results — innovations, stored blocks, bias epoch — and its errors."""
     sc = make_linear_scenario(n_aircraft=4, n_radars=3, duration=60.0, rng=3, q=0.3, adsb_aircraft=2)
     ests = [make_estimator("coupled-sparse", EstimatorConfig(motion=MotionModel(0.3)), sc.radar_ids,
