@@ -297,6 +297,8 @@ def replay_folder(folder: Path | str, config: RunConfig, out: Path | str, *, pro
         try:
             result = run(files.data, config, progress=progress, inputs=iter_files(files, prefetch=prefetch),
                          sink=sink, total=files.rows)
+            result.label_spans = files.label_spans
+            result.summary()  # evaluated before the tables replace an earlier run's (write_outputs)
         except NotTimeOrdered as exc:
             sink.abort(exc)
             log.info("%s: reading the whole scenario instead of streaming it", exc)
@@ -304,8 +306,6 @@ def replay_folder(folder: Path | str, config: RunConfig, out: Path | str, *, pro
             sink.abort(exc)
             raise
         else:
-            result.label_spans = files.label_spans
-            result.summary()  # evaluated before the tables replace an earlier run's (write_outputs)
             sink.close()
             write_outputs(result, out)
             return result
