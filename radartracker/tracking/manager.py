@@ -492,11 +492,11 @@ class TrackManager:
                                 for k in rest]).reshape(len(rest), len(live))
             zr = z[rest]
             pairs = candidate_pairs(zr, pred["pos"], self.config.search_radius_m, allowed)
-            b = self.estimator.bias(rid)
+            bias, bias_cov = self.estimator.bias_arrays(rid)
             if len(pairs):
                 pos, vel, cov = self._exact(live, pred, pairs[:, 1])
                 dt = np.array([plots[rest[k]].time for k in pairs[:, 0]]) - pred["t"]
-                d2, cost = gate_costs(zr[pairs[:, 0]], C[rest][pairs[:, 0]], R[rest][pairs[:, 0]], b.bias, b.cov,
+                d2, cost = gate_costs(zr[pairs[:, 0]], C[rest][pairs[:, 0]], R[rest][pairs[:, 0]], bias, bias_cov,
                                       pos + vel * dt[:, None], cov)
                 # Mode C: a pair whose altitudes disagree is not a pair; d_h² joins the cost (its mean, 1, if unknown)
                 h = np.array([np.nan if plots[rest[k]].altitude_m is None else plots[rest[k]].altitude_m for k in pairs[:, 0]])
