@@ -242,11 +242,12 @@ class IMMFilter(TrackFilter):
                bias_cov: np.ndarray, gate: float | None = None) -> tuple[float, np.ndarray, np.ndarray, bool]:
         """:meth:`TrackFilter.screen` in one compiled call (bias correction, prediction, d² and the update
         when it passes ``gate``); a prediction not used is kept for the update at ``time``."""
-        if self._k is None:
+        t0 = self.time
+        if self._k is None or t0 is None or not abs(time - t0) <= self._max_gap:  # the time check inline
             return super().screen(time, z, C, R, bias, bias_cov, gate)
-        time = self._checked_time(time)
+        time = float(time)
         zc, Rc = np.empty(2), np.empty((2, 2))
-        d2, nis, bad = kernels.imm_screen(self._buf, self._k, time - self.time, self._pred_time == time, z, C, R,
+        d2, nis, bad = kernels.imm_screen(self._buf, self._k, time - t0, self._pred_time == time, z, C, R,
                                           bias, bias_cov, zc, Rc, -1.0 if gate is None else gate)
         self._pred_time = time
         if bad == -4:
@@ -286,7 +287,8 @@ class IMMFilter(TrackFilter):
         return float(nis)
 
     def estimate(self) -> tuple[float, np.ndarray, np.ndarray]:
-        require_started(self.time)
+        if self.time is None:
+            require_started(self.time)
         return self.time, self.x.copy(), self.P.copy()
 
     @property

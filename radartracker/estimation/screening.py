@@ -216,7 +216,7 @@ class AdsbPlausibility:
         if nacp < self.config.adsb_min_nacp:
             return "adsb_low_nacp"
         last = self._last.get(icao24)
-        here = (float(xy[0]), float(xy[1]))
+        here = tuple(xy.tolist()) if type(xy) is np.ndarray else (float(xy[0]), float(xy[1]))
         if last is not None and not speed_consistent(self.config, time - last[0], last[1], last[2], here, sd):
             run = extend_run(self.config, self._fails.get(icao24, []), time, xy, np.eye(2) * sd * sd)
             if len(run) < self.config.reinit_after:

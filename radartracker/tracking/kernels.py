@@ -109,17 +109,16 @@ def ct_predict(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_sd: f
     """Coordinated-turn EKF prediction of (ξ, P), ξ = [x, y, vx, vy, ω], over ``T`` seconds."""
     vx, vy, w = x[2], x[3], x[4]
     a = w * T
+    s, c = math.sin(a), math.cos(a)
     if abs(a) < _SMALL:
         f1 = T * (1 - a * a / 6)
         f2 = T * (a / 2 - a**3 / 24)
         d1 = T * T * (-a / 3 + a**3 / 30)
         d2 = T * T * (0.5 - a * a / 8)
     else:
-        s0, c0 = math.sin(a), math.cos(a)
-        f1, f2 = s0 / w, (1 - c0) / w
-        d1 = (T * c0 * w - s0) / (w * w)
-        d2 = (T * s0 * w - (1 - c0)) / (w * w)
-    s, c = math.sin(w * T), math.cos(w * T)
+        f1, f2 = s / w, (1 - c) / w
+        d1 = (T * c * w - s) / (w * w)
+        d2 = (T * s * w - (1 - c)) / (w * w)
     xp = np.empty(5)
     xp[0] = x[0] + f1 * vx + f2 * vy
     xp[1] = x[1] - f2 * vx + f1 * vy
@@ -196,6 +195,26 @@ def position_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray):
     nis = w0 * w0 + w1 * w1
     loglik = -0.5 * nis - (math.log(l00) + math.log(l11)) - _LOG_2PI
     return xn, Pn, nu, S, nis, loglik, True
+
+
+@njit(cache=True)
+def _position_nis(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray) -> tuple[float, bool]:
+    """(NIS, ok) of :func:`position_update` alone: its operations for these two, nothing else."""
+    nu0, nu1 = z[0] - x[0], z[1] - x[1]
+    s00, s01, s10, s11 = P[0, 0] + R[0, 0], P[0, 1] + R[0, 1], P[1, 0] + R[1, 0], P[1, 1] + R[1, 1]
+    a, b, d = s00, 0.5 * (s01 + s10), s11
+    det = a * d - b * b
+    if not (a > 0 and det > 0 and math.isfinite(det)):
+        return math.nan, False
+    l00 = math.sqrt(s00)
+    l10 = s10 / l00
+    r = s11 - l10 * l10
+    if not r > 0.0:
+        return math.nan, False
+    l11 = math.sqrt(r)
+    w0 = nu0 / l00
+    w1 = (nu1 - l10 * w0) / l11
+    return w0 * w0 + w1 * w1, True
 
 
 @njit(cache=True)
@@ -336,7 +355,7 @@ def imm_correct(cbar: np.ndarray, Xp: np.ndarray, PPp: np.ndarray, x_bar: np.nda
     the state as it was, (nan, −1) when the combined Λ is not positive definite, (nan, j) when mode j's
     is not."""
     n, D = Xp.shape
-    _, _, _, _, nis, _, ok = position_update(x_bar, P_bar, z, R)
+    nis, ok = _position_nis(x_bar, P_bar, z, R)
     if not ok:
         return math.nan, -1
     Xn = np.zeros((n, D))

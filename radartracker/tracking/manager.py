@@ -652,7 +652,8 @@ class TrackManager:
         whether the filter took it: d² against the track filter's prediction, so S = P̄_pp + C P_ς Cᵀ + R,
         and a measurement in the gate updates the filter in the same call (:meth:`TrackFilter.screen`)
         unless it is older than the track's estimate (judged against that, then updated at its time)."""
-        cfg, tentative, t_est = self.config.screening, tr.status == "tentative", self._estimate_of(tr)[0]
+        cfg, tentative = self.config.screening, tr.status == "tentative"
+        t_est = (tr.estimate or self._estimate_of(tr))[0]
         gate = cfg.gate(kind, tentative) if t >= t_est else None
         try:
             if gate is not None:
@@ -660,6 +661,10 @@ class TrackManager:
             d2, zc, Rc, updated = tr.filter.screen(max(t, t_est), z, C, R, bias, bias_cov, gate)
         except ValueError:  # the filter refuses this step; its update refuses it too and counts it
             return ACCEPT, None, None, False
+        if updated:  # d² ≤ the gate: judge's ACCEPT, which ends any run of rejections
+            if tr.rejected:
+                tr.rejected = []
+            return ACCEPT, zc, Rc, True
         verdict, tr.rejected = judge(cfg, kind, d2, tr.rejected, tr.mode_s is not None, tentative, t, zc, Rc)
         if verdict == REJECT:
             self.counts[f"{kind}_outlier"] += 1
