@@ -146,8 +146,8 @@ def kernels_alone(ops: list, factory) -> tuple[float, dict]:
         if kind == "screen":
             _, f, t, z, C, R, bias, bias_cov, gate = op
             flt = filters[f]
-            _, _, code = kernels.imm_screen(flt._buf, flt._k, t - flt.time, flt._pred_time == t, z, C, R, bias, bias_cov,
-                                            zc, Rc, -1.0 if gate is None else gate)
+            _, _, code = kernels.imm_screen(flt._buf, flt._k, t - flt.time, flt._pred_time == t, z, C, R, bias,
+                                            bias_cov, zc, Rc, -1.0 if gate is None else gate)
             flt.time, flt._pred_time = (t, math.nan) if code == -2 else (flt.time, t)
         elif kind == "update":
             _, f, t, z, R = op
