@@ -120,10 +120,11 @@ def write_outputs(result: RunResult, out: Path | str, *, figures: bool = False) 
     them as it went (``result.streamed``)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    summary = result.summary()  # the evaluation, before any earlier file is replaced
+    summary = result.summary()  # the evaluation and the rows, before any earlier file is replaced
+    rows = None if result.streamed else table_rows(result.events, result.biases, result.plane)
     retire_earlier(out)
-    if not result.streamed:
-        events, tracks, biases = table_rows(result.events, result.biases, result.plane)
+    if rows is not None:
+        events, tracks, biases = rows
         with atomic_open(out / "tracks.csv", "w", encoding="utf-8") as f:
             f.write(",".join(TRACK_COLUMNS) + "\n")
             f.write(tracks)
