@@ -19,13 +19,15 @@ Every input is used or counted under a named reason.
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import gc
 import itertools
 import logging
 import math
 import time as _time
 from collections import Counter
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import attrs
@@ -53,6 +55,7 @@ from radartracker.tracking.admission import StreamClock
 from radartracker.tracking.manager import TrackEvent, TrackManager, default_estimator
 
 log = logging.getLogger(__name__)
+GC_YOUNG_THRESHOLD = 50_000  # chosen by measurement: docs/performance.md, "Garbage collection"
 
 
 def run(data: ScenarioData, config: RunConfig | None = None, *, estimator: Estimator | None = None,
@@ -94,13 +97,14 @@ def run(data: ScenarioData, config: RunConfig | None = None, *, estimator: Estim
         raise ConfigurationError("only the TrackManager association of the central architecture is streamed")
     rec = Recorder(cfg.bias_log_interval_s, sink=sink, keep=data.truth is not None)
     started = _time.perf_counter()
-    if cfg.architecture == "distributed":
-        counts, coupling = run_distributed(data, cfg, est, factory, rec, progress, cfg.fusion_settings(),
-                                           local_tracks)
-    elif cfg.association == "labels":
-        counts, coupling = _by_labels(data, cfg, est, rec, progress)
-    else:
-        counts, coupling = _by_manager(data, cfg, est, factory, rec, progress, inputs, total)
+    with young_garbage():
+        if cfg.architecture == "distributed":
+            counts, coupling = run_distributed(data, cfg, est, factory, rec, progress, cfg.fusion_settings(),
+                                               local_tracks)
+        elif cfg.association == "labels":
+            counts, coupling = _by_labels(data, cfg, est, rec, progress)
+        else:
+            counts, coupling = _by_manager(data, cfg, est, factory, rec, progress, inputs, total)
     seconds = _time.perf_counter() - started
     rec.flush()
     plane = sink.plane if sink is not None else SystemPlane(*data.reference)  # a projection costs ~25 ms
@@ -108,6 +112,20 @@ def run(data: ScenarioData, config: RunConfig | None = None, *, estimator: Estim
                      biases=rec.biases(), final_biases={r: est.bias(r) for r in radar_ids}, counts=dict(counts),
                      seconds=seconds, nis=np.asarray(rec.nis, float), coupling=coupling, plugins=plugins,
                      streamed=sink is not None, track_count=len(rec.track_ids))
+
+
+@contextlib.contextmanager
+def young_garbage(threshold: int = GC_YOUNG_THRESHOLD) -> Iterator[None]:
+    """Python's cyclic collector looks at its youngest generation every ``threshold`` net allocations of
+    containers while the block runs (default 700): an input and what is made from it live for the reorder
+    window, thousands of inputs, so at 700 they were promoted and scanned again in the older generations
+    (docs/performance.md: about 15 % of a national replay). Restored when the block ends."""
+    old = gc.get_threshold()
+    gc.set_threshold(max(threshold, old[0]), *old[1:])
+    try:
+        yield
+    finally:
+        gc.set_threshold(*old)
 
 
 def _by_labels(data: ScenarioData, cfg: RunConfig, est: Estimator, rec: Recorder,
