@@ -472,21 +472,28 @@ def imm_screen(buf: np.ndarray, k: np.ndarray, dt: float, predicted: bool, z: np
     d2 = position_d2(zc, Rc, x_bar, P_bar)
     if not d2 <= gate:
         return d2, math.nan, -4
-    nis, code = imm_update(buf, k, dt, True, zc, Rc)
+    if measurement_ok(0.0, zc, Rc) != 0:  # as imm_update (not called: its cycle would be compiled in here too)
+        return d2, math.nan, -3
+    nis, code = _imm_correct_packed(buf, k, zc, Rc)
     return d2, nis, code
 
 
 @njit(cache=True)
 def imm_update(buf: np.ndarray, k: np.ndarray, dt: float, predicted: bool, z: np.ndarray,
                R: np.ndarray) -> tuple[float, int]:
-    """Correction of the packed state by position z: from the kept prediction if ``predicted``, else
-    :func:`imm_cycle` by ``dt``. Returns :func:`imm_correct`'s (NIS, code), or (nan, −3), the state
-    untouched, when (z, R) fails :func:`measurement_ok`."""
+    """Correction of the packed state by position z: from the kept prediction if ``predicted``, else after
+    :func:`imm_advance` by ``dt`` (the operations of :func:`imm_cycle`). Returns :func:`imm_correct`'s
+    (NIS, code), or (nan, −3), the state untouched, when (z, R) fails :func:`measurement_ok`."""
     if measurement_ok(0.0, z, R) != 0:
         return math.nan, -3
-    n, D, entry_var, modes, dims, lam, left, right = _imm_settings(k)
+    if not predicted:
+        imm_advance(buf, k, dt)
+    return _imm_correct_packed(buf, k, z, R)
+
+
+@njit(cache=True)
+def _imm_correct_packed(buf: np.ndarray, k: np.ndarray, z: np.ndarray, R: np.ndarray) -> tuple[float, int]:
+    """:func:`imm_correct` of the packed prediction into the packed state."""
+    n, D, entry_var, _, dims, _, _, _ = _imm_settings(k)
     (mu, X, PP, x, P), (cbar, Xp, PPp, x_bar, P_bar) = imm_views(buf, n, D)
-    if predicted:
-        return imm_correct(cbar, Xp, PPp, x_bar, P_bar, dims, entry_var, z, R, mu, X, PP, x, P)
-    return imm_cycle(mu, X, PP, lam, left, right, modes, dims, entry_var, dt, z, R, x, P, cbar, Xp, PPp, x_bar,
-                     P_bar)
+    return imm_correct(cbar, Xp, PPp, x_bar, P_bar, dims, entry_var, z, R, mu, X, PP, x, P)
