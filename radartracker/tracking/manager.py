@@ -661,6 +661,8 @@ class TrackManager:
             d2, zc, Rc, updated = tr.filter.screen(max(t, t_est), z, C, R, bias, bias_cov, gate)
         except ValueError:  # the filter refuses this step; its update refuses it too and counts it
             return ACCEPT, None, None, False
+        except Exception as exc:  # a plugin's bug: name it, its track and the time
+            raise self._plugin_failed(f"motion model {self._filter_cls.name!r}", tr.id, t, exc) from exc
         if updated:  # d² ≤ the gate: judge's ACCEPT, which ends any run of rejections
             if tr.rejected:
                 tr.rejected = []
