@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import attrs
@@ -209,17 +210,20 @@ def plot_rmse_vs_time(results: dict[str, RunResult], path: Path | str, bins: int
 COMPARISON_FILES = ("*comparison.md", "*scores.json", "*bias_error.png", "*rmse_vs_time.png")
 
 
-def write_comparison(results: dict[str, RunResult], out: Path | str, prefix: str = "") -> list[Score]:
-    """Write ``{prefix}comparison.md``, ``scores.json`` (strict JSON) and the two figures into ``out``."""
+def write_comparison(results: dict[str, RunResult], out: Path | str, prefix: str = "", *,
+                     stage: Callable[[str], Path] | None = None) -> list[Score]:
+    """Write ``{prefix}comparison.md``, ``scores.json`` (strict JSON) and the two figures into ``out``
+    (each to ``stage(name)`` when given: :func:`radartracker.io.atomic.replace_outputs`)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    path = stage or (lambda name: out / name)
     scores = [score(r) for r in results.values()]
-    write_text(out / f"{prefix}comparison.md", markdown_table(scores) + "\n")
-    write_text(out / f"{prefix}scores.json",
+    write_text(path(f"{prefix}comparison.md"), markdown_table(scores) + "\n")
+    write_text(path(f"{prefix}scores.json"),
                json.dumps(strict([attrs.asdict(s) for s in scores]), indent=1, allow_nan=False) + "\n")
     if _has_truth(results):
-        plot_bias_errors(results, out / f"{prefix}bias_error.png")
-        plot_rmse_vs_time(results, out / f"{prefix}rmse_vs_time.png")
+        plot_bias_errors(results, path(f"{prefix}bias_error.png"))
+        plot_rmse_vs_time(results, path(f"{prefix}rmse_vs_time.png"))
     return scores
 
 

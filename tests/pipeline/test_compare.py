@@ -77,3 +77,29 @@ def test_write_comparison_without_truth_skips_figures(tmp_path, demo_data):
     data = attrs.evolve(demo_data, truth=None, truth_biases=None)
     scores = write_comparison(run_comparison(data, ["coupled"]), tmp_path)
     assert math.isnan(scores[0].bias_rmse_range_m) and not (tmp_path / "bias_error.png").exists()
+
+
+def test_compare_overwrite_that_fails_keeps_the_earlier_comparison(tmp_path, demo_data, capsys, monkeypatch):
+    """An earlier comparison stays byte for byte when the rerun fails (here while drawing its figures, after
+    its table was staged); a rerun that succeeds leaves only its own files."""
+    import errno
+
+    import radartracker.pipeline.compare as compare
+
+    write_scenario(tmp_path / "sc", demo_data)
+    out = tmp_path / "cmp"
+    assert main(["compare", str(tmp_path / "sc"), "--estimators", "decoupled,coupled", "--out", str(out)]) == 0
+    earlier = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert {"comparison.md", "scores.json", "bias_error.png"} <= set(earlier)
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(compare, "plot_rmse_vs_time", full)
+    args = ["compare", str(tmp_path / "sc"), "--estimators", "coupled", "--out", str(out), "--overwrite"]
+    assert main(args) == 2 and "No space left" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == earlier
+    monkeypatch.undo()
+    assert main(args) == 0
+    now = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert set(now) == set(earlier) and now["scores.json"] != earlier["scores.json"]
