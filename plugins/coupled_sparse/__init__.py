@@ -217,21 +217,15 @@ class CoupledSparseEstimator(Estimator):
 
     def update_arrays(self, time: float, aircraft: Hashable, radar: str | None, z: np.ndarray, C: np.ndarray,
                       R: np.ndarray) -> None:
-        """The TrackManager's path (:meth:`Estimator.update_arrays`): the kernel step on the caller's arrays,
-        ν and Λ into scratch space (:meth:`_step` written out: this runs once per measurement)."""
+        """The TrackManager's path (:meth:`Estimator.update_arrays`): :meth:`_step` on the caller's arrays,
+        ν and Λ into scratch space."""
         try:
             s = self._ac[aircraft]
             j = -1 if radar is None else self._rad[radar]
         except KeyError:
             s, j = self._slot(aircraft), self._radar_index(radar)  # the KeyError naming which
-        t, w = float(time), self._work
-        cap, mm, nb = self._dims
-        code, _ = K.update_packed(self._F, self._I, cap, mm, nb, w.flat, w.nbw, w.idx, s, j, t, z, C, R, self._q,
-                                  w.nu, w.lam)
-        if code == K.OK or code in (K.ERR_LAMBDA, K.ERR_S, K.ERR_REBUILD):
-            self._bias_time = t if not t <= self._bias_time else self._bias_time
-        if code != K.OK:
-            raise self._failure(code, 0, aircraft, radar, t)
+        w = self._work
+        self._step(s, j, float(time), z, C, R, w.nu, w.lam, aircraft, radar)
 
     def _step(self, s: int, j: int, t: float, z: np.ndarray, C: np.ndarray, R: np.ndarray, nu: np.ndarray,
               lam: np.ndarray, aircraft: Hashable, radar: str | None) -> float:

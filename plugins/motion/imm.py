@@ -227,12 +227,14 @@ class IMMFilter(TrackFilter):
         self.x[:], self.P[:] = kernels.imm_combine(self.mu, self.X, self.PP)
         self.time, self._pred_time = time, math.nan
 
+    def _within_gap(self, time: float) -> bool:
+        """Whether the filter has started and ``time`` is within ``max_gap_s`` of its epoch (False for a
+        nan or infinite time): the common case of :func:`check_time`, tested before calling it."""
+        return self.time is not None and abs(time - self.time) <= self._max_gap
+
     def _checked_time(self, time: float) -> float:
-        """``time`` as :func:`check_time` accepts it (the common case tested inline: a call costs more)."""
-        t0 = self.time
-        if t0 is None or not abs(time - t0) <= self._max_gap:  # also a nan or infinite time
-            return check_time(time, t0, self._max_gap)
-        return float(time)
+        """``time`` as :func:`check_time` accepts it."""
+        return float(time) if self._within_gap(time) else check_time(time, self.time, self._max_gap)
 
     def predict(self, time: float) -> tuple[np.ndarray, np.ndarray]:
         x_bar, P_bar = self._predicted(self._checked_time(time))[3:]
@@ -242,10 +244,9 @@ class IMMFilter(TrackFilter):
                bias_cov: np.ndarray, gate: float | None = None) -> tuple[float, np.ndarray, np.ndarray, bool]:
         """:meth:`TrackFilter.screen` in one compiled call (bias correction, prediction, d² and the update
         when it passes ``gate``); a prediction not used is kept for the update at ``time``."""
-        t0 = self.time
-        if self._k is None or t0 is None or not abs(time - t0) <= self._max_gap:  # the time check inline
+        if self._k is None or not self._within_gap(time):
             return super().screen(time, z, C, R, bias, bias_cov, gate)
-        time = float(time)
+        t0, time = self.time, float(time)
         zc, Rc = np.empty(2), np.empty((2, 2))
         d2, nis, bad = kernels.imm_screen(self._buf, self._k, time - t0, self._pred_time == time, z, C, R,
                                           bias, bias_cov, zc, Rc, -1.0 if gate is None else gate)
@@ -260,7 +261,7 @@ class IMMFilter(TrackFilter):
 
     def update(self, time: float, z: np.ndarray, R: np.ndarray) -> float:
         t0, bad = self.time, -3
-        if (self._k is not None and t0 is not None and abs(time - t0) <= self._max_gap and type(z) is np.ndarray
+        if (self._k is not None and self._within_gap(time) and type(z) is np.ndarray
                 and type(R) is np.ndarray and z.ndim == 1 and R.ndim == 2):  # the checks in the kernel
             time = float(time)
             nis, bad = kernels.imm_update(self._buf, self._k, time - t0, self._pred_time == time,

@@ -60,9 +60,8 @@ class CouplingGraph:
 
     def observe(self, aircraft: Hashable, radar: str | None, time: float) -> None:
         """Record one measurement of ``aircraft`` by ``radar`` (``None``: ADS-B) at ``time``."""
-        a = f"aircraft:{aircraft}"  # _aircraft_node, written out: this runs once per measurement
         try:
-            edge, source = self._edges[a][radar]
+            edge, source = self._edges[_aircraft_node(aircraft)][radar]
         except KeyError:  # a new pair: through the graph, then cached
             edge, source = self._pair(aircraft, radar, time)
         source["measurements"] += 1

@@ -80,7 +80,11 @@ class ScreeningConfig:
             return self.gate_tentative
         if kind == "plots":
             return self.gate_plots
-        return self.gate_adsb if kind == "adsb" else {"positions": self.gate_positions}[kind]
+        if kind == "adsb":
+            return self.gate_adsb
+        if kind == "positions":
+            return self.gate_positions
+        raise KeyError(kind)
 
 
 def normalised_innovation(z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray,

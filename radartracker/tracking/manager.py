@@ -663,10 +663,6 @@ class TrackManager:
             return ACCEPT, None, None, False
         except Exception as exc:  # a plugin's bug: name it, its track and the time
             raise self._plugin_failed(f"motion model {self._filter_cls.name!r}", tr.id, t, exc) from exc
-        if updated:  # d² ≤ the gate: judge's ACCEPT, which ends any run of rejections
-            if tr.rejected:
-                tr.rejected = []
-            return ACCEPT, zc, Rc, True
         verdict, tr.rejected = judge(cfg, kind, d2, tr.rejected, tr.mode_s is not None, tentative, t, zc, Rc)
         if verdict == REJECT:
             self.counts[f"{kind}_outlier"] += 1
