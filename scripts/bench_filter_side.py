@@ -43,7 +43,7 @@ def record(folder: str | None) -> tuple[list, object, object, int]:
         from radartracker.io.scenario import open_scenario
         files = open_scenario(folder)
         data, items = files.data, list(iter_files(files))
-    cfg = resolve(RunConfig(), data, "coupled-sparse")
+    cfg = resolve(RunConfig(association="manager"), data, "coupled-sparse")  # simulated traffic is labelled
     factory = motion_factory(cfg)
     cls = type(factory())
     if "screen" not in vars(cls) or getattr(factory(), "_k", None) is None:
