@@ -41,7 +41,8 @@ def record(folder: str | None) -> tuple[list, list, "object"]:
         from radartracker.io.scenario import open_scenario
         files = open_scenario(folder)
         data, items = files.data, iter_files(files)
-    cfg = resolve(RunConfig(), data, "coupled-sparse")
+    # as `replay --manager`: simulated traffic carries truth labels, so "auto" would pick labels association
+    cfg = resolve(RunConfig(association="manager"), data, "coupled-sparse")
     mgr = TrackManager(data.radars, data.reference, cfg.manager_settings(), None, filter_factory=motion_factory(cfg))
     est, calls = mgr.estimator, []
 
