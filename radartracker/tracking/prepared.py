@@ -12,8 +12,11 @@ radar per frame) and report by report. :class:`PlaneConverter` evaluates exactly
 The radar-local east-north-up → ECEF step is a rotation plus the site's ECEF position, written as
 PROJ's ``topocentric`` inverse (same operations in the same order, so the same bits); the ECEF → WGS84
 step (``cart``) and the stereographic plane are pyproj calls over all the frame's points at once:
-five plus one per frame instead of six per radar. ``tests/tracking/test_prepared.py`` holds it to
-RadarFrame radar by radar.
+five plus one per frame instead of six per radar. The arithmetic between those calls (Newton's start and
+steps, east-north-up → ECEF, C_s) runs in compiled loops, plot by plot, with RadarFrame's operations in
+the same order (a frame of ~50 plots paid ~40 numpy calls of a few µs each, whatever its size: the
+200-aircraft replay's cost per input). ``tests/tracking/test_prepared.py`` holds it to RadarFrame radar
+by radar.
 """
 
 from __future__ import annotations
@@ -21,10 +24,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from pyproj import Transformer
 
 from radartracker.domain import Radar
-from radartracker.geometry.plane import _EARTH_RADIUS_M, RadarFrame, SystemPlane, bias_jacobian
+from radartracker.geometry.plane import _EARTH_RADIUS_M, RadarFrame, SystemPlane
 
 _CART = ("+proj=pipeline +step +proj=unitconvert +xy_in=deg +xy_out=rad +step +proj=cart +ellps=WGS84")
 
@@ -54,41 +58,28 @@ class PlaneConverter:
         self.trig = np.array(trig, float).reshape(len(fr), 4)
         self._cart = Transformer.from_pipeline(_CART)
 
-    def _polar(self, rows: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, ...]:
-        """What does not change along Newton's iterations: sin θ, cos θ and the radars' constants by plot."""
-        return (np.sin(theta), np.cos(theta), *self.trig[rows].T, *self.origin[rows].T)
-
-    def geodetic(self, polar: tuple[np.ndarray, ...], rho: np.ndarray, elev: np.ndarray) -> tuple:
-        """WGS84 (lat, lon, h) of polar points (ρ, θ, ε) (``polar``: :meth:`_polar` of the radars and θ;
-        RadarFrame.geodetic of RadarFrame._enu_from_polar)."""
-        st, ct, sp, cp, sl, cl, X0, Y0, Z0 = polar
-        ce = np.cos(elev)
-        e, n, u = rho * ce * st, rho * ce * ct, rho * np.sin(elev)
-        X = X0 - e * sl - n * sp * cl + u * cp * cl
-        Y = Y0 + e * cl - n * sp * sl + u * cp * sl
-        Z = Z0 + n * cp + u * sp
-        lon, lat, h = self._cart.transform(X, Y, Z, direction="INVERSE")
-        return np.asarray(lat), np.asarray(lon), np.asarray(h)
-
     def locate(self, rows: np.ndarray, rho: np.ndarray, theta: np.ndarray, alt: np.ndarray,
                iterations: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """WGS84 (lat, lon) and validity of plots at altitude ``alt`` (RadarFrame.locate, same steps)."""
-        a = _EARTH_RADIUS_M + self.height[rows]
-        b = _EARTH_RADIUS_M + alt
-        sin_e = (b * b - a * a - rho * rho) / (2 * a * np.maximum(rho, 1e-9))
-        valid = np.abs(sin_e) < 1.0
-        elev = np.arcsin(np.clip(sin_e, -1.0, 1.0))
-        polar = self._polar(rows, theta)
+        """WGS84 (lat, lon) and validity of plots at altitude ``alt`` (RadarFrame.locate, same steps): the
+        arithmetic between pyproj's calls in compiled loops (:func:`_newton_start`, :func:`_ecef`,
+        :func:`_newton_step`), the same operations in the same order as the numpy expressions of RadarFrame."""
+        n = len(rows)
+        polar, elev, valid, xyz = np.empty((9, n)), np.empty(n), np.empty(n, bool), np.empty((3, n))
+        _newton_start(rows, rho, theta, alt, self.height, self.trig, self.origin, polar, elev, valid)
         for _ in range(iterations):
-            _, _, h = self.geodetic(polar, rho, elev)
-            elev = elev - (h - alt) / np.maximum(rho * np.cos(elev), 1.0)
-        lat, lon, h = self.geodetic(polar, rho, elev)
-        valid &= np.abs(h - alt) < 0.01
-        return lat, lon, valid
+            _ecef(polar, rho, elev, xyz)
+            _, _, h = self._cart.transform(xyz[0], xyz[1], xyz[2], direction="INVERSE")
+            _newton_step(elev, np.asarray(h, float), alt, rho)
+        _ecef(polar, rho, elev, xyz)
+        lon, lat, h = self._cart.transform(xyz[0], xyz[1], xyz[2], direction="INVERSE")
+        valid &= np.abs(np.asarray(h) - alt) < 0.01
+        return np.asarray(lat), np.asarray(lon), valid
 
     def bias_jacobian(self, rows: np.ndarray, p: np.ndarray, rho: np.ndarray, alt: np.ndarray) -> np.ndarray:
-        """C_s (n, 2, 2) at plane positions ``p`` (RadarFrame.bias_jacobian, same steps)."""
-        return bias_jacobian(self.xy[rows], self.height[rows], p, rho, alt)
+        """C_s (n, 2, 2) at plane positions ``p`` (RadarFrame.bias_jacobian, same steps, compiled)."""
+        J = np.empty((len(rows), 2, 2))
+        _bias_jacobian(rows, self.xy, self.height, np.ascontiguousarray(p), rho, alt, J)
+        return J
 
     def convert(self, rows: np.ndarray, rho: np.ndarray, theta: np.ndarray, alt: np.ndarray,
                 lat: np.ndarray | None = None, lon: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
@@ -109,3 +100,69 @@ class PlaneConverter:
         C = self.bias_jacobian(rows, z, rho, alt)
         R = C @ self.W[rows] @ np.swapaxes(C, 1, 2)
         return (z, C, R, valid) + ((xy[len(rows):],) if lat is not None else ())
+
+
+@njit(cache=True)
+def _nan_max(x: float, floor: float) -> float:
+    """np.maximum(x, floor) of one number (NaN propagates)."""
+    return x if x > floor or x != x else floor
+
+
+@njit(cache=True)
+def _clip1(x: float) -> float:
+    """np.clip(x, -1, 1) of one number (NaN propagates)."""
+    return -1.0 if x < -1.0 else (1.0 if x > 1.0 else x)
+
+
+@njit(cache=True)
+def _newton_start(rows, rho, theta, alt, height, trig, origin, polar, elev, valid) -> None:
+    """Newton's start (spherical law of cosines: sin ε = (b² − a² − ρ²)/(2aρ)) and what the iterations
+    share: ``polar`` rows sin θ, cos θ, the radar's sin φ, cos φ, sin λ, cos λ and its site in ECEF."""
+    for i in range(rows.shape[0]):
+        r = rows[i]
+        a = _EARTH_RADIUS_M + height[r]
+        b = _EARTH_RADIUS_M + alt[i]
+        sin_e = (b * b - a * a - rho[i] * rho[i]) / (2 * a * _nan_max(rho[i], 1e-9))
+        valid[i] = abs(sin_e) < 1.0
+        elev[i] = math.asin(_clip1(sin_e))
+        polar[0, i], polar[1, i] = math.sin(theta[i]), math.cos(theta[i])
+        for k in range(4):
+            polar[2 + k, i] = trig[r, k]
+        for k in range(3):
+            polar[6 + k, i] = origin[r, k]
+
+
+@njit(cache=True)
+def _ecef(polar, rho, elev, xyz) -> None:
+    """ECEF of polar points (ρ, θ, ε): east-north-up of the radar, then PROJ topocentric's inverse."""
+    for i in range(rho.shape[0]):
+        st, ct, sp, cp, sl, cl, X0, Y0, Z0 = polar[:, i]
+        ce = math.cos(elev[i])
+        e, n, u = rho[i] * ce * st, rho[i] * ce * ct, rho[i] * math.sin(elev[i])
+        xyz[0, i] = X0 - e * sl - n * sp * cl + u * cp * cl
+        xyz[1, i] = Y0 + e * cl - n * sp * sl + u * cp * sl
+        xyz[2, i] = Z0 + n * cp + u * sp
+
+
+@njit(cache=True)
+def _newton_step(elev, h, alt, rho) -> None:
+    """ε ← ε − (h − h_target)/max(ρ cos ε, 1)."""
+    for i in range(elev.shape[0]):
+        elev[i] = elev[i] - (h[i] - alt[i]) / _nan_max(rho[i] * math.cos(elev[i]), 1.0)
+
+
+@njit(cache=True)
+def _bias_jacobian(rows, radar_xy, height, p, rho, alt, J) -> None:
+    """C_s of :func:`radartracker.geometry.plane.bias_jacobian`, plot by plot (its radar: ``rows``)."""
+    for i in range(rows.shape[0]):
+        r = rows[i]
+        dx, dy = p[i, 0] - radar_xy[r, 0], p[i, 1] - radar_xy[r, 1]
+        d = math.sqrt(dx * dx + dy * dy)
+        a = _EARTH_RADIUS_M + height[r]
+        b = _EARTH_RADIUS_M + alt[i]
+        c = math.acos(_clip1((a * a + b * b - rho[i] * rho[i]) / (2 * a * b)))
+        safe_c = _nan_max(c, 1e-12)
+        dd_drho = (d / safe_c) * rho[i] / (a * b * math.sin(safe_c)) if c > 1e-9 else 1.0
+        dn = _nan_max(d, 1e-9)
+        J[i, 0, 0], J[i, 1, 0] = dx / dn * dd_drho, dy / dn * dd_drho
+        J[i, 0, 1], J[i, 1, 1] = dy, -dx
