@@ -46,7 +46,7 @@ def record(folder: str | None) -> tuple[list, object, object, int]:
     cfg = resolve(RunConfig(association="manager"), data, "coupled-sparse")  # simulated traffic is labelled
     factory = motion_factory(cfg)
     cls = type(factory())
-    if "screen" not in vars(cls) or getattr(factory(), "_k", None) is None:
+    if "screen" not in vars(cls) or not getattr(factory(), "_compiled", False):
         raise SystemExit("the kernel replay needs the built-in imm motion model with its compiled modes")
     ops: list[tuple] = []
     ids: dict[int, int] = {}
@@ -146,8 +146,8 @@ def kernels_alone(ops: list, factory) -> tuple[float, dict]:
         if kind == "screen":
             _, f, t, z, C, R, bias, bias_cov, gate = op
             flt = filters[f]
-            _, _, code = kernels.imm_screen(flt._buf, flt._k, t - flt.time, flt._pred_time == t, z, C, R, bias,
-                                            bias_cov, zc, Rc, -1.0 if gate is None else gate)
+            _, _, code = kernels.imm_screen(flt._buf, t - flt.time, flt._pred_time == t, z, C, R, bias, bias_cov,
+                                            zc, Rc, -1.0 if gate is None else gate)
             flt.time, flt._pred_time = (t, math.nan) if code == -2 else (flt.time, t)
         elif kind == "update":
             _, f, t, z, R = op

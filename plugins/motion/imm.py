@@ -179,19 +179,19 @@ class IMMFilter(TrackFilter):
         self._scratch()
 
     def _scratch(self) -> None:
-        """The state (μ, X, PP, χ̂, P̂) moved into one buffer with the prediction from it to time
-        ``_pred_time`` (nan: none), ``_pred`` = (c̄, X̄, P̄ of the modes, χ̄, P̄), and the settings the
-        packed kernels take (:func:`radartracker.api.kernels.imm_views`)."""
-        n, D = len(self.modes), self.dim
-        self._buf = np.zeros(2 * (n + n * D + n * D * D + 20))
-        state, self._pred = kernels.imm_views(self._buf, n, D)
+        """The state (μ, X, PP, χ̂, P̂) moved into one buffer with the settings the packed kernels take,
+        the prediction from it to time ``_pred_time`` (nan: none), ``_pred`` = (c̄, X̄, P̄ of the modes,
+        χ̄, P̄), and their scratch (:func:`radartracker.api.kernels.imm_buffer`)."""
+        n = len(self.modes)
+        self._compiled = self.kernel_modes is not None  # else the modes' rows in the buffer are unused
+        self._buf = kernels.imm_buffer(self.kernel_modes if self._compiled else np.zeros((n, 3)), self.dims,
+                                       self.entry_var, *self.chain)
+        state, self._pred = kernels.imm_views(self._buf)
         for view, value in zip(state, (self.mu, self.X, self.PP, self.x, self.P)):
             view[...] = value
         self.mu, self.X, self.PP, self.x, self.P = state
         self._pred_time = math.nan
         self._max_gap = self.config.max_gap_s
-        self._k = (kernels.imm_constants(self.kernel_modes, self.dims, self.entry_var, *self.chain)
-                   if self.kernel_modes is not None else None)
 
     # --- IMM cycle -----------------------------------------------------------------------------
     def switching(self, dt: float) -> np.ndarray:
@@ -203,8 +203,8 @@ class IMMFilter(TrackFilter):
         predicted mixture; computed once per state and time."""
         if self._pred_time != time:
             dt = time - self.time
-            if self._k is not None:
-                kernels.imm_advance(self._buf, self._k, dt)
+            if self._compiled:
+                kernels.imm_advance(self._buf, dt)
             else:
                 cbar, Xp, PPp, x_bar, P_bar = self._pred
                 cbar[:], X0, P0 = kernels.imm_mix(self.mu, self.X, self.PP, self.switching(dt))
@@ -244,12 +244,15 @@ class IMMFilter(TrackFilter):
                bias_cov: np.ndarray, gate: float | None = None) -> tuple[float, np.ndarray, np.ndarray, bool]:
         """:meth:`TrackFilter.screen` in one compiled call (bias correction, prediction, d² and the update
         when it passes ``gate``); a prediction not used is kept for the update at ``time``."""
-        if self._k is None or not self._within_gap(time):
+        if not (self._compiled and self._within_gap(time)):
             return super().screen(time, z, C, R, bias, bias_cov, gate)
-        t0, time = self.time, float(time)
+        time = float(time)
         zc, Rc = np.empty(2), np.empty((2, 2))
-        d2, nis, bad = kernels.imm_screen(self._buf, self._k, time - t0, self._pred_time == time, z, C, R,
-                                          bias, bias_cov, zc, Rc, -1.0 if gate is None else gate)
+        d2, nis, bad = kernels.imm_screen(self._buf, time - self.time, self._pred_time == time, z, C, R, bias,
+                                          bias_cov, zc, Rc, -1.0 if gate is None else gate)
+        if bad == -2:  # updated (the common case of _corrected)
+            self.time, self._pred_time = time, math.nan
+            return d2, zc, Rc, True
         self._pred_time = time
         if bad == -4:
             return d2, zc, Rc, False
@@ -261,15 +264,15 @@ class IMMFilter(TrackFilter):
 
     def update(self, time: float, z: np.ndarray, R: np.ndarray) -> float:
         t0, bad = self.time, -3
-        if (self._k is not None and self._within_gap(time) and type(z) is np.ndarray
+        if (self._compiled and self._within_gap(time) and type(z) is np.ndarray
                 and type(R) is np.ndarray and z.ndim == 1 and R.ndim == 2):  # the checks in the kernel
             time = float(time)
-            nis, bad = kernels.imm_update(self._buf, self._k, time - t0, self._pred_time == time,
-                                          np.asarray(z, float), np.asarray(R, float))
+            nis, bad = kernels.imm_update(self._buf, time - t0, self._pred_time == time, np.asarray(z, float),
+                                          np.asarray(R, float))
         if bad == -3:  # any other input, or one the kernel refused: the checks with their messages
             time, z, R = check_measurement(time, z, R)
             check_time(time, t0, self._max_gap)
-            if self.kernel_modes is not None and self._pred_time != time:
+            if self._compiled and self._pred_time != time:
                 nis, bad = kernels.imm_cycle(self.mu, self.X, self.PP, *self.chain, self.kernel_modes, self.dims,
                                              self.entry_var, time - t0, z, R, self.x, self.P, *self._pred)
             else:  # from the prediction innovation screening asked for at this time
@@ -299,7 +302,8 @@ class IMMFilter(TrackFilter):
 
     # --- snapshots and pickles: the state, not the buffers derived from it -------------------------
     def __getstate__(self) -> dict:
-        return {k: v for k, v in vars(self).items() if k not in ("_buf", "_pred", "_pred_time", "_k", "_max_gap")}
+        return {k: v for k, v in vars(self).items()
+                if k not in ("_buf", "_pred", "_pred_time", "_compiled", "_max_gap")}
 
     def __setstate__(self, state: dict) -> None:
         vars(self).update(state)

@@ -22,12 +22,13 @@ The equations are those of the numpy code they replace, written out for the smal
   into the caller's arrays: boxing a returned array costs more than the arithmetic.
 * :func:`measurement_ok` — the checks of a position measurement: finite time and z, R finite,
   symmetric (``numpy.allclose`` tolerances) and positive definite.
-* a filter's IMM state packed in one buffer (:func:`imm_views`, :func:`imm_constants`), so that one
-  call passes two arrays instead of fourteen (each array argument costs ~0.15 µs to type and unbox):
-  :func:`imm_advance` (prediction), :func:`imm_update` (the measurement checks and the correction,
-  from the kept prediction or in one cycle), :func:`imm_screen` (bias correction of a radar
-  measurement, prediction, its d² (:mod:`radartracker.estimation.screening`) and the update when
-  it passes the gate).
+* a filter's IMM packed in one buffer with its settings and the kernels' scratch (:func:`imm_buffer`,
+  :func:`imm_views`), so that one call passes one array instead of fifteen (each array argument costs
+  ~0.15 µs to type and unbox) and allocates nothing: :func:`imm_advance` (prediction),
+  :func:`imm_update` (the measurement checks and the correction, from the kept prediction or in one
+  cycle), :func:`imm_screen` (bias correction of a radar measurement, prediction, its d²
+  (:mod:`radartracker.estimation.screening`) and the update when it passes the gate). Each step is
+  written once (``_*_into``, into the caller's arrays); the public array functions allocate and call it.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ import math
 
 import numpy as np
 from numba import njit
+from numpy.lib.stride_tricks import as_strided
 
 from radartracker.estimation.screening import bias_correct_into, position_d2
 
@@ -44,8 +46,8 @@ _SMALL = 1e-4  # |ωT| below which the CT Taylor series are used (as plugins/mot
 
 
 @njit(cache=True)
-def _symmetrize(P: np.ndarray) -> None:
-    n = P.shape[0]
+def _symmetrize(P: np.ndarray, n: int) -> None:
+    """P[:n, :n] = (P + Pᵀ) / 2 in place."""
     for i in range(n):
         for j in range(i + 1, n):
             m = 0.5 * (P[i, j] + P[j, i])
@@ -77,36 +79,42 @@ def measurement_ok(time: float, z: np.ndarray, R: np.ndarray) -> int:
     return 0
 
 
+# --- the mode filters: each written once, into the caller's arrays (the public functions allocate) ------------
 @njit(cache=True)
-def cv_predict(x: np.ndarray, P: np.ndarray, dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
-    """Constant-velocity prediction of (χ, P) by ``dt`` seconds with white-acceleration density ``q``."""
-    xp = x.copy()
-    xp[0] += dt * x[2]
-    xp[1] += dt * x[3]
-    AP = P.copy()  # A P: rows 0, 1 gain dt × rows 2, 3
-    for j in range(4):
-        AP[0, j] += dt * P[2, j]
-        AP[1, j] += dt * P[3, j]
-    Pp = AP.copy()  # (A P) Aᵀ: columns 0, 1 gain dt × columns 2, 3
-    for i in range(4):
-        Pp[i, 0] += dt * AP[i, 2]
-        Pp[i, 1] += dt * AP[i, 3]
+def _cv_predict_inplace(x: np.ndarray, P: np.ndarray, dt: float, q: float) -> None:
+    """:func:`cv_predict` of (x[:4], P[:4, :4]) in place: the rows of A P, then its columns (each step reads
+    only entries it does not write), Q, symmetrised."""
+    x[0] += dt * x[2]
+    x[1] += dt * x[3]
+    for j in range(4):  # A P: rows 0, 1 gain dt × rows 2, 3
+        P[0, j] += dt * P[2, j]
+        P[1, j] += dt * P[3, j]
+    for i in range(4):  # (A P) Aᵀ: columns 0, 1 gain dt × columns 2, 3
+        P[i, 0] += dt * P[i, 2]
+        P[i, 1] += dt * P[i, 3]
     if q != 0.0 and dt != 0.0:
         adt = abs(dt)
         q3, q2, q1 = q * (adt**3 / 3), q * (adt**2 / 2), q * adt
         for k in range(2):
-            Pp[k, k] += q3
-            Pp[k, k + 2] += q2
-            Pp[k + 2, k] += q2
-            Pp[k + 2, k + 2] += q1
-    _symmetrize(Pp)
+            P[k, k] += q3
+            P[k, k + 2] += q2
+            P[k + 2, k] += q2
+            P[k + 2, k + 2] += q1
+    _symmetrize(P, 4)
+
+
+@njit(cache=True)
+def cv_predict(x: np.ndarray, P: np.ndarray, dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
+    """Constant-velocity prediction of (χ, P) by ``dt`` seconds with white-acceleration density ``q``."""
+    xp, Pp = x.copy(), P.copy()
+    _cv_predict_inplace(xp, Pp, dt, q)
     return xp, Pp
 
 
 @njit(cache=True)
-def ct_predict(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_sd: float
-               ) -> tuple[np.ndarray, np.ndarray]:
-    """Coordinated-turn EKF prediction of (ξ, P), ξ = [x, y, vx, vy, ω], over ``T`` seconds."""
+def _ct_predict_into(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_sd: float, xp: np.ndarray,
+                     Pp: np.ndarray, F: np.ndarray, FP: np.ndarray) -> None:
+    """:func:`ct_predict` of (x[:5], P[:5, :5]) into (xp, Pp), with F and F P in the 5×5 scratch ``F``, ``FP``."""
     vx, vy, w = x[2], x[3], x[4]
     a = w * T
     s, c = math.sin(a), math.cos(a)
@@ -119,24 +127,24 @@ def ct_predict(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_sd: f
         f1, f2 = s / w, (1 - c) / w
         d1 = (T * c * w - s) / (w * w)
         d2 = (T * s * w - (1 - c)) / (w * w)
-    xp = np.empty(5)
     xp[0] = x[0] + f1 * vx + f2 * vy
     xp[1] = x[1] - f2 * vx + f1 * vy
     xp[2] = c * vx + s * vy
     xp[3] = -s * vx + c * vy
     xp[4] = w
-    F = np.eye(5)
+    for i in range(5):
+        for j in range(5):
+            F[i, j] = 1.0 if i == j else 0.0
+            FP[i, j] = 0.0
     F[0, 2], F[0, 3], F[0, 4] = f1, f2, d1 * vx + d2 * vy
     F[1, 2], F[1, 3], F[1, 4] = -f2, f1, -d2 * vx + d1 * vy
     F[2, 2], F[2, 3], F[2, 4] = c, s, T * (-s * vx + c * vy)
     F[3, 2], F[3, 3], F[3, 4] = -s, c, T * (-c * vx - s * vy)
-    FP = np.zeros((5, 5))
     for i in range(5):
         for k in range(5):
             if F[i, k] != 0.0:
                 for j in range(5):
                     FP[i, j] += F[i, k] * P[k, j]
-    Pp = np.zeros((5, 5))
     for i in range(5):
         for j in range(5):
             acc = 0.0
@@ -152,8 +160,48 @@ def ct_predict(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_sd: f
             Pp[k + 2, k] += q2
             Pp[k + 2, k + 2] += q1
     Pp[4, 4] += turn_rate_sd**2 * abs(T)
-    _symmetrize(Pp)
+    _symmetrize(Pp, 5)
+
+
+@njit(cache=True)
+def ct_predict(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_sd: float
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Coordinated-turn EKF prediction of (ξ, P), ξ = [x, y, vx, vy, ω], over ``T`` seconds."""
+    xp, Pp = np.empty(5), np.empty((5, 5))
+    _ct_predict_into(x, P, T, q, turn_rate_sd, xp, Pp, np.empty((5, 5)), np.empty((5, 5)))
     return xp, Pp
+
+
+@njit(cache=True)
+def _position_update_into(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray, n: int, xn: np.ndarray,
+                          Pn: np.ndarray) -> tuple[float, float, bool]:
+    """:func:`position_update` of (x[:n], P[:n, :n]) into (xn[:n], Pn[:n, :n]): (NIS, log-likelihood, ok);
+    when not ok, xn and Pn may be partly written."""
+    nu0, nu1 = z[0] - x[0], z[1] - x[1]
+    s00, s01, s10, s11 = P[0, 0] + R[0, 0], P[0, 1] + R[0, 1], P[1, 0] + R[1, 0], P[1, 1] + R[1, 1]
+    a, b, d = s00, 0.5 * (s01 + s10), s11
+    det = a * d - b * b
+    if not (a > 0 and det > 0 and math.isfinite(det)):
+        return math.nan, math.nan, False
+    i00, i01, i11 = d / det, -b / det, a / det
+    for i in range(n):
+        g0 = P[i, 0] * i00 + P[i, 1] * i01  # row i of G = K Λ⁻¹, K = P Hᵀ = P[:, :2]
+        g1 = P[i, 0] * i01 + P[i, 1] * i11
+        xn[i] = x[i] + g0 * nu0 + g1 * nu1
+        for j in range(n):
+            Pn[i, j] = P[i, j] - (g0 * P[j, 0] + g1 * P[j, 1])
+    _symmetrize(Pn, n)
+    # NIS and log-likelihood from the Cholesky factor of Λ (lower triangle, as numpy.linalg.cholesky)
+    l00 = math.sqrt(s00)
+    l10 = s10 / l00
+    r = s11 - l10 * l10
+    if not r > 0.0:
+        return math.nan, math.nan, False
+    l11 = math.sqrt(r)
+    w0 = nu0 / l00
+    w1 = (nu1 - l10 * w0) / l11
+    nis = w0 * w0 + w1 * w1
+    return nis, -0.5 * nis - (math.log(l00) + math.log(l11)) - _LOG_2PI, True
 
 
 @njit(cache=True)
@@ -166,34 +214,10 @@ def position_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray):
     for i in range(2):
         for j in range(2):
             S[i, j] = P[i, j] + R[i, j]
-    a, b, d = S[0, 0], 0.5 * (S[0, 1] + S[1, 0]), S[1, 1]
-    det = a * d - b * b
-    if not (a > 0 and det > 0 and math.isfinite(det)):
+    xn, Pn = np.empty(n), np.empty((n, n))
+    nis, loglik, ok = _position_update_into(x, P, z, R, n, xn, Pn)
+    if not ok:
         return x.copy(), P.copy(), nu, S, math.nan, math.nan, False
-    i00, i01, i11 = d / det, -b / det, a / det
-    G = np.empty((n, 2))  # K Λ⁻¹ with K = P Hᵀ = P[:, :2]
-    for i in range(n):
-        G[i, 0] = P[i, 0] * i00 + P[i, 1] * i01
-        G[i, 1] = P[i, 0] * i01 + P[i, 1] * i11
-    xn = np.empty(n)
-    for i in range(n):
-        xn[i] = x[i] + G[i, 0] * nu[0] + G[i, 1] * nu[1]
-    Pn = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            Pn[i, j] = P[i, j] - (G[i, 0] * P[j, 0] + G[i, 1] * P[j, 1])
-    _symmetrize(Pn)
-    # NIS and log-likelihood from the Cholesky factor of Λ (lower triangle, as numpy.linalg.cholesky)
-    l00 = math.sqrt(S[0, 0])
-    l10 = S[1, 0] / l00
-    r = S[1, 1] - l10 * l10
-    if not r > 0.0:
-        return x.copy(), P.copy(), nu, S, math.nan, math.nan, False
-    l11 = math.sqrt(r)
-    w0 = nu[0] / l00
-    w1 = (nu[1] - l10 * w0) / l11
-    nis = w0 * w0 + w1 * w1
-    loglik = -0.5 * nis - (math.log(l00) + math.log(l11)) - _LOG_2PI
     return xn, Pn, nu, S, nis, loglik, True
 
 
@@ -218,73 +242,89 @@ def _position_nis(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray) ->
 
 
 @njit(cache=True)
-def _mix(w: np.ndarray, X: np.ndarray, P: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and covariance of the first ``m`` components of the mixture Σ wᵢ N(Xᵢ, Pᵢ)."""
+def _mix_into(w: np.ndarray, X: np.ndarray, P: np.ndarray, m: int, x: np.ndarray, out: np.ndarray) -> None:
+    """Mean (into x[:m]) and covariance (into out[:m, :m]) of the first ``m`` components of the mixture
+    Σ wᵢ N(Xᵢ, Pᵢ); x and out must not share memory with X, P."""
     n = X.shape[0]
-    x = np.zeros(m)
+    for a in range(m):
+        x[a] = 0.0
+        for b in range(m):
+            out[a, b] = 0.0
     for i in range(n):
         for a in range(m):
             x[a] += w[i] * X[i, a]
-    out = np.zeros((m, m))
     for i in range(n):
         for a in range(m):
             da = X[i, a] - x[a]
             for b in range(m):
                 out[a, b] += w[i] * (P[i, a, b] + da * (X[i, b] - x[b]))
-    _symmetrize(out)
-    return x, out
+    _symmetrize(out, m)
 
 
 @njit(cache=True)
 def moment_match(w: np.ndarray, X: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Mean and covariance of the mixture Σ wᵢ N(Xᵢ, Pᵢ) (rows of ``X``, matrices of ``P``)."""
-    return _mix(w, X, P, X.shape[1])
+    m = X.shape[1]
+    x, out = np.empty(m), np.empty((m, m))
+    _mix_into(w, X, P, m, x, out)
+    return x, out
 
 
 # --- the IMM cycle (plugins/motion/imm.py) -------------------------------------------------------------
 # Mode states are held padded to the largest mode's size D (rows of X (n×D), matrices of PP (n×D×D)):
 # a 4-state CV mode carries ω = 0 with variance σ_e² (``entry_var``) in component 4 when D = 5.
 # ``modes`` rows (kind, q, turn_rate_sd): kind 0 = CV (:func:`cv_predict`), 1 = CT (:func:`ct_predict`).
+# Each step is written once, into the caller's arrays and scratch (``*_into``); the public functions
+# allocate what they need and call it, the packed kernels pass views of one buffer.
+
+
+@njit(cache=True)
+def _switching_into(lam: np.ndarray, left: np.ndarray, right: np.ndarray, dt: float, e: np.ndarray,
+                    Pi: np.ndarray) -> None:
+    """:func:`markov_switching` into ``Pi`` (``e``: len(λ) scratch)."""
+    m = lam.shape[0]
+    if m == 0:
+        for i in range(left.shape[0]):
+            for j in range(left.shape[1]):
+                Pi[i, j] = left[i, j]
+        return
+    for k in range(m):
+        e[k] = math.exp(lam[k] * abs(dt))
+    for i in range(m):
+        for j in range(m):
+            acc = 0.0
+            for k in range(m):
+                acc += left[i, k] * e[k] * right[k, j]
+            Pi[i, j] = max(acc, 0.0)
 
 
 @njit(cache=True)
 def markov_switching(lam: np.ndarray, left: np.ndarray, right: np.ndarray, dt: float) -> np.ndarray:
     """Π(Δt) = max(L diag(e^{λ|Δt|}) R, 0): exp(G|Δt|) from G's eigen-decomposition G = L diag(λ) R;
     an empty ``lam`` means the fixed matrix Π = ``left``."""
-    n = lam.shape[0]
-    if n == 0:
+    if lam.shape[0] == 0:
         return left.copy()
-    e = np.exp(lam * abs(dt))
-    Pi = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            acc = 0.0
-            for k in range(n):
-                acc += left[i, k] * e[k] * right[k, j]
-            Pi[i, j] = max(acc, 0.0)
+    Pi = np.empty(left.shape)
+    _switching_into(lam, left, right, dt, np.empty(lam.shape[0]), Pi)
     return Pi
 
 
 @njit(cache=True)
-def _take(X: np.ndarray, PP: np.ndarray, j: int, d: int) -> tuple[np.ndarray, np.ndarray]:
-    """Copies of X[j, :d] and PP[j, :d, :d] (explicit loops: numba compiles slice copies of 3-D arrays
-    into a lot of code, seconds of first-run compile for each)."""
-    x = np.empty(d)
-    P = np.empty((d, d))
-    for a in range(d):
-        x[a] = X[j, a]
-        for b in range(d):
-            P[a, b] = PP[j, a, b]
-    return x, P
-
-
-@njit(cache=True)
-def _put(X: np.ndarray, PP: np.ndarray, j: int, x: np.ndarray, P: np.ndarray) -> None:
-    """X[j, :d] = x and PP[j, :d, :d] = P, d = len(x) (loops, as :func:`_take`)."""
-    for a in range(x.shape[0]):
-        X[j, a] = x[a]
-        for b in range(x.shape[0]):
-            PP[j, a, b] = P[a, b]
+def _imm_mix_into(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, Pi: np.ndarray, cbar: np.ndarray, X0: np.ndarray,
+                  P0: np.ndarray, w: np.ndarray) -> None:
+    """:func:`imm_mix` into (c̄, X⁰, P⁰), ``w``: n scratch."""
+    n, D = X.shape
+    for j in range(n):
+        cbar[j] = 0.0
+        for i in range(n):
+            cbar[j] += mu[i] * Pi[i, j]
+    for j in range(n):
+        for i in range(n):
+            if cbar[j] > 0:
+                w[i] = Pi[i, j] * mu[i] / cbar[j]
+            else:
+                w[i] = 1.0 if i == j else 0.0
+        _mix_into(w, X, PP, D, X0[j], P0[j])
 
 
 @njit(cache=True)
@@ -292,28 +332,40 @@ def imm_mix(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, Pi: np.ndarray):
     """c̄ = μ Π and each mode's mixed initial condition: ω_ij = Π_ij μ_i / c̄_j (e_j if c̄_j = 0),
     (X⁰_j, P⁰_j) = moment match of Σ_i ω_ij N(X_i, PP_i)."""
     n, D = X.shape
-    cbar = np.zeros(n)
-    for j in range(n):
-        for i in range(n):
-            cbar[j] += mu[i] * Pi[i, j]
-    X0 = np.empty((n, D))
-    P0 = np.empty((n, D, D))
-    w = np.empty(n)
-    for j in range(n):
-        for i in range(n):
-            if cbar[j] > 0:
-                w[i] = Pi[i, j] * mu[i] / cbar[j]
-            else:
-                w[i] = 1.0 if i == j else 0.0
-        x0, p0 = _mix(w, X, PP, D)
-        _put(X0, P0, j, x0, p0)
+    cbar, X0, P0 = np.empty(n), np.empty((n, D)), np.empty((n, D, D))
+    _imm_mix_into(mu, X, PP, Pi, cbar, X0, P0, np.empty(n))
     return cbar, X0, P0
 
 
 @njit(cache=True)
 def imm_combine(w: np.ndarray, X: np.ndarray, PP: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The IMM output: moment match of Σ_j w_j N(X_j, PP_j) over the four kinematic components."""
-    return _mix(w, X, PP, 4)
+    x, P = np.empty(4), np.empty((4, 4))
+    _mix_into(w, X, PP, 4, x, P)
+    return x, P
+
+
+@njit(cache=True)
+def _imm_predict_into(mu, X, PP, lam, left, right, modes, dt, cbar, Xp, PPp, x_bar, P_bar, v, Pi, X0, P0, F, FP):
+    """:func:`imm_predict`, with scratch v (n), Π (n×n), the mixed X⁰ (n×D), P⁰ (n×D×D), F and F P (5×5)."""
+    _switching_into(lam, left, right, dt, v, Pi)
+    _imm_mix_into(mu, X, PP, Pi, cbar, X0, P0, v)
+    n, D = X.shape
+    for j in range(n):
+        xp, pp = Xp[j], PPp[j]
+        for a in range(D):
+            xp[a] = 0.0
+            for b in range(D):
+                pp[a, b] = 0.0
+        if modes[j, 0] == 0.0:
+            for a in range(4):
+                xp[a] = X0[j, a]
+                for b in range(4):
+                    pp[a, b] = P0[j, a, b]
+            _cv_predict_inplace(xp, pp, dt, modes[j, 1])
+        else:
+            _ct_predict_into(X0[j], P0[j], dt, modes[j, 1], modes[j, 2], xp, pp, F, FP)
+    _mix_into(cbar, Xp, PPp, 4, x_bar, P_bar)
 
 
 @njit(cache=True)
@@ -323,26 +375,44 @@ def imm_predict(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, lam: np.ndarray, 
     """Prediction by ``dt`` written into (c̄, X̄, P̄ of every mode, combined χ̄, P̄): switching, mixing,
     each mode's prediction, and the predicted mixture weighed by c̄ (``modes``: block comment above).
     Outputs are written in place: returning arrays from a kernel costs more than computing them."""
-    c, X0, P0 = imm_mix(mu, X, PP, markov_switching(lam, left, right, dt))
     n, D = X.shape
+    _imm_predict_into(mu, X, PP, lam, left, right, modes, dt, cbar, Xp, PPp, x_bar, P_bar, np.empty(n),
+                      np.empty((n, n)), np.empty((n, D)), np.empty((n, D, D)), np.empty((5, 5)), np.empty((5, 5)))
+
+
+@njit(cache=True)
+def _imm_correct_into(cbar, Xp, PPp, x_bar, P_bar, dims, entry_var, z, R, mu, X, PP, x, P, v, Xn, PPn):
+    """:func:`imm_correct`, with scratch v (n) and the corrected modes Xn (n×D), PPn (n×D×D)."""
+    n, D = Xp.shape
+    nis, ok = _position_nis(x_bar, P_bar, z, R)
+    if not ok:
+        return math.nan, -1
     for j in range(n):
-        cbar[j] = c[j]
+        xn, Pn = Xn[j], PPn[j]
         for a in range(D):
-            Xp[j, a] = 0.0
+            xn[a] = 0.0
             for b in range(D):
-                PPp[j, a, b] = 0.0
-        if modes[j, 0] == 0.0:
-            x0, p0 = _take(X0, P0, j, 4)
-            xp, pp = cv_predict(x0, p0, dt, modes[j, 1])
-        else:
-            x0, p0 = _take(X0, P0, j, 5)
-            xp, pp = ct_predict(x0, p0, dt, modes[j, 1], modes[j, 2])
-        _put(Xp, PPp, j, xp, pp)
-    x, P = _mix(cbar, Xp, PPp, 4)
-    for a in range(4):
-        x_bar[a] = x[a]
-        for b in range(4):
-            P_bar[a, b] = P[a, b]
+                Pn[a, b] = 0.0
+        d = int(dims[j])
+        _, loglik, okj = _position_update_into(Xp[j], PPp[j], z, R, d, xn, Pn)
+        if not okj:
+            return math.nan, j
+        if d < D:
+            Pn[4, 4] = entry_var
+        v[j] = math.log(max(cbar[j], 1e-300)) + loglik
+    top = v.max()
+    total = 0.0
+    for j in range(n):
+        mu[j] = math.exp(v[j] - top)
+        total += mu[j]
+    for j in range(n):
+        mu[j] /= total
+        for a in range(D):
+            X[j, a] = Xn[j, a]
+            for b in range(D):
+                PP[j, a, b] = PPn[j, a, b]
+    _mix_into(mu, X, PP, 4, x, P)
+    return nis, -2
 
 
 @njit(cache=True)
@@ -355,38 +425,8 @@ def imm_correct(cbar: np.ndarray, Xp: np.ndarray, PPp: np.ndarray, x_bar: np.nda
     the state as it was, (nan, −1) when the combined Λ is not positive definite, (nan, j) when mode j's
     is not."""
     n, D = Xp.shape
-    nis, ok = _position_nis(x_bar, P_bar, z, R)
-    if not ok:
-        return math.nan, -1
-    Xn = np.zeros((n, D))
-    PPn = np.zeros((n, D, D))
-    logw = np.empty(n)
-    for j in range(n):
-        xj, Pj = _take(Xp, PPp, j, dims[j])
-        xn, Pn, _, _, _, loglik, okj = position_update(xj, Pj, z, R)
-        if not okj:
-            return math.nan, j
-        _put(Xn, PPn, j, xn, Pn)
-        if dims[j] < D:
-            PPn[j, 4, 4] = entry_var
-        logw[j] = math.log(max(cbar[j], 1e-300)) + loglik
-    top = logw.max()
-    total = 0.0
-    for j in range(n):
-        mu[j] = math.exp(logw[j] - top)
-        total += mu[j]
-    for j in range(n):
-        mu[j] /= total
-        for a in range(D):
-            X[j, a] = Xn[j, a]
-            for b in range(D):
-                PP[j, a, b] = PPn[j, a, b]
-    xo, Po = _mix(mu, X, PP, 4)
-    for a in range(4):
-        x[a] = xo[a]
-        for b in range(4):
-            P[a, b] = Po[a, b]
-    return nis, -2
+    return _imm_correct_into(cbar, Xp, PPp, x_bar, P_bar, dims, entry_var, z, R, mu, X, PP, x, P, np.empty(n),
+                             np.empty((n, D)), np.empty((n, D, D)))
 
 
 @njit(cache=True)
@@ -399,101 +439,125 @@ def imm_cycle(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, lam: np.ndarray, le
     return imm_correct(cbar, Xp, PPp, x_bar, P_bar, dims, entry_var, z, R, mu, X, PP, x, P)
 
 
-# --- packed IMM state: one buffer per filter (μ, X, PP, χ̂, P̂, then the prediction c̄, X̄, P̄, χ̄, P̄) ----------
+# --- packed IMM: one buffer per filter -------------------------------------------------------------------
+# [settings | state (μ, X, PP, χ̂, P̂) | prediction (c̄, X̄, P̄, χ̄, P̄) | scratch (v, Π, Y, YP, F, FP)], the
+# settings [n, D, σ_e², m = len(λ), modes rows (kind, q, turn_rate_sd), dims, λ, L, R] (markov_switching's
+# chain; m = 0: L is the fixed Π). Views are made with as_strided, which costs nothing (reshape calls into
+# numba's runtime, ~30 ns a view), and no kernel allocates: each array argument costs ~0.15 µs to type
+# and unbox, each small allocation ~40 ns.
+def _imm_sizes(n: int, D: int, m: int) -> tuple[int, int, int]:
+    """Lengths of the settings, of one (state or prediction) block and of the scratch."""
+    return 4 + 3 * n + n + m + n * n + m * m, n + n * D + n * D * D + 20, n + n * n + n * D + n * D * D + 50
+
+
+def imm_buffer(modes: np.ndarray, dims: np.ndarray, entry_var: float, lam: np.ndarray, left: np.ndarray,
+               right: np.ndarray) -> np.ndarray:
+    """The packed buffer of an IMM (block comment above): its settings written, state and prediction zero."""
+    n, m = len(dims), len(lam)
+    head, block, scratch = _imm_sizes(n, int(max(dims)), m)
+    buf = np.zeros(head + 2 * block + scratch)
+    buf[:head] = np.concatenate([[n, max(dims), entry_var, m], np.ravel(modes), dims, lam, np.ravel(left),
+                                 np.ravel(right)])
+    return buf
+
+
+@njit(cache=True)
+def _mat(buf: np.ndarray, o: int, r: int, c: int) -> np.ndarray:
+    """buf[o:o + r c] as an r×c matrix (a view)."""
+    s = buf.itemsize
+    return as_strided(buf[o:], shape=(r, c), strides=(c * s, s))
+
+
+@njit(cache=True)
+def _cube(buf: np.ndarray, o: int, n: int, D: int) -> np.ndarray:
+    """buf[o:o + n D D] as n D×D matrices (a view)."""
+    s = buf.itemsize
+    return as_strided(buf[o:], shape=(n, D, D), strides=(D * D * s, D * s, s))
+
+
 @njit(cache=True)
 def _imm_block(buf: np.ndarray, o: int, n: int, D: int):
     """Views (weights n, states n×D, covariances n×D×D, χ 4, P 4×4) of ``buf`` from offset ``o``."""
-    a = buf[o:o + n]
-    o += n
-    b = buf[o:o + n * D].reshape((n, D))
-    o += n * D
-    c = buf[o:o + n * D * D].reshape((n, D, D))
-    o += n * D * D
-    return a, b, c, buf[o:o + 4], buf[o + 4:o + 20].reshape((4, 4))
+    a, b, c = o + n, o + n + n * D, o + n + n * D + n * D * D
+    return buf[o:a], _mat(buf, a, n, D), _cube(buf, b, n, D), buf[c:c + 4], _mat(buf, c + 4, 4, 4)
 
 
 @njit(cache=True)
-def imm_views(buf: np.ndarray, n: int, D: int):
-    """Views of the packed buffer of an IMM with ``n`` modes of padded size ``D``: the state
-    (μ, X, PP, χ̂, P̂) and the prediction (c̄, X̄, P̄, χ̄, P̄); ``buf`` must hold
-    2 (n + nD + nD² + 20) numbers. Called from Python once per filter to make its attributes."""
-    return _imm_block(buf, 0, n, D), _imm_block(buf, n + n * D + n * D * D + 20, n, D)
-
-
-def imm_constants(modes: np.ndarray, dims: np.ndarray, entry_var: float, lam: np.ndarray, left: np.ndarray,
-                  right: np.ndarray) -> np.ndarray:
-    """The settings of an IMM in one array for the packed kernels: [n, D, σ_e², len(λ), modes rows
-    (kind, q, turn_rate_sd), dims, λ, L, R] (``markov_switching``'s chain; an empty λ: L is the fixed Π)."""
-    n = len(dims)
-    return np.concatenate([[n, max(dims), entry_var, len(lam)], np.ravel(modes), dims, lam, np.ravel(left),
-                           np.ravel(right)]).astype(float)
-
-
-@njit(cache=True)
-def _imm_settings(k: np.ndarray):
-    """(n, D, σ_e², modes, dims, λ, L, R) from :func:`imm_constants`."""
-    n, D, m = int(k[0]), int(k[1]), int(k[3])
+def _imm_parts(buf: np.ndarray):
+    """(n, D, σ_e², modes, dims, (λ, L, R), state, prediction, scratch (v, Π, Y, YP, F, FP)) of a packed buffer."""
+    n, D, m = int(buf[0]), int(buf[1]), int(buf[3])
     o = 4
-    modes = k[o:o + 3 * n].reshape((n, 3))
-    o += 3 * n
-    dims = np.empty(n, np.int64)
-    for j in range(n):
-        dims[j] = int(k[o + j])
-    o += n
-    lam = k[o:o + m]
-    o += m
-    left = k[o:o + n * n].reshape((n, n))
-    o += n * n
-    right = k[o:o + m * m].reshape((m, m))
-    return n, D, k[2], modes, dims, lam, left, right
+    modes, dims, lam = _mat(buf, o, n, 3), buf[o + 3 * n:o + 4 * n], buf[o + 4 * n:o + 4 * n + m]
+    o += 4 * n + m
+    chain = (lam, _mat(buf, o, n, n), _mat(buf, o + n * n, m, m))
+    o += n * n + m * m
+    block = n + n * D + n * D * D + 20
+    state, pred = _imm_block(buf, o, n, D), _imm_block(buf, o + block, n, D)
+    o += 2 * block
+    scratch = (buf[o:o + n], _mat(buf, o + n, n, n), _mat(buf, o + n + n * n, n, D),
+               _cube(buf, o + n + n * n + n * D, n, D), _mat(buf, o + n + n * n + n * D + n * D * D, 5, 5),
+               _mat(buf, o + n + n * n + n * D + n * D * D + 25, 5, 5))
+    return n, D, buf[2], modes, dims, chain, state, pred, scratch
 
 
 @njit(cache=True)
-def imm_advance(buf: np.ndarray, k: np.ndarray, dt: float) -> None:
+def imm_views(buf: np.ndarray):
+    """Views of a packed buffer's state (μ, X, PP, χ̂, P̂) and prediction (c̄, X̄, P̄, χ̄, P̄): called from
+    Python once per filter to make its attributes."""
+    parts = _imm_parts(buf)
+    return parts[6], parts[7]
+
+
+@njit(cache=True)
+def _advance(parts, dt: float) -> None:
     """:func:`imm_predict` by ``dt`` of the packed state into its prediction."""
-    n, D, _, modes, _, lam, left, right = _imm_settings(k)
-    (mu, X, PP, _, _), (cbar, Xp, PPp, x_bar, P_bar) = imm_views(buf, n, D)
-    imm_predict(mu, X, PP, lam, left, right, modes, dt, cbar, Xp, PPp, x_bar, P_bar)
+    _, _, _, modes, _, (lam, left, right), (mu, X, PP, _, _), pred, (v, Pi, Y, YP, F, FP) = parts
+    _imm_predict_into(mu, X, PP, lam, left, right, modes, dt, *pred, v, Pi, Y, YP, F, FP)
 
 
 @njit(cache=True)
-def imm_screen(buf: np.ndarray, k: np.ndarray, dt: float, predicted: bool, z: np.ndarray, C: np.ndarray,
-               R: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray, zc: np.ndarray, Rc: np.ndarray,
+def _correct(parts, z: np.ndarray, R: np.ndarray) -> tuple[float, int]:
+    """:func:`imm_correct` of the packed prediction into the packed state."""
+    _, _, entry_var, _, dims, _, state, pred, (v, _, Y, YP, _, _) = parts
+    return _imm_correct_into(*pred, dims, entry_var, z, R, *state, v, Y, YP)
+
+
+@njit(cache=True)
+def imm_advance(buf: np.ndarray, dt: float) -> None:
+    """:func:`imm_predict` by ``dt`` of the packed state into its prediction."""
+    _advance(_imm_parts(buf), dt)
+
+
+@njit(cache=True)
+def imm_screen(buf: np.ndarray, dt: float, predicted: bool, z: np.ndarray, C: np.ndarray, R: np.ndarray,
+               bias: np.ndarray, bias_cov: np.ndarray, zc: np.ndarray, Rc: np.ndarray,
                gate: float) -> tuple[float, float, int]:
     """Innovation screening, and the update when it passes: the bias-corrected measurement (zc = z − C ς̂,
     Rc = R + C P_ς Cᵀ, written out), its d² against the predicted position (S = P̄_pp + Rc; the
     prediction by ``dt`` made first unless ``predicted``) and, if d² ≤ ``gate``, :func:`imm_update` from
     that prediction. Returns (d², NIS, code): code −4 when not updated, else :func:`imm_update`'s."""
     bias_correct_into(z, C, R, bias, bias_cov, zc, Rc)
+    parts = _imm_parts(buf)
     if not predicted:
-        imm_advance(buf, k, dt)
-    n, D = int(k[0]), int(k[1])
-    _, (_, _, _, x_bar, P_bar) = imm_views(buf, n, D)
+        _advance(parts, dt)
+    x_bar, P_bar = parts[7][3], parts[7][4]
     d2 = position_d2(zc, Rc, x_bar, P_bar)
     if not d2 <= gate:
         return d2, math.nan, -4
-    if measurement_ok(0.0, zc, Rc) != 0:  # as imm_update (not called: its cycle would be compiled in here too)
+    if measurement_ok(0.0, zc, Rc) != 0:  # as imm_update
         return d2, math.nan, -3
-    nis, code = _imm_correct_packed(buf, k, zc, Rc)
+    nis, code = _correct(parts, zc, Rc)
     return d2, nis, code
 
 
 @njit(cache=True)
-def imm_update(buf: np.ndarray, k: np.ndarray, dt: float, predicted: bool, z: np.ndarray,
-               R: np.ndarray) -> tuple[float, int]:
+def imm_update(buf: np.ndarray, dt: float, predicted: bool, z: np.ndarray, R: np.ndarray) -> tuple[float, int]:
     """Correction of the packed state by position z: from the kept prediction if ``predicted``, else after
     :func:`imm_advance` by ``dt`` (the operations of :func:`imm_cycle`). Returns :func:`imm_correct`'s
     (NIS, code), or (nan, −3), the state untouched, when (z, R) fails :func:`measurement_ok`."""
     if measurement_ok(0.0, z, R) != 0:
         return math.nan, -3
+    parts = _imm_parts(buf)
     if not predicted:
-        imm_advance(buf, k, dt)
-    return _imm_correct_packed(buf, k, z, R)
-
-
-@njit(cache=True)
-def _imm_correct_packed(buf: np.ndarray, k: np.ndarray, z: np.ndarray, R: np.ndarray) -> tuple[float, int]:
-    """:func:`imm_correct` of the packed prediction into the packed state."""
-    n, D, entry_var, _, dims, _, _, _ = _imm_settings(k)
-    (mu, X, PP, x, P), (cbar, Xp, PPp, x_bar, P_bar) = imm_views(buf, n, D)
-    return imm_correct(cbar, Xp, PPp, x_bar, P_bar, dims, entry_var, z, R, mu, X, PP, x, P)
+        _advance(parts, dt)
+    return _correct(parts, z, R)

@@ -242,9 +242,8 @@ def test_packed_imm_kernels_equal_the_array_kernels(modes):
     D = dims.max()
     chain = kernel_chain(rng.uniform(10, 150, n))
     kmodes = np.array([[0.0 if m[0] == "cv" else 1.0, m[1], m[2] if len(m) > 2 else 0.0] for m in modes])
-    k = kernels.imm_constants(kmodes, dims, entry_var, *chain)
-    buf = np.zeros(2 * (n + n * D + n * D * D + 20))
-    state, pred = kernels.imm_views(buf, n, D)
+    buf = kernels.imm_buffer(kmodes, dims, entry_var, *chain)
+    state, pred = kernels.imm_views(buf)
     state[0][:] = rng.dirichlet(np.ones(n))
     state[1][:] = np.concatenate([rng.normal(size=(n, 2)) * 1e4, rng.normal(size=(n, 2)) * 200,
                                   np.zeros((n, D - 4))], axis=1)
@@ -258,7 +257,7 @@ def test_packed_imm_kernels_equal_the_array_kernels(modes):
 
     ref_pred = tuple(np.zeros_like(a) for a in pred)
     kernels.imm_predict(*(a.copy() for a in state[:3]), *chain, kmodes, dt, *ref_pred)
-    kernels.imm_advance(buf, k, dt)
+    kernels.imm_advance(buf, dt)
     for a, b in zip(pred, ref_pred):
         np.testing.assert_array_equal(a, b)
 
@@ -274,23 +273,26 @@ def test_packed_imm_kernels_equal_the_array_kernels(modes):
     zc, Rc = bias_corrected(z, C, R, bias, bias_cov)
     d2 = normalised_innovation(zc, np.zeros((2, 2)), Rc, np.zeros(2), np.zeros((2, 2)), ref_pred[3][:2],
                                ref_pred[4][:2, :2])
-    before = buf.copy()
+    def packed():  # the state and prediction (the rest of the buffer is settings and scratch)
+        return np.concatenate([np.ravel(a) for a in (*state, *pred)])
+
+    before, before_buf = packed(), buf.copy()
     zk, Rk = np.empty(2), np.empty((2, 2))
     for predicted in (True, False):  # outside the gate: the corrected measurement and d², nothing else
-        res = kernels.imm_screen(buf, k, dt, predicted, z, C, R, bias, bias_cov, zk, Rk, d2 * 0.999)
+        res = kernels.imm_screen(buf, dt, predicted, z, C, R, bias, bias_cov, zk, Rk, d2 * 0.999)
         assert res[0] == d2 and res[2] == -4
         np.testing.assert_array_equal(zk, zc)
         np.testing.assert_array_equal(Rk, Rc)
-        np.testing.assert_array_equal(buf, before)
-    assert kernels.imm_update(buf, k, dt, True, np.array([np.nan, 0.0]), Rc)[1] == -3
-    assert kernels.imm_update(buf, k, dt, False, zc, -Rc)[1] == -3
-    np.testing.assert_array_equal(buf, before)
-    for predicted, call in [(True, lambda: kernels.imm_update(buf, k, dt, True, zc, Rc)),
-                            (False, lambda: kernels.imm_update(buf, k, dt, False, zc, Rc)),
-                            (True, lambda: kernels.imm_screen(buf, k, dt, True, z, C, R, bias, bias_cov, zk, Rk, d2)[1:]),
-                            (False, lambda: kernels.imm_screen(buf, k, dt, False, z, C, R, bias, bias_cov, zk, Rk,
+        np.testing.assert_array_equal(packed(), before)
+    assert kernels.imm_update(buf, dt, True, np.array([np.nan, 0.0]), Rc)[1] == -3
+    assert kernels.imm_update(buf, dt, False, zc, -Rc)[1] == -3
+    np.testing.assert_array_equal(packed(), before)
+    for predicted, call in [(True, lambda: kernels.imm_update(buf, dt, True, zc, Rc)),
+                            (False, lambda: kernels.imm_update(buf, dt, False, zc, Rc)),
+                            (True, lambda: kernels.imm_screen(buf, dt, True, z, C, R, bias, bias_cov, zk, Rk, d2)[1:]),
+                            (False, lambda: kernels.imm_screen(buf, dt, False, z, C, R, bias, bias_cov, zk, Rk,
                                                                d2)[1:])]:
-        buf[:] = before
+        buf[:] = before_buf
         (nis, bad), out = corrected(predicted)
         assert bad == -2 and call() == (nis, bad)
         for a, b in zip(state, out):
