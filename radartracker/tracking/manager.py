@@ -455,15 +455,14 @@ class TrackManager:
         z, C, R, ok, adsb_xy = self._converter.convert(rows, rho, theta, alt, lat, lon)
         # an assumed altitude is uncertain: near the radar its error moves the plot by km along the beam
         guess = np.fromiter((p.altitude_m is None for p in plots), bool, len(plots)) & (alt == self.config.primary_altitude_m)
+        if guess.any():  # all radars' at once (element by element: the same numbers as radar by radar)
+            R[guess] += altitude_spread(C[guess], rho[guess], alt[guess], self._converter.height[rows[guess]],
+                                        self.config.primary_altitude_sd_m)
         out, k = {}, 0
         for rid, ps in by_radar.items():
             sl = slice(k, k + len(ps))
             k += len(ps)
-            Rr, g = R[sl], guess[sl]
-            if g.any():
-                Rr[g] += altitude_spread(C[sl][g], rho[sl][g], alt[sl][g], self.radars[rid].height_m,
-                                         self.config.primary_altitude_sd_m)
-            out[rid] = (z[sl], C[sl], Rr, ok[sl])
+            out[rid] = (z[sl], C[sl], R[sl], ok[sl])
         return out, adsb_xy
 
     def _associate(self, rid: str, plots: list[Plot], converted: tuple, live: list[ManagedTrack], pred: dict,
