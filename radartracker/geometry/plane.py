@@ -15,6 +15,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from pyproj import CRS, Transformer
 
@@ -22,15 +24,21 @@ _EARTH_RADIUS_M = 6_371_008.8  # mean earth radius, only for ∂d/∂ρ and the 
 _OMEGA = np.array([[0.0, 1.0], [-1.0, 0.0]])
 
 
+@functools.lru_cache(maxsize=32)
+def _stereographic(lat0: float, lon0: float) -> tuple[CRS, Transformer]:
+    """The plane's CRS and WGS84 → plane transformer, made once per centre in a process: PROJ finds the
+    operation in its database (~20 ms, twice per replay: the manager's plane and the outputs'). pyproj's
+    CRS and Transformer are safe to share between threads (pyproj ≥ 3.1)."""
+    crs = CRS.from_proj4(f"+proj=stere +lat_0={lat0} +lon_0={lon0} +k_0=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m")
+    return crs, Transformer.from_crs("EPSG:4326", crs, always_xy=True)
+
+
 class SystemPlane:
     """Stereographic system plane centred on (lat0, lon0): x east, y north (metres)."""
 
     def __init__(self, lat0: float, lon0: float) -> None:
         self.lat0, self.lon0 = float(lat0), float(lon0)
-        self.crs = CRS.from_proj4(
-            f"+proj=stere +lat_0={self.lat0} +lon_0={self.lon0} +k_0=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m"
-        )
-        self._fwd = Transformer.from_crs("EPSG:4326", self.crs, always_xy=True)
+        self.crs, self._fwd = _stereographic(self.lat0, self.lon0)
 
     def to_plane(self, lat, lon) -> tuple[np.ndarray, np.ndarray]:
         """Plane (x, y) in metres of WGS84 (lat, lon) in degrees."""
@@ -54,13 +62,18 @@ class RadarFrame:
     def __init__(self, lat: float, lon: float, height_m: float, plane: SystemPlane) -> None:
         self.lat, self.lon, self.height_m = float(lat), float(lon), float(height_m)
         self.plane = plane
-        self._enu = Transformer.from_pipeline(
+        px, py = plane.to_plane(self.lat, self.lon)
+        self.xy = np.array([float(px), float(py)])
+
+    @functools.cached_property
+    def _enu(self) -> Transformer:
+        """WGS84 → the radar's east-north-up, made on first use (the TrackManager converts through
+        :class:`~radartracker.tracking.prepared.PlaneConverter` and never uses it)."""
+        return Transformer.from_pipeline(
             "+proj=pipeline +step +proj=unitconvert +xy_in=deg +xy_out=rad "
             "+step +proj=cart +ellps=WGS84 "
             f"+step +proj=topocentric +ellps=WGS84 +lat_0={self.lat} +lon_0={self.lon} +h_0={self.height_m}"
         )
-        px, py = plane.to_plane(self.lat, self.lon)
-        self.xy = np.array([float(px), float(py)])
 
     # --- geodetic <-> local east-north-up --------------------------------------------------------
     def enu(self, lat, lon, alt) -> np.ndarray:
