@@ -7,16 +7,17 @@ is flat in the traffic only if what a run pays once, and what a frame pays whate
 beside what the inputs pay; this script measures the three.
 
 * **per run**: the replay of a copy of FOLDER cut to its first frame (its radars, reference and aircraft,
-  the plots and ADS-B reports before the first frame's end): set-up, the one frame, outputs, summary.
-  The same cut replay again with timers on the steps a run takes once (nested: a step's time includes
-  the steps it calls) gives one JSON line per step (``"part": "run"``).
-* **per frame**: the whole replay with timers on the TrackManager's frame methods, each call timed with
-  ``time.process_time``: one line per method (``"part": "frame"``: calls, CPU, µs per call, per frame and
-  per input). Over the frames, a frame's own cost — ``_run_frame`` less the ``_apply`` of its inputs — is
-  fitted by least squares to ``a + b·inputs + c·tracks`` (the frame's inputs and live tracks; tracks grow
-  from none at the start, so the three separate): ``a`` is the fixed cost of a frame.
-* **per input**: the rest of the untimed replay's CPU, ``(total − per_run − frames·a) / inputs``
-  (reading, admission, ``_apply``, events, and the frame work that grows with inputs and tracks).
+  the plots and ADS-B reports before the first frame's end), less that frame's own CPU: set-up, outputs,
+  summary. The same cut replay again with timers on the steps a run takes once (nested: a step's time
+  includes the steps it calls) gives one JSON line per step (``"part": "run"``).
+* **per frame**: the replay of a copy of FOLDER thinned to ``--thin`` aircraft (the first Mode S addresses
+  of ``plots.csv``, their plots and ADS-B reports: the same radars and frames, about one input per frame)
+  with the TrackManager's frame methods timed, each call with ``time.process_time``: a frame's own CPU
+  there (``_run_frame`` less the ``_apply`` of its inputs) is what a frame costs whatever the traffic. One
+  line per method (``"part": "frame"``) gives its µs per frame in that thin replay and in the whole one
+  (timed the same way), and µs per input of the whole one.
+* **per input**: the rest of the untimed whole replay's CPU, ``(total − per_run − frames × per_frame) /
+  inputs`` (reading, admission, ``_apply``, events, and the frame work that grows with inputs and tracks).
 
 Times are CPU (``time.process_time``) on whatever load the machine has; the untimed replays take the
 minimum over ``--repeat``. A warm-up replay of the cut loads imports and compiled-kernel caches first.
@@ -44,7 +45,7 @@ import numpy as np
 FRAME_METHODS = ("_run_frame", "_predict", "_convert_frame", "_track_phases", "_associate", "_exact", "_misses",
                  "_coverage", "_sweep", "_apply")
 # steps a replay takes once: (module, attribute path) as the caller looks them up
-RUN_STEPS = (("radartracker.cli", "build_parser"), ("radartracker.pipeline.writer", "prepare"),
+RUN_STEPS = (("radartracker.tracking.manager", "TrackManager._run_frame"), ("radartracker.cli", "build_parser"), ("radartracker.pipeline.writer", "prepare"),
              ("radartracker.pipeline.run", "replay_folder"), ("radartracker.pipeline.run", "open_scenario"),
              ("radartracker.pipeline.writer", "OutputStream.__init__"), ("radartracker.pipeline.run", "resolve"),
              ("radartracker.pipeline.run", "make_estimator"), ("radartracker.pipeline.run", "motion_factory"),
@@ -69,6 +70,27 @@ def cut_first_frame(folder: Path, out: Path, frame_s: float) -> int:
     kept = 0
     for name, rs in rows.items():
         keep = [rs[0]] + [r for r in rs[1:] if float(r[rs[0].index("time")]) < end]
+        kept += len(keep) - 1
+        with (out / name).open("w", newline="") as f:
+            csv.writer(f, lineterminator="\n").writerows(keep)
+    return kept
+
+
+def thin(folder: Path, out: Path, aircraft: int) -> int:
+    """``folder`` copied to ``out`` with only the plots and ADS-B reports of its first ``aircraft`` Mode S
+    addresses; their number."""
+    out.mkdir(parents=True, exist_ok=True)
+    for f in folder.iterdir():
+        if f.is_file() and f.name not in ("plots.csv", "adsb.csv"):
+            shutil.copy(f, out / f.name)
+    kept, codes = 0, []
+    for name, column in (("plots.csv", "mode_s"), ("adsb.csv", "icao24")):
+        with (folder / name).open(newline="") as f:
+            rows = list(csv.reader(f))
+        k = rows[0].index(column)
+        if not codes:
+            codes = list(dict.fromkeys(r[k] for r in rows[1:] if r[k]))[:aircraft]
+        keep = [rows[0]] + [r for r in rows[1:] if r[k] in codes]
         kept += len(keep) - 1
         with (out / name).open("w", newline="") as f:
             csv.writer(f, lineterminator="\n").writerows(keep)
@@ -125,8 +147,9 @@ def timer_overhead_s() -> float:
     return max(timed_s - (time.process_time() - c0), 0.0) / n
 
 
-def run_steps(cut: Path, out: Path) -> list[dict]:
-    """CPU of each once-per-run step in a replay of the cut folder (nested times included)."""
+def run_steps(cut: Path, out: Path) -> tuple[list[dict], float]:
+    """CPU of each once-per-run step in a replay of the cut folder (nested times included), and of its
+    frames (``_run_frame``)."""
     acc: dict[str, list[float]] = defaultdict(list)
     with contextlib.ExitStack() as stack:
         for mod, path in RUN_STEPS:
@@ -136,8 +159,9 @@ def run_steps(cut: Path, out: Path) -> list[dict]:
                 owner = getattr(owner, part)
             stack.enter_context(timed(owner, name, acc[path].append))
         total = replay_cpu(cut, out)
-    return [{"part": "run", "step": k, "calls": len(v), "cpu_ms": round(1e3 * sum(v), 2)} for k, v in acc.items()] + [
-        {"part": "run", "step": "whole replay (timed)", "calls": 1, "cpu_ms": round(1e3 * total, 2)}]
+    lines = [{"part": "run", "step": k, "calls": len(v), "cpu_ms": round(1e3 * sum(v), 2)} for k, v in acc.items()]
+    return lines + [{"part": "run", "step": "whole replay (timed)", "calls": 1, "cpu_ms": round(1e3 * total, 2)}], \
+        sum(acc["TrackManager._run_frame"])
 
 
 def frame_costs(folder: Path, out: Path) -> tuple[dict, list[dict]]:
@@ -152,6 +176,7 @@ def frame_costs(folder: Path, out: Path) -> tuple[dict, list[dict]]:
         def record(dt: float) -> None:
             totals[name].append(dt)
             current[name] = current.get(name, 0.0) + dt
+            current["calls"] = current.get("calls", 0) + 1
         return record
 
     with contextlib.ExitStack() as stack:
@@ -173,60 +198,57 @@ def frame_costs(folder: Path, out: Path) -> tuple[dict, list[dict]]:
     return {"total": total, "totals": totals}, frames
 
 
-def fit_frames(frames: list[dict], overhead_s: float) -> dict:
-    """Least squares of a frame's own CPU (``_run_frame`` less its ``_apply``) on [1, inputs, tracks]."""
-    y = np.array([f.get("_run_frame", 0.0) - f.get("_apply", 0.0) for f in frames])
-    X = np.array([[1.0, f["inputs"], f["tracks"]] for f in frames])
-    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
-    return {"fixed_us": 1e6 * coef[0], "per_input_us": 1e6 * coef[1], "per_track_us": 1e6 * coef[2],
-            "mean_us": 1e6 * float(y.mean()), "timer_overhead_us_per_call": 1e6 * overhead_s}
+def own_us(frames: list[dict], overhead_s: float) -> float:
+    """Mean CPU µs of a frame less the ``_apply`` of its inputs and the timers of the calls inside it."""
+    return 1e6 * float(np.mean([f.get("_run_frame", 0.0) - f.get("_apply", 0.0) - overhead_s * (f.get("calls", 1) - 1)
+                                for f in frames]))
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("folders", type=Path, nargs="+")
     ap.add_argument("--repeat", type=int, default=3, help="untimed replays of each folder (minimum kept)")
+    ap.add_argument("--thin", type=int, default=5, help="aircraft kept in the thin replay (per-frame cost)")
     args = ap.parse_args()
 
     from radartracker.tracking.manager import ManagerConfig
 
     frame_s = ManagerConfig().frame_s
-    overhead = timer_overhead_s()
+    repeat, overhead = max(args.repeat, 1), timer_overhead_s()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         for folder in args.folders:
-            cut = tmp / f"{folder.name}_cut"
-            cut_inputs = cut_first_frame(folder, cut, frame_s)
+            cut, sparse = tmp / f"{folder.name}_cut", tmp / f"{folder.name}_thin"
+            cut_inputs, thin_inputs = cut_first_frame(folder, cut, frame_s), thin(folder, sparse, args.thin)
             replay_cpu(cut, tmp / "warm")  # imports, kernel caches, pyproj's database
-            per_run = min(replay_cpu(cut, tmp / "cut_out") for _ in range(max(args.repeat, 1)))
-            for line in run_steps(cut, tmp / "cut_out"):
+            cut_cpu = min(replay_cpu(cut, tmp / "cut_out") for _ in range(repeat))
+            steps, cut_frames = run_steps(cut, tmp / "cut_out")
+            for line in steps:
                 print(json.dumps({"folder": str(folder), **line}), flush=True)
-            total = min(replay_cpu(folder, tmp / "out") for _ in range(max(args.repeat, 1)))
+            per_run = cut_cpu - cut_frames
+            thin_run, thin_frames = frame_costs(sparse, tmp / "out")
+            total = min(replay_cpu(folder, tmp / "out") for _ in range(repeat))
             timed_run, frames = frame_costs(folder, tmp / "out")
-            inputs = sum(f["inputs"] for f in frames)
-            n = len(frames)
+            inputs, n = sum(f["inputs"] for f in frames), len(frames)
             for name in FRAME_METHODS:
-                v = timed_run["totals"].get(name, [])
-                s = sum(v)
+                v, w = timed_run["totals"].get(name, []), thin_run["totals"].get(name, [])
                 print(json.dumps({"folder": str(folder), "part": "frame", "method": name, "calls": len(v),
-                                  "cpu_s": round(s, 4), "us_per_call": round(1e6 * s / max(len(v), 1), 2),
-                                  "us_per_frame": round(1e6 * s / n, 1), "us_per_input": round(1e6 * s / inputs, 2)}),
-                      flush=True)
-            fit = fit_frames(frames, overhead)
-            per_frame = fit["fixed_us"] * 1e-6
+                                  "thin_us_per_frame": round(1e6 * sum(w) / max(len(thin_frames), 1), 1),
+                                  "us_per_frame": round(1e6 * sum(v) / n, 1), "us_per_call": round(1e6 * sum(v) / max(len(v), 1), 2),
+                                  "us_per_input": round(1e6 * sum(v) / inputs, 2)}), flush=True)
+            per_frame = own_us(thin_frames, overhead) * 1e-6
             per_input = (total - per_run - n * per_frame) / inputs
             print(json.dumps({"folder": str(folder), "part": "split", "inputs": inputs, "frames": n,
-                              "inputs_per_frame": round(inputs / n, 1), "cut_inputs": cut_inputs,
-                              "replay_cpu_s": round(total, 3), "us_per_input": round(1e6 * total / inputs, 2),
-                              "per_run_cpu_s": round(per_run, 4), "per_frame_fixed_us": round(fit["fixed_us"], 1),
-                              "frame_fit_per_input_us": round(fit["per_input_us"], 2),
-                              "frame_fit_per_track_us": round(fit["per_track_us"], 3),
-                              "frame_own_mean_us": round(fit["mean_us"], 1),
-                              "per_input_us": round(1e6 * per_input, 2),
+                              "inputs_per_frame": round(inputs / n, 1), "replay_cpu_s": round(total, 3),
+                              "us_per_input": round(1e6 * total / inputs, 2), "per_run_cpu_s": round(per_run, 4),
+                              "per_frame_fixed_us": round(1e6 * per_frame, 1), "per_input_us": round(1e6 * per_input, 2),
                               "per_run_share_us_per_input": round(1e6 * per_run / inputs, 2),
                               "per_frame_share_us_per_input": round(1e6 * n * per_frame / inputs, 2),
+                              "frame_own_us": round(own_us(frames, overhead), 1), "cut_inputs": cut_inputs,
+                              "thin_aircraft": args.thin, "thin_inputs": thin_inputs,
+                              "thin_inputs_per_frame": round(thin_inputs / max(len(thin_frames), 1), 2),
                               "timed_replay_cpu_s": round(timed_run["total"], 3),
-                              "timer_overhead_us_per_call": round(fit["timer_overhead_us_per_call"], 3)}), flush=True)
+                              "timer_overhead_us_per_call": round(1e6 * overhead, 3)}), flush=True)
 
 
 if __name__ == "__main__":
