@@ -288,7 +288,7 @@ class CoupledSparseEstimator(Estimator):
         """Recompute S from the blocks (``rebuild``), then S⁻¹ and ς̂ from S, now."""
         w = self._work
         if rebuild and not K.rebuild(self._Yxx, self._Yxb, self._ex, self._nk, self._rk, self._Ybb, self._eb,
-                                     self._S, self._sv, self._ctr, w.f4, w.V, w.G, w.v4, w.idx, w.LSi, w.Kb[:, 0]):
+                                     self._S, self._sv, self._ctr, w.f4, w.V, w.G, w.v4, w.idx, w.LSi, w.Kb[0]):
             raise SingularInformation(_WHY[K.ERR_REBUILD])
         if not K.refresh(self._S, self._sv, self._Pb, self._bh, self._ctr, w.LS, w.LSi):
             raise SingularInformation(_WHY[K.ERR_S])

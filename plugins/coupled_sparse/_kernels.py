@@ -200,7 +200,7 @@ def carve_work(WF, nbw):
     o += 4 * nbw
     v4 = WF[o:o + 24].reshape((6, 4, 1))
     o += 24
-    Kb = WF[o:o + 2 * nbw].reshape((nbw, 2))
+    Kb = WF[o:o + 2 * nbw].reshape((2, nbw))  # rows: the two columns of K_b, each contiguous
     o += 2 * nbw
     LS = WF[o:o + nbw * nbw].reshape((nbw, nbw))
     o += nbw * nbw
@@ -371,7 +371,7 @@ def update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
     if not conditional(Yxx, Yxb, ex, s, nK, L, V, u, G, mx):
         return ERR_YII, 0.0
     nb = Pb.shape[0]
-    # x̄ = m − G ς̂_K; Kb = Cov(ς, h) = −Pb[:, K] G[:2]ᵀ + Pb[:, j] Cᵀ  (h = C_x χ + C ς_j)
+    # x̄ = m − G ς̂_K; Kbᵀ = Cov(ς, h) = −Pb[:, K] G[:2]ᵀ + Pb[:, j] Cᵀ  (h = C_x χ + C ς_j)
     xb0 = mx[0, 0]
     xb1 = mx[1, 0]
     for c in range(nK):
@@ -381,20 +381,27 @@ def update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
     if j >= 0:
         zh0 += C[0, 0] * bh[2 * j] + C[0, 1] * bh[2 * j + 1]
         zh1 += C[1, 0] * bh[2 * j] + C[1, 1] * bh[2 * j + 1]
+    # Pb is exactly symmetric (refresh writes both halves, the downdate's (p, r) and (r, p) terms are the
+    # same products), so its column c is its row c: contiguous loops over p, each K_b entry summed in the
+    # same order as the column-wise sum
+    K0, K1 = Kb[0], Kb[1]
     for p in range(nb):
-        k0 = 0.0
-        k1 = 0.0
-        for c in range(nK):
-            pc = Pb[p, idx[c]]
-            k0 -= pc * G[0, c]
-            k1 -= pc * G[1, c]
-        if j >= 0:
-            p0 = Pb[p, 2 * j]
-            p1 = Pb[p, 2 * j + 1]
-            k0 += p0 * C[0, 0] + p1 * C[0, 1]
-            k1 += p0 * C[1, 0] + p1 * C[1, 1]
-        Kb[p, 0] = k0
-        Kb[p, 1] = k1
+        K0[p] = 0.0
+        K1[p] = 0.0
+    for c in range(nK):
+        row = Pb[idx[c]]
+        g0 = G[0, c]
+        g1 = G[1, c]
+        for p in range(nb):
+            K0[p] -= row[p] * g0
+            K1[p] -= row[p] * g1
+    if j >= 0:
+        r0 = Pb[2 * j]
+        r1 = Pb[2 * j + 1]
+        c00, c01, c10, c11 = C[0, 0], C[0, 1], C[1, 0], C[1, 1]
+        for p in range(nb):
+            K0[p] += r0[p] * c00 + r1[p] * c01
+            K1[p] += r0[p] * c10 + r1[p] * c11
     # Λ = C_x Cov(χ, h) + C_s Cov(ς_j, h) + R with Cov(χ, h) = Σ[:, :2] − G Kb[K] (χ = m − Gς_K + e)
     Sg = f4[3]
     for a in range(4):
@@ -408,12 +415,12 @@ def update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
             for r in range(4):
                 acc += Li[r, a] * Li[r, b]
             for c in range(nK):
-                acc -= G[a, c] * Kb[idx[c], b]
+                acc -= G[a, c] * Kb[b, idx[c]]
             Lam[a, b] = acc + Rs[a, b]
     if j >= 0:  # + C Cov(ς_j, h)
         for a in range(2):
             for b in range(2):
-                Lam[a, b] += C[a, 0] * Kb[2 * j, b] + C[a, 1] * Kb[2 * j + 1, b]
+                Lam[a, b] += C[a, 0] * Kb[b, 2 * j] + C[a, 1] * Kb[b, 2 * j + 1]
     l01 = 0.5 * (Lam[0, 1] + Lam[1, 0])
     Lam[0, 1] = l01
     Lam[1, 0] = l01
@@ -487,21 +494,23 @@ def update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
                     Ybb[2 * j + b, 2 * j + a] += d
             eb[2 * j + a] += C[0, a] * rz0 + C[1, a] * rz1  # Cᵀ R⁻¹ z
     # Pb −= U Uᵀ, ς̂ += U w with U = Kb L_Λ⁻ᵀ
+    l00, l10, l11 = Ll[0, 0], Ll[1, 0], Ll[1, 1]
     for p in range(nb):
-        a0 = Kb[p, 0] / Ll[0, 0]
-        Kb[p, 1] = (Kb[p, 1] - Ll[1, 0] * a0) / Ll[1, 1]
-        Kb[p, 0] = a0
+        a0 = K0[p] / l00
+        K1[p] = (K1[p] - l10 * a0) / l11
+        K0[p] = a0
     for p in range(nb):
-        up0 = Kb[p, 0]
-        up1 = Kb[p, 1]
+        up0 = K0[p]
+        up1 = K1[p]
         bh[p] += up0 * w0 + up1 * w1
+        row = Pb[p]
         for r in range(nb):
-            Pb[p, r] -= up0 * Kb[r, 0] + up1 * Kb[r, 1]
+            row[r] -= up0 * K0[r] + up1 * K1[r]
     nis = w0 * w0 + w1 * w1
     ctr[C_SINCE_REFRESH] += 1
     ctr[C_SINCE_REBUILD] += 1
     if ctr[C_SINCE_REBUILD] >= ctr[C_REBUILD_FACTOR] * (ctr[C_ALIVE] + 1):
-        if not rebuild(Yxx, Yxb, ex, nk, rk, Ybb, eb, S, sv, ctr, f4, V, G, v4, idx, LSi, Kb[:, 0]):
+        if not rebuild(Yxx, Yxb, ex, nk, rk, Ybb, eb, S, sv, ctr, f4, V, G, v4, idx, LSi, K0):
             return ERR_REBUILD, nis
     if ctr[C_SINCE_REFRESH] >= ctr[C_REFRESH_EVERY]:
         if not refresh(S, sv, Pb, bh, ctr, LS, LSi):

@@ -73,6 +73,7 @@ EVENT_KINDS = ("created", "confirmed", "updated", "coasting", "deleted")
 _ZERO2, _ZERO22 = np.zeros(2), np.zeros((2, 2))
 _INPUT_KINDS = {"p": "plots", "a": "adsb", "m": "positions"}  # admission key tag → counting name
 _USED = {kind: f"{kind}_used" for kind in _INPUT_KINDS.values()}
+_ADD, _UPDATE, _REMOVE = "add", "update", "remove"  # kinds of the frame's queued estimator work
 # exact estimators first, the scalable one before the dense one (docs/estimators.md); decoupled is a last resort
 PREFERRED_ESTIMATORS = ("coupled-sparse", "coupled", "blom", "decoupled")
 
@@ -203,6 +204,7 @@ class TrackManager:
         self._frame_items: list = []
         self._phase: dict[str, complex] = {}
         self._events: list[TrackEvent] = []
+        self._deferred: list[tuple] = []  # the frame's estimator work, applied at its end (_flush_estimator)
         self._codes: dict[str, int] = {}  # Mode S address → track id, kept lazily (_track_with_code)
         self.clock = StreamClock(self.config.clock)
         self.adsb_check = AdsbPlausibility(self.config.screening)
@@ -378,6 +380,7 @@ class TrackManager:
         for _, _, tr, meas, src in updates:
             self._apply(tr, meas, src)
         self._sweep(live, pred, t_b)
+        self._flush_estimator()
 
     @staticmethod
     def _estimate_of(tr: ManagedTrack) -> tuple:
@@ -671,11 +674,7 @@ class TrackManager:
         first = tr.pending[0][0]
         sd_v = tr.filter.config.prior_sd_velocity_mps
         prior = np.diag([1e8, 1e8, sd_v**2, sd_v**2])
-        try:
-            self.estimator.add_aircraft(tr.id, first.time, np.array([*first.z, 0.0, 0.0]), prior)
-        except Exception as exc:
-            raise self._plugin_failed(f"estimator {self.estimator.name!r}", tr.id, first.time, exc) from exc
-        self.coupling.add_aircraft(tr.id)
+        self._deferred.append((_ADD, first.time, tr.id, np.array([*first.z, 0.0, 0.0]), prior))
         for m, kind in tr.pending:
             self._estimate(m.time, m.aircraft, m.radar, m.z, m.C, m.R, kind)
         tr.pending = []
@@ -684,18 +683,66 @@ class TrackManager:
 
     def _estimate(self, time: float, aircraft: int, radar: str | None, z: np.ndarray, C: np.ndarray, R: np.ndarray,
                   kind: str) -> None:
-        """One measurement of a confirmed track to the estimator (its fields: no PlaneMeasurement built, the
-        arrays are the manager's own) and the coupling graph."""
-        try:
-            self.estimator.update_arrays(time, aircraft, radar, z, C, R)
-        except SingularInnovation as exc:
-            self.counts[f"{kind}_singular"] += 1
-            log.warning("estimator refused a measurement of track %s: %s", aircraft, exc)
-            return
-        except Exception as exc:
-            raise self._plugin_failed(f"estimator {self.estimator.name!r}", aircraft, time, exc) from exc
-        self.coupling.observe(aircraft, radar, time)
-        self.counts[_USED[kind]] += 1
+        """One measurement of a confirmed track for the estimator, queued until the frame's end
+        (:meth:`_flush_estimator`; the arrays are the manager's own, nothing writes into them)."""
+        self._deferred.append((_UPDATE, time, aircraft, radar, z, C, R, kind))
+
+    def _flush_estimator(self) -> None:
+        """The frame's estimator and coupling-graph work in the order it arose: aircraft added at
+        confirmation, measurements (each run of them in one :meth:`Estimator.update_many`), aircraft
+        removed. The frame's screening, gating and track filters all read the bias estimate as it was
+        at the frame's start (docs/design-notes.md, "The bias estimate is read once per frame")."""
+        ops, self._deferred = self._deferred, []
+        name = f"estimator {self.estimator.name!r}"
+        k = 0
+        while k < len(ops):
+            op = ops[k]
+            if op[0] is _ADD:
+                _, time, key, x0, prior = op
+                try:
+                    self.estimator.add_aircraft(key, time, x0, prior)
+                except Exception as exc:
+                    raise self._plugin_failed(name, key, time, exc) from exc
+                self.coupling.add_aircraft(key)
+                k += 1
+            elif op[0] is _REMOVE:
+                _, time, key = op
+                try:
+                    self.estimator.remove_aircraft(key)
+                except Exception as exc:
+                    raise self._plugin_failed(name, key, time, exc) from exc
+                self.coupling.remove_aircraft(key)
+                k += 1
+            else:
+                end = k + 1
+                while end < len(ops) and ops[end][0] is _UPDATE:
+                    end += 1
+                self._update_run(ops[k:end])
+                k = end
+
+    def _update_run(self, run: list[tuple]) -> None:
+        """Measurements ``run`` (queued by :meth:`_estimate`) to the estimator in one ``update_many``; one it
+        refuses as singular is counted (``*_singular``) and the rest of the run goes on after it."""
+        start = 0
+        while start < len(run):
+            part = run[start:]
+            _, time, aircraft, radar, z, C, R, _ = zip(*part)
+            done, failed = len(part), None
+            try:
+                self.estimator.update_many(time, aircraft, radar, np.array(z), np.array(C), np.array(R))
+            except SingularInnovation as exc:
+                done, failed = getattr(exc, "index", 0), exc
+            except Exception as exc:
+                i = getattr(exc, "index", 0)
+                raise self._plugin_failed(f"estimator {self.estimator.name!r}", aircraft[i], time[i], exc) from exc
+            for op in part[:done]:
+                self.coupling.observe(op[2], op[3], op[1])
+                self.counts[_USED[op[7]]] += 1
+            if failed is not None:
+                self.counts[f"{part[done][7]}_singular"] += 1
+                log.warning("estimator refused a measurement of track %s: %s", aircraft[done], failed)
+                done += 1
+            start += done
 
     # --- misses, deletion, events ------------------------------------------------------------------
     def _misses(self, live: list[ManagedTrack], pred: dict, assigned: dict[str, set[int]], t_a: float, t_b: float) -> None:
@@ -746,11 +793,7 @@ class TrackManager:
             for _, kind in tr.pending:
                 self.counts[f"{kind}_in_dropped_tentative_tracks"] += 1
         else:
-            try:
-                self.estimator.remove_aircraft(tr.id)
-            except Exception as exc:
-                raise self._plugin_failed(f"estimator {self.estimator.name!r}", tr.id, now, exc) from exc
-            self.coupling.remove_aircraft(tr.id)
+            self._deferred.append((_REMOVE, now, tr.id))
         tr.status = "deleted"
         self._emit(now, tr, "deleted")
 
