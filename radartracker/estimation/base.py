@@ -153,7 +153,7 @@ class Estimator(abc.ABC):
                                  np.asarray(C[i], float), np.asarray(R[i], float))
             try:
                 inn = self.update(m)
-            except ValueError as exc:
+            except Exception as exc:  # any failure names its measurement
                 exc.index = i
                 raise
             nu.append(inn.nu), lam.append(inn.S), nis.append(inn.nis)

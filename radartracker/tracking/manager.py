@@ -25,7 +25,8 @@ triangulated fix; associated by its ``aircraft`` key if that is a Mode S address
 5. **Estimation** — each track has a kinematic filter (a ``radartracker.motion_models`` plugin: CV,
    IMM, adaptive) fed with bias-corrected positions z − C_s ς̂ (covariance R + C_s P_ς C_sᵀ); the
    bias estimator plugin receives the raw measurements of confirmed tracks (a track's tentative
-   measurements are handed over when it is confirmed) and is told when tracks end. Before that,
+   measurements are handed over when it is confirmed) and is told when tracks end — a frame's work at
+   its end, in order, so the frame reads ς̂, P_ς as they were at its start. Before that,
    every measurement of an existing track is screened (:mod:`radartracker.estimation.screening`):
    ADS-B plausibility, then d² against the track's bias-corrected prediction; a rejected one is
    counted (``*_outlier``) and touches nothing; repeated rejections re-initialise an identified track.

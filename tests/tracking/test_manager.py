@@ -184,3 +184,49 @@ def test_garbage_never_corrupts_state(tracking_data, junk):
         assert np.all(np.isfinite(b.bias)) and np.all(np.linalg.eigvalsh(b.cov) > 0)
     assert sum(mgr.accounting().values()) == sum(isinstance(i, (Plot, AdsbReport)) for i in stream) + sum(
         not isinstance(i, (Plot, AdsbReport)) for i in stream)
+
+
+def test_a_frames_estimator_work_comes_at_its_end_and_a_refused_measurement_costs_only_itself(tracking_data):
+    """The bias estimate the manager reads is constant within a frame (the frame's measurements reach the
+    estimator at its end, through update_many); a measurement the estimator refuses as
+    singular in the middle of such a batch is counted once and the batch's later ones are still used."""
+    from radartracker.estimation.kalman import SingularInnovation
+    from radartracker_plugins.decoupled import DecoupledEstimator
+
+    reads: dict[tuple[str, int], set] = {}
+    received: list[float] = []
+
+    class Spy(DecoupledEstimator):
+        name = "spy"
+        frame = None
+
+        def bias_arrays(self, radar):
+            b, P = super().bias_arrays(radar)
+            reads.setdefault((radar, Spy.frame), set()).add((*b.tolist(), *P.ravel().tolist()))
+            return b, P
+
+        def update(self, m):
+            if len(received) == 500:  # one refusal, inside some frame's batch
+                received.append(math.nan)
+                raise SingularInnovation("refused by the test")
+            received.append(m.time)
+            return super().update(m)
+
+    mgr = TrackManager(tracking_data.radars, tracking_data.reference, ManagerConfig(), estimator=Spy())
+    run_frame = mgr._run_frame
+
+    def spy_frame(frame):
+        Spy.frame = frame
+        run_frame(frame)
+
+    mgr._run_frame = spy_frame
+    items = [i for i in scenario_stream(tracking_data) if i.time < 300]
+    mgr.process_many(items)
+    assert len(received) > 900 and math.isnan(received[500])
+    assert all(len(values) == 1 for values in reads.values())  # one bias value per radar and frame
+    assert len({frame for _, frame in reads}) > 100
+    counts = mgr.accounting()
+    assert counts.get("plots_singular", 0) + counts.get("adsb_singular", 0) == 1
+    used = sum(v for k, v in counts.items() if k.endswith("_used"))
+    assert used == len(received) - 1  # everything after the refusal in its batch was applied
+    assert sum(counts.values()) == len(items)
