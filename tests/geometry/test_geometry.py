@@ -106,3 +106,35 @@ def test_flat_earth_would_fake_a_range_bias():
     d_exact = np.linalg.norm(p[0] - RADAR.xy)
     d_flat = math.sqrt(rho[0] ** 2 - (h[0] - 150.0) ** 2)
     assert 50.0 < abs(d_exact - d_flat) < 500.0
+
+
+def test_planes_sharing_a_centre_and_threads_give_pyproj_numbers():
+    """SystemPlane's projection is made once per centre and shared (also between threads): the same numbers
+    as a projection built here from the same definition, for two centres in turn."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from pyproj import CRS, Transformer
+
+    rng = np.random.default_rng(3)
+    for lat0, lon0 in ((48.85, 2.35), (44.0, -1.5), (48.85, 2.35)):
+        crs = CRS.from_proj4(f"+proj=stere +lat_0={lat0} +lon_0={lon0} +k_0=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m")
+        own = Transformer.from_crs("EPSG:4326", crs, always_xy=True)
+        lat, lon = lat0 + rng.uniform(-2, 2, 50), lon0 + rng.uniform(-3, 3, 50)
+        want = own.transform(lon, lat)
+        plane = SystemPlane(lat0, lon0)
+        with ThreadPoolExecutor(4) as pool:
+            got = list(pool.map(lambda _: SystemPlane(lat0, lon0).to_plane(lat, lon), range(8)))
+        for x, y in [plane.to_plane(lat, lon), *got]:
+            assert np.array_equal(x, want[0]) and np.array_equal(y, want[1])
+
+
+def test_radar_frame_makes_its_local_frame_on_first_use():
+    from pyproj import Transformer
+
+    frame = RadarFrame(45.2, 5.1, 320.0, PLANE)
+    own = Transformer.from_pipeline("+proj=pipeline +step +proj=unitconvert +xy_in=deg +xy_out=rad +step +proj=cart "
+                                    "+ellps=WGS84 +step +proj=topocentric +ellps=WGS84 +lat_0=45.2 +lon_0=5.1 +h_0=320.0")
+    assert "_enu" not in vars(frame)
+    lat, lon, alt = np.array([45.6, 44.9]), np.array([5.3, 4.8]), np.array([9000.0, 300.0])
+    e, n, u = own.transform(lon, lat, alt)
+    assert np.array_equal(frame.enu(lat, lon, alt), np.stack([e, n, u], axis=-1))
