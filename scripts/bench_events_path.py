@@ -2,20 +2,22 @@
 
     python scripts/bench_events_path.py FOLDER [--repeat 3]
 
-FOLDER is an unlabelled scenario folder (``scripts/bench_national.py`` writes them). That part is what
-follows the TrackManager's ``_emit``: the run's ``on_event`` (covariance and identity of the event's
-track), ``Recorder.event``, the per-plot bias logging, the recorder handing rows on, the writing of
-``events.csv``, ``tracks.csv`` and ``biases.csv``, and the end of the run (``coupling.graphml``,
-``summary.json``, ``config.json``).
+FOLDER is an unlabelled scenario folder (``scripts/bench_national.py`` writes them). That part is the
+TrackManager's ``_emit`` (the event's state from the track's kept estimate, the ``TrackEvent``) and what
+follows it: the run's ``on_event`` (covariance and identity of the event's track), the recorder, the
+per-plot bias logging, the writing of ``events.csv``, ``tracks.csv`` and ``biases.csv``, and the end of
+the run (``coupling.graphml``, ``summary.json``, ``config.json``).
 
 It is isolated as follows. One real run records, for every input, the events the TrackManager emitted
-and the state of each event's track at that moment (its estimate (t, x, P) and identity). Then
-``replay_folder`` runs with a stand-in for the TrackManager that emits those events again, for the same
-inputs, after reading the track's estimate as the manager does (``filter.estimate()`` copying x and P,
-as the IMM's does): everything else is the real code. Its CPU time, minus that of reading the folder
-through the same stand-in without ``on_event``, divided by the inputs, is ``path_us``; ``tables_us``
-is the part spent in ``OutputStream`` (formatting and writing the three tables). Times are
-``time.process_time`` (minimum over ``--repeat`` runs) on whatever load the machine has: one JSON line.
+and the state of each event's track at that moment (its estimate (t, x, P), status and identity). Then
+``replay_folder`` runs with a stand-in for the TrackManager that, for the same inputs, reads each event's
+track estimate as the manager does (``filter.estimate()`` copying x and P, as the IMM's does) and emits
+the event again with the manager's own ``_emit`` (a deleted track's event as recorded): everything else
+is the real code. Its CPU time, minus that of reading the folder through the same stand-in reading the
+estimates but emitting nothing, divided by the inputs, is ``path_us``; ``emit_us`` is the part spent in
+``_emit`` without ``on_event``, ``tables_us`` the part spent in ``OutputStream`` (formatting and writing the
+three tables). Times are ``time.process_time`` (minimum over ``--repeat`` runs) on whatever load the
+machine has: one JSON line.
 """
 
 from __future__ import annotations
@@ -58,7 +60,7 @@ def main() -> None:
             current.append((ev, None))
             return
         t, x, P = TrackManager._estimate_of(tr)
-        current.append((ev, _Track((t, x.copy(), P.copy()), tr.altitude_m, tr.mode_s, tr.mode_3a)))
+        current.append((ev, _Track(tr.id, (t, x.copy(), P.copy()), tr.altitude_m, tr.mode_s, tr.mode_3a)))
 
     mgr = TrackManager(files.data.radars, files.data.reference, cfg.manager_settings(), capture, estimator=est,
                        filter_factory=runmod.motion_factory(cfg))
@@ -71,21 +73,32 @@ def main() -> None:
     inputs, events = len(per_item), sum(map(len, per_item)) + len(last)
 
     class StandIn:
-        """Emits the recorded events of each input, as the TrackManager did."""
+        """Emits the recorded events of each input, as the TrackManager did (``emit=False``: reads the
+        tracks' estimates only)."""
 
-        def __init__(self, radars, reference, config=None, on_event=None, *, estimator=None, filter_factory=None):
-            self.on_event, self.tracks, self.k = on_event, {}, 0
+        def __init__(self, radars, reference, config=None, on_event=None, *, estimator=None, filter_factory=None,
+                     emit=True):
+            self.on_event, self.tracks, self.k, self.emit, self._events = on_event, {}, 0, emit, []
             self.coupling = CouplingGraph([r.id for r in radars])
 
+        _estimate_of = staticmethod(TrackManager._estimate_of)
+        _emit_one = TrackManager._emit
+
         def _emit(self, evs) -> None:
+            self._events = []
             for ev, tr in evs:
                 if tr is None:
                     self.tracks.pop(ev.track, None)
-                else:
-                    tr.estimate = tr.filter.estimate()  # the manager's read (ManagedTrack.estimate)
-                    self.tracks[ev.track] = tr
-                if self.on_event is not None:
-                    self.on_event(ev)
+                    if self.emit:
+                        self._events.append(ev)
+                        if self.on_event is not None:
+                            self.on_event(ev)
+                    continue
+                tr.estimate = tr.filter.estimate()  # the manager's read (ManagedTrack.estimate)
+                self.tracks[ev.track] = tr
+                if self.emit:
+                    tr.status = ev.status
+                    self._emit_one(ev.time, tr, ev.kind)
 
         def process(self, item) -> None:
             self._emit(per_item[self.k])
@@ -109,7 +122,16 @@ def main() -> None:
     runmod.TrackManager = StandIn
     writer.OutputStream.events = timed(writer.OutputStream.events)
     writer.OutputStream.biases = timed(writer.OutputStream.biases)
-    whole, alone, in_tables = [], [], []
+    def standin(**kw) -> float:
+        c = time.process_time()
+        f = open_scenario(args.folder)
+        m = StandIn(f.data.radars, f.data.reference, **kw)
+        for item in iter_files(f):
+            m.process(item)
+        m.flush()
+        return time.process_time() - c
+
+    whole, alone, emit, in_tables = [], [], [], []
     with tempfile.TemporaryDirectory() as tmp:
         for _ in range(args.repeat + 1):  # the first: a warm-up
             out = writer.prepare(Path(tmp) / "out", overwrite=True)
@@ -119,18 +141,13 @@ def main() -> None:
                 runmod.replay_folder(args.folder, config, out, progress=False)
             whole.append(time.process_time() - c)
             in_tables.append(tables[0])
-            c = time.process_time()
-            f = open_scenario(args.folder)
-            m = StandIn(f.data.radars, f.data.reference)
-            for item in iter_files(f):
-                m.process(item)
-            m.flush()
-            alone.append(time.process_time() - c)
-    w, a, t = min(whole[1:]), min(alone[1:]), min(in_tables[1:])
+            alone.append(standin(emit=False))
+            emit.append(standin())
+    w, a, e, t = min(whole[1:]), min(alone[1:]), min(emit[1:]), min(in_tables[1:])
     print(json.dumps({"folder": str(args.folder), "inputs": inputs, "events": events,
-                      "path_us": round((w - a) / inputs * 1e6, 2), "tables_us": round(t / inputs * 1e6, 2),
-                      "replay_standin_us": round(w / inputs * 1e6, 2), "reading_standin_us": round(a / inputs * 1e6, 2)}))
-
+                      "path_us": round((w - a) / inputs * 1e6, 2), "emit_us": round((e - a) / inputs * 1e6, 2),
+                      "tables_us": round(t / inputs * 1e6, 2), "replay_standin_us": round(w / inputs * 1e6, 2),
+                      "reading_standin_us": round(a / inputs * 1e6, 2)}))
 
 class _Filter:
     __slots__ = ("e",)
@@ -143,14 +160,13 @@ class _Filter:
 
 
 class _Track:
-    """What ``on_event`` reads of a ManagedTrack."""
+    """What ``_emit`` and ``on_event`` read of a ManagedTrack."""
 
-    __slots__ = ("estimate", "filter", "altitude_m", "mode_s", "mode_3a")
+    __slots__ = ("id", "status", "estimate", "filter", "altitude_m", "mode_s", "mode_3a")
 
-    def __init__(self, estimate: tuple, altitude_m, mode_s, mode_3a) -> None:
-        self.estimate, self.filter = None, _Filter(estimate)
+    def __init__(self, id: int, estimate: tuple, altitude_m, mode_s, mode_3a) -> None:
+        self.id, self.status, self.estimate, self.filter = id, None, None, _Filter(estimate)
         self.altitude_m, self.mode_s, self.mode_3a = altitude_m, mode_s, mode_3a
-
 
 if __name__ == "__main__":
     main()

@@ -9,7 +9,8 @@ per ``bias_log_interval_s``.
 from __future__ import annotations
 
 import math
-from array import array
+from itertools import chain
+from typing import NamedTuple
 
 import attrs
 import numpy as np
@@ -50,7 +51,7 @@ class Events:
 
     def estimate_mask(self) -> np.ndarray:
         """Which events are track estimates (``confirmed`` and ``updated``)."""
-        return np.fromiter((k in TRACK_KINDS for k in self.kind.tolist()), bool, len(self.kind))
+        return (self.kind == TRACK_KINDS[0]) | (self.kind == TRACK_KINDS[1])
 
     def estimates(self) -> Events:
         """The track estimates (``confirmed`` and ``updated`` events)."""
@@ -68,55 +69,86 @@ class BiasLog:
 
 
 _NAN16 = np.full(16, math.nan).tobytes()  # the covariance of an event without one
-FLUSH_EVERY = 8192  # rows handed to the sink at a time
+FLUSH_EVERY = 8192  # rows made columns (and handed to the sink) at a time
+
+
+class _Head(NamedTuple):
+    """What :meth:`Recorder.event` records of an event besides its covariance and identity: the fields of
+    a :class:`~radartracker.tracking.manager.TrackEvent`, in its order."""
+
+    time: float
+    track: int
+    kind: str
+    status: str
+    state: tuple
+
+
+def _events_of(rows: list[tuple]) -> Events:
+    """Rows of :meth:`Recorder.event` / :meth:`Recorder.track_event` as columns."""
+    n = len(rows)
+    heads, covs, idents = zip(*rows)
+    time, track, kind, status, state = zip(*heads)
+    altitude_m, mode_s, mode_3a, target = zip(*idents)
+    cov = np.frombuffer(bytearray(b"".join(covs)), float)
+    if len(cov) != 16 * n:
+        raise ValueError("an event's covariance is not a 4×4 array of floats")
+    return Events(time=np.array(time, float), track=np.array(track, int), kind=_obj(kind), status=_obj(status),
+                  state=np.fromiter(chain.from_iterable(state), float, 4 * n).reshape(n, 4), cov=cov.reshape(n, 4, 4),
+                  altitude_m=np.array(altitude_m, float), mode_s=_obj(mode_s), mode_3a=_obj(mode_3a),
+                  target=_obj(target))
+
+
+def _concatenate(chunks: list[Events]) -> Events:
+    """The events of ``chunks`` in order (none: no event)."""
+    if not chunks:
+        return Events(time=np.zeros(0), track=np.zeros(0, int), kind=_obj([]), status=_obj([]), state=np.zeros((0, 4)),
+                      cov=np.zeros((0, 4, 4)), altitude_m=np.zeros(0), mode_s=_obj([]), mode_3a=_obj([]),
+                      target=_obj([]))
+    return Events(**{f.name: np.concatenate([getattr(c, f.name) for c in chunks]) for f in attrs.fields(Events)})
 
 
 class Recorder:
     """Collects a run's events, bias estimates and NIS values (see the module docstring).
 
-    Numbers go to flat ``array('d')`` buffers (8 bytes each, no object per event): a national-scale run
-    records millions of events. With a ``sink`` (:class:`radartracker.pipeline.writer.OutputStream`)
-    events and biases are handed on every ``flush_every`` rows as they come; ``keep=False`` then drops
-    them once handed on, so that memory does not grow with the recording's length (what
-    :attr:`track_ids` keeps, one integer per track with an estimate, grows with the number of tracks).
+    An event is kept as one row (a tuple: no object per number) until ``flush_every`` of them are made
+    columns at once (:class:`Events`, 8 bytes a number): a national-scale run records millions of events.
+    With a ``sink`` (:class:`radartracker.pipeline.writer.OutputStream`) events and biases are handed on
+    as they are made columns; ``keep=False`` then drops them once handed on, so that memory does not grow
+    with the recording's length (what :attr:`track_ids` keeps, one integer per track with an estimate,
+    grows with the number of tracks).
     """
 
     def __init__(self, bias_log_interval_s: float = 1.0, *, sink=None, keep: bool = True,
                  flush_every: int | None = None) -> None:
         self.bias_log_interval_s = bias_log_interval_s
         self.sink, self.keep, self.flush_every = sink, keep or sink is None, flush_every or FLUSH_EVERY
-        self._num = {k: array("d") for k in ("time", "state", "cov", "altitude_m")}
-        self._track = array("q")
-        self._obj: dict[str, list] = {k: [] for k in ("kind", "status", "mode_s", "mode_3a", "target")}
+        self._rows: list[tuple] = []  # events not yet made columns: (head, covariance bytes, identity)
+        self._chunks: list[Events] = []  # events made columns and kept
         self._bias: list[tuple] = []
         self._bias_last: dict[str, float] = {}
-        self._sent = [0, 0]  # events and bias rows already handed to the sink
-        self.track_ids: set[int] = set()
+        self._bias_sent = 0  # bias rows already handed to the sink
+        self._track_ids: set[int] = set()
         self.nis: list[float] = []
 
     def event(self, time: float, track: int, kind: str, status: str, state, cov: np.ndarray | None,
               altitude_m: float | None, mode_s: str | None, mode_3a: str | None, target: object = None) -> None:
         """Record one event: ``state`` a tuple of four floats or an array (its first four values), ``cov``
-        a 4×4 array or ``None`` (recorded as NaN). Numbers are copied as bytes, not one numpy scalar each."""
-        n = self._num
-        n["time"].append(time)
-        if type(state) is tuple:
-            n["state"].extend(state[:4])
-        else:
-            n["state"].frombytes(np.asarray(state, float).ravel()[:4].tobytes())
-        n["cov"].frombytes(_NAN16 if cov is None else np.asarray(cov, float).tobytes())
-        n["altitude_m"].append(math.nan if altitude_m is None else altitude_m)
-        self._track.append(track)
-        o = self._obj
-        o["kind"].append(kind)
-        o["status"].append(status)
-        o["mode_s"].append(mode_s)
-        o["mode_3a"].append(mode_3a)
-        o["target"].append(target)
-        if kind in TRACK_KINDS:
-            self.track_ids.add(track)
-        if self.sink is not None and len(self._track) - self._sent[0] >= self.flush_every:
-            self.flush()
+        a 4×4 array or ``None`` (recorded as NaN). Both are copied now."""
+        if type(state) is not tuple:
+            state = tuple(np.asarray(state, float).ravel()[:4].tolist())
+        cov = _NAN16 if cov is None else np.asarray(cov, float).tobytes()
+        self._rows.append((_Head(time, track, kind, status, state[:4]), cov, (altitude_m, mode_s, mode_3a, target)))
+        if len(self._rows) >= self.flush_every:
+            self._columns()
+
+    def track_event(self, ev, cov: np.ndarray | None, ident: tuple) -> None:
+        """Record a :class:`~radartracker.tracking.manager.TrackEvent` (a named tuple of time, track, kind,
+        status and state of four floats, kept as it is: it is immutable) with ``cov``, the 4×4 float array of the
+        track's estimate at the event's time or ``None``, copied now, and ``ident``, the track's
+        (altitude_m, mode_s, mode_3a, target)."""
+        self._rows.append((ev, _NAN16 if cov is None else cov.tobytes(), ident))
+        if len(self._rows) >= self.flush_every:
+            self._columns()
 
     def bias_due(self, radar: str, time: float) -> bool:
         """Whether :meth:`bias` would record ``radar``'s bias at ``time`` (ask before building the state)."""
@@ -127,33 +159,41 @@ class Recorder:
         if self.bias_due(state.radar, time):
             self._bias.append((float(time), state.radar, np.asarray(state.bias, float), np.asarray(state.cov, float)))
             self._bias_last[state.radar] = time
-            if self.sink is not None and len(self._bias) - self._sent[1] >= self.flush_every:
+            if self.sink is not None and len(self._bias) - self._bias_sent >= self.flush_every:
                 self.flush()
+
+    def _columns(self) -> None:
+        """The event rows made columns: handed to the sink, kept unless they were handed on and not ``keep``."""
+        if not self._rows:
+            return
+        ev = _events_of(self._rows)
+        self._rows = []
+        self._track_ids.update(ev.track[ev.estimate_mask()].tolist())
+        if self.sink is not None:
+            self.sink.events(ev)
+        if self.keep:
+            self._chunks.append(ev)
 
     def flush(self) -> None:
         """Hand the events and bias rows not yet handed on to the sink (dropping them unless ``keep``)."""
+        self._columns()
         if self.sink is None:
             return
-        self.sink.events(self.events(self._sent[0]))
-        self.sink.biases(self.biases(self._sent[1]))
+        self.sink.biases(self.biases(self._bias_sent))
         if self.keep:
-            self._sent = [len(self._track), len(self._bias)]
-            return
-        for buf in (*self._num.values(), self._track):
-            del buf[:]
-        for col in self._obj.values():
-            col.clear()
-        self._bias.clear()
+            self._bias_sent = len(self._bias)
+        else:
+            self._bias.clear()
 
-    def events(self, start: int = 0) -> Events:
-        """The events recorded (from the ``start``-th of those held)."""
-        n, o = self._num, self._obj
-        return Events(time=np.array(n["time"][start:], float), track=np.array(self._track[start:], int),
-                      kind=_obj(o["kind"][start:]), status=_obj(o["status"][start:]),
-                      state=np.array(n["state"][4 * start:], float).reshape(-1, 4),
-                      cov=np.array(n["cov"][16 * start:], float).reshape(-1, 4, 4),
-                      altitude_m=np.array(n["altitude_m"][start:], float), mode_s=_obj(o["mode_s"][start:]),
-                      mode_3a=_obj(o["mode_3a"][start:]), target=_obj(o["target"][start:]))
+    def events(self) -> Events:
+        """The events recorded (those kept, and those not yet made columns)."""
+        chunks = self._chunks + ([_events_of(self._rows)] if self._rows else [])
+        return chunks[0] if len(chunks) == 1 else _concatenate(chunks)
+
+    @property
+    def track_ids(self) -> set[int]:
+        """The tracks with an estimate (a ``confirmed`` or ``updated`` event) so far."""
+        return self._track_ids | {h.track for h, _, _ in self._rows if h.kind in TRACK_KINDS}
 
     def biases(self, start: int = 0) -> BiasLog:
         rows = self._bias[start:]

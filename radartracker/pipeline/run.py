@@ -236,7 +236,7 @@ def _extrapolate(state: np.ndarray, dt: float) -> np.ndarray:
     return np.concatenate([state[:2] + state[2:] * max(dt, 0.0), state[2:]])
 
 
-_NO_IDENT = (None, None, None)
+_NO_IDENT = (None, None, None, None)  # altitude, Mode S, Mode 3/A, target
 
 
 def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: FilterFactory, rec: Recorder,
@@ -245,23 +245,21 @@ def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: Fil
     """Association by the TrackManager; events carry the track filter's state and covariance."""
     mcfg = cfg.manager_settings()
     ident: dict[int, tuple] = {}  # identity of each track at its last event (deleted tracks are gone from mgr)
+    record = rec.track_event
 
     def on_event(ev: TrackEvent) -> None:
-        tr = mgr.tracks.get(ev.track)
-        cov = None
+        track = ev.track
+        tr = tracks.get(track)
         if tr is not None:
-            idt = ident[ev.track] = (tr.altitude_m, tr.mode_s, tr.mode_3a)
+            idt = ident[track] = (tr.altitude_m, tr.mode_s, tr.mode_3a, None)
             # the manager's estimate of the filter, read for this event (ManagedTrack.estimate)
             t0, _, P = tr.estimate or tr.filter.estimate()
-            if t0 == ev.time:
-                cov = P
-        elif ev.kind == "deleted":
-            idt = ident.pop(ev.track, _NO_IDENT)
+            record(ev, P if t0 == ev.time else None, idt)
         else:
-            idt = ident.get(ev.track, _NO_IDENT)
-        rec.event(ev.time, ev.track, ev.kind, ev.status, ev.state, cov, *idt)
+            record(ev, None, ident.pop(track, _NO_IDENT) if ev.kind == "deleted" else ident.get(track, _NO_IDENT))
 
     mgr = TrackManager(data.radars, data.reference, mcfg, on_event, estimator=est, filter_factory=factory)
+    tracks = mgr.tracks
     if inputs is None:
         inputs, total = iter_scenario(data), len(data.plots) + len(data.adsb)
     for item in tqdm(inputs, total=total,

@@ -46,6 +46,7 @@ import math
 from collections import Counter, deque
 from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import NamedTuple
 
 import attrs
 import numpy as np
@@ -122,15 +123,30 @@ def motion_q(cfg: ManagerConfig) -> dict[str, str]:
     return options
 
 
-@attrs.frozen
-class TrackEvent:
-    """Something that happened to a track: ``kind`` is one of ``EVENT_KINDS``."""
+class TrackEvent(NamedTuple):
+    """Something that happened to a track: ``kind`` is one of ``EVENT_KINDS``, ``state`` the track's
+    [x, y, vx, vy] at ``time`` (extrapolated for coasting and deleted events).
+
+    An immutable named tuple, equal only to a TrackEvent with equal fields, not an attrs class: one is made
+    for every event, about one per input, in a third of the time a frozen attrs instance takes.
+    """
 
     time: float
     track: int
     kind: str
     status: str
     state: tuple[float, float, float, float]
+
+    def __eq__(self, other: object) -> bool:
+        return type(other) is TrackEvent and tuple.__eq__(self, other)
+
+    def __ne__(self, other: object) -> bool:
+        return not self.__eq__(other)
+
+    __hash__ = tuple.__hash__
+
+
+_make_event = tuple.__new__  # _make_event(TrackEvent, fields): TrackEvent(*fields) without a Python call
 
 
 @attrs.define
@@ -805,11 +821,11 @@ class TrackManager:
         return PluginError(f"{plugin} failed on {who} at t={time:.3f} s: {type(exc).__name__}: {exc}")
 
     def _emit(self, time: float, tr: ManagedTrack, kind: str) -> None:
-        t0, x, _ = self._estimate_of(tr)
-        x0, y0, vx, vy = x[:4].tolist()
+        t0, x, _ = tr.estimate or self._estimate_of(tr)
+        x0, y0, vx, vy = x.tolist()[:4]
         if time > t0:  # coasting/deleted events happen after the last update: report the position then
             x0, y0 = x0 + vx * (time - t0), y0 + vy * (time - t0)
-        ev = TrackEvent(float(time), tr.id, kind, tr.status, (x0, y0, vx, vy))
+        ev = _make_event(TrackEvent, (float(time), tr.id, kind, tr.status, (x0, y0, vx, vy)))
         self._events.append(ev)
         if self.on_event is not None:
             self.on_event(ev)

@@ -1,0 +1,96 @@
+"""The recorder's events as columns: rows of TrackManager events and of other associations, made columns
+a chunk at a time, equal the columns built directly from what was recorded."""
+
+import math
+
+import numpy as np
+import pytest
+
+from radartracker.pipeline.recorder import Recorder
+from radartracker.tracking.manager import TrackEvent
+
+KINDS = ["created", "confirmed", "updated", "coasting", "deleted"]
+
+
+def _inputs(n: int, seed: int = 4):
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        state = tuple(rng.normal(0, 1e5, 4).tolist())
+        cov = None if i % 4 == 1 else rng.normal(0, 10, (4, 4))
+        ident = (None if i % 3 == 0 else float(rng.normal(9000, 100)), None if i % 2 else f"{i:06x}",
+                 None if i % 5 else "7421", None if i % 7 else f"T{i}")
+        out.append((0.25 * i, int(rng.integers(1, 9)), KINDS[i % 5], "confirmed" if i % 5 else "tentative", state, cov,
+                    ident))
+    return out
+
+
+class Sink:
+    def __init__(self):
+        self.chunks, self.bias_rows = [], 0
+
+    def events(self, ev):
+        self.chunks.append(ev)
+
+    def biases(self, b):
+        self.bias_rows += len(b.time)
+
+
+@pytest.mark.parametrize("keep", [True, False])
+def test_rows_made_columns_equal_the_recorded_values(keep):
+    inputs = _inputs(23)
+    sink = Sink()
+    rec = Recorder(sink=sink, keep=keep, flush_every=5)
+    expected_ids = set()
+    for i, (t, track, kind, status, state, cov, ident) in enumerate(inputs):
+        if i % 2:  # as the TrackManager's run records its events
+            rec.track_event(TrackEvent(t, track, kind, status, state), cov, ident)
+        else:  # as the labels and distributed associations record theirs (state an array)
+            rec.event(t, track, kind, status, np.array(state), cov, *ident)
+        if cov is not None:
+            cov[:] = 0.0  # copied when recorded
+        if kind in ("confirmed", "updated"):
+            expected_ids.add(track)
+        assert rec.track_ids == expected_ids
+    assert [len(c) for c in sink.chunks] == [5, 5, 5, 5]  # the last 3 wait for flush
+    rec.flush()
+    assert [len(c) for c in sink.chunks] == [5, 5, 5, 5, 3] and rec.track_ids == expected_ids
+    fresh = _inputs(23)  # the same values again, the covariances not zeroed
+    got = sink.chunks
+    for name, column in [("time", [x[0] for x in fresh]), ("track", [x[1] for x in fresh]),
+                         ("kind", [x[2] for x in fresh]), ("status", [x[3] for x in fresh]),
+                         ("mode_s", [x[6][1] for x in fresh]), ("mode_3a", [x[6][2] for x in fresh]),
+                         ("target", [x[6][3] for x in fresh])]:
+        assert [v for c in got for v in getattr(c, name).tolist()] == column, name
+    state = np.concatenate([c.state for c in got])
+    assert state.shape == (23, 4) and state.tolist() == [list(x[4]) for x in fresh]
+    cov = np.concatenate([c.cov for c in got])
+    for x, c in zip(fresh, cov):
+        assert np.isnan(c).all() if x[5] is None else (c == x[5]).all()
+    alt = np.concatenate([c.altitude_m for c in got])
+    assert [None if math.isnan(a) else a for a in alt.tolist()] == [x[6][0] for x in fresh]
+    mask = np.concatenate([c.estimate_mask() for c in got])
+    assert mask.tolist() == [x[2] in ("confirmed", "updated") for x in fresh]
+    held = rec.events()
+    if keep:
+        assert held.time.tolist() == [x[0] for x in fresh] and np.array_equal(held.cov, cov, equal_nan=True)
+    else:
+        assert len(held) == 0 and held.state.shape == (0, 4) and held.cov.shape == (0, 4, 4)
+
+
+def test_without_a_sink_every_event_is_kept_in_order():
+    inputs = _inputs(11)
+    rec = Recorder(flush_every=4)
+    for t, track, kind, status, state, cov, ident in inputs:
+        rec.track_event(TrackEvent(t, track, kind, status, state), cov, ident)
+    ev = rec.events()
+    assert ev.time.tolist() == [x[0] for x in inputs] and ev.track.dtype.kind == "i"
+    assert ev.state.tolist() == [list(x[4]) for x in inputs] and ev.kind.dtype == object
+    assert len(Recorder().events()) == 0
+
+
+def test_a_covariance_that_is_not_4x4_is_refused():
+    rec = Recorder()
+    rec.track_event(TrackEvent(0.0, 1, "updated", "confirmed", (0.0, 0.0, 0.0, 0.0)), np.eye(6), (None,) * 4)
+    with pytest.raises(ValueError, match="4×4"):
+        rec.events()

@@ -1,0 +1,57 @@
+"""TrackEvent, the record every TrackManager event is: named fields, immutable, equal only to an equal
+TrackEvent; what on_event receives is what process returns; a snapshot taken right after events were
+returned restores."""
+
+import pickle
+
+import pytest
+
+from radartracker.pipeline.stream import scenario_stream
+from radartracker.simulation.scenarios import build_scenario
+from radartracker.tracking.manager import EVENT_KINDS, ManagerConfig, TrackEvent, TrackManager, _make_event
+
+
+def test_track_event_is_an_immutable_record():
+    ev = TrackEvent(12.5, 7, "updated", "confirmed", (1.0, -2.0, 3.5, 0.0))
+    assert (ev.time, ev.track, ev.kind, ev.status, ev.state) == (12.5, 7, "updated", "confirmed", (1.0, -2.0, 3.5, 0.0))
+    with pytest.raises(AttributeError):
+        ev.kind = "deleted"
+    assert _make_event(TrackEvent, (12.5, 7, "updated", "confirmed", (1.0, -2.0, 3.5, 0.0))) == ev
+    same, other = TrackEvent(*ev), ev._replace(track=8)
+    assert ev == same and not ev != same and hash(ev) == hash(same) and len({ev, same, other}) == 2
+    assert ev != other and not ev == other
+    assert ev != tuple(ev) and not ev == tuple(ev)  # a TrackEvent, not any tuple of the same values
+    assert repr(ev) == "TrackEvent(time=12.5, track=7, kind='updated', status='confirmed', state=(1.0, -2.0, 3.5, 0.0))"
+    assert pickle.loads(pickle.dumps(ev)) == ev
+
+
+@pytest.fixture(scope="module")
+def tracking():
+    return build_scenario("tracking", seed=3, duration=120.0).run()
+
+
+def test_on_event_gets_what_process_returns(tracking):
+    seen = []
+    mgr = TrackManager(tracking.radars, tracking.reference, ManagerConfig(), seen.append)
+    returned = mgr.process_many(scenario_stream(tracking))
+    assert len(returned) > 100 and {e.kind for e in returned} >= {"created", "confirmed", "updated", "deleted"}
+    assert all(a is b for a, b in zip(returned, seen, strict=True))
+    assert all(type(e) is TrackEvent and e.kind in EVENT_KINDS and len(e.state) == 4
+               and all(type(v) is float for v in (e.time, *e.state)) for e in returned)
+
+
+def test_snapshot_right_after_events_restores(tracking, tmp_path):
+    """A manager whose last call returned events (held until the next call) is saved and continues alike."""
+    items = scenario_stream(tracking)
+    half = len(items) // 2
+    whole = TrackManager(tracking.radars, tracking.reference, ManagerConfig())
+    expected = whole.process_many(items)
+    first = TrackManager(tracking.radars, tracking.reference, ManagerConfig())
+    got = []
+    k = 0
+    while k < half or not got or not got[-1]:  # stop right after a call that returned events
+        got.append(first.process(items[k]))
+        k += 1
+    first.snapshot(tmp_path / "s.rtsnap")
+    second = TrackManager.restore(tmp_path / "s.rtsnap")
+    assert [e for evs in got for e in evs] + second.process_many(items[k:]) == expected
