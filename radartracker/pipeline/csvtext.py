@@ -2,9 +2,9 @@
 formatting gives: ``'%.<d>f' % x`` is x rounded to d decimals, correctly (half to even, on the exact
 binary value).
 
-A column of floats with ``d`` decimals becomes integers n = rint(p), p = x·10^d, in numpy: 10^d is
-exact, so p is within half an ulp of the exact product and rint(p) is its correct rounding unless p
-lies within an ulp of a half-integer. Those few values, the values beyond 2^50, and the non-finite
+A column of floats with ``d`` decimals becomes integers n = rint(p), p = x·10^d, in one compiled pass:
+10^d is exact, so p is within half an ulp of the exact product and rint(p) is its correct rounding unless
+p lies within an ulp of a half-integer. Those few values, the values beyond 2^50, and the non-finite
 ones ('nan', 'inf', '-inf', or an empty field for an optional column) are formatted by Python itself
 and copied as text. The compiled loop writes, row after row, the sign, the digits of n with the
 decimal point d places from the right, the texts and the separators.
@@ -19,6 +19,7 @@ from numba import njit
 
 _POW10 = 10 ** np.arange(19, dtype=np.int64)  # the exact powers of ten up to 10^18
 _EXACT = 2.0**50  # beyond this |x·10^d| the rounding is left to Python
+_TIE = 2.0**-51  # |p|·_TIE bounds twice an ulp of p: nearer a half-integer, the rounding is left to Python
 _DIGITS, _BLANK, _TEXT = 0, 1, 2  # how a number is written
 
 
@@ -37,12 +38,9 @@ class Table:
 
     def number(self, x, decimals: int, *, optional: bool = False) -> Table:
         """A column of numbers written as ``'%.<decimals>f' % x``; ``optional``: empty where not finite."""
-        x = np.asarray(x, float)
-        p = x * float(_POW10[decimals])
-        a = np.abs(p)
-        with np.errstate(invalid="ignore"):
-            near_tie = np.abs(p - np.floor(p) - 0.5) <= 2.0 * np.spacing(a)
-            slow = ~(a < _EXACT) | near_tie  # includes NaN and ±inf
+        x = np.ascontiguousarray(x, float).reshape(self.n)
+        n, neg, slow = np.empty(self.n, np.int64), np.empty(self.n, np.bool_), np.empty(self.n, np.bool_)
+        _digits(x, float(_POW10[decimals]), n, neg, slow)
         flag = np.full(self.n, _DIGITS, np.int8)
         texts = [""] * self.n if slow.any() else None
         for i in np.flatnonzero(slow).tolist():
@@ -52,10 +50,9 @@ class Table:
             else:
                 flag[i] = _TEXT
                 texts[i] = "%.*f" % (decimals, v)
-        n = np.where(slow, 0.0, np.rint(a)).astype(np.int64)
         self._kind.append(0)
         self._num.append(n)
-        self._neg.append(np.signbit(x))
+        self._neg.append(neg)
         self._flag.append(flag)
         self._dec.append(decimals)
         self._texts.append(texts)
@@ -125,6 +122,24 @@ def _pack(columns: list[list[str] | None], n: int) -> tuple[np.ndarray, np.ndarr
         offset += len(data)
         parts.append(data)
     return start, end, np.frombuffer(b"".join(parts), np.uint8)
+
+
+@njit(cache=True)
+def _digits(x, scale, num, neg, slow):  # pragma: no cover (compiled)
+    """For each x: n = rint(|x·scale|) into ``num``, the sign bit into ``neg``, and into ``slow`` whether Python
+    formats it instead (0 in ``num``): not finite, beyond 2^50, or p = x·scale within a|p|·2^-51 of a
+    half-integer, which holds every p within 2 ulp of one (an ulp of |p| is at most |p|·2^-52)."""
+    for i in range(len(x)):
+        v = x[i]
+        p = v * scale
+        a = abs(p)
+        neg[i] = math.copysign(1.0, v) < 0.0
+        if a < _EXACT and abs(p - math.floor(p) - 0.5) > a * _TIE:
+            num[i] = np.int64(np.rint(a))
+            slow[i] = False
+        else:
+            num[i] = 0
+            slow[i] = True
 
 
 @njit(cache=True)
