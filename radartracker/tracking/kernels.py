@@ -36,8 +36,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
-from numpy.lib.stride_tricks import as_strided
+from numba import carray, njit, types
+from numba.extending import intrinsic
 
 from radartracker.estimation.screening import bias_correct_into, position_d2
 
@@ -442,70 +442,94 @@ def imm_cycle(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, lam: np.ndarray, le
 # --- packed IMM: one buffer per filter -------------------------------------------------------------------
 # [settings | state (μ, X, PP, χ̂, P̂) | prediction (c̄, X̄, P̄, χ̄, P̄) | scratch (v, Π, Y, YP, F, FP)], the
 # settings [n, D, σ_e², m = len(λ), modes rows (kind, q, turn_rate_sd), dims, λ, L, R] (markov_switching's
-# chain; m = 0: L is the fixed Π). Views are made with as_strided, which costs nothing (reshape calls into
-# numba's runtime, ~30 ns a view), and no kernel allocates: each array argument costs ~0.15 µs to type
-# and unbox, each small allocation ~40 ns.
-def _imm_sizes(n: int, D: int, m: int) -> tuple[int, int, int]:
-    """Lengths of the settings, of one (state or prediction) block and of the scratch."""
-    return 4 + 3 * n + n + m + n * n + m * m, n + n * D + n * D * D + 20, n + n * n + n * D + n * D * D + 50
+# chain; m = 0: L is the fixed Π). No kernel allocates (each small allocation ~40 ns), and inside a kernel
+# the parts are numba.carray views of the buffer's memory, which take no reference: an ordinary view
+# costs a reference count up and down (atomic, ~10 ns) for itself and each row taken from it, ~0.9 µs
+# per predict-and-correct cycle. Such views live only inside the call that made them, whose ``buf``
+# argument keeps the memory alive; Python gets ordinary views (:func:`imm_views`).
+@njit(cache=True)
+def _imm_offsets(n: int, D: int, m: int) -> tuple[int, int, int, int, int, int, int, int, int]:
+    """Offsets in the packed buffer of: modes, dims, λ, L, R, the state, the prediction, the scratch, the end."""
+    modes = 4
+    dims = modes + 3 * n
+    lam = dims + n
+    left = lam + m
+    right = left + n * n
+    state = right + m * m
+    pred = state + n + n * D + n * D * D + 20
+    scratch = pred + n + n * D + n * D * D + 20
+    return modes, dims, lam, left, right, state, pred, scratch, scratch + n + n * n + n * D + n * D * D + 50
 
 
 def imm_buffer(modes: np.ndarray, dims: np.ndarray, entry_var: float, lam: np.ndarray, left: np.ndarray,
                right: np.ndarray) -> np.ndarray:
     """The packed buffer of an IMM (block comment above): its settings written, state and prediction zero."""
     n, m = len(dims), len(lam)
-    head, block, scratch = _imm_sizes(n, int(max(dims)), m)
-    buf = np.zeros(head + 2 * block + scratch)
-    buf[:head] = np.concatenate([[n, max(dims), entry_var, m], np.ravel(modes), dims, lam, np.ravel(left),
-                                 np.ravel(right)])
+    offsets = _imm_offsets(n, int(max(dims)), m)
+    buf = np.zeros(offsets[-1])
+    buf[:offsets[5]] = np.concatenate([[n, max(dims), entry_var, m], np.ravel(modes), dims, lam, np.ravel(left),
+                                       np.ravel(right)])
     return buf
+
+
+def imm_views(buf: np.ndarray) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+    """Views (numpy's) of a packed buffer's state (μ, X, PP, χ̂, P̂) and prediction (c̄, X̄, P̄, χ̄, P̄): made
+    once per filter for its attributes."""
+    n, D, m = int(buf[0]), int(buf[1]), int(buf[3])
+
+    def block(o: int) -> tuple[np.ndarray, ...]:
+        a, b, c = o + n, o + n + n * D, o + n + n * D + n * D * D
+        return (buf[o:a], buf[a:b].reshape(n, D), buf[b:c].reshape(n, D, D), buf[c:c + 4],
+                buf[c + 4:c + 20].reshape(4, 4))
+    offsets = _imm_offsets(n, D, m)
+    return block(offsets[5]), block(offsets[6])
+
+
+@intrinsic
+def _address(typingctx, arr, offset):
+    """Pointer to ``arr[offset]`` (no reference taken; for :func:`numba.carray` views inside one call)."""
+    def codegen(context, builder, sig, args):
+        return builder.gep(context.make_array(sig.args[0])(context, builder, args[0]).data, [args[1]])
+    return types.CPointer(arr.dtype)(arr, offset), codegen
+
+
+@njit(cache=True)
+def _vec(buf: np.ndarray, o: int, n: int) -> np.ndarray:
+    """buf[o:o + n] (a view without a reference: block comment above)."""
+    return carray(_address(buf, o), (n,))
 
 
 @njit(cache=True)
 def _mat(buf: np.ndarray, o: int, r: int, c: int) -> np.ndarray:
-    """buf[o:o + r c] as an r×c matrix (a view)."""
-    s = buf.itemsize
-    return as_strided(buf[o:], shape=(r, c), strides=(c * s, s))
+    """buf[o:o + r c] as an r×c matrix (a view without a reference)."""
+    return carray(_address(buf, o), (r, c))
 
 
 @njit(cache=True)
 def _cube(buf: np.ndarray, o: int, n: int, D: int) -> np.ndarray:
-    """buf[o:o + n D D] as n D×D matrices (a view)."""
-    s = buf.itemsize
-    return as_strided(buf[o:], shape=(n, D, D), strides=(D * D * s, D * s, s))
+    """buf[o:o + n D D] as n D×D matrices (a view without a reference)."""
+    return carray(_address(buf, o), (n, D, D))
 
 
 @njit(cache=True)
 def _imm_block(buf: np.ndarray, o: int, n: int, D: int):
-    """Views (weights n, states n×D, covariances n×D×D, χ 4, P 4×4) of ``buf`` from offset ``o``."""
+    """Views (weights n, states n×D, covariances n×D×D, χ 4, P 4×4) of ``buf`` from offset ``o``, as
+    :func:`imm_views`'s."""
     a, b, c = o + n, o + n + n * D, o + n + n * D + n * D * D
-    return buf[o:a], _mat(buf, a, n, D), _cube(buf, b, n, D), buf[c:c + 4], _mat(buf, c + 4, 4, 4)
+    return _vec(buf, o, n), _mat(buf, a, n, D), _cube(buf, b, n, D), _vec(buf, c, 4), _mat(buf, c + 4, 4, 4)
 
 
 @njit(cache=True)
 def _imm_parts(buf: np.ndarray):
     """(n, D, σ_e², modes, dims, (λ, L, R), state, prediction, scratch (v, Π, Y, YP, F, FP)) of a packed buffer."""
     n, D, m = int(buf[0]), int(buf[1]), int(buf[3])
-    o = 4
-    modes, dims, lam = _mat(buf, o, n, 3), buf[o + 3 * n:o + 4 * n], buf[o + 4 * n:o + 4 * n + m]
-    o += 4 * n + m
-    chain = (lam, _mat(buf, o, n, n), _mat(buf, o + n * n, m, m))
-    o += n * n + m * m
-    block = n + n * D + n * D * D + 20
-    state, pred = _imm_block(buf, o, n, D), _imm_block(buf, o + block, n, D)
-    o += 2 * block
-    scratch = (buf[o:o + n], _mat(buf, o + n, n, n), _mat(buf, o + n + n * n, n, D),
+    modes, dims, lam, left, right, state, pred, o, _ = _imm_offsets(n, D, m)
+    chain = (_vec(buf, lam, m), _mat(buf, left, n, n), _mat(buf, right, m, m))
+    scratch = (_vec(buf, o, n), _mat(buf, o + n, n, n), _mat(buf, o + n + n * n, n, D),
                _cube(buf, o + n + n * n + n * D, n, D), _mat(buf, o + n + n * n + n * D + n * D * D, 5, 5),
                _mat(buf, o + n + n * n + n * D + n * D * D + 25, 5, 5))
-    return n, D, buf[2], modes, dims, chain, state, pred, scratch
-
-
-@njit(cache=True)
-def imm_views(buf: np.ndarray):
-    """Views of a packed buffer's state (μ, X, PP, χ̂, P̂) and prediction (c̄, X̄, P̄, χ̄, P̄): called from
-    Python once per filter to make its attributes."""
-    parts = _imm_parts(buf)
-    return parts[6], parts[7]
+    return (n, D, buf[2], _mat(buf, modes, n, 3), _vec(buf, dims, n), chain, _imm_block(buf, state, n, D),
+            _imm_block(buf, pred, n, D), scratch)
 
 
 @njit(cache=True)
