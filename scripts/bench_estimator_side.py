@@ -76,7 +76,6 @@ def replay(radars: list, calls: list, mgr, chunk: int = 256) -> tuple[float, flo
     ek, em = (make_estimator("coupled-sparse", mgr.estimator.config, radars) for _ in range(2))
     mgr.estimator, mgr.coupling = em, CouplingGraph(radars)
     ck, cm, estimate = CouplingGraph(radars), mgr.coupling, mgr._estimate
-    nu, lam = np.zeros(2), np.zeros((2, 2))
     cpu = [0.0, 0.0]
 
     def run(part: list, kernel: bool) -> None:
@@ -86,10 +85,8 @@ def replay(radars: list, calls: list, mgr, chunk: int = 256) -> tuple[float, flo
             if name == "update":
                 t, key, radar, z, C, R = a
                 if kernel:
-                    w, (cap, mm, nb) = est._work, est._dims
                     j = -1 if radar is None else est._rad[radar]
-                    K.update_packed(est._F, est._I, cap, mm, nb, w.flat, w.nbw, w.idx, est._ac[key], j, t, z, C, R,
-                                    est._q, nu, lam)
+                    K.update_packed(est._F, est._I, est._work.flat, est._ac[key], j, t, z, C, R)
                 else:  # as TrackManager._apply, then _estimate
                     if radar is not None:
                         est.bias_arrays(radar)

@@ -125,15 +125,16 @@ class CoupledSparseEstimator(Estimator):
         nb, mm = 2 * m, max(m, 1)
         nf, ni = K.storage_sizes(cap, mm, nb)
         F, I = np.zeros(nf), np.zeros(ni, np.int64)
+        I[:3] = cap, mm, nb
         new = K.carve(F, I, cap, mm, nb)
         new[10][:] = -1  # nk: free slot
-        for name, dst in zip(self._STORE, new):
+        for name, dst in zip(self._STORE, new[:-1]):
             src = getattr(self, name, None)
             if src is not None:  # what is kept: the old extent of each array
                 dst[tuple(slice(0, n) for n in src.shape)] = src
             setattr(self, name, dst)
-        self._F, self._I, self._dims = F, I, (cap, mm, nb)
-        self._work = K.Work(m)
+        self._F, self._I = F, I
+        self._work = K.Work(m, new[-1], self._q)
         # bias_arrays(): read-only views of each radar's block of ς̂ and P_ς, by radar index
         self._bias_views = [(self._bh[2 * j:2 * j + 2], self._Pb[2 * j:2 * j + 2, 2 * j:2 * j + 2]) for j in range(m)]
         for v in self._bias_views:
@@ -201,44 +202,34 @@ class CoupledSparseEstimator(Estimator):
 
     # --- filter ------------------------------------------------------------------------------
     def update(self, m: PlaneMeasurement) -> Innovation:
-        """One measurement: :meth:`update_many`'s kernel step called directly (one call per measurement,
-        where building the batch arrays cost more than the update)."""
-        s = self._ac[m.aircraft] if m.aircraft in self._ac else self._slot(m.aircraft)  # (KeyError naming it)
-        j = -1 if m.radar is None else self._rad[m.radar] if m.radar in self._rad else self._radar_index(m.radar)
-        t = float(m.time)
+        """One measurement: :meth:`update_arrays` on its fields (one kernel call per measurement, where
+        building the batch arrays cost more than the update), ν and Λ copied out of its scratch."""
         z = np.ascontiguousarray(m.z, dtype=float)
         C = np.ascontiguousarray(m.C, dtype=float)
         R = np.ascontiguousarray(m.R, dtype=float)
         if z.shape != (2,) or C.shape != (2, 2) or R.shape != (2, 2):  # as update_many's batch would refuse it
-            nu, lam, nis = self.update_many([t], [m.aircraft], [m.radar], z[None], C[None], R[None])
+            nu, lam, nis = self.update_many([m.time], [m.aircraft], [m.radar], z[None], C[None], R[None])
             return Innovation(nu[0], lam[0], float(nis[0]))
-        nu, lam = np.zeros(2), np.zeros((2, 2))
-        return Innovation(nu, lam, self._step(s, j, t, z, C, R, nu, lam, m.aircraft, m.radar))
+        self.update_arrays(m.time, m.aircraft, m.radar, z, C, R)
+        w = self._work
+        return Innovation(w.nu.copy(), w.lam.copy(), float(w.io[6]))
 
     def update_arrays(self, time: float, aircraft: Hashable, radar: str | None, z: np.ndarray, C: np.ndarray,
                       R: np.ndarray) -> None:
-        """The TrackManager's path (:meth:`Estimator.update_arrays`): :meth:`_step` on the caller's arrays,
-        ν and Λ into scratch space."""
+        """The TrackManager's path (:meth:`Estimator.update_arrays`): the compiled update on the caller's
+        arrays, ν, Λ and the NIS into scratch space."""
         try:
             s = self._ac[aircraft]
             j = -1 if radar is None else self._rad[radar]
         except KeyError:
             s, j = self._slot(aircraft), self._radar_index(radar)  # the KeyError naming which
-        w = self._work
-        self._step(s, j, float(time), z, C, R, w.nu, w.lam, aircraft, radar)
-
-    def _step(self, s: int, j: int, t: float, z: np.ndarray, C: np.ndarray, R: np.ndarray, nu: np.ndarray,
-              lam: np.ndarray, aircraft: Hashable, radar: str | None) -> float:
-        """The compiled update of slot ``s`` by radar index ``j`` (−1: unbiased); ν, Λ into ``nu``, ``lam``; NIS."""
-        w = self._work
-        cap, mm, nb = self._dims
-        code, nis = K.update_packed(self._F, self._I, cap, mm, nb, w.flat, w.nbw, w.idx, s, j, t, z, C, R, self._q,
-                                    nu, lam)
+        t = float(time)
+        code = K.update_packed(self._F, self._I, self._work.flat, s, j, t, z, C, R)
         if code == K.OK or code in (K.ERR_LAMBDA, K.ERR_S, K.ERR_REBUILD):  # applied, or predicted: as update_many
-            self._bias_time = t if not t <= self._bias_time else self._bias_time  # NaN at first, like np.fmax
+            if not t <= self._bias_time:  # NaN at first, like np.fmax
+                self._bias_time = t
         if code != K.OK:
             raise self._failure(code, 0, aircraft, radar, t)
-        return float(nis)
 
     def update_many(self, time: Sequence[float], aircraft: Sequence[Hashable], radar: Sequence[str | None],
                     z: np.ndarray, C: np.ndarray, R: np.ndarray) -> Innovation:

@@ -146,17 +146,19 @@ def _transition(dt, q, A, Q):
 
 
 # Packed storage: every array of the estimator (and of its scratch) is a view into one float and one
-# int buffer, so the single-update kernel takes a dozen arguments instead of 32 (numba's dispatch costs
-# about 0.3 µs per array argument, more than the update's arithmetic). carve() is the one layout.
+# int buffer, and the int buffer starts with the dimensions, so the single-update kernel takes nine
+# arguments instead of 32 (numba's dispatch costs about 0.15 µs per array argument, a tenth of the
+# update's arithmetic). carve() is the one layout.
 
 def storage_sizes(cap: int, mm: int, nb: int) -> tuple[int, int]:
     """Lengths of the float and int buffers for ``cap`` aircraft slots, ``mm`` radar columns, ``nb`` biases."""
-    return cap * (16 + 8 * mm + 4 + 1) + 3 * nb * nb + 3 * nb, cap * (1 + mm) + 5
+    return cap * (16 + 8 * mm + 4 + 1) + 3 * nb * nb + 3 * nb, 3 + cap * (1 + mm) + 5 + 2 * mm
 
 
 @njit(cache=True)
 def carve(F, I, cap, mm, nb):
-    """(Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr) as views into F and I."""
+    """(Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr, idx) as views into F and I; I[:3] holds
+    (cap, mm, nb), written by the caller; idx is the kernels' scratch of bias positions."""
     o = 0
     Yxx = F[o:o + cap * 16].reshape((cap, 4, 4))
     o += cap * 16
@@ -177,19 +179,25 @@ def carve(F, I, cap, mm, nb):
     Pb = F[o:o + nb * nb].reshape((nb, nb))
     o += nb * nb
     bh = F[o:o + nb]
-    nk = I[0:cap]
-    rk = I[cap:cap + cap * mm].reshape((cap, mm))
-    ctr = I[cap + cap * mm:cap + cap * mm + 5]
-    return Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr
+    o = 3
+    nk = I[o:o + cap]
+    o += cap
+    rk = I[o:o + cap * mm].reshape((cap, mm))
+    o += cap * mm
+    ctr = I[o:o + 5]
+    o += 5
+    idx = I[o:o + 2 * mm]
+    return Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr, idx
 
 
 def work_size(nbw: int) -> int:
-    return 13 * 16 + 3 * 4 * nbw + 24 + 2 * nbw + 2 * nbw * nbw
+    return 13 * 16 + 3 * 4 * nbw + 24 + 2 * nbw + 2 * nbw * nbw + 8
 
 
 @njit(cache=True)
 def carve_work(WF, nbw):
-    """Scratch (f4, V, G, W, v4, Kb, LS, LSi) as views into WF."""
+    """Scratch (f4, V, G, W, v4, Kb, LS, LSi, io) as views into WF; io = [ν (2), Λ (4), NIS, q] of
+    :func:`update_packed`."""
     f4 = WF[0:208].reshape((13, 4, 4))  # 4×4 scratch: [0:7] predict, [3:13] update_one
     o = 208
     V = WF[o:o + 4 * nbw].reshape((4, nbw))
@@ -205,19 +213,24 @@ def carve_work(WF, nbw):
     LS = WF[o:o + nbw * nbw].reshape((nbw, nbw))
     o += nbw * nbw
     LSi = WF[o:o + nbw * nbw].reshape((nbw, nbw))
-    return f4, V, G, W, v4, Kb, LS, LSi
+    o += nbw * nbw
+    io = WF[o:o + 8]
+    return f4, V, G, W, v4, Kb, LS, LSi, io
 
 
 class Work:
     """Scratch arrays for the kernels (allocated once per estimator, sized for ``m`` radars), views into
-    one buffer ``flat`` (:func:`carve_work`) and ``idx``."""
+    one buffer ``flat`` (:func:`carve_work`) and ``idx`` (in the int storage, :func:`carve`); ``q`` is
+    kept in ``io`` for :func:`update_packed`, which leaves there ν, Λ and the NIS of its update."""
 
-    def __init__(self, m: int) -> None:
+    def __init__(self, m: int, idx: np.ndarray, q: float) -> None:
         self.nbw = 2 * max(m, 1)
         self.flat = np.zeros(work_size(self.nbw))
-        self.f4, self.V, self.G, self.W, self.v4, self.Kb, self.LS, self.LSi = carve_work(self.flat, self.nbw)
-        self.idx = np.zeros(self.nbw, np.int64)
-        self.nu, self.lam = np.zeros(2), np.zeros((2, 2))  # ν, Λ of an update whose caller does not read them
+        self.f4, self.V, self.G, self.W, self.v4, self.Kb, self.LS, self.LSi, self.io = carve_work(self.flat,
+                                                                                                   self.nbw)
+        self.idx = idx
+        self.nu, self.lam = self.io[0:2], self.io[2:6].reshape(2, 2)
+        self.io[7] = q
 
 
 @njit(cache=True)
@@ -585,12 +598,16 @@ def update_batch(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
 
 
 @njit(cache=True)
-def update_packed(F, I, cap, mm, nb, WF, nbw, idx, s, j, t, z, C, R, q, out_nu, out_lam):
-    """update_one on the packed storage (:func:`carve`, :func:`carve_work`): one call, few arguments."""
-    Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr = carve(F, I, cap, mm, nb)
-    f4, V, G, W, v4, Kb, LS, LSi = carve_work(WF, nbw)
-    return update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr, s, j, t, z, C, R, q, out_nu, out_lam,
-                      f4, V, G, W, v4, idx, Kb, LS, LSi)
+def update_packed(F, I, WF, s, j, t, z, C, R):
+    """update_one on the packed storage (:func:`carve`, :func:`carve_work`): one call, few arguments.
+    Returns the status code; ν, Λ, NIS in the scratch ``io``."""
+    cap, mm, nb = I[0], I[1], I[2]
+    Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr, idx = carve(F, I, cap, mm, nb)
+    f4, V, G, W, v4, Kb, LS, LSi, io = carve_work(WF, 2 * mm)
+    code, nis = update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr, s, j, t, z, C, R, io[7], io[0:2],
+                           io[2:6].reshape((2, 2)), f4, V, G, W, v4, idx, Kb, LS, LSi)
+    io[6] = nis
+    return code
 
 
 @njit(cache=True)
