@@ -222,6 +222,7 @@ class TrackManager:
         self._phase: dict[str, complex] = {}
         self._events: list[TrackEvent] = []
         self._deferred: list[tuple] = []  # the frame's estimator work, applied at its end (_flush_estimator)
+        self._biases: dict[str, tuple] = {}  # each radar's (ς̂, P_ς) as read in this frame (_bias)
         self._codes: dict[str, int] = {}  # Mode S address → track id, kept lazily (_track_with_code)
         self.clock = StreamClock(self.config.clock)
         self.adsb_check = AdsbPlausibility(self.config.screening)
@@ -511,7 +512,7 @@ class TrackManager:
                                 for k in rest]).reshape(len(rest), len(live))
             zr = z[rest]
             pairs = candidate_pairs(zr, pred["pos"], self.config.search_radius_m, allowed)
-            bias, bias_cov = self.estimator.bias_arrays(rid)
+            bias, bias_cov = self._bias(rid)
             if len(pairs):
                 pos, vel, cov = self._exact(live, pred, pairs[:, 1])
                 dt = np.array([plots[rest[k]].time for k in pairs[:, 0]]) - pred["t"]
@@ -586,28 +587,27 @@ class TrackManager:
     # --- applying updates -------------------------------------------------------------------------
     def _apply(self, tr: ManagedTrack | None, meas: tuple, src: Plot | AdsbReport | PlaneMeasurement) -> None:
         z, C, R = meas
-        radar = src.radar if isinstance(src, Plot) else None
-        if radar is not None:
-            bias, bias_cov = self.estimator.bias_arrays(radar)
+        if isinstance(src, Plot):
+            radar, kind, code = src.radar, "plots", src.mode_s
+            bias, bias_cov = self._bias(radar)
         else:
-            bias, bias_cov = _ZERO2, _ZERO22
+            radar, bias, bias_cov = None, _ZERO2, _ZERO22
+            if isinstance(src, AdsbReport):
+                kind, code = "adsb", src.icao24
+            else:
+                kind, code = "positions", (src.aircraft if isinstance(src.aircraft, str) else None)
         zc = Rc = None  # z − C ς̂, R + C P_ς Cᵀ: from screening, else made below
         updated = False  # by screening, when the measurement passed
-        if isinstance(src, PlaneMeasurement):
-            code = src.aircraft if isinstance(src.aircraft, str) else None
-        else:
-            code = src.mode_s if isinstance(src, Plot) else src.icao24
         if tr is not None and tr.id not in self.tracks:  # re-initialised earlier in this frame
             tr = None
         if tr is None:  # an ADS-B report may find the track a plot of this frame just started
             tr = self._track_with_code(code)
-        kind = "plots" if radar is not None else ("adsb" if isinstance(src, AdsbReport) else "positions")
         if self.config.screening.enabled:
-            why = (self.adsb_check.check(src.icao24, src.time, z, math.sqrt(R[0, 0]), src.nacp)
-                   if isinstance(src, AdsbReport) else None)
-            if why is not None:
-                self.counts[why] += 1
-                return
+            if kind == "adsb":
+                why = self.adsb_check.check(code, src.time, z, math.sqrt(R[0, 0]), src.nacp)
+                if why is not None:
+                    self.counts[why] += 1
+                    return
             verdict = ACCEPT
             if tr is not None:
                 verdict, zc, Rc, updated = self._screen(tr, z, C, R, bias, bias_cov, src.time, kind)
@@ -642,7 +642,7 @@ class TrackManager:
             except Exception as exc:
                 raise self._plugin_failed(f"motion model {self._filter_cls.name!r}", tr.id, src.time, exc) from exc
         tr.last_update = src.time
-        if isinstance(src, Plot):
+        if kind == "plots":
             tr.n_plots += 1
             tr.mode_3a = src.mode_3a or tr.mode_3a
             tr.altitude_m = src.altitude_m if src.altitude_m is not None else tr.altitude_m
@@ -651,7 +651,7 @@ class TrackManager:
                     tr.vertical = AltitudeTrack.start(src.time, src.altitude_m)
                 else:
                     tr.vertical.update(src.time, src.altitude_m)
-        elif isinstance(src, AdsbReport):
+        elif kind == "adsb":
             tr.n_adsb += 1
             tr.altitude_m = src.altitude_m if src.altitude_m is not None else tr.altitude_m
         tr.history.append(True)
@@ -704,12 +704,20 @@ class TrackManager:
         (:meth:`_flush_estimator`; the arrays are the manager's own, nothing writes into them)."""
         self._deferred.append((_UPDATE, time, aircraft, radar, z, C, R, kind))
 
+    def _bias(self, radar: str) -> tuple[np.ndarray, np.ndarray]:
+        """(ς̂, P_ς) of ``radar``, read from the estimator once per frame: it changes only at the frame's end."""
+        b = self._biases.get(radar)
+        if b is None:
+            b = self._biases[radar] = self.estimator.bias_arrays(radar)
+        return b
+
     def _flush_estimator(self) -> None:
         """The frame's estimator and coupling-graph work in the order it arose: aircraft added at
         confirmation, measurements (each run of them in one :meth:`Estimator.update_many`), aircraft
         removed. The frame's screening, gating and track filters all read the bias estimate as it was
         at the frame's start (docs/design-notes.md, "The bias estimate is read once per frame")."""
         ops, self._deferred = self._deferred, []
+        self._biases = {}
         name = f"estimator {self.estimator.name!r}"
         k = 0
         while k < len(ops):
