@@ -26,6 +26,7 @@ import math
 import numpy as np
 from numba import njit
 from pyproj import Transformer
+from pyproj.enums import TransformDirection
 
 from radartracker.domain import Radar
 from radartracker.geometry.plane import _EARTH_RADIUS_M, RadarFrame, SystemPlane
@@ -63,13 +64,11 @@ class PlaneConverter:
         :func:`_newton_step`), the same operations in the same order as the numpy expressions of RadarFrame."""
         n = len(rows)
         polar, elev, valid, xyz = np.empty((9, n)), np.empty(n), np.empty(n, bool), np.empty((3, n))
-        _newton_start(rows, rho, theta, alt, self.height, self.trig, self.origin, polar, elev, valid)
+        _newton_start(rows, rho, theta, alt, self.height, self.trig, self.origin, polar, elev, valid, xyz)
         for _ in range(iterations):
-            _ecef(polar, rho, elev, xyz)
-            _, _, h = self._cart.transform(xyz[0], xyz[1], xyz[2], direction="INVERSE")
-            _newton_step(elev, np.asarray(h, float), alt, rho)
-        _ecef(polar, rho, elev, xyz)
-        lon, lat, h = self._cart.transform(xyz[0], xyz[1], xyz[2], direction="INVERSE")
+            _, _, h = self._cart.transform(xyz[0], xyz[1], xyz[2], direction=TransformDirection.INVERSE)
+            _newton_step(elev, np.asarray(h, float), alt, rho, polar, xyz)
+        lon, lat, h = self._cart.transform(xyz[0], xyz[1], xyz[2], direction=TransformDirection.INVERSE)
         valid &= np.abs(np.asarray(h) - alt) < 0.01
         return np.asarray(lat), np.asarray(lon), valid
 
@@ -113,9 +112,10 @@ def _clip1(x: float) -> float:
 
 
 @njit(cache=True)
-def _newton_start(rows, rho, theta, alt, height, trig, origin, polar, elev, valid) -> None:
-    """Newton's start (spherical law of cosines: sin ε = (b² − a² − ρ²)/(2aρ)) and what the iterations
-    share: ``polar`` rows sin θ, cos θ, the radar's sin φ, cos φ, sin λ, cos λ and its site in ECEF."""
+def _newton_start(rows, rho, theta, alt, height, trig, origin, polar, elev, valid, xyz) -> None:
+    """Newton's start (spherical law of cosines: sin ε = (b² − a² − ρ²)/(2aρ)), its point in ECEF (``xyz``)
+    and what the iterations share: ``polar`` rows sin θ, cos θ, the radar's sin φ, cos φ, sin λ, cos λ and
+    its site in ECEF."""
     for i in range(rows.shape[0]):
         r = rows[i]
         a = _EARTH_RADIUS_M + height[r]
@@ -128,6 +128,7 @@ def _newton_start(rows, rho, theta, alt, height, trig, origin, polar, elev, vali
             polar[2 + k, i] = trig[r, k]
         for k in range(3):
             polar[6 + k, i] = origin[r, k]
+    _ecef(polar, rho, elev, xyz)
 
 
 @njit(cache=True)
@@ -143,10 +144,11 @@ def _ecef(polar, rho, elev, xyz) -> None:
 
 
 @njit(cache=True)
-def _newton_step(elev, h, alt, rho) -> None:
-    """ε ← ε − (h − h_target)/max(ρ cos ε, 1)."""
+def _newton_step(elev, h, alt, rho, polar, xyz) -> None:
+    """ε ← ε − (h − h_target)/max(ρ cos ε, 1), and the new point in ECEF (``xyz``)."""
     for i in range(elev.shape[0]):
         elev[i] = elev[i] - (h[i] - alt[i]) / _nan_max(rho[i] * math.cos(elev[i]), 1.0)
+    _ecef(polar, rho, elev, xyz)
 
 
 @njit(cache=True)
