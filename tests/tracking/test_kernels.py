@@ -228,11 +228,13 @@ def test_imm_mixing_with_an_unreachable_mode_and_a_singular_update():
         np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.parametrize("switching", ["sojourn", "fixed"])
 @pytest.mark.parametrize("modes", MODE_SETS)
-def test_packed_imm_kernels_equal_the_array_kernels(modes):
+def test_packed_imm_kernels_equal_the_array_kernels(modes, switching):
     """imm_advance / imm_update / imm_screen on one packed buffer give, bit for bit, imm_predict,
     imm_correct, imm_cycle on separate arrays and screening's bias correction and d²; a measurement
-    outside the gate or failing the checks leaves the state as it was."""
+    outside the gate or failing the checks leaves the state as it was; the buffer's settings are never
+    written (a fixed Π: an empty λ and a 0×0 R)."""
     from radartracker.estimation.screening import bias_corrected, normalised_innovation
 
     rng = np.random.default_rng(11)
@@ -240,9 +242,15 @@ def test_packed_imm_kernels_equal_the_array_kernels(modes):
     n, entry_var = len(modes), 0.035**2
     dims = np.array([4 if m[0] == "cv" else 5 for m in modes])
     D = dims.max()
-    chain = kernel_chain(rng.uniform(10, 150, n))
+    if switching == "sojourn":
+        chain = kernel_chain(rng.uniform(10, 150, n))
+    else:
+        Pi = rng.uniform(0.05, 1.0, (n, n))
+        chain = (np.zeros(0), Pi / Pi.sum(axis=1, keepdims=True), np.zeros((0, 0)))
     kmodes = np.array([[0.0 if m[0] == "cv" else 1.0, m[1], m[2] if len(m) > 2 else 0.0] for m in modes])
     buf = kernels.imm_buffer(kmodes, dims, entry_var, *chain)
+    settings = np.concatenate([[n, D, entry_var, len(chain[0])], kmodes.ravel(), dims, *map(np.ravel, chain)])
+    np.testing.assert_array_equal(buf[:len(settings)], settings)
     state, pred = kernels.imm_views(buf)
     state[0][:] = rng.dirichlet(np.ones(n))
     state[1][:] = np.concatenate([rng.normal(size=(n, 2)) * 1e4, rng.normal(size=(n, 2)) * 200,
@@ -297,3 +305,4 @@ def test_packed_imm_kernels_equal_the_array_kernels(modes):
         assert bad == -2 and call() == (nis, bad)
         for a, b in zip(state, out):
             np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(buf[:len(settings)], settings)
