@@ -45,13 +45,15 @@ import numpy as np
 FRAME_METHODS = ("_run_frame", "_predict", "_convert_frame", "_track_phases", "_associate", "_exact", "_misses",
                  "_coverage", "_sweep", "_apply")
 # steps a replay takes once: (module, attribute path) as the caller looks them up
-RUN_STEPS = (("radartracker.tracking.manager", "TrackManager._run_frame"), ("radartracker.cli", "build_parser"), ("radartracker.pipeline.writer", "prepare"),
+RUN_STEPS = (("radartracker.tracking.manager", "TrackManager._run_frame"), ("radartracker.cli", "build_parser"),
+             ("radartracker.pipeline.writer", "prepare"),
              ("radartracker.pipeline.run", "replay_folder"), ("radartracker.pipeline.run", "open_scenario"),
              ("radartracker.pipeline.writer", "OutputStream.__init__"), ("radartracker.pipeline.run", "resolve"),
              ("radartracker.pipeline.run", "make_estimator"), ("radartracker.pipeline.run", "motion_factory"),
              ("radartracker.pipeline.run", "default_estimator"), ("radartracker.registry", "_group"),
              ("radartracker.tracking.manager", "TrackManager.__init__"), ("radartracker.pipeline.run", "_by_manager"),
-             ("radartracker.tracking.manager", "TrackManager.flush"), ("radartracker.pipeline.writer", "OutputStream.close"),
+             ("radartracker.tracking.manager", "TrackManager.flush"),
+             ("radartracker.pipeline.writer", "OutputStream.close"),
              ("radartracker.pipeline.result", "RunResult.summary"), ("radartracker.pipeline.run", "write_outputs"))
 
 
@@ -234,14 +236,16 @@ def main() -> None:
                 v, w = timed_run["totals"].get(name, []), thin_run["totals"].get(name, [])
                 print(json.dumps({"folder": str(folder), "part": "frame", "method": name, "calls": len(v),
                                   "thin_us_per_frame": round(1e6 * sum(w) / max(len(thin_frames), 1), 1),
-                                  "us_per_frame": round(1e6 * sum(v) / n, 1), "us_per_call": round(1e6 * sum(v) / max(len(v), 1), 2),
+                                  "us_per_frame": round(1e6 * sum(v) / n, 1),
+                                  "us_per_call": round(1e6 * sum(v) / max(len(v), 1), 2),
                                   "us_per_input": round(1e6 * sum(v) / inputs, 2)}), flush=True)
             per_frame = own_us(thin_frames, overhead) * 1e-6
             per_input = (total - per_run - n * per_frame) / inputs
             print(json.dumps({"folder": str(folder), "part": "split", "inputs": inputs, "frames": n,
                               "inputs_per_frame": round(inputs / n, 1), "replay_cpu_s": round(total, 3),
                               "us_per_input": round(1e6 * total / inputs, 2), "per_run_cpu_s": round(per_run, 4),
-                              "per_frame_fixed_us": round(1e6 * per_frame, 1), "per_input_us": round(1e6 * per_input, 2),
+                              "per_frame_fixed_us": round(1e6 * per_frame, 1),
+                              "per_input_us": round(1e6 * per_input, 2),
                               "per_run_share_us_per_input": round(1e6 * per_run / inputs, 2),
                               "per_frame_share_us_per_input": round(1e6 * n * per_frame / inputs, 2),
                               "frame_own_us": round(own_us(frames, overhead), 1), "cut_inputs": cut_inputs,

@@ -55,7 +55,8 @@ class PlaneConverter:
         X0, Y0, Z0 = self._cart.transform([f.lon for f in fr], [f.lat for f in fr], [f.height_m for f in fr])
         self.origin = np.array([X0, Y0, Z0], float).T.reshape(len(fr), 3)
         site = [(math.radians(f.lat), math.radians(f.lon)) for f in fr]
-        self.trig = np.array([[math.sin(p), math.cos(p), math.sin(q), math.cos(q)] for p, q in site], float).reshape(len(fr), 4)
+        self.trig = np.array([[math.sin(p), math.cos(p), math.sin(q), math.cos(q)] for p, q in site],
+                             float).reshape(len(fr), 4)
 
     def locate(self, rows: np.ndarray, rho: np.ndarray, theta: np.ndarray, alt: np.ndarray,
                iterations: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

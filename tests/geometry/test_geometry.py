@@ -133,7 +133,8 @@ def test_radar_frame_makes_its_local_frame_on_first_use():
 
     frame = RadarFrame(45.2, 5.1, 320.0, PLANE)
     own = Transformer.from_pipeline("+proj=pipeline +step +proj=unitconvert +xy_in=deg +xy_out=rad +step +proj=cart "
-                                    "+ellps=WGS84 +step +proj=topocentric +ellps=WGS84 +lat_0=45.2 +lon_0=5.1 +h_0=320.0")
+                                    "+ellps=WGS84 +step +proj=topocentric +ellps=WGS84 +lat_0=45.2 +lon_0=5.1 "
+                                    "+h_0=320.0")
     assert "_enu" not in vars(frame)
     lat, lon, alt = np.array([45.6, 44.9]), np.array([5.3, 4.8]), np.array([9000.0, 300.0])
     e, n, u = own.transform(lon, lat, alt)
