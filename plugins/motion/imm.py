@@ -185,7 +185,7 @@ class IMMFilter(TrackFilter):
         n = len(self.modes)
         self._compiled = self.kernel_modes is not None  # else the modes' rows in the buffer are unused
         self._buf = kernels.imm_buffer(self.kernel_modes if self._compiled else np.zeros((n, 3)), self.dims,
-                                       self.entry_var, *self.chain)
+                                       self.entry_var, *self.chain, self.config.max_gap_s)
         state, self._pred = kernels.imm_views(self._buf)
         for view, value in zip(state, (self.mu, self.X, self.PP, self.x, self.P)):
             view[...] = value
@@ -244,15 +244,18 @@ class IMMFilter(TrackFilter):
                bias_cov: np.ndarray, gate: float | None = None) -> tuple[float, np.ndarray, np.ndarray, bool]:
         """:meth:`TrackFilter.screen` in one compiled call (bias correction, prediction, d² and the update
         when it passes ``gate``); a prediction not used is kept for the update at ``time``."""
-        if not (self._compiled and self._within_gap(time)):
+        t0 = self.time
+        if t0 is None or not self._compiled:
             return super().screen(time, z, C, R, bias, bias_cov, gate)
-        time = float(time)
+        dt, time = time - t0, float(time)  # the kernel checks the step against max_gap_s (_within_gap's rule)
         zc, Rc = np.empty(2), np.empty((2, 2))
-        d2, nis, bad = kernels.imm_screen(self._buf, time - self.time, self._pred_time == time, z, C, R, bias,
-                                          bias_cov, zc, Rc, -1.0 if gate is None else gate)
+        d2, nis, bad = kernels.imm_screen(self._buf, dt, self._pred_time == time, z, C, R, bias, bias_cov, zc, Rc,
+                                          -1.0 if gate is None else gate)
         if bad == -2:  # updated (the common case of _corrected)
             self.time, self._pred_time = time, math.nan
             return d2, zc, Rc, True
+        if bad == -5:  # a step the kernel refused: the default raises with check_time's message
+            return super().screen(time, z, C, R, bias, bias_cov, gate)
         self._pred_time = time
         if bad == -4:
             return d2, zc, Rc, False

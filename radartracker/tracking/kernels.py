@@ -441,8 +441,8 @@ def imm_cycle(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, lam: np.ndarray, le
 
 # --- packed IMM: one buffer per filter -------------------------------------------------------------------
 # [settings | state (μ, X, PP, χ̂, P̂) | prediction (c̄, X̄, P̄, χ̄, P̄) | scratch (v, Π, Y, YP, F, FP)], the
-# settings [n, D, σ_e², m = len(λ), modes rows (kind, q, turn_rate_sd), dims, λ, L, R] (markov_switching's
-# chain; m = 0: L is the fixed Π). No kernel allocates (each small allocation ~40 ns), and inside a kernel
+# settings [n, D, σ_e², m = len(λ), max_gap_s, modes rows (kind, q, turn_rate_sd), dims, λ, L, R]
+# (markov_switching's chain; m = 0: L is the fixed Π). No kernel allocates (each small allocation ~40 ns), and inside a kernel
 # the parts are numba.carray views of the buffer's memory, which take no reference: an ordinary view
 # costs a reference count up and down (atomic, ~10 ns) for itself and each row taken from it, ~0.9 µs
 # per predict-and-correct cycle. Such views live only inside the call that made them, whose ``buf``
@@ -450,7 +450,7 @@ def imm_cycle(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, lam: np.ndarray, le
 @njit(cache=True)
 def _imm_offsets(n: int, D: int, m: int) -> tuple[int, int, int, int, int, int, int, int, int]:
     """Offsets in the packed buffer of: modes, dims, λ, L, R, the state, the prediction, the scratch, the end."""
-    modes = 4
+    modes = 5
     dims = modes + 3 * n
     lam = dims + n
     left = lam + m
@@ -462,13 +462,14 @@ def _imm_offsets(n: int, D: int, m: int) -> tuple[int, int, int, int, int, int, 
 
 
 def imm_buffer(modes: np.ndarray, dims: np.ndarray, entry_var: float, lam: np.ndarray, left: np.ndarray,
-               right: np.ndarray) -> np.ndarray:
-    """The packed buffer of an IMM (block comment above): its settings written, state and prediction zero."""
+               right: np.ndarray, max_gap: float = math.inf) -> np.ndarray:
+    """The packed buffer of an IMM (block comment above): its settings written, state and prediction zero;
+    ``max_gap``: the longest step :func:`imm_screen` takes (the filter's ``max_gap_s``)."""
     n, m = len(dims), len(lam)
     offsets = _imm_offsets(n, int(max(dims)), m)
     buf = np.zeros(offsets[-1])
-    buf[:offsets[5]] = np.concatenate([[n, max(dims), entry_var, m], np.ravel(modes), dims, lam, np.ravel(left),
-                                       np.ravel(right)])
+    buf[:offsets[5]] = np.concatenate([[n, max(dims), entry_var, m, max_gap], np.ravel(modes), dims, lam,
+                                       np.ravel(left), np.ravel(right)])
     return buf
 
 
@@ -559,7 +560,10 @@ def imm_screen(buf: np.ndarray, dt: float, predicted: bool, z: np.ndarray, C: np
     """Innovation screening, and the update when it passes: the bias-corrected measurement (zc = z − C ς̂,
     Rc = R + C P_ς Cᵀ, written out), its d² against the predicted position (S = P̄_pp + Rc; the
     prediction by ``dt`` made first unless ``predicted``) and, if d² ≤ ``gate``, :func:`imm_update` from
-    that prediction. Returns (d², NIS, code): code −4 when not updated, else :func:`imm_update`'s."""
+    that prediction. Returns (d², NIS, code): code −4 when not updated, −5 (nothing done) when |dt| is not
+    within the settings' max_gap (or nan), else :func:`imm_update`'s."""
+    if not abs(dt) <= buf[4]:  # the caller raises, with the messages of the checks in Python
+        return math.nan, math.nan, -5
     bias_correct_into(z, C, R, bias, bias_cov, zc, Rc)
     parts = _imm_parts(buf)
     if not predicted:

@@ -328,3 +328,37 @@ def test_screen_in_one_call_equals_the_default_on_predict_and_update(modes):
             old, fast = fast, copy.deepcopy(fast)
             assert not np.shares_memory(fast.X, old.X) and np.shares_memory(fast.X, fast._buf)
     assert rejected >= 5
+
+
+def test_screen_refuses_a_step_as_the_default_does():
+    """A step beyond max_gap_s (either way), a nan or infinite time, or a filter not started: IMMFilter.screen
+    (its compiled call checks the step) raises the ValueError TrackFilter.screen's default raises and leaves
+    the filter as it was; a step just within the gap is screened as the default screens it."""
+    t, _, zs, Rs = manoeuvre_track(np.random.default_rng(8))
+    config = IMMConfig(max_gap_s=20.0)
+    C, bias, bias_cov = np.zeros((2, 2)), np.zeros(2), np.zeros((2, 2))
+    with pytest.raises(ValueError) as want:
+        TrackFilter.screen(IMMFilter(config), t[0], zs[0], C, Rs[0], bias, bias_cov, 1e9)
+    with pytest.raises(ValueError) as got:
+        IMMFilter(config).screen(t[0], zs[0], C, Rs[0], bias, bias_cov, 1e9)
+    assert str(got.value) == str(want.value)
+    fast, ref = IMMFilter(config), IMMFilter(config)
+    for f in (fast, ref):
+        f.start(t[0], zs[0], Rs[0])
+        f.update(t[1], zs[1], Rs[1])
+    before = copy.deepcopy(fast.state_dict())
+    for time in (t[1] + 20.5, t[1] - 20.5, math.nan, math.inf):
+        with pytest.raises(ValueError) as want:
+            TrackFilter.screen(ref, time, zs[2], C, Rs[2], bias, bias_cov, 1e9)
+        with pytest.raises(ValueError) as got:
+            fast.screen(time, zs[2], C, Rs[2], bias, bias_cov, 1e9)
+        assert str(got.value) == str(want.value)
+        state = fast.state_dict()
+        assert state["time"] == before["time"] and np.array_equal(state["mu"], before["mu"])
+        for a, b in zip(state["xs"] + state["Ps"], before["xs"] + before["Ps"]):
+            np.testing.assert_array_equal(a, b)
+    got = fast.screen(t[1] + 19.5, zs[2], C, Rs[2], bias, bias_cov, 1e9)
+    want = TrackFilter.screen(ref, t[1] + 19.5, zs[2], C, Rs[2], bias, bias_cov, 1e9)
+    assert got[0] == want[0] and got[3] is want[3] is True
+    for a, b in zip(fast.estimate(), ref.estimate()):
+        np.testing.assert_array_equal(a, b)

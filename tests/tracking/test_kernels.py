@@ -248,8 +248,8 @@ def test_packed_imm_kernels_equal_the_array_kernels(modes, switching):
         Pi = rng.uniform(0.05, 1.0, (n, n))
         chain = (np.zeros(0), Pi / Pi.sum(axis=1, keepdims=True), np.zeros((0, 0)))
     kmodes = np.array([[0.0 if m[0] == "cv" else 1.0, m[1], m[2] if len(m) > 2 else 0.0] for m in modes])
-    buf = kernels.imm_buffer(kmodes, dims, entry_var, *chain)
-    settings = np.concatenate([[n, D, entry_var, len(chain[0])], kmodes.ravel(), dims, *map(np.ravel, chain)])
+    buf = kernels.imm_buffer(kmodes, dims, entry_var, *chain, 60.0)
+    settings = np.concatenate([[n, D, entry_var, len(chain[0]), 60.0], kmodes.ravel(), dims, *map(np.ravel, chain)])
     np.testing.assert_array_equal(buf[:len(settings)], settings)
     state, pred = kernels.imm_views(buf)
     state[0][:] = rng.dirichlet(np.ones(n))
@@ -294,6 +294,8 @@ def test_packed_imm_kernels_equal_the_array_kernels(modes, switching):
         np.testing.assert_array_equal(packed(), before)
     assert kernels.imm_update(buf, dt, True, np.array([np.nan, 0.0]), Rc)[1] == -3
     assert kernels.imm_update(buf, dt, False, zc, -Rc)[1] == -3
+    for step in (60.5, -60.5, np.nan):  # beyond max_gap (60 s): nothing done, code −5
+        assert kernels.imm_screen(buf, step, False, z, C, R, bias, bias_cov, zk, Rk, 1e9)[2] == -5
     np.testing.assert_array_equal(packed(), before)
     for predicted, call in [(True, lambda: kernels.imm_update(buf, dt, True, zc, Rc)),
                             (False, lambda: kernels.imm_update(buf, dt, False, zc, Rc)),
