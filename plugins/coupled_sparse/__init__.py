@@ -234,22 +234,27 @@ class CoupledSparseEstimator(Estimator):
     def update_many(self, time: Sequence[float], aircraft: Sequence[Hashable], radar: Sequence[str | None],
                     z: np.ndarray, C: np.ndarray, R: np.ndarray) -> Innovation:
         """All updates in one compiled loop (see :meth:`Estimator.update_many`)."""
-        slots = np.fromiter((self._slot(a) for a in aircraft), np.int64, len(aircraft))
-        radars = np.fromiter((-1 if r is None else self._radar_index(r) for r in radar), np.int64, len(radar))
+        n, ac, rad = len(aircraft), self._ac, self._rad
+        try:
+            slots = np.fromiter(map(ac.__getitem__, aircraft), np.int64, n)
+            radars = np.array([-1 if r is None else rad[r] for r in radar], np.int64)
+        except KeyError:  # the KeyError naming which
+            slots = np.fromiter((self._slot(a) for a in aircraft), np.int64, n)
+            radars = np.fromiter((-1 if r is None else self._radar_index(r) for r in radar), np.int64, len(radar))
         times = np.asarray(time, float)
-        Z, Cs, Rs = (np.ascontiguousarray(a, dtype=float) for a in (z, C, R))
-        n = len(slots)
+        Z = np.ascontiguousarray(z, dtype=float)
+        Cs = np.ascontiguousarray(C, dtype=float)
+        Rs = np.ascontiguousarray(R, dtype=float)
         if n == 0:
             return Innovation(np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0))
         nu, lam, nis = np.zeros((n, 2)), np.zeros((n, 2, 2)), np.zeros(n)
-        w = self._work
-        code, i = K.update_batch(self._Yxx, self._Yxb, self._ex, self._tx, self._nk, self._rk, self._Ybb, self._eb,
-                                 self._S, self._sv, self._Pb, self._bh, self._ctr, slots, radars, times, Z, Cs, Rs,
-                                 self._q, nu, lam, nis, w.f4, w.V, w.G, w.W, w.v4, w.idx, w.Kb, w.LS, w.LSi)
+        code, i = K.update_batch(self._F, self._I, self._work.flat, slots, radars, times, Z, Cs, Rs, nu, lam, nis)
         # plots before i are applied; plot i was predicted (Λ) or fully applied (S) — as coupled does
         done = i + (code in (K.ERR_LAMBDA, K.ERR_S, K.ERR_REBUILD))
         if done:
-            self._bias_time = float(np.fmax(self._bias_time, times[:done].max()))  # fmax ignores the initial NaN
+            t = float(times[:done].max())
+            if not t <= self._bias_time:  # NaN at first, like np.fmax
+                self._bias_time = t
         if code != K.OK:
             raise self._failure(code, i, aircraft[i], radar[i], times[i])
         return Innovation(nu, lam, nis)

@@ -583,13 +583,14 @@ def refresh(S, sv, Pb, bh, ctr, LS, LSi):
 
 
 @njit(cache=True)
-def update_batch(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
-                 slots, radars, times, Z, Cs, Rs, q, out_nu, out_lam, out_nis,
-                 f4, V, G, W, v4, idx, Kb, LS, LSi):
-    """update_one over a batch in order; returns (code, index of the failing plot or len)."""
+def update_batch(F, I, WF, slots, radars, times, Z, Cs, Rs, out_nu, out_lam, out_nis):
+    """update_one over a batch in order on the packed storage; returns (code, index of the failing plot or len)."""
+    cap, mm, nb = I[0], I[1], I[2]
+    Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr, idx = carve(F, I, cap, mm, nb)
+    f4, V, G, W, v4, Kb, LS, LSi, io = carve_work(WF, 2 * mm)
     for i in range(slots.shape[0]):
         code, nis = update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
-                               slots[i], radars[i], times[i], Z[i], Cs[i], Rs[i], q, out_nu[i], out_lam[i],
+                               slots[i], radars[i], times[i], Z[i], Cs[i], Rs[i], io[7], out_nu[i], out_lam[i],
                                f4, V, G, W, v4, idx, Kb, LS, LSi)
         out_nis[i] = nis
         if code != OK:
