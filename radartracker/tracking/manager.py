@@ -223,7 +223,7 @@ class TrackManager:
         self._events: list[TrackEvent] = []
         self._deferred: list[tuple] = []  # the frame's estimator work, applied at its end (_flush_estimator)
         self._biases: dict[str, tuple] = {}  # each radar's (ς̂, P_ς) as read in this frame (_bias)
-        self._codes: dict[str, int] = {}  # Mode S address → track id, kept lazily (_track_with_code)
+        self._codes: dict[str, int] = {}  # Mode S address → id of its live track (_track_with_code)
         self.clock = StreamClock(self.config.clock)
         self.adsb_check = AdsbPlausibility(self.config.screening)
 
@@ -280,7 +280,9 @@ class TrackManager:
                 estimator: Estimator | None = None, filter_factory: Callable[[], TrackFilter] | None = None) -> TrackManager:
         """A manager continuing exactly where :meth:`snapshot` left off (SnapshotError for a bad file);
         a manager given its plugins as objects is restored with new objects of the same classes."""
-        return load_manager(cls, path, on_event, estimator=estimator, filter_factory=filter_factory)
+        mgr = load_manager(cls, path, on_event, estimator=estimator, filter_factory=filter_factory)
+        mgr._codes = {tr.mode_s: tr.id for tr in mgr.tracks.values() if tr.mode_s is not None}
+        return mgr
 
     def accounting(self) -> dict[str, int]:
         """Counts by reason, including measurements still held by tentative tracks."""
@@ -558,17 +560,8 @@ class TrackManager:
 
     def _track_with_code(self, code: str | None) -> ManagedTrack | None:
         """The live track with Mode S address ``code`` (at most one: a code's track is looked up before
-        one is started). An index of ids, checked on use and rebuilt from a scan when stale or missing."""
-        if code is None:
-            return None
-        tr = self.tracks.get(self._codes.get(code, -1))
-        if tr is None or tr.mode_s != code:
-            tr = next((t for t in self.tracks.values() if t.mode_s == code), None)
-            if tr is not None:
-                self._codes[code] = tr.id
-            else:
-                self._codes.pop(code, None)
-        return tr
+        one is started), from the index kept as tracks start and end (rebuilt on restore)."""
+        return None if code is None else self.tracks.get(self._codes.get(code, -1))
 
     def _position_measurement(self, m: PlaneMeasurement, live: list[ManagedTrack], pred: dict) -> tuple:
         """An unbiased position (e.g. a triangulated fix): its track by identity, else by gating."""
@@ -630,6 +623,8 @@ class TrackManager:
             tr = ManagedTrack(next(self._ids), filt, "tentative", src.time, src.time, mode_s=code,
                               history=deque(maxlen=self.config.confirm_n))
             self.tracks[tr.id] = tr
+            if code is not None:
+                self._codes[code] = tr.id
             self._emit(src.time, tr, "created")
         elif not updated:
             try:
@@ -814,6 +809,8 @@ class TrackManager:
 
     def _delete(self, tr: ManagedTrack, now: float) -> None:
         del self.tracks[tr.id]
+        if tr.mode_s is not None and self._codes.get(tr.mode_s) == tr.id:
+            del self._codes[tr.mode_s]
         if tr.status == "tentative":
             for _, kind in tr.pending:
                 self.counts[f"{kind}_in_dropped_tentative_tracks"] += 1
