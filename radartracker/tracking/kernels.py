@@ -23,8 +23,8 @@ The equations are those of the numpy code they replace, written out for the smal
 * :func:`measurement_ok` — the checks of a position measurement: finite time and z, R finite,
   symmetric (``numpy.allclose`` tolerances) and positive definite.
 * a filter's IMM packed in one buffer with its settings and the kernels' scratch (:func:`imm_buffer`,
-  :func:`imm_views`), so that one call passes one array instead of fifteen (each array argument costs
-  ~0.15 µs to type and unbox) and allocates nothing: :func:`imm_advance` (prediction),
+  :func:`imm_views`), so that a call passes the filter as one array instead of fifteen (each array
+  argument costs ~0.15 µs to type and unbox) and allocates nothing: :func:`imm_advance` (prediction),
   :func:`imm_update` (the measurement checks and the correction, from the kept prediction or in one
   cycle), :func:`imm_screen` (bias correction of a radar measurement, prediction, its d²
   (:mod:`radartracker.estimation.screening`) and the update when it passes the gate). Each step is
