@@ -41,14 +41,13 @@ class CouplingGraph:
     """Radar–aircraft coupling graph, kept current as tracks are created and deleted.
 
     ``graph`` is read freely but changed only through these methods: :meth:`observe` keeps the attribute
-    dicts of the pairs it has seen (O(1) dict updates per measurement, no node names or graph lookups).
-    Aircraft keys are told apart as dict keys, as the estimators take them."""
+    dicts of the pairs it has seen (O(1) dict updates per measurement, no node names or graph lookups)."""
 
     def __init__(self, radars: list[str] | tuple[str, ...] = ()) -> None:
         self.graph = nx.Graph()
-        # by aircraft key, then radar: the graph's own attribute dicts of that edge and of the radar's node,
-        # so observe() of a known pair updates them without node names or graph lookups
-        self._edges: dict[Hashable, dict[str | None, tuple[dict, dict]]] = {}
+        # by aircraft node, then radar: the graph's own attribute dicts of that edge and of the radar's node,
+        # so observe() of a known pair updates them without graph lookups
+        self._edges: dict[str, dict[str | None, tuple[dict, dict]]] = {}
         self.graph.add_node(ADSB, kind="reference", label=ADSB, measurements=0)
         for r in radars:
             self.add_radar(r)
@@ -62,7 +61,7 @@ class CouplingGraph:
     def observe(self, aircraft: Hashable, radar: str | None, time: float) -> None:
         """Record one measurement of ``aircraft`` by ``radar`` (``None``: ADS-B) at ``time``."""
         try:
-            edge, source = self._edges[aircraft][radar]
+            edge, source = self._edges[_aircraft_node(aircraft)][radar]
         except KeyError:  # a new pair: through the graph, then cached
             edge, source = self._pair(aircraft, radar, time)
         source["measurements"] += 1
@@ -80,13 +79,13 @@ class CouplingGraph:
             self.add_radar(radar)
         if not self.graph.has_edge(a, r):
             self.graph.add_edge(a, r, kind="observation", count=0, last_time=float(time))
-        pair = self._edges.setdefault(aircraft, {})[radar] = (self.graph.edges[a, r], self.graph.nodes[r])
+        pair = self._edges.setdefault(a, {})[radar] = (self.graph.edges[a, r], self.graph.nodes[r])
         return pair
 
     def remove_aircraft(self, key: Hashable) -> None:
         """Marginalise aircraft ``key``: join the sources it linked, then drop its node."""
         a = _aircraft_node(key)
-        self._edges.pop(key, None)
+        self._edges.pop(a, None)
         edges = self.graph.edges(a, data=True)
         last = {src: d["last_time"] for _, src, d in edges}
         for u, v in combinations(sorted(last), 2):

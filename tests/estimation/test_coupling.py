@@ -166,3 +166,21 @@ def test_cached_observations_give_the_graph_built_straight_on_networkx(tmp_path)
     g.write_graphml(tmp_path / "a.graphml")
     nx.write_graphml(ref, str(tmp_path / "b.graphml"))
     assert (tmp_path / "a.graphml").read_bytes() == (tmp_path / "b.graphml").read_bytes()
+
+
+def test_keys_written_alike_share_a_node_and_go_with_it():
+    """Oracle: the plain networkx graph. Keys written alike (7 and "7") are one node, so removing one of
+    them drops the pair's cached edge for both; keys equal as dict keys but written differently (1, 1.0,
+    True) are three nodes. A cache of edges keyed by the aircraft key gets both wrong."""
+    g, ref = CouplingGraph(["R1"]), nx.Graph()
+    ref.add_node(ADSB, kind="reference", label=ADSB, measurements=0)
+    ref.add_node("radar:R1", kind="radar", label="R1", measurements=0)
+    for step, (key, t) in enumerate([(7, 1.0), ("7", 2.0), (None, 7), ("7", 3.0), (1, 4.0), (1.0, 5.0), (True, 6.0)]):
+        if key is None:
+            g.remove_aircraft(t)
+            ref.remove_node(f"aircraft:{t}")
+            continue
+        g.observe(key, "R1", t)
+        _reference_observe(ref, key, "R1", t)
+        assert g.state_dict() == {"nodes": [(n, dict(d)) for n, d in ref.nodes(data=True)],
+                                  "adj": [(u, [(v, dict(d)) for v, d in nbrs.items()]) for u, nbrs in ref.adj.items()]}, step
