@@ -60,14 +60,14 @@ def _azimuth(inst: Any, attr: attrs.Attribute, value: float) -> None:
 def _mode_s(inst: Any, attr: attrs.Attribute, value: str | None) -> None:
     if value is None:
         return
-    if not isinstance(value, str) or len(value) != 6 or any(c not in "0123456789abcdef" for c in value):
+    if not isinstance(value, str) or len(value) != 6 or value.strip("0123456789abcdef"):  # a digit not hex
         raise ValueError(f"{attr.name}: Mode S address must be 6 lower-case hex digits, got {value!r}")
 
 
 def _mode_3a(inst: Any, attr: attrs.Attribute, value: str | None) -> None:
     if value is None:
         return
-    if not isinstance(value, str) or len(value) != 4 or any(c not in "01234567" for c in value):
+    if not isinstance(value, str) or len(value) != 4 or value.strip("01234567"):  # a digit not octal
         raise ValueError(f"{attr.name}: Mode 3/A code must be 4 octal digits, got {value!r}")
 
 

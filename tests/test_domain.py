@@ -1,6 +1,8 @@
 """Construction of domain objects validates every field and names it."""
 
 import math
+import random
+import re
 
 import numpy as np
 import pytest
@@ -49,6 +51,27 @@ def test_plot_rejects_bad_fields(kw, words):
     args.update(kw)
     with pytest.raises(ValueError, match=words):
         Plot(**args)
+
+
+@pytest.mark.parametrize("field, digits, length", [("mode_s", "0123456789abcdef", 6), ("mode_3a", "01234567", 4)])
+def test_codes_are_accepted_exactly_when_every_character_is_a_digit(field, digits, length):
+    """Against a regular expression: near misses are upper-case letters (lowered for Mode S), 8 and 9 in
+    Mode 3/A, spaces, newlines, signs, non-ASCII digits and wrong lengths."""
+    rng = random.Random(7)
+    alphabet = digits + "89gAFx -\n\u0660\u00e9"
+    rule = re.compile(f"[{digits}]{{{length}}}")
+    seen = set()
+    for _ in range(5000):
+        v = "".join(rng.choice(alphabet) for _ in range(rng.choice([length - 1, length, length, length, length + 1])))
+        ok = rule.fullmatch(v.lower() if field == "mode_s" else v) is not None
+        try:
+            Plot(0.0, "R1", 1e5, 1.0, **{field: v})
+            accepted = True
+        except ValueError:
+            accepted = False
+        assert accepted == ok, v
+        seen.add(ok)
+    assert seen == {True, False}
 
 
 def test_plot_normalises_mode_s_case():

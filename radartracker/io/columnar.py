@@ -7,8 +7,9 @@ state (latest times, duplicate keys, stream clock) is then carried on as they wo
 the functions return ``None`` and the block is read row by row, which names the file, line and field of
 each bad row and counts it under ``--skip-bad``: the columnar path only ever accepts. What it asks:
 
-* numbers match a plain decimal syntax (``-12.5``, ``1e3``), a subset of what ``float()`` reads, and are
-  finite; pyarrow and ``float()`` both round such text correctly, so to the same double;
+* numbers match a plain decimal syntax (:data:`DECIMAL`: ``-12.5``, ``1e3``), a subset of what ``float()``
+  reads, and are finite; pyarrow and ``float()`` both round such text correctly, so to the same double;
+  the syntax and the codes' digits are checked on the column's bytes by compiled loops;
 * ranges, codes (hex Mode S / ICAO, octal Mode 3/A, already lower case or not) and radar ids as the
   row checks ask, with no space around a field (the row checks strip it);
 * plots: times in order within the block and not before any radar's latest time, so the per-radar
@@ -23,11 +24,21 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.csv as pacsv
+from numba import njit
 
 from radartracker.io.tables import AdsbTable, PlotTable
 
-_DECIMAL = r"^-?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$"  # RE2: \d is [0-9] only
-_LABEL = r"^[!-~]*$"  # printable ASCII without space: nothing for str.strip() to remove
+DECIMAL = r"-?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?"  # the plain decimal syntax (\d: [0-9]), checked by _decimals
+
+
+def _byte_set(chars: str) -> np.ndarray:
+    table = np.zeros(256, np.bool_)
+    table[list(chars.encode("ascii"))] = True
+    return table
+
+
+_HEX, _OCT = _byte_set("0123456789abcdefABCDEF"), _byte_set("01234567")
+_LABEL = _byte_set("".join(map(chr, range(33, 127))))  # printable ASCII without space: nothing for strip()
 
 
 def _read(header: list[str], text: str) -> pa.Table | None:
@@ -47,14 +58,84 @@ def _all(mask: pa.Array) -> bool:
     return bool(pc.all(mask).as_py()) if len(mask) else True
 
 
+def _bytes(col: pa.ChunkedArray) -> tuple[np.ndarray, np.ndarray]:
+    """A string column's value offsets (n + 1) and UTF-8 bytes: value i is bytes[offsets[i]:offsets[i + 1]]."""
+    arr = col.combine_chunks()
+    _, offsets, data = arr.buffers()
+    off = np.frombuffer(offsets, np.int32)[arr.offset:arr.offset + len(arr) + 1]
+    return off, np.frombuffer(data if data is not None else b"", np.uint8)  # read-only either way: one signature
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's cache) the checks' kernels on a tiny column, so that a replay's first
+    block does not wait for them (:func:`radartracker.pipeline.warmup.warm_up`)."""
+    for values in (["1.5", ""], [""]):  # the second: no bytes at all
+        col = pa.chunked_array([pa.array(values, pa.string())])
+        _decimals(*_bytes(col), True)
+        _digits(*_bytes(col), _HEX, 6, True)
+
+
+@njit(cache=True)
+def _decimals(off, data, optional):  # pragma: no cover (compiled)
+    """Whether every value matches :data:`DECIMAL` whole (or is empty, if ``optional``)."""
+    for i in range(len(off) - 1):
+        j, end = off[i], off[i + 1]
+        if j == end:
+            if optional:
+                continue
+            return False
+        if data[j] == 45:  # -
+            j += 1
+        whole = 0
+        while j < end and 48 <= data[j] <= 57:
+            j += 1
+            whole += 1
+        fraction = 0
+        if j < end and data[j] == 46:  # .
+            j += 1
+            while j < end and 48 <= data[j] <= 57:
+                j += 1
+                fraction += 1
+        if whole == 0 and fraction == 0:
+            return False
+        if j < end and (data[j] == 101 or data[j] == 69):  # e E
+            j += 1
+            if j < end and (data[j] == 43 or data[j] == 45):  # + -
+                j += 1
+            exponent = 0
+            while j < end and 48 <= data[j] <= 57:
+                j += 1
+                exponent += 1
+            if exponent == 0:
+                return False
+        if j != end:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _digits(off, data, allowed, length, optional):  # pragma: no cover (compiled)
+    """Whether every value is bytes of the set ``allowed`` (a table of 256), ``length`` of them (any number if
+    negative), or is empty, if ``optional``."""
+    for i in range(len(off) - 1):
+        j, end = off[i], off[i + 1]
+        if j == end and optional:
+            continue
+        if length >= 0 and end - j != length:
+            return False
+        while j < end:
+            if not allowed[data[j]]:
+                return False
+            j += 1
+    return True
+
+
 def _numbers(col: pa.ChunkedArray, *, optional: bool = False) -> np.ndarray | None:
     """The column as floats (NaN where empty, if ``optional``), or ``None`` unless every value is plain."""
-    ok = pc.match_substring_regex(col, _DECIMAL)
-    empty = pc.equal(col, "")
-    if not _all(pc.or_(ok, empty) if optional else ok):
+    if not _decimals(*_bytes(col), optional):
         return None
     if optional:
-        col = pc.if_else(empty, pa.scalar(None, pa.string()), col)
+        col = pc.if_else(pc.equal(col, ""), pa.scalar(None, pa.string()), col)
     try:
         v = pc.cast(col, pa.float64()).to_numpy(zero_copy_only=False)
     except pa.ArrowInvalid:
@@ -63,10 +144,10 @@ def _numbers(col: pa.ChunkedArray, *, optional: bool = False) -> np.ndarray | No
     return v if (finite | np.isnan(v)).all() and (optional or finite.all()) else None
 
 
-def _codes(col: pa.ChunkedArray, pattern: str, *, optional: bool = True) -> np.ndarray | None:
-    """Lower-case codes (``None`` where empty, if ``optional``), or ``None`` unless every value matches."""
-    ok = pc.match_substring_regex(col, pattern)
-    if not _all(pc.or_(ok, pc.equal(col, "")) if optional else ok):
+def _codes(col: pa.ChunkedArray, digits: int, length: int, *, optional: bool = True) -> np.ndarray | None:
+    """Lower-case codes (``None`` where empty, if ``optional``), or ``None`` unless every value is ``length``
+    digits of base ``digits`` (16: either case, or 8)."""
+    if not _digits(*_bytes(col), _HEX if digits == 16 else _OCT, length, optional):
         return None
     return _objects(col, lower=True)[0]
 
@@ -96,11 +177,11 @@ def plots(reader, first: int, text: str) -> PlotTable | None:
         return None
     rng, az = _numbers(tab["range_m"]), _numbers(tab["azimuth_deg"])
     alt = _numbers(tab["altitude_m"], optional=True)
-    ms, m3a = _codes(tab["mode_s"], r"^[0-9a-fA-F]{6}$"), _codes(tab["mode_3a"], r"^[0-7]{4}$")
+    ms, m3a = _codes(tab["mode_s"], 16, 6), _codes(tab["mode_3a"], 8, 4)
     if any(v is None for v in (rng, az, alt, ms, m3a)) or not ((rng >= 0).all() and ((az >= 0) & (az < 360)).all()):
         return None
     if reader.has_target:
-        if not _all(pc.match_substring_regex(tab["target"], _LABEL)):
+        if not _digits(*_bytes(tab["target"]), _LABEL, -1, True):
             return None
         target = _objects(tab["target"])[0]
     else:
@@ -158,7 +239,7 @@ def adsb(reader, first: int, text: str) -> AdsbTable | None:
         return None
     t, lat, lon = _numbers(tab["time"]), _numbers(tab["lat"]), _numbers(tab["lon"])
     alt, nacp = _numbers(tab["altitude_m"], optional=True), _numbers(tab["nacp"])
-    icao = _codes(tab["icao24"], r"^[0-9a-fA-F]{6}$", optional=False)
+    icao = _codes(tab["icao24"], 16, 6, optional=False)
     if any(v is None for v in (t, lat, lon, alt, nacp, icao)):
         return None
     if not ((np.abs(lat) <= 90).all() and (np.abs(lon) <= 180).all() and ((nacp >= 1) & (nacp <= 11)).all()

@@ -63,6 +63,9 @@ def _exercise(config: RunConfig, labelled: bool) -> None:
     from radartracker.pipeline.writer import table_rows
 
     table_rows(result.events, result.biases, result.plane)  # the tables' compiled row writer (csvtext)
+    from radartracker.io import columnar
+
+    columnar.warm_up()  # the streamed reader's checks of a block's columns
     name = config.estimator or default_estimator()
     cfg = resolve(config, data, name)
     radar = data.radars[0].id
