@@ -247,10 +247,10 @@ class IMMFilter(TrackFilter):
         t0 = self.time
         if t0 is None or not self._compiled:
             return super().screen(time, z, C, R, bias, bias_cov, gate)
-        dt, time = time - t0, float(time)  # the kernel checks the step against max_gap_s (_within_gap's rule)
+        time = float(time)  # as check_time; the kernel checks the step against max_gap_s (_within_gap's rule)
         zc, Rc = np.empty(2), np.empty((2, 2))
-        d2, nis, bad = kernels.imm_screen(self._buf, dt, self._pred_time == time, z, C, R, bias, bias_cov, zc, Rc,
-                                          -1.0 if gate is None else gate)
+        d2, nis, bad = kernels.imm_screen(self._buf, time - t0, self._pred_time == time, z, C, R, bias, bias_cov,
+                                          zc, Rc, -1.0 if gate is None else gate)
         if bad == -2:  # updated (the common case of _corrected)
             self.time, self._pred_time = time, math.nan
             return d2, zc, Rc, True
