@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, uint64
 
 _POW10 = 10 ** np.arange(19, dtype=np.int64)  # the exact powers of ten up to 10^18
 _EXACT = 2.0**50  # beyond this |x·10^d| the rounding is left to Python
@@ -157,10 +157,10 @@ def _write(cols, kinds, index, num, neg, flag, dec, pow10, buf, start, end, sele
                 if neg[k, r]:
                     out[pos] = 45  # -
                     pos += 1
-                v = num[k, r]
+                v = uint64(num[k, r])  # unsigned: // 10 without the floor division's sign fix-ups
                 d = dec[k]
                 m = d + 1  # digits written: at least one before the point
-                while m < 19 and v >= pow10[m]:
+                while m < 19 and v >= uint64(pow10[m]):
                     m += 1
                 pos += m
                 if d > 0:
@@ -170,8 +170,8 @@ def _write(cols, kinds, index, num, neg, flag, dec, pow10, buf, start, end, sele
                     if q == d and d > 0:
                         out[j] = 46  # .
                         j -= 1
-                    w = v // 10
-                    out[j] = 48 + v - 10 * w
+                    w = v // uint64(10)
+                    out[j] = uint64(48) + v - uint64(10) * w
                     v = w
                     j -= 1
             elif kinds[c] == 1 or flag[k, r] == 2:  # a text, or a number's _TEXT (nothing for _BLANK)
