@@ -262,9 +262,10 @@ def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: Fil
     tracks = mgr.tracks
     if inputs is None:
         inputs, total = iter_scenario(data), len(data.plots) + len(data.adsb)
-    for item in tqdm(inputs, total=total,
-                     desc=f"track {cfg.estimator}/{cfg.motion_model}", unit="item",
-                     delay=2.0, mininterval=1.0, disable=not progress):
+    # without a progress bar, the inputs themselves: a disabled tqdm still passes each through a generator
+    items = tqdm(inputs, total=total, desc=f"track {cfg.estimator}/{cfg.motion_model}", unit="item", delay=2.0,
+                 mininterval=1.0) if progress else inputs
+    for item in items:
         mgr.process(item)
         rid = getattr(item, "radar", None)
         if rid is not None and rec.bias_due(rid, item.time):
