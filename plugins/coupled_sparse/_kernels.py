@@ -556,21 +556,18 @@ def refresh(S, sv, Pb, bh, ctr, LS, LSi):
     n = S.shape[0]
     if not chol(S, LS, n):
         return False
-    for i in range(n):
-        for j in range(n):
-            LSi[i, j] = 0.0
-        LSi[i, i] = 1.0
-    for c in range(n):  # LSi = L⁻¹ (lower triangular)
+    U = LSi  # U = L⁻ᵀ (upper triangular), by rows: every loop below runs along contiguous rows
+    for c in range(n):
         for i in range(c, n):
-            acc = LSi[i, c]
+            acc = 1.0 if i == c else 0.0
             for k in range(c, i):
-                acc -= LS[i, k] * LSi[k, c]
-            LSi[i, c] = acc / LS[i, i]
-    for i in range(n):
+                acc -= LS[i, k] * U[c, k]
+            U[c, i] = acc / LS[i, i]
+    for i in range(n):  # Pb = U Uᵀ = L⁻ᵀ L⁻¹
         for j in range(i + 1):
             acc = 0.0
             for k in range(i, n):
-                acc += LSi[k, i] * LSi[k, j]
+                acc += U[i, k] * U[j, k]
             Pb[i, j] = acc
             Pb[j, i] = acc
     for i in range(n):
