@@ -110,8 +110,9 @@ def _concatenate(chunks: list[Events]) -> Events:
 class Recorder:
     """Collects a run's events, bias estimates and NIS values (see the module docstring).
 
-    An event is kept as one row (a tuple: no object per number) until ``flush_every`` of them are made
-    columns at once (:class:`Events`, 8 bytes a number): a national-scale run records millions of events.
+    An event is kept as one row (its immutable TrackEvent or fields, its covariance's bytes, its identity)
+    until ``flush_every`` of them are made columns at once (:class:`Events`, 8 bytes a number): a
+    national-scale run records millions of events.
     With a ``sink`` (:class:`radartracker.pipeline.writer.OutputStream`) events and biases are handed on
     as they are made columns; ``keep=False`` then drops them once handed on, so that memory does not grow
     with the recording's length (what :attr:`track_ids` keeps, one integer per track with an estimate,
