@@ -780,7 +780,7 @@ class TrackManager:
             r, i = np.array(hits, np.int64).T
             missed[r, i] = False
         missed &= np.array([tr.created < t_a for tr in live], bool)[None, :]  # started in this frame: not missed
-        for r, i in zip(*np.nonzero(missed)):  # radar by radar, as the antennas swept
+        for i in np.nonzero(missed)[1].tolist():  # radar by radar, as the antennas swept
             tr = live[i]
             tr.history.append(False)
             if tr.status == "confirmed":
