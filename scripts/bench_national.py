@@ -1,7 +1,7 @@
 """Benchmark: national traffic through the whole unlabelled replay, against one FilterPy cycle.
 
     python scripts/bench_national.py [--aircraft 200 500 1000 2000] [--minutes 3 9 27] [--radars 28]
-                                     [--estimator coupled-sparse] [--quality] [--out FILE]
+                                     [--estimator coupled-sparse] [--quality] [--repeat N] [--out FILE]
 
 For each size, a child process simulates ``radartracker simulate --scenario traffic`` (Mode S,
 30 % ADS-B, Pd 0.9) into a scenario folder *without truth labels*, then a second child times
@@ -12,7 +12,9 @@ timing one FilterPy ``KalmanFilter`` predict+update cycle (4-state CV, 2-D posit
 process, so ``ratio`` = µs per input / µs per FilterPy cycle holds on any machine. Peak RSS is the
 replay child's maximum resident set (``wait4``); the replay streams the folder (read in blocks, outputs
 written as they come: docs/performance.md, "Memory flat in the recording's length"), so it should not
-grow with ``--minutes``. ``--quality`` keeps the labels and adds the track
+grow with ``--minutes``. ``--repeat N`` replays each folder N times, each in a new process, and prints the
+run of median ratio with every run's figures (this machine's single runs vary by ±15 %, the FilterPy cycle
+alike). ``--quality`` keeps the labels and adds the track
 metrics of the TrackManager replay (breaks, false tracks); ``--labelled`` also times the labelled
 replay (association by truth label) without and with its evaluation against truth.
 
@@ -26,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -150,6 +153,8 @@ def main() -> None:
     ap.add_argument("--quality", action="store_true", help="labelled plots, --manager, track metrics")
     ap.add_argument("--labelled", action="store_true",
                     help="also time the labelled replay (association by truth label) and its evaluation")
+    ap.add_argument("--repeat", type=int, default=1,
+                    help="replay each size this many times, each in a new process; the line is the run of median ratio")
     ap.add_argument("--folder", type=Path, help=argparse.SUPPRESS)
     ap.add_argument("--out", type=Path, help="also append the JSON lines to this file")
     args = ap.parse_args()
@@ -163,9 +168,15 @@ def main() -> None:
             with tempfile.TemporaryDirectory(prefix="bench_national_") as tmp:
                 folder = Path(tmp) / "scenario"
                 sizes, _ = run_child("generate", args, folder, n, minutes)
-                res, rss_mb = run_child("replay", args, folder, n, minutes)
+                inputs = sizes["plots"] + sizes["adsb"]
+                runs = []  # (µs per input / FilterPy µs, result, peak RSS) of each repeat, in its own process
+                for _ in range(args.repeat):
+                    for made in (folder / "out", folder.parent / "tiny"):  # the replay's outputs, its warm-up folder
+                        shutil.rmtree(made, ignore_errors=True)
+                    res, rss_mb = run_child("replay", args, folder, n, minutes)
+                    runs.append((res["cpu_seconds"] / inputs * 1e6 / res["filterpy_us"], res, rss_mb))
                 lab = run_child("labelled", args, folder, n, minutes)[0] if args.labelled else None
-            inputs = sizes["plots"] + sizes["adsb"]
+            _, res, rss_mb = sorted(runs, key=lambda r: r[0])[len(runs) // 2]  # the run of the median ratio
             us = res["cpu_seconds"] / inputs * 1e6
             line = {"aircraft": n, "radars": args.radars, "minutes": minutes, "estimator": args.estimator,
                     "motion_model": res["motion_model"], "inputs": inputs, "plots": sizes["plots"],
@@ -175,6 +186,9 @@ def main() -> None:
                     "realtime_factor": round(minutes * 60.0 / res["cpu_seconds"], 1),
                     "realtime_factor_wall": round(minutes * 60.0 / res["seconds"], 1), "peak_rss_mb": round(rss_mb, 1),
                     "startup_cpu_s": round(startup, 2), "load1": os.getloadavg()[0]}
+            if args.repeat > 1:  # every repeat's µs per input, FilterPy µs and ratio; the line is the median one's
+                line["repeats"] = [[round(r[1]["cpu_seconds"] / inputs * 1e6, 2), round(r[1]["filterpy_us"], 2),
+                                    round(r[0], 2)] for r in runs]
             if args.quality and res.get("tracking"):
                 line["tracking"] = {k: res["tracking"][k] for k in ("breaks", "false_tracks", "swaps",
                                                                      "confirmed_tracks", "position_rmse_m")}
