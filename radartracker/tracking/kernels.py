@@ -346,6 +346,15 @@ def imm_combine(w: np.ndarray, X: np.ndarray, PP: np.ndarray) -> tuple[np.ndarra
 
 
 @njit(cache=True)
+def _clear(x: np.ndarray, P: np.ndarray, D: int) -> None:
+    """x[:D] = 0, P[:D, :D] = 0: a mode's padded state before it is written."""
+    for a in range(D):
+        x[a] = 0.0
+        for b in range(D):
+            P[a, b] = 0.0
+
+
+@njit(cache=True)
 def _imm_predict_into(mu, X, PP, lam, left, right, modes, dt, cbar, Xp, PPp, x_bar, P_bar, v, Pi, X0, P0, F, FP):
     """:func:`imm_predict`, with scratch v (n), Π (n×n), the mixed X⁰ (n×D), P⁰ (n×D×D), F and F P (5×5)."""
     _switching_into(lam, left, right, dt, v, Pi)
@@ -353,10 +362,7 @@ def _imm_predict_into(mu, X, PP, lam, left, right, modes, dt, cbar, Xp, PPp, x_b
     n, D = X.shape
     for j in range(n):
         xp, pp = Xp[j], PPp[j]
-        for a in range(D):
-            xp[a] = 0.0
-            for b in range(D):
-                pp[a, b] = 0.0
+        _clear(xp, pp, D)
         if modes[j, 0] == 0.0:
             for a in range(4):
                 xp[a] = X0[j, a]
@@ -389,10 +395,7 @@ def _imm_correct_into(cbar, Xp, PPp, x_bar, P_bar, dims, entry_var, z, R, mu, X,
         return math.nan, -1
     for j in range(n):
         xn, Pn = Xn[j], PPn[j]
-        for a in range(D):
-            xn[a] = 0.0
-            for b in range(D):
-                Pn[a, b] = 0.0
+        _clear(xn, Pn, D)
         d = int(dims[j])
         _, loglik, okj = _position_update_into(Xp[j], PPp[j], z, R, d, xn, Pn)
         if not okj:
