@@ -710,7 +710,7 @@ class TrackManager:
         """The frame's estimator and coupling-graph work in the order it arose: aircraft added at
         confirmation, measurements (each run of them in one :meth:`Estimator.update_many`), aircraft
         removed. The frame's screening, gating and track filters all read the bias estimate as it was
-        at the frame's start (docs/design-notes.md, "The bias estimate is read once per frame")."""
+        at the frame's start (docs/design-notes.md, "The TrackManager reads the bias estimate once per frame")."""
         ops, self._deferred = self._deferred, []
         self._biases = {}
         name = f"estimator {self.estimator.name!r}"
