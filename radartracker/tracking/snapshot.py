@@ -119,19 +119,25 @@ def _enc(obj: Any, where: str) -> Any:
 
 # --- decoding --------------------------------------------------------------------------------------
 
-def _attrs_class(module: str, qualname: str) -> type:
-    """An attrs class of radartracker or its plugins that is already imported (nothing is imported)."""
+def _record_class(module: str, qualname: str) -> type:
+    """An attrs class or named tuple of radartracker or its plugins that is already imported (nothing is
+    imported). A named tuple is read where an earlier release saved an attrs class of that name
+    (TrackEvent, in snapshots written before it became one)."""
     mod = sys.modules.get(module) if isinstance(module, str) and module.startswith(_PACKAGES) else None
     obj: Any = mod
     for part in qualname.split(".") if isinstance(qualname, str) and mod is not None else ():
         obj = getattr(obj, part, None) if part.isidentifier() else None
-    if not (isinstance(obj, type) and attrs.has(obj)):
+    if not (isinstance(obj, type) and (attrs.has(obj) or (issubclass(obj, tuple) and hasattr(obj, "_fields")))):
         raise ValueError(f"class {module}.{qualname} is not a loaded radartracker attrs class")
     return obj
 
 
 def _build(cls: type, fields: list) -> Any:
     values = dict(fields)
+    if not attrs.has(cls):  # a named tuple: every field, by name
+        if set(values) != set(cls._fields):
+            raise ValueError(f"{cls.__qualname__}: fields {sorted(map(str, values))}, expected {sorted(cls._fields)}")
+        return cls(**values)
     known = {f.name: f for f in attrs.fields(cls)}
     if set(values) - set(known):
         raise ValueError(f"{cls.__qualname__}: unknown field(s) {sorted(set(values) - set(known))}")
@@ -176,7 +182,7 @@ def _hook(make_filter: Callable[[Any], TrackFilter] | None) -> Callable[[dict], 
         if t == "count":
             return itertools.count(int(v[0]), int(v[1]))
         if t == "attrs":
-            return _build(_attrs_class(v[0], v[1]), v[2])
+            return _build(_record_class(v[0], v[1]), v[2])
         if t == "filter" and make_filter is not None:
             f = make_filter(v[1])
             if _class_name(f) != v[0]:

@@ -167,3 +167,19 @@ def test_restore_with_another_estimator_is_refused(saved):
         TrackManager.restore(path, estimator=make_estimator(other, None, []))
     assert type(TrackManager.restore(path, estimator=make_estimator(mgr.config.estimator, None, [])).estimator) \
         is type(mgr.estimator)
+
+
+def test_a_snapshot_with_events_saved_as_attrs_records_restores(saved, items_and_data):
+    """Snapshots written before TrackEvent became a named tuple saved the last call's events as attrs
+    records; such a file restores, and the manager continues as the one that wrote it."""
+    mgr, path = saved
+    items, _ = items_and_data
+    meta, blob = msgpack.unpackb(snapshot.read_snapshot_file(path), raw=False, strict_map_key=False)
+    state = msgpack.unpackb(blob, raw=False, strict_map_key=False)
+    old_event = {"t": "attrs", "v": ["radartracker.tracking.manager", "TrackEvent",
+                                     [["time", 1.5], ["track", 3], ["kind", "updated"], ["status", "confirmed"],
+                                      ["state", {"t": "tuple", "v": [1.0, 2.0, 3.0, 4.0]}]]]}
+    state["v"].append(["_events", [old_event]])
+    _craft(path, meta, state)
+    restored = TrackManager.restore(path)
+    assert restored.process_many(items[500:700]) == mgr.process_many(items[500:700])
