@@ -137,10 +137,8 @@ class Recorder:
         a 4×4 array or ``None`` (recorded as NaN). Both are copied now."""
         if type(state) is not tuple:
             state = tuple(np.asarray(state, float).ravel()[:4].tolist())
-        cov = _NAN16 if cov is None else np.asarray(cov, float).tobytes()
-        self._rows.append((_Head(time, track, kind, status, state[:4]), cov, (altitude_m, mode_s, mode_3a, target)))
-        if len(self._rows) >= self.flush_every:
-            self._columns()
+        self.track_event(_Head(time, track, kind, status, state[:4]), None if cov is None else np.asarray(cov, float),
+                         (altitude_m, mode_s, mode_3a, target))
 
     def track_event(self, ev, cov: np.ndarray | None, ident: tuple) -> None:
         """Record a :class:`~radartracker.tracking.manager.TrackEvent` (a named tuple of time, track, kind,
