@@ -43,6 +43,7 @@ import heapq
 import itertools
 import logging
 import math
+import struct
 from collections import Counter, deque
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -146,6 +147,7 @@ class TrackEvent(NamedTuple):
     __hash__ = tuple.__hash__
 
 
+_KIN_T = struct.Struct("d")  # an estimate's time, packed before its x[:4] (TrackManager._kinematics)
 _make_event = tuple.__new__  # _make_event(TrackEvent, fields): TrackEvent(*fields) without a Python call
 
 
@@ -224,6 +226,7 @@ class TrackManager:
         self._deferred: list[tuple] = []  # the frame's estimator work, applied at its end (_flush_estimator)
         self._biases: dict[str, tuple] = {}  # each radar's (ς̂, P_ς) as read in this frame (_bias)
         self._codes: dict[str, int] = {}  # Mode S address → id of its live track (_track_with_code)
+        self._kin: dict[int, bytes] = {}  # track id → its estimate's time and x[:4], packed (_kinematics)
         self.clock = StreamClock(self.config.clock)
         self.adsb_check = AdsbPlausibility(self.config.screening)
 
@@ -402,24 +405,31 @@ class TrackManager:
         self._sweep(live, pred, t_b)
         self._flush_estimator()
 
-    @staticmethod
-    def _estimate_of(tr: ManagedTrack) -> tuple:
-        """``tr.filter.estimate()``, kept until the filter changes (the manager reads it once per frame for
-        every live track, and for gating, screening and events)."""
+    def _estimate_of(self, tr: ManagedTrack) -> tuple:
+        """``tr.filter.estimate()``, kept until the filter changes (the manager reads it for gating, screening
+        and events), with its time and x[:4] packed for the frame's arrays (:meth:`_kinematics`)."""
         if tr.estimate is None:
-            tr.estimate = tr.filter.estimate()
+            e = tr.estimate = tr.filter.estimate()
+            self._kin[tr.id] = _KIN_T.pack(e[0]) + np.asarray(e[1], float)[:4].tobytes()
         return tr.estimate
+
+    def _kinematics(self, tr: ManagedTrack) -> bytes:
+        """The time and x[:4] of ``tr``'s estimate as 5 packed floats, made when the estimate is read
+        (:meth:`_estimate_of`), so the frame's pass over every live track touches no array (_predict)."""
+        k = self._kin.get(tr.id) if tr.estimate is not None else None
+        if k is None:  # an estimate not read yet, or one restored from a snapshot
+            e = self._estimate_of(tr)
+            k = self._kin[tr.id] = _KIN_T.pack(e[0]) + np.asarray(e[1], float)[:4].tobytes()
+        return k
 
     def _predict(self, live: list[ManagedTrack], t: float) -> dict[str, np.ndarray]:
         """Straight-line extrapolation of every live track to ``t`` (for search, misses, coverage), as
         arrays over the frame's tracks; the filters' own predictions are computed only for gating candidates."""
         n = len(live)
-        est = [tr.estimate or self._estimate_of(tr) for tr in live]
-        t0 = np.array([e[0] for e in est], float).reshape(n)
-        try:  # one array of the states when every filter's has the same length (one motion model)
-            x = np.array([e[1] for e in est], float).reshape(n, -1)[:, :4]
-        except ValueError:
-            x = np.array([e[1][:4] for e in est], float).reshape(n, 4)
+        kin = self._kin
+        tx = np.frombuffer(b"".join([(tr.estimate is not None and kin.get(tr.id)) or self._kinematics(tr)
+                                     for tr in live]), float).reshape(n, 5)
+        t0, x = tx[:, 0], tx[:, 1:]
         pos = x[:, :2] + x[:, 2:] * np.maximum(t - t0, 0.0)[:, None]
         # identities are fixed while a frame is associated: index them once per frame, not per radar
         mode_s = [tr.mode_s for tr in live]
@@ -428,15 +438,14 @@ class TrackManager:
         return {"pos": pos, "t": t, "exact": {}, "index": index, "codes": codes,
                 "mode_s": np.array([m is not None for m in mode_s], bool).reshape(n)}
 
-    @staticmethod
-    def _exact(live: list[ManagedTrack], pred: dict, idx: np.ndarray) -> tuple[np.ndarray, ...]:
+    def _exact(self, live: list[ManagedTrack], pred: dict, idx: np.ndarray) -> tuple[np.ndarray, ...]:
         """The filters' predictions (position, velocity, position covariance) of tracks ``idx``."""
         cache, t = pred["exact"], pred["t"]
         for i in np.unique(idx):
             if i not in cache:
                 tr = live[i]
                 try:
-                    x, P = tr.filter.predict(max(t, TrackManager._estimate_of(tr)[0]))
+                    x, P = tr.filter.predict(max(t, self._estimate_of(tr)[0]))
                     cache[i] = (x[:2], x[2:], P[:2, :2])
                 except ValueError:  # the filter refuses this step: the track cannot be gated
                     cache[i] = (np.full(2, np.nan), np.zeros(2), np.eye(2))
@@ -677,6 +686,10 @@ class TrackManager:
             return ACCEPT, None, None, False
         except Exception as exc:  # a plugin's bug: name it, its track and the time
             raise self._plugin_failed(f"motion model {self._filter_cls.name!r}", tr.id, t, exc) from exc
+        if gate is not None and d2 <= gate:  # judge's ACCEPT, which ends a run of rejections (the common case)
+            if tr.rejected:
+                tr.rejected = []
+            return ACCEPT, zc, Rc, updated
         verdict, tr.rejected = judge(cfg, kind, d2, tr.rejected, tr.mode_s is not None, tentative, t, zc, Rc)
         if verdict == REJECT:
             self.counts[f"{kind}_outlier"] += 1
@@ -809,6 +822,7 @@ class TrackManager:
 
     def _delete(self, tr: ManagedTrack, now: float) -> None:
         del self.tracks[tr.id]
+        self._kin.pop(tr.id, None)
         if tr.mode_s is not None and self._codes.get(tr.mode_s) == tr.id:
             del self._codes[tr.mode_s]
         if tr.status == "tentative":
