@@ -29,6 +29,7 @@ builds one from modes and a matrix directly.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from typing import Any
@@ -145,47 +146,28 @@ class IMMFilter(TrackFilter):
 
     def __init__(self, config: IMMConfig | None = None) -> None:
         super().__init__(config)
-        c = self.config
-        self.modes = list(c.mode_filters())
-        n = len(self.modes)
-        self.dim = max(m.dim for m in self.modes)
-        self.dims = np.array([m.dim for m in self.modes], np.int64)
-        self.entry_var = c.turn_rate_entry_sd**2
-        # rows (kind, q, turn_rate_sd) of the compiled modes, or None: some mode is called in Python
-        builtin = all(type(m) in (CVMode, CTMode) for m in self.modes)
-        self.kernel_modes = (np.array([[0.0 if type(m) is CVMode else 1.0, m.q, getattr(m, "turn_rate_sd", 0.0)]
-                                       for m in self.modes]) if builtin else None)
-        if c.transition is not None:  # kernels.markov_switching: an empty λ means the fixed Π
-            self.chain = (np.zeros(0), np.asarray(c.transition, float), np.zeros((0, 0)))
-            default_mu = np.full(n, 1.0 / n)
-        else:
-            tau = np.asarray(c.sojourn_s if c.sojourn_s is not None
-                             else [120.0 if m.dim == 4 else 30.0 for m in self.modes], float)
-            # G = D B, D = diag(1/τ), B = (J − n I)/(n − 1) symmetric: exp(G t) through the symmetric
-            # D^½ B D^½ = U Λ Uᵀ, exp(G t) = D^½ U e^{Λt} Uᵀ D^-½ (scipy's expm costs ms per call)
-            B = (np.ones((n, n)) - n * np.eye(n)) / max(n - 1, 1)
-            d = np.sqrt(1.0 / tau)
-            lam, U = np.linalg.eigh(d[:, None] * B * d[None, :])
-            self.chain = (np.minimum(lam, 0.0), np.ascontiguousarray(d[:, None] * U),
-                          np.ascontiguousarray(U.T / d[None, :]))
-            default_mu = tau / tau.sum()
-        mu0 = np.asarray(c.initial_probabilities if c.initial_probabilities is not None else default_mu, float)
-        self.mu0 = mu0 / mu0.sum()
+        try:  # the same for every filter of a config: made once (a national replay starts thousands of tracks)
+            settings = _settings(self.config)
+        except TypeError:  # a setting that cannot be hashed (a user's mode filter): made for this filter
+            settings = _settings.__wrapped__(self.config)
+        modes, self.dims, self.entry_var, self.kernel_modes, self.chain, self.mu0, template = settings
+        self.modes = list(modes)
+        self.dim = int(max(self.dims))
         self.time: float | None = None
         self.mu = self.mu0.copy()
-        self.X = np.zeros((n, self.dim))  # mode states, padded (class docstring)
-        self.PP = np.zeros((n, self.dim, self.dim))
+        self.X = np.zeros((len(modes), self.dim))  # mode states, padded (class docstring)
+        self.PP = np.zeros((len(modes), self.dim, self.dim))
         self.x, self.P = np.zeros(4), np.zeros((4, 4))  # output (χ̂, P̂) of the current state
-        self._scratch()
+        self._scratch(template)
 
-    def _scratch(self) -> None:
-        """The state (μ, X, PP, χ̂, P̂) moved into one buffer with the settings the packed kernels take,
-        the prediction from it to time ``_pred_time`` (nan: none), ``_pred`` = (c̄, X̄, P̄ of the modes,
-        χ̄, P̄), and their scratch (:func:`radartracker.api.kernels.imm_buffer`)."""
-        n = len(self.modes)
+    def _scratch(self, template: np.ndarray | None = None) -> None:
+        """The state (μ, X, PP, χ̂, P̂) moved into one buffer with the settings the packed kernels take
+        (a copy of ``template``, a buffer of the same settings, if given), the prediction from it to
+        time ``_pred_time`` (nan: none), ``_pred`` = (c̄, X̄, P̄ of the modes, χ̄, P̄), and their scratch
+        (:func:`radartracker.api.kernels.imm_buffer`)."""
         self._compiled = self.kernel_modes is not None  # else the modes' rows in the buffer are unused
-        self._buf = kernels.imm_buffer(self.kernel_modes if self._compiled else np.zeros((n, 3)), self.dims,
-                                       self.entry_var, *self.chain, self.config.max_gap_s)
+        self._buf = template.copy() if template is not None else _buffer(
+            self.kernel_modes, self.dims, self.entry_var, self.chain, self.config.max_gap_s)
         state, self._pred = kernels.imm_views(self._buf)
         for view, value in zip(state, (self.mu, self.X, self.PP, self.x, self.P)):
             view[...] = value
@@ -338,3 +320,38 @@ class IMMFilter(TrackFilter):
         self.time, self.mu[:], self.X[:], self.PP[:] = time, mu, X, PP
         self.x[:], self.P[:] = kernels.imm_combine(mu, X, PP) if time is not None else (0.0, 0.0)
         self._pred_time = math.nan
+
+
+def _buffer(kernel_modes: np.ndarray | None, dims: np.ndarray, entry_var: float, chain: tuple, max_gap: float) -> np.ndarray:
+    """The packed buffer of these settings with a zero state (:func:`radartracker.api.kernels.imm_buffer`)."""
+    rows = kernel_modes if kernel_modes is not None else np.zeros((len(dims), 3))
+    return kernels.imm_buffer(rows, dims, entry_var, *chain, max_gap)
+
+
+@functools.lru_cache(maxsize=32)
+def _settings(c: IMMConfig) -> tuple:
+    """What a filter of ``c`` derives from its settings alone: (mode filters, their dimensions, σ_e², the
+    compiled modes' rows (kind, q, turn-rate σ) or None when some mode is called in Python, the Markov
+    chain (λ, L, R) of :func:`radartracker.api.kernels.markov_switching`, μ₀, a packed buffer with these
+    settings and a zero state). Shared by the filters of one config: nothing writes into these arrays."""
+    modes = tuple(c.mode_filters())
+    n = len(modes)
+    dims = np.array([m.dim for m in modes], np.int64)
+    builtin = all(type(m) in (CVMode, CTMode) for m in modes)
+    kernel_modes = (np.array([[0.0 if type(m) is CVMode else 1.0, m.q, getattr(m, "turn_rate_sd", 0.0)]
+                              for m in modes]) if builtin else None)
+    if c.transition is not None:  # kernels.markov_switching: an empty λ means the fixed Π
+        chain = (np.zeros(0), np.asarray(c.transition, float), np.zeros((0, 0)))
+        default_mu = np.full(n, 1.0 / n)
+    else:
+        tau = np.asarray(c.sojourn_s if c.sojourn_s is not None else [120.0 if m.dim == 4 else 30.0 for m in modes], float)
+        # G = D B, D = diag(1/τ), B = (J − n I)/(n − 1) symmetric: exp(G t) through the symmetric
+        # D^½ B D^½ = U Λ Uᵀ, exp(G t) = D^½ U e^{Λt} Uᵀ D^-½ (scipy's expm costs ms per call)
+        B = (np.ones((n, n)) - n * np.eye(n)) / max(n - 1, 1)
+        d = np.sqrt(1.0 / tau)
+        lam, U = np.linalg.eigh(d[:, None] * B * d[None, :])
+        chain = (np.minimum(lam, 0.0), np.ascontiguousarray(d[:, None] * U), np.ascontiguousarray(U.T / d[None, :]))
+        default_mu = tau / tau.sum()
+    mu0 = np.asarray(c.initial_probabilities if c.initial_probabilities is not None else default_mu, float)
+    entry_var = c.turn_rate_entry_sd**2
+    return modes, dims, entry_var, kernel_modes, chain, mu0 / mu0.sum(), _buffer(kernel_modes, dims, entry_var, chain, c.max_gap_s)
