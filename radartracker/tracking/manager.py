@@ -147,7 +147,17 @@ class TrackEvent(NamedTuple):
     __hash__ = tuple.__hash__
 
 
-_KIN_T = struct.Struct("d")  # an estimate's time, packed before its x[:4] (TrackManager._kinematics)
+_KIN_T, _F8 = struct.Struct("d"), np.dtype(float)
+
+
+def _packed(estimate: tuple) -> bytes:
+    """The time and x[:4] of an estimate (t, x, P) as five packed floats (TrackManager._kinematics)."""
+    x = estimate[1]
+    if type(x) is not np.ndarray or x.dtype is not _F8:
+        x = np.asarray(x, float)
+    return _KIN_T.pack(estimate[0]) + x.tobytes()[:32]
+
+
 _make_event = tuple.__new__  # _make_event(TrackEvent, fields): TrackEvent(*fields) without a Python call
 
 
@@ -410,7 +420,7 @@ class TrackManager:
         and events), with its time and x[:4] packed for the frame's arrays (:meth:`_kinematics`)."""
         if tr.estimate is None:
             e = tr.estimate = tr.filter.estimate()
-            self._kin[tr.id] = _KIN_T.pack(e[0]) + np.asarray(e[1], float)[:4].tobytes()
+            self._kin[tr.id] = _packed(e)
         return tr.estimate
 
     def _kinematics(self, tr: ManagedTrack) -> bytes:
@@ -418,8 +428,7 @@ class TrackManager:
         (:meth:`_estimate_of`), so the frame's pass over every live track touches no array (_predict)."""
         k = self._kin.get(tr.id) if tr.estimate is not None else None
         if k is None:  # an estimate not read yet, or one restored from a snapshot
-            e = self._estimate_of(tr)
-            k = self._kin[tr.id] = _KIN_T.pack(e[0]) + np.asarray(e[1], float)[:4].tobytes()
+            k = self._kin[tr.id] = _packed(self._estimate_of(tr))
         return k
 
     def _predict(self, live: list[ManagedTrack], t: float) -> dict[str, np.ndarray]:
