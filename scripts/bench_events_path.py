@@ -3,10 +3,10 @@
     python scripts/bench_events_path.py FOLDER [--repeat 3]
 
 FOLDER is an unlabelled scenario folder (``scripts/bench_national.py`` writes them). That part is the
-TrackManager's ``_emit`` (the event's state from the track's kept estimate, the ``TrackEvent``) and what
-follows it: the run's ``on_event`` (covariance and identity of the event's track), the recorder, the
-per-plot bias logging, the writing of ``events.csv``, ``tracks.csv`` and ``biases.csv``, and the end of
-the run (``coupling.graphml``, ``summary.json``, ``config.json``).
+TrackManager's ``_emit`` (the event's state from the track's kept estimate, the ``TrackEvent``, its row in
+the run's ``event_log`` with covariance and identity) and what follows it: the recorder making the rows
+columns, the per-plot bias logging, the writing of ``events.csv``, ``tracks.csv`` and ``biases.csv``, and
+the end of the run (``coupling.graphml``, ``summary.json``, ``config.json``).
 
 It is isolated as follows. One real run records, for every input, the events the TrackManager emitted
 and the state of each event's track at that moment (its estimate (t, x, P), status and identity). The
@@ -14,10 +14,10 @@ folder's inputs are read once into a list. Then ``run`` with a sink (``replay_fo
 tables written as the run goes, then its summary and remaining files) runs on that list with a stand-in for
 the TrackManager that, for the same inputs, reads each event's track estimate as the manager does
 (``filter.estimate()`` copying x and P, as the IMM's does) and emits the event again with the manager's
-own ``_emit`` (a deleted track's event as recorded): everything else is the real code. Its CPU time,
+own ``_emit`` (a deleted track as it was at its deletion): everything else is the real code. Its CPU time,
 minus that of the stand-in alone over the list reading the estimates but emitting nothing, divided by the
-inputs, is ``path_us``; ``emit_us`` is the stand-in emitting without ``on_event`` minus the stand-in
-alone, ``tables_us`` the part spent in ``OutputStream`` (formatting and writing the three tables). The
+inputs, is ``path_us``; ``emit_us`` is the stand-in emitting without ``on_event`` or event log minus the
+stand-in alone, ``tables_us`` the part spent in ``OutputStream`` (formatting and writing the three tables). The
 recorded events are frozen out of the garbage collector's scans (``gc.freeze``) and the stand-in runs
 under the run's collector setting. Times are ``time.process_time`` (minimum over ``--repeat`` runs) on
 whatever load the machine has: one JSON line.
@@ -59,11 +59,10 @@ def main() -> None:
     per_item: list[list] = []
     current: list = []
 
+    seen: dict = {}  # every track by id (a deleted one is gone from mgr.tracks when its event comes)
+
     def capture(ev) -> None:
-        tr = mgr.tracks.get(ev.track)
-        if tr is None:
-            current.append((ev, None))
-            return
+        tr = seen[ev.track] = mgr.tracks.get(ev.track) or seen[ev.track]
         t, x, P = TrackManager._estimate_of(tr)
         current.append((ev, _Track(tr.id, (t, x.copy(), P.copy()), tr.altitude_m, tr.mode_s, tr.mode_3a)))
 
@@ -84,6 +83,7 @@ def main() -> None:
         def __init__(self, radars, reference, config=None, on_event=None, *, estimator=None, filter_factory=None,
                      emit=True):
             self.on_event, self.tracks, self.k, self.emit, self._events = on_event, {}, 0, emit, []
+            self.event_log = None
             self.coupling = CouplingGraph([r.id for r in radars])
 
         _estimate_of = staticmethod(TrackManager._estimate_of)
@@ -92,15 +92,11 @@ def main() -> None:
         def _emit(self, evs) -> None:
             self._events = []
             for ev, tr in evs:
-                if tr is None:
-                    self.tracks.pop(ev.track, None)
-                    if self.emit:
-                        self._events.append(ev)
-                        if self.on_event is not None:
-                            self.on_event(ev)
-                    continue
                 tr.estimate = tr.filter.estimate()  # the manager's read (ManagedTrack.estimate)
-                self.tracks[ev.track] = tr
+                if ev.kind == "deleted":
+                    self.tracks.pop(ev.track, None)
+                else:
+                    self.tracks[ev.track] = tr
                 if self.emit:
                     tr.status = ev.status
                     self._emit_one(ev.time, tr, ev.kind)

@@ -7,12 +7,14 @@ A column of floats with ``d`` decimals becomes integers n = rint(p), p = x·10^d
 p lies within an ulp of a half-integer. Those few values, the values beyond 2^50, and the non-finite
 ones ('nan', 'inf', '-inf', or an empty field for an optional column) are formatted by Python itself
 and copied as text. The compiled loop writes, row after row, the sign, the digits of n with the
-decimal point d places from the right, the texts and the separators.
+decimal point d places from the right, the texts and the separators; a second table made of some of the
+rows and columns (``tracks.csv`` of ``events.csv``) is copied from those rows' fields in the same pass.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numba import njit, uint64
@@ -34,6 +36,7 @@ class Table:
         self._flag: list[np.ndarray] = []
         self._dec: list[int] = []
         self._texts: list[list[str] | None] = []  # each text column; each number column's texts (by row) or None
+        self._codes: dict[int, np.ndarray] = {}  # a labels column's row → its distinct text (by column number)
         self._packed: tuple | None = None  # the texts in one buffer (_pack), made by the first rows()
 
     def number(self, x, decimals: int, *, optional: bool = False) -> Table:
@@ -75,6 +78,33 @@ class Table:
         self._texts.append(values)
         return self
 
+    def labels(self, values: list, text: Callable[[object], str] = str) -> Table:
+        """A column of values that repeat (hashable), each written as ``text(value)``: the texts are made
+        once per distinct value (equal values are written alike, as the first of them)."""
+        index: dict = {v: i for i, v in enumerate(dict.fromkeys(values))}
+        self._codes[len(self._kind)] = np.fromiter(map(index.__getitem__, values), np.int64, self.n)
+        return self.text([text(v) for v in index])
+
+    def _arrays(self) -> tuple:
+        """What the compiled loop reads: each column's kind, its row in the number arrays, the number
+        arrays (digits, sign, how written, decimals) and the texts (start, end, UTF-8 buffer)."""
+        kinds = np.array(self._kind, np.int64)
+        index = np.cumsum(kinds == 0) - 1  # a number column's row in num, neg, flag and dec
+        if self._packed is None:
+            self._packed = _pack(self._texts, self.n, self._codes)
+        n_num = len(self._num)
+        num = np.array(self._num, np.int64).reshape(n_num, self.n)
+        neg = np.array(self._neg, np.bool_).reshape(n_num, self.n)
+        flag = np.array(self._flag, np.int8).reshape(n_num, self.n)
+        return (kinds, index, num, neg, flag, np.array(self._dec, np.int64), _POW10, *self._packed)
+
+    def _size(self, select: np.ndarray | slice, columns: int) -> int:
+        """Bytes enough for the rows ``select`` of ``columns`` columns (after :meth:`_arrays`): a number's at
+        most 24 (sign, 19 digits, point), the rows' texts, and the separators."""
+        start, end, _ = self._packed
+        rows = len(range(self.n)[select]) if isinstance(select, slice) else len(select)
+        return rows * (24 * len(self._num) + columns) + int((end[:, select] - start[:, select]).sum())
+
     def rows(self, select: np.ndarray | None = None, columns: list[int] | None = None) -> str:
         """The rows ``select`` (all by default; each row ended by a newline) of the columns ``columns``
         (all by default, else their numbers in the order added)."""
@@ -82,23 +112,30 @@ class Table:
         if not len(select):
             return ""
         cols = np.arange(len(self._kind)) if columns is None else np.asarray(columns, np.int64)
-        kinds = np.array(self._kind, np.int64)
-        index = np.cumsum(kinds == 0) - 1  # a number column's row in num, neg, flag and dec
-        if self._packed is None:
-            self._packed = _pack(self._texts, self.n)
-        start, end, buf = self._packed
-        n_num = len(self._num)
-        num = np.array(self._num, np.int64).reshape(n_num, self.n)
-        neg = np.array(self._neg, np.bool_).reshape(n_num, self.n)
-        flag = np.array(self._flag, np.int8).reshape(n_num, self.n)
-        dec = np.array(self._dec, np.int64)
-        out = np.empty(len(select) * (24 * n_num + len(cols)) + len(buf), np.uint8)
-        used = _write(cols, kinds, index, num, neg, flag, dec, _POW10, buf, start, end, select, out)
+        arrays = self._arrays()
+        out = np.empty(self._size(select, len(cols)), np.uint8)
+        used, _ = _write(cols, *arrays, select, out, cols[:0], np.zeros(self.n, np.bool_), out[:0])
         return out[:used].tobytes().decode("utf-8")
 
+    def rows_and_part(self, mask: np.ndarray, columns: list[int]) -> tuple[bytes, bytes]:
+        """Every row, and the rows where ``mask`` is true of the columns ``columns`` (as ``rows()`` and
+        ``rows(np.flatnonzero(mask), columns)``, UTF-8 encoded), in one pass: the part's fields are
+        copied from the rows just written."""
+        if not self.n:
+            return b"", b""
+        mask = np.asarray(mask, np.bool_).reshape(self.n)
+        cols = np.asarray(columns, np.int64)
+        arrays = self._arrays()
+        out = np.empty(self._size(slice(None), len(self._kind)), np.uint8)
+        part = np.empty(self._size(np.flatnonzero(mask), len(cols)), np.uint8)
+        used, used_part = _write(np.arange(len(self._kind)), *arrays, np.arange(self.n), out, cols, mask, part)
+        return out[:used].tobytes(), part[:used_part].tobytes()
 
-def _pack(columns: list[list[str] | None], n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The texts of every column (``None``: none) in one UTF-8 buffer, with each one's start and end.
+
+def _pack(columns: list[list[str] | None], n: int,
+          codes: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The texts of every column (``None``: none) in one UTF-8 buffer, with each one's start and end
+    by row (a labels column: its distinct texts, ``codes`` the row's).
 
     A column is encoded in one call, its texts joined by newlines (a byte no multi-byte UTF-8 character
     contains), unless one of them holds a newline itself."""
@@ -108,15 +145,19 @@ def _pack(columns: list[list[str] | None], n: int) -> tuple[np.ndarray, np.ndarr
     for c, col in enumerate(columns):
         if col is None or not n:
             continue
+        m = len(col)
+        first, last = np.zeros(m, np.int64), np.zeros(m, np.int64)
         data = "\n".join(col).encode("utf-8")
         cuts = np.flatnonzero(np.frombuffer(data, np.uint8) == 10)
-        if len(cuts) == n - 1:
-            start[c, 1:], end[c, :-1], end[c, -1] = cuts + 1, cuts, len(data)
+        if len(cuts) == m - 1:
+            first[1:], last[:-1], last[-1] = cuts + 1, cuts, len(data)
         else:
             lengths = np.array([len(t.encode("utf-8")) for t in col], np.int64)
-            end[c] = np.cumsum(lengths)
-            start[c] = end[c] - lengths
+            last[:] = np.cumsum(lengths)
+            first[:] = last - lengths
             data = "".join(col).encode("utf-8")
+        rows = codes.get(c)
+        start[c], end[c] = (first, last) if rows is None else (first[rows], last[rows])
         start[c] += offset
         end[c] += offset
         offset += len(data)
@@ -143,15 +184,21 @@ def _digits(x, scale, num, neg, slow):  # pragma: no cover (compiled)
 
 
 @njit(cache=True)
-def _write(cols, kinds, index, num, neg, flag, dec, pow10, buf, start, end, select, out):  # pragma: no cover (compiled)
-    """Write rows ``select`` of columns ``cols`` into ``out``; returns the bytes written."""
+def _write(cols, kinds, index, num, neg, flag, dec, pow10, start, end, buf, select, out, part_cols, in_part,
+           part):  # pragma: no cover (compiled)
+    """Write rows ``select`` of columns ``cols`` into ``out`` and, of those rows r with ``in_part[r]``, the
+    fields ``part_cols`` (numbers in ``cols``) into ``part``, copied; returns the bytes written into each."""
     pos = 0
+    used = 0
+    first = np.empty(len(cols), np.int64)  # where each field of the row starts and ends in out
+    last = np.empty(len(cols), np.int64)
     for r in select:
         for i in range(len(cols)):
             c = cols[i]
             if i:
                 out[pos] = 44  # ,
                 pos += 1
+            first[i] = pos
             k = index[c]
             if kinds[c] == 0 and flag[k, r] == 0:  # _DIGITS
                 if neg[k, r]:
@@ -178,6 +225,18 @@ def _write(cols, kinds, index, num, neg, flag, dec, pow10, buf, start, end, sele
                 for j in range(start[c, r], end[c, r]):
                     out[pos] = buf[j]
                     pos += 1
+            last[i] = pos
         out[pos] = 10  # newline
         pos += 1
-    return pos
+        if in_part[r]:
+            for i in range(len(part_cols)):
+                if i:
+                    part[used] = 44
+                    used += 1
+                for j in range(first[part_cols[i]], last[part_cols[i]]):
+                    part[used] = out[j]
+                    used += 1
+            part[used] = 10
+            used += 1
+    return pos, used
+

@@ -69,6 +69,8 @@ class BiasLog:
 
 
 _NAN16 = np.full(16, math.nan).tobytes()  # the covariance of an event without one
+_NAN44 = np.full((4, 4), math.nan)
+_NO_IDENT = (None, None, None)  # altitude, Mode S, Mode 3/A
 FLUSH_EVERY = 8192  # rows made columns (and handed to the sink) at a time
 
 
@@ -98,6 +100,45 @@ def _events_of(rows: list[tuple]) -> Events:
                   target=_obj(target))
 
 
+def _log_events_of(rows: list[tuple], idents: dict[int, tuple]) -> Events:
+    """Rows of a TrackManager's ``event_log`` (event, P, altitude_m, mode_s, mode_3a) as columns. A deleted
+    event is recorded without covariance and with the identity of its track's previous event, as on the
+    replay's record of it (the track is gone from the manager); ``idents`` holds, for each track whose last
+    row was not its deletion, the identity of that row, updated here for the rows after these."""
+    n = len(rows)
+    evs, covs, alt, mode_s, mode_3a = zip(*rows)
+    time, track, kind, status, state = zip(*evs)
+    kind = _obj(kind)
+    gone = kind == "deleted"
+    covs = [_NAN44 if P is None else P for P in covs]
+    try:  # the arrays' bytes in one join, unless one is not 16 contiguous float64
+        cov = np.frombuffer(bytearray().join(covs), float)
+    except (BufferError, TypeError):
+        cov = None
+    if cov is None or len(cov) != 16 * n:  # as track_event checks the bytes
+        try:
+            cov = np.array(covs, float)
+        except ValueError:
+            cov = None
+        if cov is None or cov.shape != (n, 4, 4):
+            raise ValueError("an event's covariance is not a 4×4 array of floats")
+    cov = cov.reshape(n, 4, 4)
+    alt, mode_s, mode_3a, track = list(alt), list(mode_s), list(mode_3a), list(track)
+    live = np.flatnonzero(~gone).tolist()
+    last = dict(zip([track[i] for i in live], live))  # each track's last row here before its deletion
+    for j in np.flatnonzero(gone).tolist():
+        t = track[j]
+        i = last.pop(t, None)
+        alt[j], mode_s[j], mode_3a[j] = idents.pop(t, _NO_IDENT) if i is None else (alt[i], mode_s[i], mode_3a[i])
+        idents.pop(t, None)
+    idents.update({t: (alt[i], mode_s[i], mode_3a[i]) for t, i in last.items()})
+    cov[gone] = math.nan
+    return Events(time=np.array(time, float), track=np.array(track, int), kind=kind, status=_obj(status),
+                  state=np.fromiter(chain.from_iterable(state), float, 4 * n).reshape(n, 4), cov=cov,
+                  altitude_m=np.array(alt, float), mode_s=_obj(mode_s), mode_3a=_obj(mode_3a),
+                  target=np.full(n, None, object))
+
+
 def _concatenate(chunks: list[Events]) -> Events:
     """The events of ``chunks`` in order (none: no event)."""
     if not chunks:
@@ -113,6 +154,9 @@ class Recorder:
     An event is kept as one row (its immutable TrackEvent or fields, its covariance's bytes, its identity)
     until ``flush_every`` of them are made columns at once (:class:`Events`, 8 bytes a number): a
     national-scale run records millions of events.
+    A TrackManager records its events without a call per event by appending rows to :attr:`manager_log`
+    (its ``event_log``); whoever feeds it calls :meth:`flush` once that holds ``flush_every`` rows. They are
+    made columns after those of :meth:`event` and :meth:`track_event`: feed a recorder one way or the other.
     With a ``sink`` (:class:`radartracker.pipeline.writer.OutputStream`) events and biases are handed on
     as they are made columns; ``keep=False`` then drops them once handed on, so that memory does not grow
     with the recording's length (what :attr:`track_ids` keeps, one integer per track with an estimate,
@@ -124,6 +168,8 @@ class Recorder:
         self.bias_log_interval_s = bias_log_interval_s
         self.sink, self.keep, self.flush_every = sink, keep or sink is None, flush_every or FLUSH_EVERY
         self._rows: list[tuple] = []  # events not yet made columns: (head, covariance bytes, identity)
+        self.manager_log: list[tuple] = []  # a TrackManager's event_log: (event, P, altitude_m, mode_s, mode_3a)
+        self._idents: dict[int, tuple] = {}  # _log_events_of: identity of each track at its last row
         self._chunks: list[Events] = []  # events made columns and kept
         self._bias: list[tuple] = []
         self._bias_last: dict[str, float] = {}
@@ -163,10 +209,16 @@ class Recorder:
 
     def _columns(self) -> None:
         """The event rows made columns: handed to the sink, kept unless they were handed on and not ``keep``."""
-        if not self._rows:
-            return
-        ev = _events_of(self._rows)
-        self._rows = []
+        if self._rows:
+            ev = _events_of(self._rows)
+            self._rows = []
+            self._handle(ev)
+        if self.manager_log:
+            ev = _log_events_of(self.manager_log, self._idents)
+            self.manager_log.clear()  # the manager's list: emptied, not replaced
+            self._handle(ev)
+
+    def _handle(self, ev: Events) -> None:
         self._track_ids.update(ev.track[ev.estimate_mask()].tolist())
         if self.sink is not None:
             self.sink.events(ev)
@@ -186,13 +238,15 @@ class Recorder:
 
     def events(self) -> Events:
         """The events recorded (those kept, and those not yet made columns)."""
-        chunks = self._chunks + ([_events_of(self._rows)] if self._rows else [])
+        chunks = self._chunks + ([_events_of(self._rows)] if self._rows else []) + (
+            [_log_events_of(self.manager_log, dict(self._idents))] if self.manager_log else [])
         return chunks[0] if len(chunks) == 1 else _concatenate(chunks)
 
     @property
     def track_ids(self) -> set[int]:
         """The tracks with an estimate (a ``confirmed`` or ``updated`` event) so far."""
-        return self._track_ids | {h.track for h, _, _ in self._rows if h.kind in TRACK_KINDS}
+        return self._track_ids | {r[0].track for rows in (self._rows, self.manager_log) for r in rows
+                                  if r[0].kind in TRACK_KINDS}
 
     def biases(self, start: int = 0) -> BiasLog:
         rows = self._bias[start:]

@@ -52,7 +52,7 @@ from radartracker.pipeline.stream import NotTimeOrdered, iter_files, iter_scenar
 from radartracker.pipeline.writer import OutputStream, write_outputs
 from radartracker.registry import FilterFactory, load_motion_model, make_estimator, make_filter_factory, option_fields
 from radartracker.tracking.admission import StreamClock
-from radartracker.tracking.manager import TrackEvent, TrackManager, default_estimator
+from radartracker.tracking.manager import TrackManager, default_estimator
 
 log = logging.getLogger(__name__)
 GC_YOUNG_THRESHOLD = 50_000  # chosen by measurement: docs/performance.md, "Garbage collection"
@@ -236,30 +236,13 @@ def _extrapolate(state: np.ndarray, dt: float) -> np.ndarray:
     return np.concatenate([state[:2] + state[2:] * max(dt, 0.0), state[2:]])
 
 
-_NO_IDENT = (None, None, None, None)  # altitude, Mode S, Mode 3/A, target
-
-
 def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: FilterFactory, rec: Recorder,
                 progress: bool, inputs: Iterable | None = None,
                 total: int | None = None) -> tuple[Counter, CouplingGraph]:
     """Association by the TrackManager; events carry the track filter's state and covariance."""
-    mcfg = cfg.manager_settings()
-    ident: dict[int, tuple] = {}  # identity of each track at its last event (deleted tracks are gone from mgr)
-    record = rec.track_event
-
-    def on_event(ev: TrackEvent) -> None:
-        track = ev.track
-        tr = tracks.get(track)
-        if tr is not None:
-            idt = ident[track] = (tr.altitude_m, tr.mode_s, tr.mode_3a, None)
-            # the manager's estimate of the filter, read for this event (ManagedTrack.estimate)
-            t0, _, P = tr.estimate or tr.filter.estimate()
-            record(ev, P if t0 == ev.time else None, idt)
-        else:
-            record(ev, None, ident.pop(track, _NO_IDENT) if ev.kind == "deleted" else ident.get(track, _NO_IDENT))
-
-    mgr = TrackManager(data.radars, data.reference, mcfg, on_event, estimator=est, filter_factory=factory)
-    tracks = mgr.tracks
+    mgr = TrackManager(data.radars, data.reference, cfg.manager_settings(), estimator=est, filter_factory=factory)
+    log = mgr.event_log = rec.manager_log  # each event appended as a row: no call per event
+    every = rec.flush_every
     if inputs is None:
         inputs, total = iter_scenario(data), len(data.plots) + len(data.adsb)
     # without a progress bar, the inputs themselves: a disabled tqdm still passes each through a generator
@@ -267,6 +250,8 @@ def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: Fil
                  mininterval=1.0) if progress else inputs
     for item in items:
         mgr.process(item)
+        if len(log) >= every:
+            rec.flush()
         rid = getattr(item, "radar", None)
         if rid is not None and rec.bias_due(rid, item.time):
             rec.bias(item.time, est.bias(rid))

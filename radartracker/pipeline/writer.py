@@ -46,39 +46,41 @@ def retire_earlier(out: Path) -> None:
     (out / "config.json").unlink(missing_ok=True)
 
 
-def _text(col: np.ndarray) -> list[str]:
-    return [str(v) if v else "" for v in col.tolist()]
+def _code(v: object) -> str:
+    """An identity code's field: empty for none."""
+    return str(v) if v else ""
 
 
-def _rows(ev: Events, plane) -> tuple[str, str]:
+def _rows(ev: Events, plane) -> tuple[bytes, bytes]:
     """The rows of ``events.csv`` and of ``tracks.csv`` (the track estimates among them, without kind
-    and status) for ``ev``: the columns made once, the rows written by a compiled loop
+    and status) for ``ev``, UTF-8 encoded: the columns made once, the rows written by one compiled pass
     (:mod:`radartracker.pipeline.csvtext`, the bytes of Python's ``%.<d>f``)."""
     if not len(ev):
-        return "", ""
+        return b"", b""
     lat, lon = plane.to_geodetic(ev.state[:, 0], ev.state[:, 1])
     s = ev.state
     with np.errstate(invalid="ignore"):  # a negative variance: no standard deviation, an empty field
         sd_x, sd_y = np.sqrt(ev.cov[:, 0, 0]), np.sqrt(ev.cov[:, 1, 1])
-    t = (Table(len(ev)).number(ev.time, 3).integer(ev.track).text(list(map(str, ev.kind.tolist())))
-         .text(list(map(str, ev.status.tolist()))).number(lat, 8).number(lon, 8).number(s[:, 0], 2)
-         .number(s[:, 1], 2).number(s[:, 2], 3).number(s[:, 3], 3).number(sd_x, 2, optional=True)
-         .number(sd_y, 2, optional=True).number(ev.altitude_m, 1, optional=True).text(_text(ev.mode_s))
-         .text(_text(ev.mode_3a)))
-    return t.rows(), t.rows(np.flatnonzero(ev.estimate_mask()), [0, 1, *range(4, 15)])
+    t = (Table(len(ev)).number(ev.time, 3).integer(ev.track).labels(ev.kind.tolist()).labels(ev.status.tolist())
+         .number(lat, 8).number(lon, 8).number(s[:, 0], 2).number(s[:, 1], 2).number(s[:, 2], 3)
+         .number(s[:, 3], 3).number(sd_x, 2, optional=True).number(sd_y, 2, optional=True)
+         .number(ev.altitude_m, 1, optional=True).labels(ev.mode_s.tolist(), _code)
+         .labels(ev.mode_3a.tolist(), _code))
+    return t.rows_and_part(ev.estimate_mask(), [0, 1, *range(4, 15)])
 
 
-def _bias_rows(b: BiasLog) -> str:
+def _bias_rows(b: BiasLog) -> bytes:
     if not len(b.time):
-        return ""
+        return b""
     with np.errstate(invalid="ignore"):
         sd = np.sqrt(b.cov[:, [0, 1], [0, 1]])
     return (Table(len(b.time)).number(b.time, 3).text(list(map(str, b.radar.tolist()))).number(b.value[:, 0], 3)
-            .number(np.degrees(b.value[:, 1]), 6).number(sd[:, 0], 3).number(np.degrees(sd[:, 1]), 6).rows())
+            .number(np.degrees(b.value[:, 1]), 6).number(sd[:, 0], 3).number(np.degrees(sd[:, 1]), 6).rows()
+            .encode("utf-8"))
 
 
-def table_rows(ev: Events, biases: BiasLog, plane) -> tuple[str, str, str]:
-    """The rows (without header) of ``events.csv``, ``tracks.csv`` and ``biases.csv``."""
+def table_rows(ev: Events, biases: BiasLog, plane) -> tuple[bytes, bytes, bytes]:
+    """The rows (without header, UTF-8 encoded) of ``events.csv``, ``tracks.csv`` and ``biases.csv``."""
     return (*_rows(ev, plane), _bias_rows(biases))
 
 
@@ -93,10 +95,10 @@ class OutputStream:
         out.mkdir(parents=True, exist_ok=True)
         self._stack = ExitStack()
         self._tracks, self._events, self._biases = (
-            self._stack.enter_context(atomic_open(out / name, "w", encoding="utf-8"))
+            self._stack.enter_context(atomic_open(out / name, "wb"))
             for name in ("tracks.csv", "events.csv", "biases.csv"))
         for f, cols in ((self._tracks, TRACK_COLUMNS), (self._events, EVENT_COLUMNS), (self._biases, BIAS_COLUMNS)):
-            f.write(",".join(cols) + "\n")
+            f.write(_header(cols))
 
     def events(self, ev: Events) -> None:
         events, tracks = _rows(ev, self.plane)
@@ -114,6 +116,10 @@ class OutputStream:
         self._stack.__exit__(type(exc), exc, exc.__traceback__)
 
 
+def _header(columns: tuple[str, ...]) -> bytes:
+    return (",".join(columns) + "\n").encode("utf-8")
+
+
 def write_outputs(result: RunResult, out: Path | str, *, figures: bool = False) -> None:
     """Write the run's files into ``out`` (prepared by :func:`prepare`; created if missing), each replacing
     the earlier run's atomically, ``config.json`` last; the three tables only if the run did not write
@@ -125,15 +131,11 @@ def write_outputs(result: RunResult, out: Path | str, *, figures: bool = False) 
     retire_earlier(out)
     if rows is not None:
         events, tracks, biases = rows
-        with atomic_open(out / "tracks.csv", "w", encoding="utf-8") as f:
-            f.write(",".join(TRACK_COLUMNS) + "\n")
-            f.write(tracks)
-        with atomic_open(out / "events.csv", "w", encoding="utf-8") as f:
-            f.write(",".join(EVENT_COLUMNS) + "\n")
-            f.write(events)
-        with atomic_open(out / "biases.csv", "w", encoding="utf-8") as f:
-            f.write(",".join(BIAS_COLUMNS) + "\n")
-            f.write(biases)
+        for name, cols, text in (("tracks.csv", TRACK_COLUMNS, tracks), ("events.csv", EVENT_COLUMNS, events),
+                                 ("biases.csv", BIAS_COLUMNS, biases)):
+            with atomic_open(out / name, "wb") as f:
+                f.write(_header(cols))
+                f.write(text)
     with atomic_path(out / "coupling.graphml") as tmp:
         result.coupling.write_graphml(tmp)
     if figures:

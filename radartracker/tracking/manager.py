@@ -222,6 +222,7 @@ class TrackManager:
         self.tracks: dict[int, ManagedTrack] = {}
         self.counts: Counter[str] = Counter()
         self.on_event = on_event
+        self.event_log: list[tuple] | None = None  # a list: each event appended as a row too (_emit)
         self._ids = itertools.count(1)
         self._seq = itertools.count()
         self._queue: deque = deque()  # admitted inputs no earlier than any before them (most), oldest first
@@ -849,7 +850,10 @@ class TrackManager:
         return PluginError(f"{plugin} failed on {who} at t={time:.3f} s: {type(exc).__name__}: {exc}")
 
     def _emit(self, time: float, tr: ManagedTrack, kind: str) -> None:
-        t0, x, _ = tr.estimate or self._estimate_of(tr)
+        """Make the event, hand it to ``on_event`` and, when :attr:`event_log` is a list, append its row
+        (event, P, altitude_m, mode_s, mode_3a): P the filter's covariance of the event's state when that
+        is the estimate at the event's time (not extrapolated), else None, and the track's identity now."""
+        t0, x, P = tr.estimate or self._estimate_of(tr)
         x0, y0, vx, vy = x.tolist()[:4]
         if time > t0:  # coasting/deleted events happen after the last update: report the position then
             x0, y0 = x0 + vx * (time - t0), y0 + vy * (time - t0)
@@ -857,6 +861,8 @@ class TrackManager:
         self._events.append(ev)
         if self.on_event is not None:
             self.on_event(ev)
+        if self.event_log is not None:  # a recorder's rows: no call per event (docs/api.md)
+            self.event_log.append((ev, P if t0 == time else None, tr.altitude_m, tr.mode_s, tr.mode_3a))
 
     def _grid_north(self, r: Radar) -> float:
         """Grid azimuth of true north at the radar (meridian convergence), to compare azimuths."""

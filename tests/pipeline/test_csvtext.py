@@ -64,6 +64,22 @@ def test_texts_selected_rows_and_columns():
     assert t.rows([]) == "" and Table(0).number(np.empty(0), 2).rows() == ""
 
 
+def test_labels_and_a_part_of_the_rows_written_in_the_same_pass():
+    """A labels column writes each value's text (made once per distinct value); rows_and_part gives every
+    row and, copied from them, the chosen rows' chosen fields, as rows() gives them."""
+    codes = [None, "7421", "é→ü", None, "a\nb", "7421", "", 0] * 4
+    x = np.array([1.005, -2.5, math.nan, 0.125, 1e300, -0.0, 3.0, math.inf] * 4)
+    kinds = ["updated", "coasting", "updated", "confirmed"] * 8
+    t = Table(len(x)).labels(codes, lambda v: str(v) if v else "").number(x, 2, optional=True).labels(kinds)
+    mask = np.array([k != "coasting" for k in kinds])
+    full, part = t.rows_and_part(mask, [2, 0, 1])
+    field = [f"{v:.2f}" if math.isfinite(v) else "" for v in x.tolist()]
+    assert full.decode() == t.rows() == "".join(f"{c or ''},{v},{k}\n" for c, v, k in zip(codes, field, kinds))
+    assert part.decode() == t.rows(np.flatnonzero(mask), [2, 0, 1]) == "".join(
+        f"{k},{c or ''},{v}\n" for c, v, k, m in zip(codes, field, kinds, mask) if m)
+    assert Table(0).labels([]).rows_and_part(np.zeros(0, bool), [0]) == (b"", b"")
+
+
 def _reference_rows(ev, plane, with_kind: bool) -> str:
     """The previous writer: one f-string per row, indexing the arrays."""
     def num(v, spec):
@@ -94,10 +110,11 @@ def test_event_and_bias_tables_are_those_of_the_per_row_formatter():
         rec.bias(i * 0.5, _bias(f"R{i % 4:02d}", rng))
     ev, plane = rec.events(), SystemPlane(47.0, 8.0)
     events, tracks = _rows(ev, plane)
-    assert events == _reference_rows(ev, plane, True)
-    assert tracks == _reference_rows(ev.take(np.isin(ev.kind.astype(str), ["confirmed", "updated"])), plane, False)
+    assert events.decode() == _reference_rows(ev, plane, True)
+    assert tracks.decode() == _reference_rows(ev.take(np.isin(ev.kind.astype(str), ["confirmed", "updated"])), plane,
+                                              False)
     b = rec.biases()
-    assert _bias_rows(b) == "".join(
+    assert _bias_rows(b).decode() == "".join(
         f"{t:.3f},{r},{v[0]:.3f},{math.degrees(v[1]):.6f},{math.sqrt(P[0, 0]):.3f},{math.degrees(math.sqrt(P[1, 1])):.6f}\n"
         for t, r, v, P in zip(b.time, b.radar, b.value, b.cov))
 
@@ -116,7 +133,7 @@ warm_up(RunConfig(association="manager"), notice=False)
 kernels = (csvtext._write, csvtext._digits)
 before = [len(f.signatures) for f in kernels]
 t = csvtext.Table(3).number(np.array([1.5, -2.0, np.nan]), 2, optional=True).integer(np.arange(3)).text(["a", "é", ""])
-t.rows(); t.rows([2, 0], [2, 0])
+t.rows(); t.rows([2, 0], [2, 0]); t.rows_and_part(np.array([True, False, True]), [2, 0])
 print(json.dumps([before, [len(f.signatures) for f in kernels]]))
 """
 
