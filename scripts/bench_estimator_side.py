@@ -8,7 +8,7 @@ removed, and each run of queued measurements that ``TrackManager._flush_estimato
 then replayed on a new ``coupled-sparse`` estimator and coupling graph in two ways, after a warm-up:
 
 * ``manager_path``: what the TrackManager does per run — ``_update_run`` (the run's arrays stacked,
-  ``Estimator.update_many``, the coupling graph and counts per measurement);
+  ``Estimator.update_many``, ``CouplingGraph.observe_many`` and the counts);
 * ``kernel``: the compiled loop ``update_batch`` alone on the same arrays, stacked beforehand.
 
 Both include the (rare) add/remove of aircraft, so their difference is the per-measurement overhead

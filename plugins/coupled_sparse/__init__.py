@@ -110,6 +110,7 @@ class CoupledSparseEstimator(Estimator):
             raise ValueError("coupled-sparse supports the constant-velocity MotionModel only")
         self._q = float(self.config.motion.q)
         self._rad: dict[str, int] = {}
+        self._radar_codes: dict[str | None, int] = {None: -1}  # radar → its index in the kernels, None → −1
         self._ac: dict[Hashable, int] = {}  # key -> slot
         self._free: list[int] = []
         self._bias_time = float("nan")  # latest update time, as coupled's global bias epoch
@@ -142,11 +143,13 @@ class CoupledSparseEstimator(Estimator):
 
     def state_dict(self) -> dict:
         """The default state without the buffers behind the arrays and the views into them (rebuilt on load)."""
-        return {k: v for k, v in super().state_dict().items() if k not in ("_F", "_I", "_bias_views")}
+        return {k: v for k, v in super().state_dict().items()
+                if k not in ("_F", "_I", "_bias_views", "_radar_codes")}
 
     def load_state_dict(self, state: dict) -> None:
         super().load_state_dict(state)
         self._alloc(self._Yxx.shape[0], self._Ybb.shape[0] // 2)  # the loaded arrays into packed storage
+        self._radar_codes = {**self._rad, None: -1}
 
     def __setstate__(self, state: dict) -> None:
         """copy.deepcopy: the copied arrays no longer share one buffer; pack them again."""
@@ -165,6 +168,7 @@ class CoupledSparseEstimator(Estimator):
         self._S[b, b] = Y0
         self._Pb[b, b] = P0
         self._rad[radar] = j
+        self._radar_codes[radar] = j
 
     def add_aircraft(self, key: Hashable, time: float, state: np.ndarray, cov: np.ndarray) -> None:
         if key in self._ac:
@@ -234,10 +238,10 @@ class CoupledSparseEstimator(Estimator):
     def update_many(self, time: Sequence[float], aircraft: Sequence[Hashable], radar: Sequence[str | None],
                     z: np.ndarray, C: np.ndarray, R: np.ndarray) -> Innovation:
         """All updates in one compiled loop (see :meth:`Estimator.update_many`)."""
-        n, ac, rad = len(aircraft), self._ac, self._rad
+        n = len(aircraft)
         try:
-            slots = np.fromiter(map(ac.__getitem__, aircraft), np.int64, n)
-            radars = np.array([-1 if r is None else rad[r] for r in radar], np.int64)
+            slots = np.fromiter(map(self._ac.__getitem__, aircraft), np.int64, n)
+            radars = np.fromiter(map(self._radar_codes.__getitem__, radar), np.int64, len(radar))
         except KeyError:  # the KeyError naming which
             slots = np.fromiter((self._slot(a) for a in aircraft), np.int64, n)
             radars = np.fromiter((-1 if r is None else self._radar_index(r) for r in radar), np.int64, len(radar))

@@ -20,7 +20,7 @@ fixed only by geometry, weakly (DESIGN §5).
 
 from __future__ import annotations
 
-from collections.abc import Hashable
+from collections.abc import Hashable, Sequence
 from itertools import combinations
 from pathlib import Path
 
@@ -69,6 +69,21 @@ class CouplingGraph:
         t = float(time)
         if t > edge["last_time"]:
             edge["last_time"] = t
+
+    def observe_many(self, aircraft: Sequence[Hashable], radar: Sequence[str | None], time: Sequence[float]) -> None:
+        """:meth:`observe` of each measurement (``aircraft[i]``, ``radar[i]``, ``time[i]``) in turn: the same
+        graph, one Python loop without a method call per measurement."""
+        edges = self._edges
+        for a, r, t in zip(aircraft, radar, time):
+            try:
+                edge, source = edges[f"aircraft:{a}"][r]  # _aircraft_node(a), inlined
+            except KeyError:
+                edge, source = self._pair(a, r, t)
+            source["measurements"] += 1
+            edge["count"] += 1
+            t = float(t)
+            if t > edge["last_time"]:
+                edge["last_time"] = t
 
     def _pair(self, aircraft: Hashable, radar: str | None, time: float) -> tuple[dict, dict]:
         """The attribute dicts of the edge (aircraft, radar), made with count 0 if new, and of the radar's node."""

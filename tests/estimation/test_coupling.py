@@ -7,6 +7,7 @@ from itertools import combinations
 
 import networkx as nx
 import numpy as np
+import pytest
 
 from radartracker.estimation.coupling import ADSB, CouplingGraph
 from radartracker.simulation.linsim import make_linear_scenario
@@ -124,11 +125,21 @@ def _reference_observe(g: nx.Graph, aircraft, radar, time) -> None:
         g.add_edge(a, r, kind="observation", count=1, last_time=float(time))
 
 
-def test_cached_observations_give_the_graph_built_straight_on_networkx(tmp_path):
+@pytest.mark.parametrize("batched", [False, True])
+def test_cached_observations_give_the_graph_built_straight_on_networkx(tmp_path, batched):
     """Oracle: the same random observations, removals (also of keys observed again later, and of keys
     written alike, 7 and "7"), new radars and a snapshot round trip, applied to a plain networkx graph:
-    equal state dicts (node and neighbour order included) and byte-identical GraphML."""
-    rng = np.random.default_rng(11)
+    equal state dicts (node and neighbour order included) and byte-identical GraphML. ``batched``: the
+    observations between two removals or snapshots go to observe_many in runs of 1 to 12 (with new pairs,
+    pairs seen twice in a run, times out of order)."""
+    rng, sizes = np.random.default_rng(11), np.random.default_rng(12)
+    pending: list[tuple] = []  # batched: observations not yet given to g
+
+    def observe_pending() -> None:
+        while pending:
+            n = int(sizes.integers(1, 13))
+            g.observe_many(*zip(*pending[:n]))
+            del pending[:n]
     g = CouplingGraph(["R1", "R2", "R3"])
     ref = nx.Graph()
     ref.add_node(ADSB, kind="reference", label=ADSB, measurements=0)
@@ -139,6 +150,7 @@ def test_cached_observations_give_the_graph_built_straight_on_networkx(tmp_path)
         u = rng.random()
         key = keys[rng.integers(len(keys))]
         if u < 0.05 and f"aircraft:{key}" in ref:
+            observe_pending()
             g.remove_aircraft(key)
             edges = ref.edges(f"aircraft:{key}", data=True)
             last = {src: d["last_time"] for _, src, d in edges}
@@ -151,14 +163,19 @@ def test_cached_observations_give_the_graph_built_straight_on_networkx(tmp_path)
                     ref.add_edge(p, q, kind="marginalised", count=1, last_time=t)
             ref.remove_node(f"aircraft:{key}")
         elif u < 0.08:  # into a new graph, or into the same one (its caches must go)
+            observe_pending()
             g2 = CouplingGraph() if u < 0.065 else g
             g2.load_state_dict(g.state_dict())
             g = g2
         else:
             radar = [None, "R1", "R2", "R3", "R4"][rng.integers(5)]
             t = float(rng.uniform(0, 100))
-            g.observe(key, radar, t)
+            if batched:
+                pending.append((key, radar, t))
+            else:
+                g.observe(key, radar, t)
             _reference_observe(ref, key, radar, t)
+    observe_pending()
     mine = g.state_dict()
     assert mine == {"nodes": [(n, dict(d)) for n, d in ref.nodes(data=True)],
                     "adj": [(u, [(v, dict(d)) for v, d in nbrs.items()]) for u, nbrs in ref.adj.items()]}

@@ -436,9 +436,10 @@ def test_manager_path_update_arrays_and_bias_arrays_equal_update_and_bias():
     twin = copy.deepcopy(fast)
     restored = make_estimator("coupled-sparse", cfg, sc.radar_ids, {"refresh_every": "5"})
     restored.load_state_dict(fast.state_dict())
-    assert "_bias_views" not in fast.state_dict()
-    for e in (ref, twin, restored):
-        e.update(m)
+    assert "_bias_views" not in fast.state_dict() and "_radar_codes" not in fast.state_dict()
+    ref.update(m)
+    for e in (twin, restored):  # update_many finds the radar's index in the copy and in the restored one
+        e.update_many([m.time], [m.aircraft], [m.radar], m.z[None], m.C[None], m.R[None])
     for e in (twin, restored):
         same_biases(ref, e)
         assert not np.shares_memory(e.bias_arrays(sc.radar_ids[0])[0], fast.bias_arrays(sc.radar_ids[0])[0])

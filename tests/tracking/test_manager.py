@@ -186,6 +186,22 @@ def test_garbage_never_corrupts_state(tracking_data, junk):
         not isinstance(i, (Plot, AdsbReport)) for i in stream)
 
 
+def test_queued_measurements_are_stacked_as_np_array_stacks_them():
+    """Oracle: np.array over the same arrays. The manager's z, C, R are rows of its frame arrays (views) or
+    arrays of their own; one that is not contiguous takes np.array's path. The stack is a new, writable array."""
+    from radartracker.tracking.manager import _stacked
+
+    rng = np.random.default_rng(5)
+    frame = rng.normal(size=(6, 2, 2))
+    rows = (frame[1], frame[4], rng.normal(size=(2, 2)), frame[0])
+    for arrays in (rows, rows[:1], (*rows, frame[2].T)):  # frame[2].T: not contiguous
+        got = _stacked(arrays, (len(arrays), 2, 2))
+        np.testing.assert_array_equal(got, np.array(arrays))
+        assert got.flags.writeable and not np.shares_memory(got, frame)
+    z = tuple(frame[:, 0])
+    np.testing.assert_array_equal(_stacked(z, (6, 2)), frame[:, 0])
+
+
 def test_a_frames_estimator_work_comes_at_its_end_and_a_refused_measurement_costs_only_itself(tracking_data):
     """The bias estimate the manager reads is constant within a frame (the frame's measurements reach the
     estimator at its end, through update_many); a measurement the estimator refuses as
