@@ -256,7 +256,7 @@ class CoupledSparseEstimator(Estimator):
         # plots before i are applied; plot i was predicted (Λ) or fully applied (S) — as coupled does
         done = i + (code in (K.ERR_LAMBDA, K.ERR_S, K.ERR_REBUILD))
         if done:
-            t = float(times[:done].max())
+            t = max(times[:done].tolist())  # finite: the kernel stops at a non-finite time
             if not t <= self._bias_time:  # NaN at first, like np.fmax
                 self._bias_time = t
         if code != K.OK:
