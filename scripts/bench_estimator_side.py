@@ -9,12 +9,15 @@ then replayed on a new ``coupled-sparse`` estimator and coupling graph in two wa
 
 * ``manager_path``: what the TrackManager does per run — ``_update_run`` (the run's arrays stacked,
   ``Estimator.update_many``, ``CouplingGraph.observe_many`` and the counts);
-* ``kernel``: the compiled loop ``update_batch`` alone on the same arrays, stacked beforehand.
+* ``kernel``: the compiled loop ``update_batch`` alone on the same arrays, stacked beforehand;
+* ``parts``: the manager path's steps timed one by one (on a third estimator and graph): ``stack`` (the
+  run's columns and its z, C, R arrays, as ``_update_run`` builds them), ``update_many`` (the estimator's
+  call, kernel included) and ``coupling`` (``CouplingGraph.observe_many`` and the counts).
 
-Both include the (rare) add/remove of aircraft, so their difference is the per-measurement overhead
-around the kernel; they run in turns of 64 runs, so a changing load on a shared machine hits both alike.
-One JSON line per repeat: CPU µs per measurement (``time.process_time``), and whether
-both replays end in the same estimator state (bit for bit).
+All include the (rare) add/remove of aircraft, so the difference of the first two is the per-measurement
+overhead around the kernel; they run in turns of 64 runs, so a changing load on a shared machine hits them
+alike. One JSON line per repeat: CPU µs per measurement (``time.process_time``), and whether the three
+replays end in the same estimator state (bit for bit).
 """
 
 from __future__ import annotations
@@ -86,19 +89,48 @@ def stacked(calls: list, est) -> list:
     return out
 
 
-def replay(radars: list, calls: list, mgr, args: list, chunk: int = 64) -> tuple[float, float, int, bool]:
-    """CPU seconds of replaying ``calls`` by the compiled loop alone and by the manager's path, each on a new
-    estimator and coupling graph, the two in turns of ``chunk`` runs (so a changing machine load hits both
-    alike); the number of measurements, and whether both end in the same estimator state."""
+def replay(radars: list, calls: list, mgr, args: list, chunk: int = 64) -> tuple[float, float, dict, int, bool]:
+    """CPU seconds of replaying ``calls`` by the compiled loop alone, by the manager's path and by its parts,
+    each on a new estimator and coupling graph, the three in turns of ``chunk`` runs (so a changing machine
+    load hits them alike); the number of measurements, and whether all end in the same estimator state."""
+    from collections import Counter
+
     from radartracker.estimation.coupling import CouplingGraph
     from radartracker.registry import make_estimator
+    from radartracker.tracking.manager import _USED, _stacked
     from radartracker_plugins.coupled_sparse import _kernels as K
 
-    ek, em = (make_estimator("coupled-sparse", mgr.estimator.config, radars) for _ in range(2))
+    ek, em, ep = (make_estimator("coupled-sparse", mgr.estimator.config, radars) for _ in range(3))
     mgr.estimator, mgr.coupling = em, CouplingGraph(radars)
-    ck, cm, update_run = CouplingGraph(radars), mgr.coupling, mgr._update_run
+    ck, cm, cp, update_run = CouplingGraph(radars), mgr.coupling, CouplingGraph(radars), mgr._update_run
     cpu = [0.0, 0.0]
+    parts = dict.fromkeys(("stack", "update_many", "coupling"), 0.0)
+    counts: Counter = Counter()
     runs = iter(args)
+
+    def run_parts(part: list) -> None:
+        clock = time.process_time
+        for name, a in part:
+            if name == "run":  # the steps of TrackManager._update_run (none is refused here)
+                t0 = clock()
+                _, t, key, radar, z, C, R, kind = zip(*a)
+                n = len(a)
+                Z, Cs, Rs = _stacked(z, (n, 2)), _stacked(C, (n, 2, 2)), _stacked(R, (n, 2, 2))
+                t1 = clock()
+                ep.update_many(t, key, radar, Z, Cs, Rs)
+                t2 = clock()
+                cp.observe_many(key, radar, t)
+                counts.update(map(_USED.__getitem__, kind))
+                t3 = clock()
+                parts["stack"] += t1 - t0
+                parts["update_many"] += t2 - t1
+                parts["coupling"] += t3 - t2
+            elif name == "add_aircraft":
+                ep.add_aircraft(*a)
+                cp.add_aircraft(a[0])
+            else:
+                ep.remove_aircraft(*a)
+                cp.remove_aircraft(a[0])
 
     def run(part: list, kernel: bool) -> None:
         est, coupling = (ek, ck) if kernel else (em, cm)
@@ -120,8 +152,9 @@ def replay(radars: list, calls: list, mgr, args: list, chunk: int = 64) -> tuple
     for i in range(0, len(calls), chunk):
         run(calls[i:i + chunk], True)
         run(calls[i:i + chunk], False)
+        run_parts(calls[i:i + chunk])
     n = sum(len(c[1]) for c in calls if c[0] == "run")
-    return cpu[0], cpu[1], n, bool(np.array_equal(ek._F, em._F))
+    return cpu[0], cpu[1], parts, n, bool(np.array_equal(ek._F, em._F) and np.array_equal(ek._F, ep._F))
 
 
 def main() -> None:
@@ -135,12 +168,13 @@ def main() -> None:
     kernel_args = stacked(calls, make_estimator("coupled-sparse", mgr.estimator.config, radars))
     replay(radars, calls, mgr, kernel_args)  # warm-up
     for _ in range(args.repeat):
-        tk, tm, n, same = replay(radars, calls, mgr, kernel_args)
+        tk, tm, parts, n, same = replay(radars, calls, mgr, kernel_args)
         print(json.dumps({"bench": "estimator_side", "folder": args.folder, "measurements": n,
                           "aircraft_added": sum(c[0] == "add_aircraft" for c in calls),
                           "runs": sum(c[0] == "run" for c in calls),
                           "us_kernel": round(tk / n * 1e6, 2), "us_manager_path": round(tm / n * 1e6, 2),
-                          "us_overhead": round((tm - tk) / n * 1e6, 2), "same_bits": same,
+                          "us_overhead": round((tm - tk) / n * 1e6, 2),
+                          **{f"us_{k}": round(v / n * 1e6, 2) for k, v in parts.items()}, "same_bits": same,
                           "load1": os.getloadavg()[0]}), flush=True)
 
 
