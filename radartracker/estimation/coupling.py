@@ -25,8 +25,14 @@ from itertools import combinations
 from pathlib import Path
 
 import networkx as nx
+import numpy as np
 
 ADSB = "adsb"
+_NODE = "aircraft:{}".format  # _aircraft_node as a callable for map()
+# two int or str keys are equal as dict keys only if their nodes are (unlike 1, 1.0 and True, one each):
+# observe_many finds the rows of such keys by key, without naming their nodes
+_PLAIN_KEYS = frozenset((int, str))
+_BATCH = 16  # observe_many: from this many measurements on, counted in arrays and written to the graph later
 
 
 def _aircraft_node(key: Hashable) -> str:
@@ -41,29 +47,55 @@ class CouplingGraph:
     """Radar–aircraft coupling graph, kept current as tracks are created and deleted.
 
     ``graph`` is read freely but changed only through these methods: :meth:`observe` keeps the attribute
-    dicts of the pairs it has seen (O(1) dict updates per measurement, no node names or graph lookups)."""
+    dicts of the pairs it has seen (O(1) dict updates per measurement, no node names or graph lookups);
+    :meth:`observe_many` counts a large batch in arrays by (aircraft row, source column) and writes the
+    counts and latest times into those dicts when the graph is read (``graph``) or the aircraft removed."""
 
     def __init__(self, radars: list[str] | tuple[str, ...] = ()) -> None:
-        self.graph = nx.Graph()
+        self._graph = nx.Graph()
         # by aircraft node, then radar: the graph's own attribute dicts of that edge and of the radar's node,
         # so observe() of a known pair updates them without graph lookups
         self._edges: dict[str, dict[str | None, tuple[dict, dict]]] = {}
-        self.graph.add_node(ADSB, kind="reference", label=ADSB, measurements=0)
+        self._graph.add_node(ADSB, kind="reference", label=ADSB, measurements=0)
+        self._clear_pending()
         for r in radars:
             self.add_radar(r)
 
+    @property
+    def graph(self) -> nx.Graph:
+        """The networkx graph, with every observation counted so far (read it; change it through the methods)."""
+        if self._dirty:
+            self._write_pending()
+        return self._graph
+
+    def _clear_pending(self) -> None:
+        """Empty tables of observe_many: rows by aircraft node, columns by radar (None: the reference)."""
+        self._row: dict[str, int] = {}
+        self._key_row: dict[int | str, int] = {}  # the rows of plain keys (_PLAIN_KEYS) seen, by key
+        self._keys: dict[int, list] = {}  # by row: its plain keys (7 and "7" share a node, so a row)
+        self._free_rows: list[int] = []
+        self._col: dict[str | None, int] = {}
+        self._source: list[dict | None] = []  # by column: the source node's attribute dict, once observed
+        self._pair: dict[tuple[int, int], dict] = {}  # (row, column) → the edge's attribute dict
+        self._known = np.zeros((0, 0), bool)  # (row, column): the edge exists and is in _pair
+        self._count = np.zeros((0, 0), np.int64)  # observations not yet written into the edge dicts
+        self._latest = np.zeros((0, 0))  # their latest time (−inf: none)
+        self._source_count = np.zeros(0, np.int64)  # by column: not yet written into the node dicts
+        self._dirty = False
+
     def add_radar(self, radar: str) -> None:
-        self.graph.add_node(_radar_node(radar), kind="radar", label=str(radar), measurements=0)
+        self._graph.add_node(_radar_node(radar), kind="radar", label=str(radar), measurements=0)
 
     def add_aircraft(self, key: Hashable) -> None:
-        self.graph.add_node(_aircraft_node(key), kind="aircraft", label=str(key))
+        self._graph.add_node(_aircraft_node(key), kind="aircraft", label=str(key))
+        self._row_of(key)
 
     def observe(self, aircraft: Hashable, radar: str | None, time: float) -> None:
         """Record one measurement of ``aircraft`` by ``radar`` (``None``: ADS-B) at ``time``."""
         try:
             edge, source = self._edges[_aircraft_node(aircraft)][radar]
         except KeyError:  # a new pair: through the graph, then cached
-            edge, source = self._pair(aircraft, radar, time)
+            edge, source = self._edge(aircraft, radar, time)
         source["measurements"] += 1
         edge["count"] += 1
         t = float(time)
@@ -71,47 +103,131 @@ class CouplingGraph:
             edge["last_time"] = t
 
     def observe_many(self, aircraft: Sequence[Hashable], radar: Sequence[str | None], time: Sequence[float]) -> None:
-        """:meth:`observe` of each measurement (``aircraft[i]``, ``radar[i]``, ``time[i]``) in turn: the same
-        graph, one Python loop without a method call per measurement."""
-        edges = self._edges
-        for a, r, t in zip(aircraft, radar, time):
-            try:
-                edge, source = edges[f"aircraft:{a}"][r]  # _aircraft_node(a), inlined
-            except KeyError:
-                edge, source = self._pair(a, r, t)
-            source["measurements"] += 1
-            edge["count"] += 1
-            t = float(t)
+        """:meth:`observe` of each measurement (``aircraft[i]``, ``radar[i]``, ``time[i]``) in turn, with the
+        same graph. A batch of ``_BATCH`` or more is counted in arrays (new pairs still join the graph in
+        order); a smaller one in observe's loop, without a method call per measurement."""
+        n = len(aircraft)
+        if n < _BATCH:
+            edges = self._edges
+            for a, r, t in zip(aircraft, radar, time):
+                try:
+                    edge, source = edges[f"aircraft:{a}"][r]  # _aircraft_node(a), inlined
+                except KeyError:
+                    edge, source = self._edge(a, r, t)
+                source["measurements"] += 1
+                edge["count"] += 1
+                t = float(t)
+                if t > edge["last_time"]:
+                    edge["last_time"] = t
+            return
+        try:  # by key where every key is plain, else by node name
+            rows = (np.fromiter(map(self._key_row.__getitem__, aircraft), np.intp, n)
+                    if set(map(type, aircraft)) <= _PLAIN_KEYS else
+                    np.fromiter(map(self._row.__getitem__, map(_NODE, aircraft)), np.intp, n))
+        except KeyError:  # an aircraft first seen here
+            rows = np.fromiter(map(self._row_of, aircraft), np.intp, n)
+        try:
+            cols = np.fromiter(map(self._col.__getitem__, radar), np.intp, n)
+        except KeyError:  # a source first seen here
+            cols = np.fromiter(map(self._col_of, radar), np.intp, n)
+        new = np.flatnonzero(~self._known[rows, cols])
+        for i, r, c in zip(new.tolist(), rows[new].tolist(), cols[new].tolist()):  # new pairs, in order
+            if not self._known[r, c]:  # (not made earlier in this batch)
+                self._pair[r, c], self._source[c] = self._edge(aircraft[i], radar[i], time[i])
+                self._known[r, c] = True
+        flat = rows * self._count.shape[1] + cols
+        np.add.at(self._count.reshape(-1), flat, 1)
+        np.fmax.at(self._latest.reshape(-1), flat, np.asarray(time, float))  # fmax: a NaN time is never latest
+        np.add.at(self._source_count, cols, 1)
+        self._dirty = True
+
+    def _row_of(self, key: Hashable) -> int:
+        """The table row of aircraft ``key``'s node, given it if new (the tables grow by doubling)."""
+        node = _NODE(key)
+        row = self._row.get(node)
+        if row is None:
+            row = self._row[node] = self._free_rows.pop() if self._free_rows else len(self._row)
+            if row >= self._known.shape[0]:
+                self._grow(max(16, 2 * row), self._known.shape[1])
+        if type(key) in _PLAIN_KEYS and key not in self._key_row:
+            self._key_row[key] = row
+            self._keys.setdefault(row, []).append(key)
+        return row
+
+    def _col_of(self, radar: str | None) -> int:
+        """The table column of source ``radar``, given it if new."""
+        col = self._col.get(radar)
+        if col is None:
+            col = self._col[radar] = len(self._col)
+            self._source.append(None)
+            self._source_count = np.append(self._source_count, 0)
+            if col >= self._known.shape[1]:
+                self._grow(self._known.shape[0], max(8, 2 * col))
+        return col
+
+    def _grow(self, rows: int, cols: int) -> None:
+        for name, fill in (("_known", False), ("_count", 0), ("_latest", -np.inf)):
+            old = getattr(self, name)
+            new = np.full((rows, cols), fill, old.dtype)
+            new[:old.shape[0], :old.shape[1]] = old
+            setattr(self, name, new)
+
+    def _write_row(self, row: int) -> None:
+        """Aircraft ``row``'s pending observations into its edge dicts."""
+        for col in np.flatnonzero(self._count[row]).tolist():
+            edge = self._pair[row, col]
+            edge["count"] += int(self._count[row, col])
+            t = float(self._latest[row, col])
             if t > edge["last_time"]:
                 edge["last_time"] = t
+            self._count[row, col], self._latest[row, col] = 0, -np.inf
 
-    def _pair(self, aircraft: Hashable, radar: str | None, time: float) -> tuple[dict, dict]:
+    def _write_pending(self) -> None:
+        """Every pending observation into the graph's dicts."""
+        for row in np.flatnonzero(self._count.any(axis=1)).tolist():
+            self._write_row(row)
+        for col in np.flatnonzero(self._source_count).tolist():
+            self._source[col]["measurements"] += int(self._source_count[col])
+        self._source_count[:] = 0
+        self._dirty = False
+
+    def _edge(self, aircraft: Hashable, radar: str | None, time: float) -> tuple[dict, dict]:
         """The attribute dicts of the edge (aircraft, radar), made with count 0 if new, and of the radar's node."""
-        a, r = _aircraft_node(aircraft), _radar_node(radar)
-        if a not in self.graph:
+        g, a, r = self._graph, _aircraft_node(aircraft), _radar_node(radar)
+        if a not in g:
             self.add_aircraft(aircraft)
-        if r not in self.graph:
+        if r not in g:
             self.add_radar(radar)
-        if not self.graph.has_edge(a, r):
-            self.graph.add_edge(a, r, kind="observation", count=0, last_time=float(time))
-        pair = self._edges.setdefault(a, {})[radar] = (self.graph.edges[a, r], self.graph.nodes[r])
+        if not g.has_edge(a, r):
+            g.add_edge(a, r, kind="observation", count=0, last_time=float(time))
+        pair = self._edges.setdefault(a, {})[radar] = (g.edges[a, r], g.nodes[r])
         return pair
 
     def remove_aircraft(self, key: Hashable) -> None:
         """Marginalise aircraft ``key``: join the sources it linked, then drop its node."""
         a = _aircraft_node(key)
         self._edges.pop(a, None)
-        edges = self.graph.edges(a, data=True)
+        row = self._row.pop(a, None)
+        if row is not None:  # its pending observations first; then its row is free
+            self._write_row(row)
+            for k in self._keys.pop(row, ()):
+                del self._key_row[k]
+            for col in np.flatnonzero(self._known[row]).tolist():
+                del self._pair[row, col]
+            self._known[row] = False
+            self._free_rows.append(row)
+        g = self._graph
+        edges = g.edges(a, data=True)
         last = {src: d["last_time"] for _, src, d in edges}
         for u, v in combinations(sorted(last), 2):
             t = max(last[u], last[v])
-            data = self.graph.get_edge_data(u, v)
+            data = g.get_edge_data(u, v)
             if data is None:
-                self.graph.add_edge(u, v, kind="marginalised", count=1, last_time=t)
+                g.add_edge(u, v, kind="marginalised", count=1, last_time=t)
             else:
                 data["count"] += 1
                 data["last_time"] = max(data["last_time"], t)
-        self.graph.remove_node(a)
+        g.remove_node(a)
 
     # --- snapshots ---------------------------------------------------------------------------------
     def state_dict(self) -> dict:
@@ -129,8 +245,9 @@ class CouplingGraph:
             for v, d in nbrs:
                 # one attribute dict shared by both directions, as networkx keeps it
                 g._adj[u][v] = edges.setdefault(frozenset((u, v)), dict(d))
-        self.graph = g
+        self._graph = g
         self._edges = {}
+        self._clear_pending()
 
     # --- diagnostics -------------------------------------------------------------------------------
     def components(self) -> list[set[str]]:

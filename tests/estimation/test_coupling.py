@@ -126,18 +126,21 @@ def _reference_observe(g: nx.Graph, aircraft, radar, time) -> None:
 
 
 @pytest.mark.parametrize("batched", [False, True])
-def test_cached_observations_give_the_graph_built_straight_on_networkx(tmp_path, batched):
-    """Oracle: the same random observations, removals (also of keys observed again later, and of keys
-    written alike, 7 and "7"), new radars and a snapshot round trip, applied to a plain networkx graph:
+@pytest.mark.parametrize("keys", [(7, "7", 8, "x", 9), (1, 1.0, True, "1", 2)])
+def test_cached_observations_give_the_graph_built_straight_on_networkx(tmp_path, batched, keys):
+    """Oracle: the same random observations, removals (also of keys observed again later, of keys written
+    alike, 7 and "7", and of keys equal but written differently, 1, 1.0 and True), new radars and a snapshot
+    round trip, applied to a plain networkx graph:
     equal state dicts (node and neighbour order included) and byte-identical GraphML. ``batched``: the
-    observations between two removals or snapshots go to observe_many in runs of 1 to 12 (with new pairs,
-    pairs seen twice in a run, times out of order)."""
+    observations between two removals or snapshots go to observe_many in runs of 1 to 40 (its loop below
+    16, its arrays above; with new pairs, pairs seen twice in a run, times out of order, keys seen again
+    after their removal)."""
     rng, sizes = np.random.default_rng(11), np.random.default_rng(12)
     pending: list[tuple] = []  # batched: observations not yet given to g
 
     def observe_pending() -> None:
         while pending:
-            n = int(sizes.integers(1, 13))
+            n = int(sizes.integers(1, 41))
             g.observe_many(*zip(*pending[:n]))
             del pending[:n]
     g = CouplingGraph(["R1", "R2", "R3"])
@@ -145,9 +148,9 @@ def test_cached_observations_give_the_graph_built_straight_on_networkx(tmp_path,
     ref.add_node(ADSB, kind="reference", label=ADSB, measurements=0)
     for r in ("R1", "R2", "R3"):
         ref.add_node(f"radar:{r}", kind="radar", label=r, measurements=0)
-    keys = [7, "7", 8, "x", 9]
-    for step in range(600):
-        u = rng.random()
+    rare = 0.2 if batched else 1.0  # batched: removals and snapshots 5x rarer, so runs of observations are long
+    for step in range(int(600 / rare)):
+        u = rng.random() / rare
         key = keys[rng.integers(len(keys))]
         if u < 0.05 and f"aircraft:{key}" in ref:
             observe_pending()
@@ -201,3 +204,36 @@ def test_keys_written_alike_share_a_node_and_go_with_it():
         _reference_observe(ref, key, "R1", t)
         assert g.state_dict() == {"nodes": [(n, dict(d)) for n, d in ref.nodes(data=True)],
                                   "adj": [(u, [(v, dict(d)) for v, d in nbrs.items()]) for u, nbrs in ref.adj.items()]}, step
+
+
+def test_observe_many_counts_each_key_on_its_own_node_after_removals():
+    """Oracle: the plain networkx graph. observe_many finds the table rows of int and str keys by key (7 and
+    "7" share one, as they share a node); removing either frees the row for both, so a later aircraft can take
+    it while 7 is counted on a new one; a removal writes the aircraft's counts before its node goes."""
+    g, ref = CouplingGraph(["R1", "R2"]), nx.Graph()
+    ref.add_node(ADSB, kind="reference", label=ADSB, measurements=0)
+    for r in ("R1", "R2"):
+        ref.add_node(f"radar:{r}", kind="radar", label=r, measurements=0)
+    steps = [[(7, "R1", 1.0), ("7", "R2", 2.0), (8, "R1", 3.0)] * 6, "7",
+             [(9, "R1", 4.0), (7, "R2", 5.0), (8, "R2", 6.0)] * 6,
+             [(7, "R1", 8.0), (9, "R1", 9.0), (9, None, 7.0)] * 6, 7, 9,
+             [(7, "R1", 10.0), (8, None, 11.0)] * 8]
+    for step in steps:
+        if isinstance(step, list):
+            assert len(step) >= 16  # observe_many's arrays
+            g.observe_many(*zip(*step))
+            for obs in step:
+                _reference_observe(ref, *obs)
+        else:
+            g.remove_aircraft(step)
+            a = f"aircraft:{step}"
+            last = {src: d["last_time"] for _, src, d in ref.edges(a, data=True)}
+            for p, q in combinations(sorted(last), 2):
+                if ref.has_edge(p, q):
+                    ref.edges[p, q]["count"] += 1
+                    ref.edges[p, q]["last_time"] = max(ref.edges[p, q]["last_time"], last[p], last[q])
+                else:
+                    ref.add_edge(p, q, kind="marginalised", count=1, last_time=max(last[p], last[q]))
+            ref.remove_node(a)
+    assert g.state_dict() == {"nodes": [(n, dict(d)) for n, d in ref.nodes(data=True)],
+                              "adj": [(u, [(v, dict(d)) for v, d in nbrs.items()]) for u, nbrs in ref.adj.items()]}
