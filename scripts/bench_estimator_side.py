@@ -1,6 +1,6 @@
 """CPU cost of the estimator side of each measurement in the TrackManager, against the compiled kernel alone.
 
-    python scripts/bench_estimator_side.py [FOLDER] [--repeat 3]
+    python scripts/bench_estimator_side.py [FOLDER] [--repeat 3] [--parts]
 
 FOLDER is a scenario folder replayed as ``radartracker replay FOLDER --manager`` does (default: simulated
 traffic, 200 aircraft × 28 radars × 3 minutes). The manager's estimator work is recorded (aircraft added and
@@ -10,13 +10,15 @@ then replayed on a new ``coupled-sparse`` estimator and coupling graph in two wa
 * ``manager_path``: what the TrackManager does per run — ``_update_run`` (the run's arrays stacked,
   ``Estimator.update_many``, ``CouplingGraph.observe_many`` and the counts);
 * ``kernel``: the compiled loop ``update_batch`` alone on the same arrays, stacked beforehand;
-* ``parts``: the manager path's steps timed one by one (on a third estimator and graph): ``stack`` (the
-  run's columns and its z, C, R arrays, as ``_update_run`` builds them), ``update_many`` (the estimator's
-  call, kernel included) and ``coupling`` (``CouplingGraph.observe_many`` and the counts).
+* with ``--parts``, also the manager path's steps timed one by one (on a third estimator and graph):
+  ``stack`` (the run's columns and its z, C, R arrays, as ``_update_run`` builds them), ``update_many``
+  (the estimator's call, kernel included) and ``coupling`` (``CouplingGraph.observe_many`` and the counts).
+  A third replay in the turns changes what the caches hold for the other two: compare ``us_overhead`` only
+  between runs with the same setting.
 
 All include the (rare) add/remove of aircraft, so the difference of the first two is the per-measurement
 overhead around the kernel; they run in turns of 64 runs, so a changing load on a shared machine hits them
-alike. One JSON line per repeat: CPU µs per measurement (``time.process_time``), and whether the three
+alike. One JSON line per repeat: CPU µs per measurement (``time.process_time``), and whether the
 replays end in the same estimator state (bit for bit).
 """
 
@@ -89,9 +91,10 @@ def stacked(calls: list, est) -> list:
     return out
 
 
-def replay(radars: list, calls: list, mgr, args: list, chunk: int = 64) -> tuple[float, float, dict, int, bool]:
-    """CPU seconds of replaying ``calls`` by the compiled loop alone, by the manager's path and by its parts,
-    each on a new estimator and coupling graph, the three in turns of ``chunk`` runs (so a changing machine
+def replay(radars: list, calls: list, mgr, args: list, with_parts: bool,
+           chunk: int = 64) -> tuple[float, float, dict, int, bool]:
+    """CPU seconds of replaying ``calls`` by the compiled loop alone, by the manager's path and (``with_parts``)
+    by its parts, each on a new estimator and coupling graph, in turns of ``chunk`` runs (so a changing machine
     load hits them alike); the number of measurements, and whether all end in the same estimator state."""
     from collections import Counter
 
@@ -152,23 +155,26 @@ def replay(radars: list, calls: list, mgr, args: list, chunk: int = 64) -> tuple
     for i in range(0, len(calls), chunk):
         run(calls[i:i + chunk], True)
         run(calls[i:i + chunk], False)
-        run_parts(calls[i:i + chunk])
+        if with_parts:
+            run_parts(calls[i:i + chunk])
     n = sum(len(c[1]) for c in calls if c[0] == "run")
-    return cpu[0], cpu[1], parts, n, bool(np.array_equal(ek._F, em._F) and np.array_equal(ek._F, ep._F))
+    same = np.array_equal(ek._F, em._F) and (not with_parts or np.array_equal(ek._F, ep._F))
+    return cpu[0], cpu[1], parts if with_parts else {}, n, bool(same)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("folder", nargs="?")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--parts", action="store_true", help="also time the manager path's steps one by one")
     args = ap.parse_args()
     from radartracker.registry import make_estimator
 
     radars, calls, mgr = record(args.folder)
     kernel_args = stacked(calls, make_estimator("coupled-sparse", mgr.estimator.config, radars))
-    replay(radars, calls, mgr, kernel_args)  # warm-up
+    replay(radars, calls, mgr, kernel_args, args.parts)  # warm-up
     for _ in range(args.repeat):
-        tk, tm, parts, n, same = replay(radars, calls, mgr, kernel_args)
+        tk, tm, parts, n, same = replay(radars, calls, mgr, kernel_args, args.parts)
         print(json.dumps({"bench": "estimator_side", "folder": args.folder, "measurements": n,
                           "aircraft_added": sum(c[0] == "add_aircraft" for c in calls),
                           "runs": sum(c[0] == "run" for c in calls),
