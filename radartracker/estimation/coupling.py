@@ -166,6 +166,7 @@ class CouplingGraph:
         return col
 
     def _grow(self, rows: int, cols: int) -> None:
+        """The tables to ``rows`` × ``cols``, keeping their contents."""
         for name, fill in (("_known", False), ("_count", 0), ("_latest", -np.inf)):
             old = getattr(self, name)
             new = np.full((rows, cols), fill, old.dtype)
