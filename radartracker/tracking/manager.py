@@ -44,7 +44,6 @@ import itertools
 import logging
 import math
 import operator
-import struct
 from collections import Counter, deque
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -159,17 +158,7 @@ class TrackEvent(NamedTuple):
     __hash__ = tuple.__hash__
 
 
-_KIN_T, _F8 = struct.Struct("d"), np.dtype(float)
-
-
-def _packed(estimate: tuple) -> bytes:
-    """The time and x[:4] of an estimate (t, x, P) as five packed floats (TrackManager._kinematics)."""
-    x = estimate[1]
-    if type(x) is not np.ndarray or x.dtype is not _F8:
-        x = np.asarray(x, float)
-    return _KIN_T.pack(estimate[0]) + x.tobytes()[:32]
-
-
+_F8 = np.dtype(float)
 _make_event = tuple.__new__  # _make_event(TrackEvent, fields): TrackEvent(*fields) without a Python call
 
 
@@ -249,7 +238,6 @@ class TrackManager:
         self._deferred: list[tuple] = []  # the frame's estimator work, applied at its end (_flush_estimator)
         self._biases: dict[str, tuple] = {}  # each radar's (ς̂, P_ς) as read in this frame (_bias)
         self._codes: dict[str, int] = {}  # Mode S address → id of its live track (_track_with_code)
-        self._kin: dict[int, bytes] = {}  # track id → its estimate's time and x[:4], packed (_kinematics)
         self.clock = StreamClock(self.config.clock)
         self.adsb_check = AdsbPlausibility(self.config.screening)
 
@@ -308,6 +296,8 @@ class TrackManager:
         a manager given its plugins as objects is restored with new objects of the same classes."""
         mgr = load_manager(cls, path, on_event, estimator=estimator, filter_factory=filter_factory)
         mgr._codes = {tr.mode_s: tr.id for tr in mgr.tracks.values() if tr.mode_s is not None}
+        for tr in mgr.tracks.values():  # read again from the filters, in the form _estimate_of gives
+            tr.estimate = None
         return mgr
 
     def accounting(self) -> dict[str, int]:
@@ -428,30 +418,30 @@ class TrackManager:
         self._sweep(live, pred, t_b)
         self._flush_estimator()
 
-    def _estimate_of(self, tr: ManagedTrack) -> tuple:
-        """``tr.filter.estimate()``, kept until the filter changes (the manager reads it for gating, screening
-        and events), with its time and x[:4] packed for the frame's arrays (:meth:`_kinematics`)."""
+    @staticmethod
+    def _estimate_of(tr: ManagedTrack) -> tuple:
+        """``tr.filter.estimate()``, kept until the filter changes (the manager reads it once per frame for
+        every live track, and for gating, screening and events), its state a contiguous float64 vector
+        (so that the frame's states are one join of their bytes, :meth:`_predict`)."""
         if tr.estimate is None:
-            e = tr.estimate = tr.filter.estimate()
-            self._kin[tr.id] = _packed(e)
+            e = tr.filter.estimate()
+            x = e[1]
+            if type(x) is not np.ndarray or x.dtype is not _F8 or x.ndim != 1 or not x.flags.c_contiguous:
+                e = (e[0], np.ascontiguousarray(x, float).ravel(), e[2])
+            tr.estimate = e
         return tr.estimate
-
-    def _kinematics(self, tr: ManagedTrack) -> bytes:
-        """The time and x[:4] of ``tr``'s estimate as 5 packed floats, made when the estimate is read
-        (:meth:`_estimate_of`), so the frame's pass over every live track touches no array (_predict)."""
-        k = self._kin.get(tr.id) if tr.estimate is not None else None
-        if k is None:  # an estimate not read yet, or one restored from a snapshot
-            k = self._kin[tr.id] = _packed(self._estimate_of(tr))
-        return k
 
     def _predict(self, live: list[ManagedTrack], t: float) -> dict[str, np.ndarray]:
         """Straight-line extrapolation of every live track to ``t`` (for search, misses, coverage), as
         arrays over the frame's tracks; the filters' own predictions are computed only for gating candidates."""
         n = len(live)
-        kin = self._kin
-        tx = np.frombuffer(b"".join([(tr.estimate is not None and kin.get(tr.id)) or self._kinematics(tr)
-                                     for tr in live]), float).reshape(n, 5)
-        t0, x = tx[:, 0], tx[:, 1:]
+        est = [tr.estimate or self._estimate_of(tr) for tr in live]
+        t0 = np.fromiter([e[0] for e in est], float, n)
+        xs = [e[1] for e in est]
+        if len(set(map(len, xs))) == 1:  # one motion model: the states' bytes joined (each a float64 vector)
+            x = np.frombuffer(b"".join(xs), float).reshape(n, -1)[:, :4]
+        else:
+            x = np.array([v[:4] for v in xs], float).reshape(n, 4)
         pos = x[:, :2] + x[:, 2:] * np.maximum(t - t0, 0.0)[:, None]
         # identities are fixed while a frame is associated: index them once per frame, not per radar
         mode_s = [tr.mode_s for tr in live]
@@ -460,14 +450,15 @@ class TrackManager:
         return {"pos": pos, "t": t, "exact": {}, "index": index, "codes": codes,
                 "mode_s": np.array([m is not None for m in mode_s], bool).reshape(n)}
 
-    def _exact(self, live: list[ManagedTrack], pred: dict, idx: np.ndarray) -> tuple[np.ndarray, ...]:
+    @staticmethod
+    def _exact(live: list[ManagedTrack], pred: dict, idx: np.ndarray) -> tuple[np.ndarray, ...]:
         """The filters' predictions (position, velocity, position covariance) of tracks ``idx``."""
         cache, t = pred["exact"], pred["t"]
         for i in np.unique(idx):
             if i not in cache:
                 tr = live[i]
                 try:
-                    x, P = tr.filter.predict(max(t, self._estimate_of(tr)[0]))
+                    x, P = tr.filter.predict(max(t, TrackManager._estimate_of(tr)[0]))
                     cache[i] = (x[:2], x[2:], P[:2, :2])
                 except ValueError:  # the filter refuses this step: the track cannot be gated
                     cache[i] = (np.full(2, np.nan), np.zeros(2), np.eye(2))
@@ -843,7 +834,6 @@ class TrackManager:
 
     def _delete(self, tr: ManagedTrack, now: float) -> None:
         del self.tracks[tr.id]
-        self._kin.pop(tr.id, None)
         if tr.mode_s is not None and self._codes.get(tr.mode_s) == tr.id:
             del self._codes[tr.mode_s]
         if tr.status == "tentative":
