@@ -9,6 +9,8 @@ ones ('nan', 'inf', '-inf', or an empty field for an optional column) are format
 and copied as text. The compiled loop writes, row after row, the sign, the digits of n with the
 decimal point d places from the right, the texts and the separators; a second table made of some of the
 rows and columns (``tracks.csv`` of ``events.csv``) is copied from those rows' fields in the same pass.
+The number columns are written into one array as they are added, and only columns with texts have text
+positions: a table of 8 192 rows allocates a few MB, and fresh memory costs a page fault per 4 kB.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ _POW10 = 10 ** np.arange(19, dtype=np.int64)  # the exact powers of ten up to 10
 _EXACT = 2.0**50  # beyond this |x·10^d| the rounding is left to Python
 _TIE = 2.0**-51  # |p|·_TIE bounds twice an ulp of p: nearer a half-integer, the rounding is left to Python
 _DIGITS, _BLANK, _TEXT = 0, 1, 2  # how a number is written
+_COLUMNS = 16  # number columns a table makes room for at first (rows of an array never written cost nothing)
 
 
 class Table:
@@ -31,32 +34,38 @@ class Table:
     def __init__(self, n: int) -> None:
         self.n = n
         self._kind: list[int] = []  # 0 number, 1 text, per output column
-        self._num: list[np.ndarray] = []
-        self._neg: list[np.ndarray] = []
-        self._flag: list[np.ndarray] = []
+        # by number column (rows of arrays, filled as added): digits, sign, how written (_DIGITS, ...), decimals
+        self._num = np.empty((_COLUMNS, n), np.int64)
+        self._neg = np.empty((_COLUMNS, n), np.bool_)
+        self._flag = np.empty((_COLUMNS, n), np.int8)
         self._dec: list[int] = []
         self._texts: list[list[str] | None] = []  # each text column; each number column's texts (by row) or None
         self._codes: dict[int, np.ndarray] = {}  # a labels column's row → its distinct text (by column number)
         self._packed: tuple | None = None  # the texts in one buffer (_pack), made by the first rows()
 
+    def _next(self) -> int:
+        """The row of the next number column in the number arrays (grown when full)."""
+        k = len(self._dec)
+        if k == len(self._num):
+            self._num, self._neg, self._flag = (np.concatenate([a, np.empty_like(a)]) for a in
+                                                (self._num, self._neg, self._flag))
+        return k
+
     def number(self, x, decimals: int, *, optional: bool = False) -> Table:
         """A column of numbers written as ``'%.<decimals>f' % x``; ``optional``: empty where not finite."""
         x = np.ascontiguousarray(x, float).reshape(self.n)
-        n, neg, slow = np.empty(self.n, np.int64), np.empty(self.n, np.bool_), np.empty(self.n, np.bool_)
-        _digits(x, float(_POW10[decimals]), n, neg, slow)
-        flag = np.full(self.n, _DIGITS, np.int8)
-        texts = [""] * self.n if slow.any() else None
-        for i in np.flatnonzero(slow).tolist():
+        k = self._next()
+        flag = self._flag[k]
+        _digits(x, float(_POW10[decimals]), self._num[k], self._neg[k], flag)
+        slow = np.flatnonzero(flag).tolist()
+        texts = [""] * self.n if slow else None
+        for i in slow:
             v = float(x[i])
             if optional and not math.isfinite(v):
                 flag[i] = _BLANK
             else:
-                flag[i] = _TEXT
                 texts[i] = "%.*f" % (decimals, v)
         self._kind.append(0)
-        self._num.append(n)
-        self._neg.append(neg)
-        self._flag.append(flag)
         self._dec.append(decimals)
         self._texts.append(texts)
         return self
@@ -64,10 +73,11 @@ class Table:
     def integer(self, x) -> Table:
         """A column of integers (``'%d'``), written exactly."""
         x = np.asarray(x, np.int64)
+        k = self._next()
+        np.abs(x, out=self._num[k])
+        np.less(x, 0, out=self._neg[k])
+        self._flag[k] = _DIGITS
         self._kind.append(0)
-        self._num.append(np.abs(x))
-        self._neg.append(x < 0)
-        self._flag.append(np.full(self.n, _DIGITS, np.int8))
         self._dec.append(0)
         self._texts.append(None)
         return self
@@ -86,24 +96,26 @@ class Table:
         return self.text([text(v) for v in index])
 
     def _arrays(self) -> tuple:
-        """What the compiled loop reads: each column's kind, its row in the number arrays, the number
-        arrays (digits, sign, how written, decimals) and the texts (start, end, UTF-8 buffer)."""
+        """What the compiled loop reads: each column's kind, its row in the number arrays and in the text
+        positions, the number arrays (digits, sign, how written, decimals) and the texts (start, end,
+        UTF-8 buffer)."""
         kinds = np.array(self._kind, np.int64)
         index = np.cumsum(kinds == 0) - 1  # a number column's row in num, neg, flag and dec
+        has_text = np.array([t is not None for t in self._texts], np.bool_)
+        text_row = np.cumsum(has_text) - 1  # a column's row in start and end (if it has texts)
         if self._packed is None:
-            self._packed = _pack(self._texts, self.n, self._codes)
-        n_num = len(self._num)
-        num = np.array(self._num, np.int64).reshape(n_num, self.n)
-        neg = np.array(self._neg, np.bool_).reshape(n_num, self.n)
-        flag = np.array(self._flag, np.int8).reshape(n_num, self.n)
-        return (kinds, index, num, neg, flag, np.array(self._dec, np.int64), _POW10, *self._packed)
+            self._packed = _pack([t for t in self._texts if t is not None], self.n,
+                                 {int(text_row[c]): rows for c, rows in self._codes.items()})
+        k = len(self._dec)
+        return (kinds, index, text_row, self._num[:k], self._neg[:k], self._flag[:k], np.array(self._dec, np.int64),
+                _POW10, *self._packed)
 
     def _size(self, select: np.ndarray | slice, columns: int) -> int:
         """Bytes enough for the rows ``select`` of ``columns`` columns (after :meth:`_arrays`): a number's at
         most 24 (sign, 19 digits, point), the rows' texts, and the separators."""
         start, end, _ = self._packed
         rows = len(range(self.n)[select]) if isinstance(select, slice) else len(select)
-        return rows * (24 * len(self._num) + columns) + int((end[:, select] - start[:, select]).sum())
+        return rows * (24 * len(self._dec) + columns) + int((end[:, select] - start[:, select]).sum())
 
     def rows(self, select: np.ndarray | None = None, columns: list[int] | None = None) -> str:
         """The rows ``select`` (all by default; each row ended by a newline) of the columns ``columns``
@@ -117,25 +129,24 @@ class Table:
         used, _ = _write(cols, *arrays, select, out, cols[:0], np.zeros(self.n, np.bool_), out[:0])
         return out[:used].tobytes().decode("utf-8")
 
-    def rows_and_part(self, mask: np.ndarray, columns: list[int]) -> tuple[bytes, bytes]:
+    def rows_and_part(self, mask: np.ndarray, columns: list[int]) -> tuple[memoryview, memoryview]:
         """Every row, and the rows where ``mask`` is true of the columns ``columns`` (as ``rows()`` and
-        ``rows(np.flatnonzero(mask), columns)``, UTF-8 encoded), in one pass: the part's fields are
-        copied from the rows just written."""
+        ``rows(np.flatnonzero(mask), columns)``, UTF-8 encoded: views of the buffers written, not copied),
+        in one pass: the part's fields are copied from the rows just written."""
         if not self.n:
-            return b"", b""
+            return memoryview(b""), memoryview(b"")
         mask = np.asarray(mask, np.bool_).reshape(self.n)
         cols = np.asarray(columns, np.int64)
         arrays = self._arrays()
         out = np.empty(self._size(slice(None), len(self._kind)), np.uint8)
         part = np.empty(self._size(np.flatnonzero(mask), len(cols)), np.uint8)
         used, used_part = _write(np.arange(len(self._kind)), *arrays, np.arange(self.n), out, cols, mask, part)
-        return out[:used].tobytes(), part[:used_part].tobytes()
+        return out[:used].data, part[:used_part].data
 
 
-def _pack(columns: list[list[str] | None], n: int,
-          codes: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The texts of every column (``None``: none) in one UTF-8 buffer, with each one's start and end
-    by row (a labels column: its distinct texts, ``codes`` the row's).
+def _pack(columns: list[list[str]], n: int, codes: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The texts of the columns in one UTF-8 buffer, with each one's start and end by row (a labels
+    column: its distinct texts, ``codes`` the row's).
 
     A column is encoded in one call, its texts joined by newlines (a byte no multi-byte UTF-8 character
     contains), unless one of them holds a newline itself."""
@@ -143,7 +154,7 @@ def _pack(columns: list[list[str] | None], n: int,
     end = np.zeros((len(columns), n), np.int64)
     parts, offset = [], 0
     for c, col in enumerate(columns):
-        if col is None or not n:
+        if not n:
             continue
         m = len(col)
         first, last = np.zeros(m, np.int64), np.zeros(m, np.int64)
@@ -166,10 +177,10 @@ def _pack(columns: list[list[str] | None], n: int,
 
 
 @njit(cache=True)
-def _digits(x, scale, num, neg, slow):  # pragma: no cover (compiled)
-    """For each x: n = rint(|x·scale|) into ``num``, the sign bit into ``neg``, and into ``slow`` whether Python
-    formats it instead (0 in ``num``): not finite, beyond 2^50, or p = x·scale within a|p|·2^-51 of a
-    half-integer, which holds every p within 2 ulp of one (an ulp of |p| is at most |p|·2^-52)."""
+def _digits(x, scale, num, neg, flag):  # pragma: no cover (compiled)
+    """For each x: n = rint(|x·scale|) into ``num``, the sign bit into ``neg``, and into ``flag`` _TEXT where
+    Python formats it instead (0 in ``num``), else _DIGITS: not finite, beyond 2^50, or p = x·scale within
+    a|p|·2^-51 of a half-integer, which holds every p within 2 ulp of one (an ulp of |p| is at most |p|·2^-52)."""
     for i in range(len(x)):
         v = x[i]
         p = v * scale
@@ -177,15 +188,15 @@ def _digits(x, scale, num, neg, slow):  # pragma: no cover (compiled)
         neg[i] = math.copysign(1.0, v) < 0.0
         if a < _EXACT and abs(p - math.floor(p) - 0.5) > a * _TIE:
             num[i] = np.int64(np.rint(a))
-            slow[i] = False
+            flag[i] = 0  # _DIGITS
         else:
             num[i] = 0
-            slow[i] = True
+            flag[i] = 2  # _TEXT
 
 
 @njit(cache=True)
-def _write(cols, kinds, index, num, neg, flag, dec, pow10, start, end, buf, select, out, part_cols, in_part,
-           part):  # pragma: no cover (compiled)
+def _write(cols, kinds, index, text_row, num, neg, flag, dec, pow10, start, end, buf, select, out, part_cols,
+           in_part, part):  # pragma: no cover (compiled)
     """Write rows ``select`` of columns ``cols`` into ``out`` and, of those rows r with ``in_part[r]``, the
     fields ``part_cols`` (numbers in ``cols``) into ``part``, copied; returns the bytes written into each."""
     pos = 0
@@ -222,7 +233,8 @@ def _write(cols, kinds, index, num, neg, flag, dec, pow10, start, end, buf, sele
                     v = w
                     j -= 1
             elif kinds[c] == 1 or flag[k, r] == 2:  # a text, or a number's _TEXT (nothing for _BLANK)
-                for j in range(start[c, r], end[c, r]):
+                t = text_row[c]
+                for j in range(start[t, r], end[t, r]):
                     out[pos] = buf[j]
                     pos += 1
             last[i] = pos

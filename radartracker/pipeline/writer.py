@@ -51,12 +51,12 @@ def _code(v: object) -> str:
     return str(v) if v else ""
 
 
-def _rows(ev: Events, plane) -> tuple[bytes, bytes]:
+def _rows(ev: Events, plane) -> tuple[memoryview, memoryview]:
     """The rows of ``events.csv`` and of ``tracks.csv`` (the track estimates among them, without kind
     and status) for ``ev``, UTF-8 encoded: the columns made once, the rows written by one compiled pass
     (:mod:`radartracker.pipeline.csvtext`, the bytes of Python's ``%.<d>f``)."""
     if not len(ev):
-        return b"", b""
+        return memoryview(b""), memoryview(b"")
     lat, lon = plane.to_geodetic(ev.state[:, 0], ev.state[:, 1])
     s = ev.state
     with np.errstate(invalid="ignore"):  # a negative variance: no standard deviation, an empty field
@@ -79,7 +79,7 @@ def _bias_rows(b: BiasLog) -> bytes:
             .encode("utf-8"))
 
 
-def table_rows(ev: Events, biases: BiasLog, plane) -> tuple[bytes, bytes, bytes]:
+def table_rows(ev: Events, biases: BiasLog, plane) -> tuple[memoryview, memoryview, bytes]:
     """The rows (without header, UTF-8 encoded) of ``events.csv``, ``tracks.csv`` and ``biases.csv``."""
     return (*_rows(ev, plane), _bias_rows(biases))
 
