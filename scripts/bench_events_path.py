@@ -17,7 +17,8 @@ the TrackManager that, for the same inputs, reads each event's track estimate as
 own ``_emit`` (a deleted track as it was at its deletion): everything else is the real code. Its CPU time,
 minus that of the stand-in alone over the list reading the estimates but emitting nothing, divided by the
 inputs, is ``path_us``; ``emit_us`` is the stand-in emitting without ``on_event`` or event log minus the
-stand-in alone, ``tables_us`` the part spent in ``OutputStream`` (formatting and writing the three tables). The
+stand-in alone, ``tables_us`` the part spent in ``OutputStream`` (formatting and writing the three tables),
+``columns_us`` the recorder making event rows columns (``Recorder._columns`` without the tables in it). The
 recorded events are frozen out of the garbage collector's scans (``gc.freeze``) and the stand-in runs
 under the run's collector setting. Times are ``time.process_time`` (minimum over ``--repeat`` runs) on
 whatever load the machine has: one JSON line.
@@ -44,6 +45,7 @@ def main() -> None:
     from radartracker.estimation.coupling import CouplingGraph
     from radartracker.geometry.plane import SystemPlane
     from radartracker.io.scenario import open_scenario
+    from radartracker.pipeline import recorder
     from radartracker.pipeline import run as runmod
     from radartracker.pipeline import writer
     from radartracker.pipeline.config import RunConfig, resolve
@@ -111,18 +113,19 @@ def main() -> None:
         def accounting(self) -> dict:
             return {}
 
-    tables = [0.0]
+    tables = [0.0, 0.0, 0.0]  # CPU s in the writer's events and tracks, in its biases, in the recorder's _columns
 
-    def timed(f):
+    def timed(f, k=0):
         def g(*a):
             c = time.process_time()
             f(*a)
-            tables[0] += time.process_time() - c
+            tables[k] += time.process_time() - c
         return g
 
     runmod.TrackManager = StandIn
     writer.OutputStream.events = timed(writer.OutputStream.events)
-    writer.OutputStream.biases = timed(writer.OutputStream.biases)
+    writer.OutputStream.biases = timed(writer.OutputStream.biases, 1)
+    recorder.Recorder._columns = timed(recorder.Recorder._columns, 2)
     items = list(iter_files(open_scenario(args.folder)))  # read once: reading is not part of what is timed
     gc.freeze()
 
@@ -145,19 +148,21 @@ def main() -> None:
             m.flush()
         return time.process_time() - c
 
-    whole, alone, emit, in_tables = [], [], [], []
+    whole, alone, emit, in_tables, in_columns = [], [], [], [], []
     with tempfile.TemporaryDirectory() as tmp:
         for _ in range(args.repeat + 1):  # the first: a warm-up
-            tables[0] = 0.0
+            tables[:] = [0.0, 0.0, 0.0]
             with contextlib.redirect_stdout(io.StringIO()):
                 whole.append(replay(writer.prepare(Path(tmp) / "out", overwrite=True)))
-            in_tables.append(tables[0])
+            in_tables.append(tables[0] + tables[1])
+            in_columns.append(tables[2] - tables[0])  # _columns hands the events to the writer
             alone.append(standin(emit=False))
             emit.append(standin())
-    w, a, e, t = min(whole[1:]), min(alone[1:]), min(emit[1:]), min(in_tables[1:])
+    w, a, e, t, k = min(whole[1:]), min(alone[1:]), min(emit[1:]), min(in_tables[1:]), min(in_columns[1:])
     print(json.dumps({"folder": str(args.folder), "inputs": inputs, "events": events,
                       "path_us": round((w - a) / inputs * 1e6, 2), "emit_us": round((e - a) / inputs * 1e6, 2),
-                      "tables_us": round(t / inputs * 1e6, 2), "replay_standin_us": round(w / inputs * 1e6, 2),
+                      "tables_us": round(t / inputs * 1e6, 2), "columns_us": round(k / inputs * 1e6, 2),
+                      "replay_standin_us": round(w / inputs * 1e6, 2),
                       "standin_us": round(a / inputs * 1e6, 2)}))
 
 
