@@ -65,7 +65,7 @@ from radartracker.estimation.kalman import SingularInnovation
 from radartracker.estimation.motion import MotionModel
 from radartracker.estimation.base import Estimator, EstimatorConfig, PlaneMeasurement
 from radartracker.tracking.coverage import sweep
-from radartracker.tracking.prepared import PlaneConverter
+from radartracker.tracking.prepared import PlaneConverter, smooth_phases
 from radartracker.tracking.filters import MotionConfig, TrackFilter
 from radartracker.tracking.snapshot import load_manager, save_manager
 from radartracker.registry import (available_estimators, load_motion_model, make_estimator, make_filter_factory,
@@ -563,22 +563,20 @@ class TrackManager:
 
     def _track_phases(self, by_radar: dict[str, list[Plot]]) -> None:
         """Each radar's antenna phase φ (α(t) = φ + 2πt/T), smoothed over its plots in order:
-        p ← 0.98 p + exp(i(θ − 2πt/T)), the exponentials of all the frame's plots in one array call."""
+        p ← 0.98 p + exp(i(θ − 2πt/T)), the exponentials of all the frame's plots in one array call, the
+        recurrences in one compiled loop (:func:`~radartracker.tracking.prepared.smooth_phases`)."""
         plots = [p for ps in by_radar.values() for p in ps]
         if not plots:
             return
         n = len(plots)
         theta = np.fromiter((p.azimuth_rad for p in plots), float, n)
         t = np.fromiter((p.time for p in plots), float, n)
-        period = np.repeat([self.radars[rid].period_s for rid in by_radar], [len(ps) for ps in by_radar.values()])
-        terms = np.exp(1j * (theta - 2 * math.pi * t / period)).tolist()
-        k = 0
-        for rid, ps in by_radar.items():
-            phase = self._phase.get(rid, 0j)
-            for e in terms[k:k + len(ps)]:
-                phase = phase * 0.98 + e
-            self._phase[rid] = phase
-            k += len(ps)
+        counts = np.array([len(ps) for ps in by_radar.values()], np.int64)
+        period = np.repeat([self.radars[rid].period_s for rid in by_radar], counts)
+        terms = np.exp(1j * (theta - 2 * math.pi * t / period))
+        phase = np.array([self._phase.get(rid, 0j) for rid in by_radar], complex)
+        smooth_phases(phase, terms, counts)
+        self._phase.update(zip(by_radar, phase.tolist()))
 
     def _track_with_code(self, code: str | None) -> ManagedTrack | None:
         """The live track with Mode S address ``code`` (at most one: a code's track is looked up before
