@@ -46,6 +46,7 @@ import math
 import operator
 from collections import Counter, deque
 from collections.abc import Callable, Iterable
+from operator import attrgetter
 from pathlib import Path
 from typing import NamedTuple
 
@@ -76,6 +77,9 @@ EVENT_KINDS = ("created", "confirmed", "updated", "coasting", "deleted")
 _ZERO2, _ZERO22 = np.zeros(2), np.zeros((2, 2))
 _INPUT_KINDS = {"p": "plots", "a": "adsb", "m": "positions"}  # admission key tag → counting name
 _USED = {kind: f"{kind}_used" for kind in _INPUT_KINDS.values()}
+# a frame's inputs' fields, read in one C loop over its list
+_TIME, _RANGE, _AZIMUTH, _ALTITUDE = (attrgetter(f) for f in ("time", "range_m", "azimuth_rad", "altitude_m"))
+_LAT, _LON = attrgetter("lat"), attrgetter("lon")
 _ADD, _UPDATE, _REMOVE = "add", "update", "remove"  # kinds of the frame's queued estimator work
 _op_kind = operator.itemgetter(0)  # an op's kind (_flush_estimator groups runs of one kind)
 # exact estimators first, the scalable one before the dense one (docs/estimators.md); decoupled is a last resort
@@ -245,14 +249,15 @@ class TrackManager:
     def process(self, item: Plot | AdsbReport) -> list[TrackEvent]:
         """Admit one plot or ADS-B report; return the events it caused (possibly none yet)."""
         self._events = []
-        if self._admit(item):
-            t = item.time
-            if self._newest is None or t >= self._newest:
+        t = self._admit(item)
+        if t is not None:
+            newest = self._newest
+            if newest is None or t >= newest:
                 self._queue.append(item)
-                self._newest = t
+                self._newest = newest = t
             else:
                 heapq.heappush(self._heap, (t, next(self._seq), item))
-            self._release(self._newest - self.config.reorder_window_s)
+            self._release(newest - self.config.reorder_window_s)
         return self._events
 
     def process_many(self, items: Iterable[Plot | AdsbReport]) -> list[TrackEvent]:
@@ -319,7 +324,8 @@ class TrackManager:
         return [t for t in self.tracks.values() if t.status in ("confirmed", "coasting")]
 
     # --- admission and reordering ----------------------------------------------------------------
-    def _admit(self, item: object) -> bool:
+    def _admit(self, item: object) -> float | None:
+        """``item``'s time if it is admitted (then kept as a key for duplicates), else ``None`` (counted)."""
         if isinstance(item, Plot):
             t = item.time
             if item.radar not in self.radars:
@@ -333,7 +339,8 @@ class TrackManager:
             key = ("m", item.aircraft, t, float(item.z[0]), float(item.z[1]))
         else:
             return self._reject("invalid_input", item)
-        if self._newest is not None and t > self._newest + self.config.max_time_jump_s:
+        newest = self._newest
+        if newest is not None and t > newest + self.config.max_time_jump_s:
             return self._reject(f"{_INPUT_KINDS[key[0]]}_time_jump", item)
         if t <= self._horizon:
             return self._reject(f"{_INPUT_KINDS[key[0]]}_late", item)
@@ -342,30 +349,28 @@ class TrackManager:
         if not self.clock.admit(t):
             return self._reject(f"{_INPUT_KINDS[key[0]]}_time_jump", item)
         self._recent[key] = t
-        return True
+        return t
 
-    def _reject(self, reason: str, item: object) -> bool:
+    def _reject(self, reason: str, item: object) -> None:
         if self.counts[reason] < 5:
             log.warning("rejected (%s): %r", reason, item)
         self.counts[reason] += 1
-        return False
 
     def _release(self, until: float) -> None:
         """Hand the inputs up to ``until`` to their frames in (time, arrival) order. An input waits in the heap
         only if it came after a later one, so an input of the queue comes first at equal times."""
-        queue, heap, frame_s = self._queue, self._heap, self.config.frame_s
+        queue, heap, frame_s, floor = self._queue, self._heap, self.config.frame_s, math.floor
         while True:
-            if queue and (not heap or queue[0].time <= heap[0][0]):
-                if queue[0].time > until:
+            if heap and (not queue or heap[0][0] < queue[0].time):
+                if heap[0][0] > until:
                     break
-                item = queue.popleft()
-                t = item.time
-            elif heap and heap[0][0] <= until:
                 t, _, item = heapq.heappop(heap)
+            elif queue and (t := queue[0].time) <= until:
+                item = queue.popleft()
             else:
                 break
             self._horizon = t
-            frame = math.floor(t / frame_s)
+            frame = floor(t / frame_s)
             if frame != self._frame:  # the first input, or one past the frame being gathered
                 if self._frame is None:
                     self._frame = frame
@@ -391,7 +396,11 @@ class TrackManager:
         reports, positions = [], []
         for p in items:
             if isinstance(p, Plot):
-                by_radar.setdefault(p.radar, []).append(p)
+                ps = by_radar.get(p.radar)
+                if ps is None:
+                    by_radar[p.radar] = [p]
+                else:
+                    ps.append(p)
             elif isinstance(p, AdsbReport):
                 reports.append(p)
             else:
@@ -485,24 +494,33 @@ class TrackManager:
         """Every plot of the frame in the plane (z, C_s, R, valid by radar) and the ADS-B positions, in one
         pass (:class:`~radartracker.tracking.prepared.PlaneConverter`). A plot is converted at its Mode C
         altitude, else its Mode S track's, else ``primary_altitude_m`` with that guess's spread added to R."""
-        plots = [p for ps in by_radar.values() for p in ps]
+        plots = list(itertools.chain.from_iterable(by_radar.values()))
         if not plots and not reports:
             return {}, np.zeros((0, 2))
-        by_code = {t.mode_s: t for t in live if t.mode_s} if any(p.altitude_m is None and p.mode_s for p in plots) else {}
-        alt = np.array([p.altitude_m if p.altitude_m is not None else
-                        (by_code[p.mode_s].altitude_m if p.mode_s in by_code and by_code[p.mode_s].altitude_m
-                         is not None else self.config.primary_altitude_m) for p in plots], float)
-        rows = np.fromiter((self._converter.row[p.radar] for p in plots), np.int64, len(plots))
-        rho = np.fromiter((p.range_m for p in plots), float, len(plots))
-        theta = np.fromiter((p.azimuth_rad for p in plots), float, len(plots))
-        lat = np.fromiter((r.lat for r in reports), float, len(reports))
-        lon = np.fromiter((r.lon for r in reports), float, len(reports))
+        n, primary = len(plots), self.config.primary_altitude_m
+        heights = list(map(_ALTITUDE, plots))
+        unknown = None in heights
+        if unknown:
+            by_code = ({t.mode_s: t for t in live if t.mode_s}
+                       if any(h is None and p.mode_s for h, p in zip(heights, plots)) else {})
+            heights = [h if h is not None else (by_code[p.mode_s].altitude_m if p.mode_s in by_code and
+                                                by_code[p.mode_s].altitude_m is not None else primary)
+                       for h, p in zip(heights, plots)]
+        alt = np.array(heights, float)
+        # each radar's plots are together: its row repeated, not looked up plot by plot
+        rows = np.repeat(np.array([self._converter.row[rid] for rid in by_radar], np.int64),
+                         [len(ps) for ps in by_radar.values()])
+        rho = np.fromiter(map(_RANGE, plots), float, n)
+        theta = np.fromiter(map(_AZIMUTH, plots), float, n)
+        lat = np.fromiter(map(_LAT, reports), float, len(reports))
+        lon = np.fromiter(map(_LON, reports), float, len(reports))
         z, C, R, ok, adsb_xy = self._converter.convert(rows, rho, theta, alt, lat, lon)
         # an assumed altitude is uncertain: near the radar its error moves the plot by km along the beam
-        guess = np.fromiter((p.altitude_m is None for p in plots), bool, len(plots)) & (alt == self.config.primary_altitude_m)
-        if guess.any():  # all radars' at once (element by element: the same numbers as radar by radar)
-            R[guess] += altitude_spread(C[guess], rho[guess], alt[guess], self._converter.height[rows[guess]],
-                                        self.config.primary_altitude_sd_m)
+        if unknown:
+            guess = np.fromiter((p.altitude_m is None for p in plots), bool, n) & (alt == primary)
+            if guess.any():  # all radars' at once (element by element: the same numbers as radar by radar)
+                R[guess] += altitude_spread(C[guess], rho[guess], alt[guess], self._converter.height[rows[guess]],
+                                            self.config.primary_altitude_sd_m)
         out, k = {}, 0
         for rid, ps in by_radar.items():
             sl = slice(k, k + len(ps))
@@ -565,12 +583,12 @@ class TrackManager:
         """Each radar's antenna phase φ (α(t) = φ + 2πt/T), smoothed over its plots in order:
         p ← 0.98 p + exp(i(θ − 2πt/T)), the exponentials of all the frame's plots in one array call, the
         recurrences in one compiled loop (:func:`~radartracker.tracking.prepared.smooth_phases`)."""
-        plots = [p for ps in by_radar.values() for p in ps]
+        plots = list(itertools.chain.from_iterable(by_radar.values()))
         if not plots:
             return
         n = len(plots)
-        theta = np.fromiter((p.azimuth_rad for p in plots), float, n)
-        t = np.fromiter((p.time for p in plots), float, n)
+        theta = np.fromiter(map(_AZIMUTH, plots), float, n)
+        t = np.fromiter(map(_TIME, plots), float, n)
         counts = np.array([len(ps) for ps in by_radar.values()], np.int64)
         period = np.repeat([self.radars[rid].period_s for rid in by_radar], counts)
         terms = np.exp(1j * (theta - 2 * math.pi * t / period))

@@ -247,3 +247,16 @@ def test_labelled_replay_far_future_adsb_costs_no_good_input(demo_data):
     assert res.counts == ref.counts
     for rid in demo_data.truth_biases:
         np.testing.assert_array_equal(res.final_biases[rid].bias, ref.final_biases[rid].bias)
+
+
+def test_manager_time_jump_is_not_remembered_as_a_duplicate(demo_data):
+    """A plot the stream clock rejects leaves no trace among the keys for duplicates: sent again later it
+    is judged again (a time jump again), while an admitted plot sent again is a duplicate."""
+    stream = _plots(demo_data, 100.0)
+    k = len(stream) // 2
+    p = stream[k]
+    ahead = Plot(p.time + 1800.0, p.radar, p.range_m, p.azimuth_rad, p.altitude_m, p.mode_s)
+    mgr = TrackManager(demo_data.radars, demo_data.reference)
+    mgr.process_many(stream[:k] + [ahead] + stream[k:k + 20] + [ahead, stream[k + 20]] + stream[k + 20:])
+    assert mgr.counts["plots_time_jump"] == 2
+    assert mgr.counts["plots_duplicate"] == 1
