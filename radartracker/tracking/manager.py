@@ -67,6 +67,7 @@ from radartracker.estimation.motion import MotionModel
 from radartracker.estimation.base import Estimator, EstimatorConfig, PlaneMeasurement
 from radartracker.tracking.coverage import sweep
 from radartracker.tracking.prepared import PlaneConverter, smooth_phases
+from radartracker.tracking.states import StateTable
 from radartracker.tracking.filters import MotionConfig, TrackFilter
 from radartracker.tracking.snapshot import load_manager, save_manager
 from radartracker.registry import (available_estimators, load_motion_model, make_estimator, make_filter_factory,
@@ -242,6 +243,7 @@ class TrackManager:
         self._deferred: list[tuple] = []  # the frame's estimator work, applied at its end (_flush_estimator)
         self._biases: dict[str, tuple] = {}  # each radar's (ς̂, P_ς) as read in this frame (_bias)
         self._codes: dict[str, int] = {}  # Mode S address → id of its live track (_track_with_code)
+        self._states = StateTable()  # the live tracks' (t, x[:4]) as one array (_predict)
         self.clock = StreamClock(self.config.clock)
         self.adsb_check = AdsbPlausibility(self.config.screening)
 
@@ -303,6 +305,7 @@ class TrackManager:
         mgr._codes = {tr.mode_s: tr.id for tr in mgr.tracks.values() if tr.mode_s is not None}
         for tr in mgr.tracks.values():  # read again from the filters, in the form _estimate_of gives
             tr.estimate = None
+        mgr._states = StateTable(mgr.tracks.values())
         return mgr
 
     def accounting(self) -> dict[str, int]:
@@ -444,13 +447,7 @@ class TrackManager:
         """Straight-line extrapolation of every live track to ``t`` (for search, misses, coverage), as
         arrays over the frame's tracks; the filters' own predictions are computed only for gating candidates."""
         n = len(live)
-        est = [tr.estimate or self._estimate_of(tr) for tr in live]
-        t0 = np.fromiter([e[0] for e in est], float, n)
-        xs = [e[1] for e in est]
-        if len(set(map(len, xs))) == 1:  # one motion model: the states' bytes joined (each a float64 vector)
-            x = np.frombuffer(b"".join(xs), float).reshape(n, -1)[:, :4]
-        else:
-            x = np.array([v[:4] for v in xs], float).reshape(n, 4)
+        t0, x = self._states.read(live, self._estimate_of)
         pos = x[:, :2] + x[:, 2:] * np.maximum(t - t0, 0.0)[:, None]
         # identities are fixed while a frame is associated: index them once per frame, not per radar
         mode_s = [tr.mode_s for tr in live]
@@ -661,12 +658,14 @@ class TrackManager:
             tr = ManagedTrack(next(self._ids), filt, "tentative", src.time, src.time, mode_s=code,
                               history=deque(maxlen=self.config.confirm_n))
             self.tracks[tr.id] = tr
+            self._states.add(tr)
             if code is not None:
                 self._codes[code] = tr.id
             self._emit(src.time, tr, "created")
         elif not updated:
             try:
                 tr.estimate = None
+                self._states.changed(tr)
                 tr.filter.update(src.time, zc, Rc)
             except ValueError as exc:  # SingularInnovation, or a filter refusing the time step
                 self.counts["plots_refused_by_filter" if radar else "unbiased_refused_by_filter"] += 1
@@ -710,6 +709,7 @@ class TrackManager:
         try:
             if gate is not None:
                 tr.estimate = None
+                self._states.changed(tr)
             d2, zc, Rc, updated = tr.filter.screen(max(t, t_est), z, C, R, bias, bias_cov, gate)
         except ValueError:  # the filter refuses this step; its update refuses it too and counts it
             return ACCEPT, None, None, False
@@ -850,6 +850,7 @@ class TrackManager:
 
     def _delete(self, tr: ManagedTrack, now: float) -> None:
         del self.tracks[tr.id]
+        self._states.remove(tr.id)
         if tr.mode_s is not None and self._codes.get(tr.mode_s) == tr.id:
             del self._codes[tr.mode_s]
         if tr.status == "tentative":
