@@ -446,15 +446,11 @@ class TrackManager:
     def _predict(self, live: list[ManagedTrack], t: float) -> dict[str, np.ndarray]:
         """Straight-line extrapolation of every live track to ``t`` (for search, misses, coverage), as
         arrays over the frame's tracks; the filters' own predictions are computed only for gating candidates."""
-        n = len(live)
         t0, x = self._states.read(live, self._estimate_of)
         pos = x[:, :2] + x[:, 2:] * np.maximum(t - t0, 0.0)[:, None]
         # identities are fixed while a frame is associated: index them once per frame, not per radar
-        mode_s = [tr.mode_s for tr in live]
-        index = {m: i for i, m in enumerate(mode_s) if m}
-        codes = np.array([tr.mode_3a for tr in live], object)
-        return {"pos": pos, "t": t, "exact": {}, "index": index, "codes": codes,
-                "mode_s": np.array([m is not None for m in mode_s], bool).reshape(n)}
+        index = {m: i for i, m in enumerate([tr.mode_s for tr in live]) if m}
+        return {"pos": pos, "t": t, "exact": {}, "index": index}
 
     @staticmethod
     def _exact(live: list[ManagedTrack], pred: dict, idx: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -544,6 +540,9 @@ class TrackManager:
             else:
                 rest.append(k)
         if rest:
+            if "codes" not in pred:  # the tracks' Mode 3/A codes and which have a Mode S address: only for such plots
+                pred["codes"] = np.array([tr.mode_3a for tr in live], object).reshape(len(live))
+                pred["mode_s"] = np.array([tr.mode_s is not None for tr in live], bool).reshape(len(live))
             free = ~pred["mode_s"]
             free[list(taken)] = False
             codes = pred["codes"]
