@@ -92,15 +92,7 @@ class CouplingGraph:
 
     def observe(self, aircraft: Hashable, radar: str | None, time: float) -> None:
         """Record one measurement of ``aircraft`` by ``radar`` (``None``: ADS-B) at ``time``."""
-        try:
-            edge, source = self._edges[_aircraft_node(aircraft)][radar]
-        except KeyError:  # a new pair: through the graph, then cached
-            edge, source = self._edge(aircraft, radar, time)
-        source["measurements"] += 1
-        edge["count"] += 1
-        t = float(time)
-        if t > edge["last_time"]:
-            edge["last_time"] = t
+        self.observe_many((aircraft,), (radar,), (time,))
 
     def observe_many(self, aircraft: Sequence[Hashable], radar: Sequence[str | None], time: Sequence[float]) -> None:
         """:meth:`observe` of each measurement (``aircraft[i]``, ``radar[i]``, ``time[i]``) in turn, with the
@@ -112,7 +104,7 @@ class CouplingGraph:
             for a, r, t in zip(aircraft, radar, time):
                 try:
                     edge, source = edges[f"aircraft:{a}"][r]  # _aircraft_node(a), inlined
-                except KeyError:
+                except KeyError:  # a new pair: through the graph, then cached
                     edge, source = self._edge(a, r, t)
                 source["measurements"] += 1
                 edge["count"] += 1
