@@ -1,0 +1,70 @@
+"""Benchmark: ``radartracker replay FOLDER --manager`` taken apart into reading, tracking and recording.
+
+    python scripts/bench_replay_parts.py FOLDER [--repeat 2]
+
+FOLDER is an unlabelled scenario folder (``scripts/bench_national.py`` writes them). One JSON line, CPU
+µs per input (``time.process_time``, under the replay's collector setting):
+
+* ``read_us``: the folder's files to the list of ``Plot`` / ``AdsbReport`` items (``iter_files``);
+* ``manager_us``: the TrackManager over that list, events made but not recorded (one run per repeat);
+* ``manager_log_us``: the same with the run's ``Recorder`` taking every event as a row in the manager's
+  ``event_log`` and making rows columns every 8 192 (no tables written), in the same turns.
+
+What the whole replay costs beyond ``read_us + manager_log_us`` is writing the tables and the run's files
+(``bench_events_path.py`` times that part).
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import json
+import time
+from pathlib import Path
+
+from radartracker.io.scenario import open_scenario
+from radartracker.pipeline.config import RunConfig, resolve
+from radartracker.pipeline.recorder import FLUSH_EVERY, Recorder
+from radartracker.pipeline.run import GC_YOUNG_THRESHOLD, motion_factory
+from radartracker.pipeline.stream import iter_files
+from radartracker.tracking.manager import TrackManager
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("folder", type=Path)
+    ap.add_argument("--repeat", type=int, default=2)
+    args = ap.parse_args()
+    gc.set_threshold(GC_YOUNG_THRESHOLD)
+    files = open_scenario(args.folder)
+    c = time.process_time()
+    items = list(iter_files(files))
+    read = time.process_time() - c
+    cfg = resolve(RunConfig(association="manager"), files.data, "coupled-sparse")
+
+    def run(log: bool) -> float:
+        mgr = TrackManager(files.data.radars, files.data.reference, cfg.manager_settings(),
+                           filter_factory=motion_factory(cfg))
+        rec = Recorder(keep=False)
+        if log:
+            mgr.event_log = rec.manager_log
+        c = time.process_time()
+        for item in items:
+            mgr.process(item)
+            if log and len(rec.manager_log) >= FLUSH_EVERY:
+                rec.flush()
+        mgr.flush()
+        rec.flush()
+        return (time.process_time() - c) / len(items) * 1e6
+
+    run(False)  # compiled kernels loaded, caches warm
+    plain, logged = [], []
+    for _ in range(args.repeat):
+        plain.append(round(run(False), 2))
+        logged.append(round(run(True), 2))
+    print(json.dumps({"folder": str(args.folder), "inputs": len(items), "read_us": round(read / len(items) * 1e6, 2),
+                      "manager_us": plain, "manager_log_us": logged}))
+
+
+if __name__ == "__main__":
+    main()
