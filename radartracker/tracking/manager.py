@@ -43,10 +43,9 @@ import heapq
 import itertools
 import logging
 import math
-import operator
 from collections import Counter, deque
 from collections.abc import Callable, Iterable
-from operator import attrgetter
+from operator import attrgetter, itemgetter
 from pathlib import Path
 from typing import NamedTuple
 
@@ -82,7 +81,7 @@ _USED = {kind: f"{kind}_used" for kind in _INPUT_KINDS.values()}
 _TIME, _RANGE, _AZIMUTH, _ALTITUDE = (attrgetter(f) for f in ("time", "range_m", "azimuth_rad", "altitude_m"))
 _LAT, _LON = attrgetter("lat"), attrgetter("lon")
 _ADD, _UPDATE, _REMOVE = "add", "update", "remove"  # kinds of the frame's queued estimator work
-_op_kind = operator.itemgetter(0)  # an op's kind (_flush_estimator groups runs of one kind)
+_op_kind = itemgetter(0)  # an op's kind (_flush_estimator groups runs of one kind)
 # exact estimators first, the scalable one before the dense one (docs/estimators.md); decoupled is a last resort
 PREFERRED_ESTIMATORS = ("coupled-sparse", "coupled", "blom", "decoupled")
 

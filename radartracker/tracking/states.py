@@ -50,7 +50,7 @@ class StateTable:
     def read(self, live: list[Any], estimate_of: Callable[[Any], tuple]) -> tuple[np.ndarray, np.ndarray]:
         """(t of each estimate, its x[:4]) of ``live``, the manager's live tracks in order (rebuilt from
         them should they not be the tracks added and not removed)."""
-        if len(live) != len(self._row) or any(tr.id not in self._row for tr in live[-1:]):
+        if len(live) != len(self._row) or (live and live[-1].id not in self._row):
             self.__init__(live)
         if self._changed:
             tracks, self._changed = list(self._changed.values()), {}
