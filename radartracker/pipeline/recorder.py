@@ -85,19 +85,22 @@ class _Head(NamedTuple):
     state: tuple
 
 
-def _events_of(rows: list[tuple]) -> Events:
-    """Rows of :meth:`Recorder.event` / :meth:`Recorder.track_event` as columns."""
-    n = len(rows)
-    heads, covs, idents = zip(*rows)
-    time, track, kind, status, state = zip(*heads)
-    altitude_m, mode_s, mode_3a, target = zip(*idents)
-    cov = np.frombuffer(bytearray(b"".join(covs)), float)
+def _events(time, track, kind, status, state, cov: np.ndarray, altitude_m, mode_s, mode_3a, target) -> Events:
+    """:class:`Events` of n events from their fields (sequences of n; ``state`` of 4-tuples, ``cov`` the
+    16 n covariance values)."""
+    n = len(time)
     if len(cov) != 16 * n:
         raise ValueError("an event's covariance is not a 4×4 array of floats")
     return Events(time=np.array(time, float), track=np.array(track, int), kind=_obj(kind), status=_obj(status),
                   state=np.fromiter(chain.from_iterable(state), float, 4 * n).reshape(n, 4), cov=cov.reshape(n, 4, 4),
                   altitude_m=np.array(altitude_m, float), mode_s=_obj(mode_s), mode_3a=_obj(mode_3a),
                   target=_obj(target))
+
+
+def _events_of(rows: list[tuple]) -> Events:
+    """Rows of :meth:`Recorder.event` / :meth:`Recorder.track_event` as columns."""
+    heads, covs, idents = zip(*rows)
+    return _events(*zip(*heads), np.frombuffer(bytearray(b"".join(covs)), float), *zip(*idents))
 
 
 def _log_events_of(rows: list[tuple], idents: dict[int, tuple]) -> Events:
@@ -108,8 +111,7 @@ def _log_events_of(rows: list[tuple], idents: dict[int, tuple]) -> Events:
     n = len(rows)
     evs, covs, alt, mode_s, mode_3a = zip(*rows)
     time, track, kind, status, state = zip(*evs)
-    kind = _obj(kind)
-    gone = kind == "deleted"
+    gone = np.array([k == "deleted" for k in kind], bool).reshape(n)
     covs = [_NAN44 if P is None else P for P in covs]
     try:  # the arrays' bytes in one join, unless one is not 16 contiguous float64
         cov = np.frombuffer(bytearray().join(covs), float)
@@ -117,12 +119,9 @@ def _log_events_of(rows: list[tuple], idents: dict[int, tuple]) -> Events:
         cov = None
     if cov is None or len(cov) != 16 * n:  # as track_event checks the bytes
         try:
-            cov = np.array(covs, float)
+            cov = np.array(covs, float).ravel()
         except ValueError:
-            cov = None
-        if cov is None or cov.shape != (n, 4, 4):
-            raise ValueError("an event's covariance is not a 4×4 array of floats")
-    cov = cov.reshape(n, 4, 4)
+            cov = np.zeros(0)  # refused by _events
     alt, mode_s, mode_3a, track = list(alt), list(mode_s), list(mode_3a), list(track)
     live = np.flatnonzero(~gone).tolist()
     last = dict(zip([track[i] for i in live], live))  # each track's last row here before its deletion
@@ -132,11 +131,9 @@ def _log_events_of(rows: list[tuple], idents: dict[int, tuple]) -> Events:
         alt[j], mode_s[j], mode_3a[j] = idents.pop(t, _NO_IDENT) if i is None else (alt[i], mode_s[i], mode_3a[i])
         idents.pop(t, None)
     idents.update({t: (alt[i], mode_s[i], mode_3a[i]) for t, i in last.items()})
-    cov[gone] = math.nan
-    return Events(time=np.array(time, float), track=np.array(track, int), kind=kind, status=_obj(status),
-                  state=np.fromiter(chain.from_iterable(state), float, 4 * n).reshape(n, 4), cov=cov,
-                  altitude_m=np.array(alt, float), mode_s=_obj(mode_s), mode_3a=_obj(mode_3a),
-                  target=np.full(n, None, object))
+    ev = _events(time, track, kind, status, state, cov, alt, mode_s, mode_3a, [None] * n)
+    ev.cov[gone] = math.nan
+    return ev
 
 
 def _concatenate(chunks: list[Events]) -> Events:

@@ -241,7 +241,7 @@ def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: Fil
                 total: int | None = None) -> tuple[Counter, CouplingGraph]:
     """Association by the TrackManager; events carry the track filter's state and covariance."""
     mgr = TrackManager(data.radars, data.reference, cfg.manager_settings(), estimator=est, filter_factory=factory)
-    log = mgr.event_log = rec.manager_log  # each event appended as a row: no call per event
+    rows = mgr.event_log = rec.manager_log  # each event appended as a row: no call per event
     every = rec.flush_every
     if inputs is None:
         inputs, total = iter_scenario(data), len(data.plots) + len(data.adsb)
@@ -250,7 +250,7 @@ def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: Fil
                  mininterval=1.0) if progress else inputs
     for item in items:
         mgr.process(item)
-        if len(log) >= every:
+        if len(rows) >= every:
             rec.flush()
         rid = getattr(item, "radar", None)
         if rid is not None and rec.bias_due(rid, item.time):
