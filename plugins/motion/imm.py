@@ -32,6 +32,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Sequence
+from operator import attrgetter
 from typing import Any
 
 import attrs
@@ -41,6 +42,7 @@ from radartracker.api import ConfigurationError, InputError, MotionConfig, Singu
 from radartracker_plugins.motion.base import check_measurement, check_time, require_started, start_state
 
 _v = attrs.validators
+_ADDRESS, _EPOCH, _PREDICTED, _COMPILED = (attrgetter(a) for a in ("_address", "time", "_pred_time", "_compiled"))
 
 
 def _floats(v: Any) -> tuple[float, ...] | None:
@@ -174,6 +176,7 @@ class IMMFilter(TrackFilter):
         self.mu, self.X, self.PP, self.x, self.P = state
         self._pred_time = math.nan
         self._max_gap = self.config.max_gap_s
+        self._address = self._buf.ctypes.data  # the buffer's memory, for screen_many's compiled loop
 
     # --- IMM cycle -----------------------------------------------------------------------------
     def switching(self, dt: float) -> np.ndarray:
@@ -247,6 +250,41 @@ class IMMFilter(TrackFilter):
             self._corrected(time, nis, bad, Rc)
         return d2, zc, Rc, True
 
+    @classmethod
+    def screen_many(cls, filters: Sequence[IMMFilter], times: np.ndarray, z: np.ndarray, C: np.ndarray,
+                    R: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray, gate: np.ndarray) -> tuple:
+        """:meth:`TrackFilter.screen_many` in one compiled call (:func:`radartracker.api.kernels.imm_screen_many`
+        over the filters' packed buffers); filters of other modes or not started are left to ``screen``."""
+        if cls.screen is not IMMFilter.screen:  # a subclass screening its own way
+            return super().screen_many(filters, times, z, C, R, bias, bias_cov, gate)
+        n = len(filters)
+        d2, zc, Rc = np.full(n, math.nan), np.zeros((n, 2)), np.zeros((n, 2, 2))
+        x, P, done = np.zeros((n, 4)), np.zeros((n, 4, 4)), np.zeros(n, bool)
+        if not n:
+            return d2, zc, Rc, done, x, P
+        addresses = np.fromiter(map(_ADDRESS, filters), np.int64, n)
+        first = np.ones((n, 3))  # each filter's (epoch, whether its kept prediction is for the time, compiled)
+        try:
+            first[:, 0] = np.fromiter(map(_EPOCH, filters), float, n)
+        except TypeError:  # a filter not started (its time None): screened one by one
+            first[:, 0] = [math.nan if f.time is None else f.time for f in filters]
+            first[np.isnan(first[:, 0]), 2] = 0.0
+        first[:, 1] = np.fromiter(map(_PREDICTED, filters), float, n) == times
+        if not all(map(_COMPILED, filters)):
+            first[:, 2] *= np.fromiter(map(_COMPILED, filters), bool, n)
+        order = np.argsort(addresses, kind="stable")  # each measurement's previous one of the same filter
+        same = addresses[order[1:]] == addresses[order[:-1]]
+        prev = np.full(n, -1, np.int64)
+        prev[order[1:][same]] = order[:-1][same]
+        kernels.imm_screen_many(addresses, first, prev, np.ascontiguousarray(times, float), z, C, R, bias, bias_cov,
+                                np.ascontiguousarray(gate, float), d2, zc, Rc, x, P, done)
+        followed = np.zeros(n, bool)  # done measurements whose filter's next one was done too
+        followed[prev[done & (prev >= 0)]] = True
+        for i in np.flatnonzero(done & ~followed).tolist():  # each filter's last one done: its new epoch
+            f = filters[i]
+            f.time, f._pred_time = float(times[i]), math.nan
+        return d2, zc, Rc, done, x, P
+
     def update(self, time: float, z: np.ndarray, R: np.ndarray) -> float:
         t0, bad = self.time, -3
         if (self._compiled and self._within_gap(time) and type(z) is np.ndarray
@@ -288,7 +326,7 @@ class IMMFilter(TrackFilter):
     # --- snapshots and pickles: the state, not the buffers derived from it -------------------------
     def __getstate__(self) -> dict:
         return {k: v for k, v in vars(self).items()
-                if k not in ("_buf", "_pred", "_pred_time", "_compiled", "_max_gap")}
+                if k not in ("_buf", "_pred", "_pred_time", "_compiled", "_max_gap", "_address")}
 
     def __setstate__(self, state: dict) -> None:
         vars(self).update(state)

@@ -592,3 +592,50 @@ def imm_update(buf: np.ndarray, dt: float, predicted: bool, z: np.ndarray, R: np
     if not predicted:
         _advance(parts, dt)
     return _correct(parts, z, R)
+
+
+@intrinsic
+def _pointer(typingctx, address):
+    """The float64 pointer at integer ``address`` (a buffer the caller keeps alive; :func:`imm_screen_many`)."""
+    def codegen(context, builder, sig, args):
+        return builder.inttoptr(args[0], context.get_value_type(sig.return_type))
+    return types.CPointer(types.float64)(types.int64), codegen
+
+
+@njit(cache=True)
+def _buffer_at(address: int) -> np.ndarray:
+    """The packed buffer whose data start at ``address`` (its length read from its settings)."""
+    head = carray(_pointer(address), (5,))
+    n, D, m = int(head[0]), int(head[1]), int(head[3])
+    return carray(_pointer(address), (_imm_offsets(n, D, m)[-1],))
+
+
+@njit(cache=True)
+def imm_screen_many(addresses: np.ndarray, first: np.ndarray, prev: np.ndarray, times: np.ndarray,
+                    z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray,
+                    gate: np.ndarray, d2: np.ndarray, zc: np.ndarray, Rc: np.ndarray, x: np.ndarray,
+                    P: np.ndarray, done: np.ndarray) -> None:
+    """:func:`imm_screen` of measurement i of the filter whose packed buffer is at ``addresses[i]``, in
+    order, while each filter's measurements pass their gate and update it: ``done[i]`` then, with the
+    filter's output (χ̂, P̂) after it in ``x[i]``, ``P[i]``. A filter's first measurement steps from
+    ``first[i]`` = (its epoch, 1 if its kept prediction is for ``times[i]``, 1 if it may be screened here),
+    a later one from its previous measurement ``prev[i]`` if that was done; once one is not done, neither
+    are the filter's later ones, and the filter is as before it (a prediction made is not kept). The
+    buffers are the caller's, alive for the call."""
+    for i in range(len(times)):
+        j = prev[i]
+        if j >= 0:
+            if not done[j]:
+                continue
+            dt, predicted = times[i] - times[j], False
+        else:
+            if first[i, 2] == 0.0:
+                continue
+            dt, predicted = times[i] - first[i, 0], first[i, 1] != 0.0
+        buf = _buffer_at(addresses[i])
+        d2[i], _, code = imm_screen(buf, dt, predicted, z[i], C[i], R[i], bias[i], bias_cov[i], zc[i], Rc[i], gate[i])
+        if code == -2:
+            state = _imm_parts(buf)[6]
+            x[i] = state[3]
+            P[i] = state[4]
+            done[i] = True

@@ -81,6 +81,7 @@ _USED = {kind: f"{kind}_used" for kind in _INPUT_KINDS.values()}
 _TIME, _RANGE, _AZIMUTH, _ALTITUDE = (attrgetter(f) for f in ("time", "range_m", "azimuth_rad", "altitude_m"))
 _LAT, _LON = attrgetter("lat"), attrgetter("lon")
 _ADD, _UPDATE, _REMOVE = "add", "update", "remove"  # kinds of the frame's queued estimator work
+_ROW = itemgetter(3)  # an update's row of the frame's measurements
 _op_kind = itemgetter(0)  # an op's kind (_flush_estimator groups runs of one kind)
 # exact estimators first, the scalable one before the dense one (docs/estimators.md); decoupled is a last resort
 PREFERRED_ESTIMATORS = ("coupled-sparse", "coupled", "blom", "decoupled")
@@ -162,6 +163,18 @@ class TrackEvent(NamedTuple):
     __hash__ = tuple.__hash__
 
 
+class FrameMeasurements(NamedTuple):
+    """A frame's measurements in the plane, one row each (its plots radar by radar, its ADS-B reports, its
+    unbiased positions): time, z (n×2), C_s (n×2×2, 0 for an unbiased sensor), R (n×2×2) and the radar's row
+    in the manager's converter (−1: unbiased). Updates and queued estimator work refer to them by row."""
+
+    time: np.ndarray
+    z: np.ndarray
+    C: np.ndarray
+    R: np.ndarray
+    radar: np.ndarray
+
+
 _F8 = np.dtype(float)
 _make_event = tuple.__new__  # _make_event(TrackEvent, fields): TrackEvent(*fields) without a Python call
 
@@ -240,6 +253,7 @@ class TrackManager:
         self._phase: dict[str, complex] = {}
         self._events: list[TrackEvent] = []
         self._deferred: list[tuple] = []  # the frame's estimator work, applied at its end (_flush_estimator)
+        self._meas: FrameMeasurements | None = None  # the frame's measurements (_convert_frame), while it runs
         self._biases: dict[str, tuple] = {}  # each radar's (ς̂, P_ς) as read in this frame (_bias)
         self._codes: dict[str, int] = {}  # Mode S address → id of its live track (_track_with_code)
         self._states = StateTable()  # the live tracks' (t, x[:4]) as one array (_predict)
@@ -392,7 +406,7 @@ class TrackManager:
         live = list(self.tracks.values())
         pred = self._predict(live, 0.5 * (t_a + t_b))
         pred["span"] = (t_a, t_b)
-        updates: list[tuple] = []  # (time, seq, track or None, measurement, plot-or-report)
+        updates: list[tuple] = []  # (time, seq, track or None, row of the frame's measurements, input)
         assigned: dict[str, set[int]] = {}
         by_radar: dict[str, list[Plot]] = {}  # the frame's plots of each radar, in order (one pass, not one per radar)
         reports, positions = [], []
@@ -407,27 +421,26 @@ class TrackManager:
                 reports.append(p)
             else:
                 positions.append(p)
-        converted, adsb_xy = self._convert_frame(by_radar, reports, live)
+        meas, ok = self._convert_frame(by_radar, reports, positions, live)
+        self._meas = meas
         self._track_phases(by_radar)
-        for rid in self.radars:
-            plots = by_radar.get(rid, [])
-            if plots:
-                assigned[rid] = self._associate(rid, plots, converted[rid], live, pred, updates)
-        if reports:
-            sd2 = np.fromiter((nacp_sigma_m(r.nacp) for r in reports), float, len(reports)) ** 2
-            R = np.zeros((len(reports), 2, 2))
-            R[:, 0, 0] = R[:, 1, 1] = sd2
-            C = np.zeros((len(reports), 2, 2))
-            for k, rep in enumerate(reports):  # views of the frame's arrays: nothing writes into a measurement
-                updates.append((rep.time, next(self._seq), self._track_with_code(rep.icao24), (adsb_xy[k], C[k], R[k]), rep))
-        for m in positions:
-            updates.append(self._position_measurement(m, live, pred))
+        first, base = {}, 0  # the first row of each radar's plots in the frame's measurements
+        for rid, plots in by_radar.items():
+            first[rid], base = base, base + len(plots)
+        for rid in self.radars:  # in the radars' order (which plot of a time is applied first)
+            if rid in first:
+                assigned[rid] = self._associate(rid, by_radar[rid], first[rid], ok, live, pred, updates)
+        seq = self._seq
+        for k, rep in enumerate(reports, base):
+            updates.append((rep.time, next(seq), self._track_with_code(rep.icao24), k, rep))
+        for k, m in enumerate(positions, base + len(reports)):
+            updates.append(self._position_measurement(m, k, live, pred))
         self._misses(live, pred, assigned, t_a, t_b)
         updates.sort()  # by (time, seq): seq is unique, so the tracks and measurements are never compared
-        for _, _, tr, meas, src in updates:
-            self._apply(tr, meas, src)
+        self._apply_all(updates)
         self._sweep(live, pred, t_b)
         self._flush_estimator()
+        self._meas = None
 
     @staticmethod
     def _estimate_of(tr: ManagedTrack) -> tuple:
@@ -435,12 +448,16 @@ class TrackManager:
         every live track, and for gating, screening and events), its state a contiguous float64 vector
         (so that the frame's states are one join of their bytes, :meth:`_predict`)."""
         if tr.estimate is None:
-            e = tr.filter.estimate()
-            x = e[1]
-            if type(x) is not np.ndarray or x.dtype is not _F8 or x.ndim != 1 or not x.flags.c_contiguous:
-                e = (e[0], np.ascontiguousarray(x, float).ravel(), e[2])
-            tr.estimate = e
+            tr.estimate = TrackManager._normalized(tr.filter.estimate())
         return tr.estimate
+
+    @staticmethod
+    def _normalized(e: tuple) -> tuple:
+        """Estimate (t, x, P) with x a contiguous float64 vector."""
+        x = e[1]
+        if type(x) is not np.ndarray or x.dtype is not _F8 or x.ndim != 1 or not x.flags.c_contiguous:
+            return e[0], np.ascontiguousarray(x, float).ravel(), e[2]
+        return e
 
     def _predict(self, live: list[ManagedTrack], t: float) -> dict[str, np.ndarray]:
         """Straight-line extrapolation of every live track to ``t`` (for search, misses, coverage), as
@@ -481,14 +498,14 @@ class TrackManager:
             pred["swept"], pred["covered"] = swept, covered
         return pred["swept"], pred["covered"]
 
-    def _convert_frame(self, by_radar: dict[str, list[Plot]], reports: list[AdsbReport],
-                       live: list[ManagedTrack]) -> tuple[dict[str, tuple], np.ndarray]:
-        """Every plot of the frame in the plane (z, C_s, R, valid by radar) and the ADS-B positions, in one
-        pass (:class:`~radartracker.tracking.prepared.PlaneConverter`). A plot is converted at its Mode C
-        altitude, else its Mode S track's, else ``primary_altitude_m`` with that guess's spread added to R."""
+    def _convert_frame(self, by_radar: dict[str, list[Plot]], reports: list[AdsbReport], positions: list[PlaneMeasurement],
+                       live: list[ManagedTrack]) -> tuple[FrameMeasurements, np.ndarray]:
+        """The frame's measurements in the plane, in rows: its plots radar by radar, then its ADS-B reports,
+        then its unbiased positions; and which plots have a valid geometry. The plots and ADS-B positions are
+        converted in one pass (:class:`~radartracker.tracking.prepared.PlaneConverter`): a plot at its Mode C
+        altitude, else its Mode S track's, else ``primary_altitude_m`` with that guess's spread added to R;
+        an ADS-B report has R = σ(NACp)² I, C = 0."""
         plots = list(itertools.chain.from_iterable(by_radar.values()))
-        if not plots and not reports:
-            return {}, np.zeros((0, 2))
         n, primary = len(plots), self.config.primary_altitude_m
         heights = list(map(_ALTITUDE, plots))
         unknown = None in heights
@@ -513,16 +530,29 @@ class TrackManager:
             if guess.any():  # all radars' at once (element by element: the same numbers as radar by radar)
                 R[guess] += altitude_spread(C[guess], rho[guess], alt[guess], self._converter.height[rows[guess]],
                                             self.config.primary_altitude_sd_m)
-        out, k = {}, 0
-        for rid, ps in by_radar.items():
-            sl = slice(k, k + len(ps))
-            k += len(ps)
-            out[rid] = (z[sl], C[sl], R[sl], ok[sl])
-        return out, adsb_xy
+        radar = rows
+        if reports or positions:  # unbiased rows: C = 0, radar row −1
+            m = len(reports) + len(positions)
+            sd2 = np.fromiter((nacp_sigma_m(r.nacp) for r in reports), float, len(reports)) ** 2
+            Ra = np.zeros((len(reports), 2, 2))
+            Ra[:, 0, 0] = Ra[:, 1, 1] = sd2
+            zm = np.array([np.asarray(p.z, float) for p in positions], float).reshape(len(positions), 2)
+            Rm = np.array([np.asarray(p.R, float) for p in positions], float).reshape(len(positions), 2, 2)
+            z = np.concatenate([z, adsb_xy.reshape(len(reports), 2), zm])
+            C = np.concatenate([C, np.zeros((m, 2, 2))])
+            R = np.concatenate([R, Ra, Rm])
+            radar = np.concatenate([rows, np.full(m, -1, np.int64)])
+        times = np.fromiter(map(_TIME, itertools.chain(plots, reports, positions)), float, len(z))
+        return FrameMeasurements(times, z, C, R, radar), ok
 
-    def _associate(self, rid: str, plots: list[Plot], converted: tuple, live: list[ManagedTrack], pred: dict,
-                   updates: list) -> set[int]:
-        z, C, R, ok = converted
+    def _associate(self, rid: str, plots: list[Plot], base: int, valid: np.ndarray, live: list[ManagedTrack],
+                   pred: dict, updates: list) -> set[int]:
+        """Radar ``rid``'s plots of the frame (rows ``base`` … of its measurements) to their tracks, as
+        updates; returns the indices in ``live`` of the tracks they went to (module docstring, step 3)."""
+        end = base + len(plots)
+        meas = self._meas
+        z, C, R, ok = meas.z[base:end], meas.C[base:end], meas.R[base:end], valid[base:end]
+        seq = self._seq
         index = pred["index"]
         taken: set[int] = set()
         rest: list[int] = []
@@ -531,11 +561,11 @@ class TrackManager:
                 self.counts["plots_impossible_geometry"] += 1
             elif p.mode_s is not None and p.mode_s in index and index[p.mode_s] not in taken:
                 taken.add(index[p.mode_s])
-                updates.append((p.time, next(self._seq), live[index[p.mode_s]], (z[k], C[k], R[k]), p))
+                updates.append((p.time, next(seq), live[index[p.mode_s]], base + k, p))
             elif p.mode_s is not None and p.mode_s in index:
                 self.counts["plots_duplicate_in_scan"] += 1
             elif p.mode_s is not None:
-                updates.append((p.time, next(self._seq), None, (z[k], C[k], R[k]), p))
+                updates.append((p.time, next(seq), None, base + k, p))
             else:
                 rest.append(k)
         if rest:
@@ -571,7 +601,7 @@ class TrackManager:
                 elif j < len(in_gate) and in_gate[j]:  # near a confirmed track, not its plot: no new track
                     self.counts["plots_near_confirmed_track"] += 1
                     continue
-                updates.append((plots[k].time, next(self._seq), tr, (z[k], C[k], R[k]), plots[k]))
+                updates.append((plots[k].time, next(seq), tr, base + k, plots[k]))
         return taken
 
     def _track_phases(self, by_radar: dict[str, list[Plot]]) -> None:
@@ -596,8 +626,9 @@ class TrackManager:
         one is started), from the index kept as tracks start and end (rebuilt on restore)."""
         return None if code is None else self.tracks.get(self._codes.get(code, -1))
 
-    def _position_measurement(self, m: PlaneMeasurement, live: list[ManagedTrack], pred: dict) -> tuple:
-        """An unbiased position (e.g. a triangulated fix): its track by identity, else by gating."""
+    def _position_measurement(self, m: PlaneMeasurement, row: int, live: list[ManagedTrack], pred: dict) -> tuple:
+        """The update of an unbiased position (e.g. a triangulated fix), row ``row`` of the frame's
+        measurements: its track by identity, else by gating."""
         tr = next((t for t in live if m.aircraft is not None and t.mode_s == m.aircraft), None)
         if tr is None and live and m.aircraft is None:
             pairs = candidate_pairs(m.z[None, :], pred["pos"], self.config.search_radius_m)
@@ -608,11 +639,127 @@ class TrackManager:
                                       np.zeros(2), np.zeros((2, 2)), pos + vel * (m.time - pred["t"]), cov)
                 best = dict(assign(pairs, d2, cost, self.config.gate))
                 tr = live[best[0]] if 0 in best else None
-        return (m.time, next(self._seq), tr, (np.asarray(m.z, float), np.zeros((2, 2)), np.asarray(m.R, float)), m)
+        return m.time, next(self._seq), tr, row, m
 
     # --- applying updates -------------------------------------------------------------------------
-    def _apply(self, tr: ManagedTrack | None, meas: tuple, src: Plot | AdsbReport | PlaneMeasurement) -> None:
-        z, C, R = meas
+    def _apply_all(self, updates: list[tuple]) -> None:
+        """The frame's updates (time, seq, track, (z, C, R), input), in order. With screening on, the ADS-B
+        reports are checked first (:class:`AdsbPlausibility`, its state per address evolving in the same
+        order), and the measurements of confirmed tracks go to their filters in one
+        :meth:`TrackFilter.screen_many`; those it did are booked here (:meth:`_accepted`), the others go
+        through :meth:`_apply`, each at its place in the order."""
+        if not self.config.screening.enabled:
+            for _, _, tr, row, src in updates:
+                self._apply(tr, row, src)
+            return
+        updates = self._plausible(updates)
+        rows, done, (x, P) = self._screen_confirmed(updates)
+        plan = [-1] * len(updates)  # the row in screen_many's output of each update it did, else −1
+        for i in np.flatnonzero(done).tolist():
+            plan[rows[i]] = i
+        # the states as lists for the events, unless the estimates are as estimate() gives them (any length)
+        states = x.tolist() if type(x) is np.ndarray and x.dtype is _F8 and x.shape[1:] == (4,) else None
+        for (_, _, tr, row, src), i in zip(updates, plan):
+            if i < 0:
+                self._apply(tr, row, src)
+            elif states is not None:
+                self._accepted(tr, row, src, (float(src.time), x[i], P[i]), states[i])
+            else:
+                self._accepted(tr, row, src, self._normalized((float(src.time), x[i], P[i])), None)
+
+    def _plausible(self, updates: list[tuple]) -> list[tuple]:
+        """``updates`` without the ADS-B reports :class:`AdsbPlausibility` rejects (counted)."""
+        keep = []
+        check, counts, meas = self.adsb_check.check, self.counts, self._meas
+        for u in updates:
+            src = u[4]
+            if type(src) is AdsbReport:
+                row = u[3]
+                why = check(src.icao24, src.time, meas.z[row], math.sqrt(meas.R[row, 0, 0]), src.nacp)
+                if why is not None:
+                    counts[why] += 1
+                    continue
+            keep.append(u)
+        return keep
+
+    def _screen_confirmed(self, updates: list[tuple]) -> tuple[list[int], np.ndarray, tuple]:
+        """The radar and ADS-B measurements of confirmed tracks, screened and applied in order by one
+        :meth:`TrackFilter.screen_many`: (their indices in ``updates``, done, (χ̂, P̂)), by its rows. A track with another kind of measurement in the frame, or whose
+        first one is older than its estimate, is left to :meth:`_apply`."""
+        rows: list[int] = []
+        excluded: set[int] = set()
+        for j, (t, _, tr, _, src) in enumerate(updates):
+            if tr is None or tr.status == "tentative":
+                continue
+            if type(src) is PlaneMeasurement or t < (tr.estimate or self._estimate_of(tr))[0]:
+                excluded.add(tr.id)
+            else:
+                rows.append(j)
+        if excluded:
+            rows = [j for j in rows if updates[j][2].id not in excluded]
+        if not rows:
+            return [], np.zeros(0, bool), (np.zeros((0, 4)), np.zeros((0, 4, 4)))
+        cls = type(updates[rows[0]][2].filter)
+        rows = [j for j in rows if type(updates[j][2].filter) is cls]  # others one by one (mixed models are rare)
+        n = len(rows)
+        chosen = [updates[j] for j in rows]
+        filters = [u[2].filter for u in chosen]
+        meas = self._meas
+        g = np.fromiter(map(_ROW, chosen), np.int64, n)
+        times, z, C, R, radar = meas.time[g], meas.z[g], meas.C[g], meas.R[g], meas.radar[g]
+        # each radar's (ς̂, P_ς) as the frame reads them, a last row of zeros for the unbiased
+        ids = self._converter.ids
+        table = [self._bias(ids[k]) for k in range(len(ids))] + [(_ZERO2, _ZERO22)]
+        bias = np.array([b for b, _ in table], float)[radar]
+        bias_cov = np.array([P for _, P in table], float)[radar]
+        cfg = self.config.screening
+        gate = np.where(radar >= 0, cfg.gate("plots", False), cfg.gate("adsb", False))
+        try:
+            _, _, _, done, x, P = cls.screen_many(filters, times, z, C, R, bias, bias_cov, gate)
+        except Exception as exc:  # a plugin's bug: name it and the frame's first such measurement
+            raise self._plugin_failed(f"motion model {self._filter_cls.name!r}", chosen[0][2].id, times[0], exc) from exc
+        return rows, done, (x, P)
+
+    def _accepted(self, tr: ManagedTrack, row: int, src: Plot | AdsbReport, estimate: tuple,
+                  state: list[float] | None) -> None:
+        """What :meth:`_apply` does after screening accepted a measurement of confirmed track ``tr`` and
+        updated its filter (:meth:`_screen_confirmed`); ``estimate`` the filter's (t, χ̂, P̂) after it and
+        ``state`` its [x, y, vx, vy] as floats (None: taken from χ̂)."""
+        if tr.rejected:
+            tr.rejected = []
+        tr.estimate = estimate
+        self._states.changed(tr)
+        t = src.time
+        tr.last_update = t
+        if type(src) is Plot:
+            radar, kind = src.radar, "plots"
+            tr.n_plots += 1
+            tr.mode_3a = src.mode_3a or tr.mode_3a
+            h = src.altitude_m
+            if h is not None:
+                tr.altitude_m = h
+                if tr.vertical is None:
+                    tr.vertical = AltitudeTrack.start(t, h)
+                else:
+                    tr.vertical.update(t, h)
+        else:
+            radar, kind = None, "adsb"
+            tr.n_adsb += 1
+            if src.altitude_m is not None:
+                tr.altitude_m = src.altitude_m
+        tr.history.append(True)
+        self._deferred.append((_UPDATE, t, tr.id, radar, row, kind))
+        tr.status = "confirmed"
+        if state is None:
+            self._emit(t, tr, "updated")
+        else:  # _emit's event, its state at hand
+            self._record(_make_event(TrackEvent, (estimate[0], tr.id, "updated", "confirmed", tuple(state))), estimate[2], tr)
+
+    def _apply(self, tr: ManagedTrack | None, row: int, src: Plot | AdsbReport | PlaneMeasurement) -> None:
+        """Update ``row`` of the frame's measurements (its input ``src``) for track ``tr`` (None: find or start
+        one): screening, the track's filter and life cycle, the estimator's queue and the events."""
+        meas = self._meas
+        z, C, R = meas.z[row], meas.C[row], meas.R[row]
         if isinstance(src, Plot):
             radar, kind, code = src.radar, "plots", src.mode_s
             bias, bias_cov = self._bias(radar)
@@ -628,12 +775,7 @@ class TrackManager:
             tr = None
         if tr is None:  # an ADS-B report may find the track a plot of this frame just started
             tr = self._track_with_code(code)
-        if self.config.screening.enabled:
-            if kind == "adsb":
-                why = self.adsb_check.check(code, src.time, z, math.sqrt(R[0, 0]), src.nacp)
-                if why is not None:
-                    self.counts[why] += 1
-                    return
+        if self.config.screening.enabled:  # (an ADS-B report has passed AdsbPlausibility: _apply_all)
             verdict = ACCEPT
             if tr is not None:
                 verdict, zc, Rc, updated = self._screen(tr, z, C, R, bias, bias_cov, src.time, kind)
@@ -690,7 +832,7 @@ class TrackManager:
             if sum(tr.history) >= self.config.confirm_m:
                 self._confirm(tr)
         else:
-            self._estimate(src.time, tr.id, radar, z, C, R, kind)
+            self._estimate(src.time, tr.id, radar, row, kind)
             tr.status = "confirmed"
             self._emit(src.time, tr, "updated")
 
@@ -728,16 +870,16 @@ class TrackManager:
         prior = np.diag([1e8, 1e8, sd_v**2, sd_v**2])
         self._deferred.append((_ADD, first.time, tr.id, np.array([*first.z, 0.0, 0.0]), prior))
         for m, kind in tr.pending:
-            self._estimate(m.time, m.aircraft, m.radar, m.z, m.C, m.R, kind)
+            self._estimate(m.time, m.aircraft, m.radar, (m.z, m.C, m.R), kind)
         tr.pending = []
         tr.status = "confirmed"
         self._emit(tr.last_update, tr, "confirmed")
 
-    def _estimate(self, time: float, aircraft: int, radar: str | None, z: np.ndarray, C: np.ndarray, R: np.ndarray,
-                  kind: str) -> None:
+    def _estimate(self, time: float, aircraft: int, radar: str | None, meas: int | tuple, kind: str) -> None:
         """One measurement of a confirmed track for the estimator, queued until the frame's end
-        (:meth:`_flush_estimator`; the arrays are the manager's own, nothing writes into them)."""
-        self._deferred.append((_UPDATE, time, aircraft, radar, z, C, R, kind))
+        (:meth:`_flush_estimator`): ``meas`` a row of the frame's measurements, or (z, C, R) of an earlier
+        frame's (the manager's own arrays, nothing writes into them)."""
+        self._deferred.append((_UPDATE, time, aircraft, radar, meas, kind))
 
     def _bias(self, radar: str) -> tuple[np.ndarray, np.ndarray]:
         """(ς̂, P_ς) of ``radar``, read from the estimator once per frame: it changes only at the frame's end."""
@@ -779,14 +921,21 @@ class TrackManager:
         the coupling graph and the counts in one call each; one the estimator refuses as singular is counted
         (``*_singular``) and the rest of the run goes on after it."""
         start = 0
+        frame = self._meas
         while start < len(run):
             part = run[start:] if start else run
-            _, time, aircraft, radar, z, C, R, kind = zip(*part)
+            _, time, aircraft, radar, rows, kind = zip(*part)
             n = len(part)
             done, failed = n, None
             try:
-                self.estimator.update_many(time, aircraft, radar, _stacked(z, (n, 2)), _stacked(C, (n, 2, 2)),
-                                           _stacked(R, (n, 2, 2)))
+                g = np.fromiter(rows, np.int64, n)
+                z, C, R = frame.z[g], frame.C[g], frame.R[g]
+            except TypeError:  # some of an earlier frame: a confirmed track's tentative measurements
+                meas = [(frame.z[r], frame.C[r], frame.R[r]) if type(r) is int else r for r in rows]
+                z, C, R = (_stacked(tuple(m[k] for m in meas), shape) for k, shape in
+                           enumerate([(n, 2), (n, 2, 2), (n, 2, 2)]))
+            try:
+                self.estimator.update_many(time, aircraft, radar, z, C, R)
             except SingularInnovation as exc:
                 done, failed = getattr(exc, "index", 0), exc
             except Exception as exc:
@@ -873,12 +1022,16 @@ class TrackManager:
         x0, y0, vx, vy = x.tolist()[:4]
         if time > t0:  # coasting/deleted events happen after the last update: report the position then
             x0, y0 = x0 + vx * (time - t0), y0 + vy * (time - t0)
-        ev = _make_event(TrackEvent, (float(time), tr.id, kind, tr.status, (x0, y0, vx, vy)))
+        self._record(_make_event(TrackEvent, (float(time), tr.id, kind, tr.status, (x0, y0, vx, vy))),
+                     P if t0 == time else None, tr)
+
+    def _record(self, ev: TrackEvent, P: np.ndarray | None, tr: ManagedTrack) -> None:
+        """Event ``ev`` of track ``tr`` to the call's events, ``on_event`` and :attr:`event_log` (with ``P``)."""
         self._events.append(ev)
         if self.on_event is not None:
             self.on_event(ev)
         if self.event_log is not None:  # a recorder's rows: no call per event (docs/api.md)
-            self.event_log.append((ev, P if t0 == time else None, tr.altitude_m, tr.mode_s, tr.mode_3a))
+            self.event_log.append((ev, P, tr.altitude_m, tr.mode_s, tr.mode_3a))
 
     def _grid_north(self, r: Radar) -> float:
         """Grid azimuth of true north at the radar (meridian convergence), to compare azimuths."""

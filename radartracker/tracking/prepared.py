@@ -45,6 +45,7 @@ class PlaneConverter:
     def __init__(self, radars: list[Radar], frames: dict[str, RadarFrame], plane: SystemPlane) -> None:
         self.plane = plane
         self.row = {r.id: k for k, r in enumerate(radars)}
+        self.ids = [r.id for r in radars]  # radar id by row
         fr = [frames[r.id] for r in radars]
         self.height = np.array([f.height_m for f in fr], float)
         self.xy = np.array([f.xy for f in fr], float).reshape(len(fr), 2)

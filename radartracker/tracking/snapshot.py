@@ -58,8 +58,9 @@ _PACKAGES = ("radartracker.", "radartracker_plugins.")
 # rebuilt by the constructor from (radars, reference, config), or not part of the state
 _REBUILT = frozenset({"config", "radars", "reference", "plane", "frames", "_north", "_radar_rows", "_converter",
                       "_filter_cls", "on_event", "event_log", "_events", "_codes", "_biases", "_deferred",
-                      "_states"})
-# _events: those the last call returned; _codes, _states: an index and a table of the tracks; _biases, _deferred: a frame's, empty between calls
+                      "_states", "_meas"})
+# _events: those the last call returned; _codes, _states: an index and a table of the tracks; _biases, _deferred,
+# _meas: a frame's, empty between calls
 _COUNT = re.compile(r"count\((-?\d+)(?:, (-?\d+))?\)")
 
 
