@@ -123,23 +123,34 @@ class AltitudeTrack:
 
     def predicted(self, time: float) -> tuple[float, float, float, float, float]:
         """(h̄, ḣ̄, P̄_hh, P̄_hḣ, P̄_ḣḣ) at ``time``."""
-        dt = max(time - self.time, 0.0)
-        h, v, p00, p01, p11 = self.h, self.v, self.p00, self.p01, self.p11
-        q = VERTICAL_Q
-        return (h + v * dt, v, p00 + 2.0 * dt * p01 + dt * dt * p11 + q * dt**3 / 3,
-                p01 + dt * p11 + q * dt**2 / 2, p11 + q * dt)
+        dt = time - self.time
+        if dt < 0.0:  # max(dt, 0.0), NaN kept
+            dt = 0.0
+        p01, p11 = self.p01, self.p11
+        return (self.h + self.v * dt, self.v, self.p00 + 2.0 * dt * p01 + dt * dt * p11 + VERTICAL_Q * dt**3 / 3,
+                p01 + dt * p11 + VERTICAL_Q * dt**2 / 2, p11 + VERTICAL_Q * dt)
 
     def predict(self, time: float) -> tuple[np.ndarray, np.ndarray]:
         h, v, p00, p01, p11 = self.predicted(time)
         return np.array([h, v]), np.array([[p00, p01], [p01, p11]])
 
     def update(self, time: float, h: float) -> None:
-        hp, v, p00, p01, p11 = self.predicted(time)
+        """Correct the track with a Mode C report ``h`` at ``time`` (:meth:`predicted` written out)."""
+        t0 = self.time
+        dt = time - t0
+        if dt < 0.0:
+            dt = 0.0
+        v, p01, p11 = self.v, self.p01, self.p11
+        hp = self.h + v * dt
+        p00 = self.p00 + 2.0 * dt * p01 + dt * dt * p11 + VERTICAL_Q * dt**3 / 3
+        p01 = p01 + dt * p11 + VERTICAL_Q * dt**2 / 2
+        p11 = p11 + VERTICAL_Q * dt
         s = p00 + MODE_C_VAR
         k0, k1, e = p00 / s, p01 / s, h - hp
         self.h, self.v = hp + k0 * e, v + k1 * e
         self.p00, self.p01, self.p11 = p00 - k0 * p00, 0.5 * ((p01 - k0 * p01) + (p01 - k1 * p00)), p11 - k1 * p01
-        self.time = max(time, self.time)
+        if not t0 > time:  # max(time, t0)
+            self.time = time
 
 
 MODE_C_VAR = 30.48**2 / 12  # 100 ft Mode C quantisation
