@@ -214,21 +214,29 @@ class AdsbPlausibility:
         self.config = config
         self._last: dict[str, tuple[float, tuple[float, float], float]] = {}  # (time, position, σ) by address
         self._fails: dict[str, Rejected] = {}
+        self._limits = config.adsb_min_nacp, config.adsb_max_speed_mps, config.speed_sigmas  # per call, unpacked
 
     def check(self, icao24: str, time: float, xy: np.ndarray, sd: float, nacp: int) -> str | None:
         """``None`` if the report may be used, else the counter it is rejected under."""
-        if nacp < self.config.adsb_min_nacp:
+        min_nacp, v_max, sigmas = self._limits
+        if nacp < min_nacp:
             return "adsb_low_nacp"
+        x, y = xy.tolist() if type(xy) is np.ndarray else (float(xy[0]), float(xy[1]))
         last = self._last.get(icao24)
-        here = tuple(xy.tolist()) if type(xy) is np.ndarray else (float(xy[0]), float(xy[1]))
-        if last is not None and not speed_consistent(self.config, time - last[0], last[1], last[2], here, sd):
-            run = extend_run(self.config, self._fails.get(icao24, []), time, xy, np.eye(2) * sd * sd)
-            if len(run) < self.config.reinit_after:
-                self._fails[icao24] = run
-                return "adsb_implausible_speed"
+        if last is not None:  # speed_consistent(config, time - last[0], last[1], last[2], (x, y), sd) written out
+            ax, ay = last[1]
+            allowance = v_max * abs(time - last[0]) + sigmas * math.hypot(last[2], sd)
+            d = math.hypot(x - ax, y - ay)
+            if abs(d - allowance) <= 1e-15 * d:
+                d = float(np.hypot(x - ax, y - ay))
+            if not d <= allowance:
+                run = extend_run(self.config, self._fails.get(icao24, []), time, xy, np.eye(2) * sd * sd)
+                if len(run) < self.config.reinit_after:
+                    self._fails[icao24] = run
+                    return "adsb_implausible_speed"
         if self._fails:
             self._fails.pop(icao24, None)
-        self._last[icao24] = (time, here, sd)
+        self._last[icao24] = (time, (x, y), sd)
         if len(self._last) > 20_000:  # forget addresses silent for an hour
             self._last = {k: v for k, v in self._last.items() if time - v[0] < 3600.0}
             self._fails = {k: v for k, v in self._fails.items() if k in self._last}
