@@ -36,8 +36,9 @@ that see the aircraft is the innovation test above against the track they feed.
 
 from __future__ import annotations
 
+import itertools
 import math
-from collections.abc import Hashable
+from collections.abc import Hashable, Sequence
 
 import attrs
 import numpy as np
@@ -201,6 +202,9 @@ def speed_consistent(config: ScreeningConfig, dt: float, a: np.ndarray, sd_a: fl
     return d <= allowance
 
 
+_ADDRESSES_KEPT = 20_000  # AdsbPlausibility forgets addresses silent for an hour when it holds more
+
+
 class AdsbPlausibility:
     """NACp floor and implied speed from the last accepted report of the same address.
 
@@ -212,7 +216,7 @@ class AdsbPlausibility:
 
     def __init__(self, config: ScreeningConfig) -> None:
         self.config = config
-        self._last: dict[str, tuple[float, tuple[float, float], float]] = {}  # (time, position, σ) by address
+        self._last: dict[str, tuple[float, float, float, float]] = {}  # (time, x, y, σ) by address
         self._fails: dict[str, Rejected] = {}
         self._limits = config.adsb_min_nacp, config.adsb_max_speed_mps, config.speed_sigmas  # per call, unpacked
 
@@ -223,12 +227,12 @@ class AdsbPlausibility:
             return "adsb_low_nacp"
         x, y = xy.tolist() if type(xy) is np.ndarray else (float(xy[0]), float(xy[1]))
         last = self._last.get(icao24)
-        if last is not None:  # speed_consistent(config, time - last[0], last[1], last[2], (x, y), sd) written out
-            ax, ay = last[1]
-            allowance = v_max * abs(time - last[0]) + sigmas * math.hypot(last[2], sd)
-            d = math.hypot(x - ax, y - ay)
+        if last is not None:  # speed_consistent(config, time - t0, (x0, y0), sd0, (x, y), sd) written out
+            t0, x0, y0, sd0 = last
+            allowance = v_max * abs(time - t0) + sigmas * math.hypot(sd0, sd)
+            d = math.hypot(x - x0, y - y0)
             if abs(d - allowance) <= 1e-15 * d:
-                d = float(np.hypot(x - ax, y - ay))
+                d = float(np.hypot(x - x0, y - y0))
             if not d <= allowance:
                 run = extend_run(self.config, self._fails.get(icao24, []), time, xy, np.eye(2) * sd * sd)
                 if len(run) < self.config.reinit_after:
@@ -236,25 +240,82 @@ class AdsbPlausibility:
                     return "adsb_implausible_speed"
         if self._fails:
             self._fails.pop(icao24, None)
-        self._last[icao24] = (time, (x, y), sd)
-        if len(self._last) > 20_000:  # forget addresses silent for an hour
+        self._last[icao24] = (time, x, y, sd)
+        if len(self._last) > _ADDRESSES_KEPT:  # forget addresses silent for an hour
             self._last = {k: v for k, v in self._last.items() if time - v[0] < 3600.0}
             self._fails = {k: v for k, v in self._fails.items() if k in self._last}
         return None
+
+    def check_many(self, icao24: Sequence[str], time: np.ndarray, xy: np.ndarray, sd: np.ndarray,
+                   nacp: np.ndarray) -> list[str | None]:
+        """:meth:`check` of n reports in order (``xy`` (n, 2), the others of length n): the same verdicts and
+        the same state after as n calls.
+
+        An address's first report in the batch sees the state from before the batch, so its speed test
+        is made in array operations (numpy's hypot, within an ulp or two of the scalar test's): a report
+        that passes by more than 10⁻¹² of its allowance is accepted so; the others — an address seen
+        again in the batch, a test near the limit, failed or NaN — go to :meth:`check`, in order, after
+        the accepted ones are stored (the state of one address never depends on another's, and the
+        tables keep the same order). A batch that could make the table forget addresses is checked
+        report by report.
+        """
+        n, codes = len(icao24), list(icao24)
+        t, s = np.asarray(time, float).reshape(n), np.asarray(sd, float).reshape(n)
+        xy, nacp = np.asarray(xy, float).reshape(n, 2), np.asarray(nacp).reshape(n)
+        tl, sl, nl = t.tolist(), s.tolist(), nacp.tolist()
+        if len(self._last) + n > _ADDRESSES_KEPT:
+            return list(map(self.check, codes, tl, xy, sl, nl))
+        out: list[str | None] = [None] * n
+        usable = ~(nacp < self._limits[0])
+        if usable.all() and len(set(codes)) == n:
+            first, lasts = np.arange(n), list(map(self._last.get, codes))
+        else:  # each address's first usable report; low NACp is a verdict of its own
+            seen: dict[str, int] = {}
+            for i, (code, ok) in enumerate(zip(codes, usable.tolist())):
+                if not ok:
+                    out[i] = "adsb_low_nacp"
+                elif code not in seen:
+                    seen[code] = i
+            first, lasts = np.array(list(seen.values()), np.int64), list(map(self._last.get, seen))
+        accept = np.zeros(n, bool)
+        if None in lasts:  # a new address: accepted
+            seen_before = np.array([e is not None for e in lasts], bool)
+            accept[first[~seen_before]] = True
+            first, lasts = first[seen_before], [e for e in lasts if e is not None]
+        if len(first):
+            _, v_max, sigmas = self._limits
+            ref = np.fromiter(itertools.chain.from_iterable(lasts), float, 4 * len(first)).reshape(len(first), 4)
+            allowance = v_max * np.abs(t[first] - ref[:, 0]) + sigmas * np.hypot(ref[:, 3], s[first])
+            d = np.hypot(xy[first, 0] - ref[:, 1], xy[first, 1] - ref[:, 2])
+            accept[first[d <= allowance * (1.0 - 1e-12) - 1e-200]] = True
+        if accept.all():
+            stored = codes
+            entries = zip(tl, xy[:, 0].tolist(), xy[:, 1].tolist(), sl)
+        else:
+            keep = np.flatnonzero(accept)
+            stored = list(map(codes.__getitem__, keep.tolist()))
+            entries = zip(t[keep].tolist(), xy[keep, 0].tolist(), xy[keep, 1].tolist(), s[keep].tolist())
+        if self._fails:
+            for code in stored:
+                self._fails.pop(code, None)
+        self._last.update(zip(stored, entries))
+        for i in np.flatnonzero(usable & ~accept).tolist():
+            out[i] = self.check(codes[i], tl[i], xy[i], sl[i], nl[i])
+        return out
 
     def state_dict(self) -> dict:
         """The state as plain values (for TrackManager snapshots)."""
         def plain(entry: tuple) -> list:
             return [entry[0], [float(v) for v in entry[1]], entry[2]]
 
-        return {"last": {k: plain(e) for k, e in self._last.items()},
+        return {"last": {k: [t, [float(x), float(y)], sd] for k, (t, x, y, sd) in self._last.items()},
                 "fails": {k: [plain(e) for e in run] for k, run in self._fails.items()}}
 
     def load_state_dict(self, state: dict) -> None:
         def typed(entry: list) -> tuple[float, np.ndarray, float]:
             return float(entry[0]), np.array(entry[1], float), float(entry[2])
 
-        self._last = {k: (float(v[0]), tuple(float(c) for c in v[1]), float(v[2])) for k, v in state["last"].items()}
+        self._last = {k: (float(v[0]), float(v[1][0]), float(v[1][1]), float(v[2])) for k, v in state["last"].items()}
         self._fails = {k: [typed(e) for e in run] for k, run in state["fails"].items()}
 
 
