@@ -203,6 +203,20 @@ def speed_consistent(config: ScreeningConfig, dt: float, a: np.ndarray, sd_a: fl
 
 
 _ADDRESSES_KEPT = 20_000  # AdsbPlausibility forgets addresses silent for an hour when it holds more
+_BATCH_FROM = 32  # AdsbPlausibility.check_many checks fewer reports one by one (its fixed cost is ~30 checks)
+
+
+@njit(cache=True)
+def _plainly_consistent(t: np.ndarray, xy: np.ndarray, sd: np.ndarray, idx: np.ndarray, ref: np.ndarray,
+                        v_max: float, sigmas: float, accept: np.ndarray) -> None:
+    """accept[idx[j]] = True where report idx[j] (t, xy, σ) is within its speed limit from the reference
+    ref[j] = (t₀, x₀, y₀, σ₀) by more than 10⁻¹² of the allowance (so that any hypot within a few ulps
+    decides alike)."""
+    for j in range(idx.size):
+        i = idx[j]
+        allowance = v_max * abs(t[i] - ref[j, 0]) + sigmas * math.hypot(ref[j, 3], sd[i])
+        if math.hypot(xy[i, 0] - ref[j, 1], xy[i, 1] - ref[j, 2]) <= allowance * (1.0 - 1e-12) - 1e-200:
+            accept[i] = True
 
 
 class AdsbPlausibility:
@@ -252,21 +266,22 @@ class AdsbPlausibility:
         the same state after as n calls.
 
         An address's first report in the batch sees the state from before the batch, so its speed test
-        is made in array operations (numpy's hypot, within an ulp or two of the scalar test's): a report
-        that passes by more than 10⁻¹² of its allowance is accepted so; the others — an address seen
-        again in the batch, a test near the limit, failed or NaN — go to :meth:`check`, in order, after
-        the accepted ones are stored (the state of one address never depends on another's, and the
-        tables keep the same order). A batch that could make the table forget addresses is checked
+        is made for all of them in one compiled loop (:func:`_plainly_consistent`): a report that passes
+        by more than 10⁻¹² of its allowance is accepted so; the others — an address seen again in the
+        batch, a test near the limit, failed or NaN — go to :meth:`check`, in order, after the accepted
+        ones are stored (the state of one address never depends on another's, and the tables keep the
+        same order). Small batches, and those that could make the table forget addresses, are checked
         report by report.
         """
         n, codes = len(icao24), list(icao24)
         t, s = np.asarray(time, float).reshape(n), np.asarray(sd, float).reshape(n)
         xy, nacp = np.asarray(xy, float).reshape(n, 2), np.asarray(nacp).reshape(n)
         tl, sl, nl = t.tolist(), s.tolist(), nacp.tolist()
-        if len(self._last) + n > _ADDRESSES_KEPT:
+        if n < _BATCH_FROM or len(self._last) + n > _ADDRESSES_KEPT:
             return list(map(self.check, codes, tl, xy, sl, nl))
+        min_nacp, v_max, sigmas = self._limits
         out: list[str | None] = [None] * n
-        usable = ~(nacp < self._limits[0])
+        usable = ~(nacp < min_nacp)
         if usable.all() and len(set(codes)) == n:
             first, lasts = np.arange(n), list(map(self._last.get, codes))
         else:  # each address's first usable report; low NACp is a verdict of its own
@@ -282,25 +297,22 @@ class AdsbPlausibility:
             seen_before = np.array([e is not None for e in lasts], bool)
             accept[first[~seen_before]] = True
             first, lasts = first[seen_before], [e for e in lasts if e is not None]
-        if len(first):
-            _, v_max, sigmas = self._limits
-            ref = np.fromiter(itertools.chain.from_iterable(lasts), float, 4 * len(first)).reshape(len(first), 4)
-            allowance = v_max * np.abs(t[first] - ref[:, 0]) + sigmas * np.hypot(ref[:, 3], s[first])
-            d = np.hypot(xy[first, 0] - ref[:, 1], xy[first, 1] - ref[:, 2])
-            accept[first[d <= allowance * (1.0 - 1e-12) - 1e-200]] = True
+        ref = np.fromiter(itertools.chain.from_iterable(lasts), float, 4 * len(first)).reshape(len(first), 4)
+        _plainly_consistent(t, xy, s, first, ref, v_max, sigmas, accept)
         if accept.all():
-            stored = codes
-            entries = zip(tl, xy[:, 0].tolist(), xy[:, 1].tolist(), sl)
+            stored, (xs, ys) = codes, xy.T.tolist()
+            entries = zip(tl, xs, ys, sl)
         else:
             keep = np.flatnonzero(accept)
-            stored = list(map(codes.__getitem__, keep.tolist()))
-            entries = zip(t[keep].tolist(), xy[keep, 0].tolist(), xy[keep, 1].tolist(), s[keep].tolist())
+            stored, (xs, ys) = list(map(codes.__getitem__, keep.tolist())), xy[keep].T.tolist()
+            entries = zip(t[keep].tolist(), xs, ys, s[keep].tolist())
         if self._fails:
             for code in stored:
                 self._fails.pop(code, None)
         self._last.update(zip(stored, entries))
-        for i in np.flatnonzero(usable & ~accept).tolist():
-            out[i] = self.check(codes[i], tl[i], xy[i], sl[i], nl[i])
+        if len(stored) < n:  # the others, once the accepted reports are stored
+            for i in np.flatnonzero(usable & ~accept).tolist():
+                out[i] = self.check(codes[i], tl[i], xy[i], sl[i], nl[i])
         return out
 
     def state_dict(self) -> dict:

@@ -352,6 +352,7 @@ def test_adsb_check_many_equals_the_checks_one_by_one(monkeypatch, kept):
     bits and the order of the addresses), near the speed limit too; with a small address table the
     batches that could make it forget addresses (one by one there) are exercised."""
     monkeypatch.setattr(screening, "_ADDRESSES_KEPT", kept)
+    monkeypatch.setattr(screening, "_BATCH_FROM", 2)  # small batches too
     cfg = ScreeningConfig()
     rng = np.random.default_rng(11)
     one, many = AdsbPlausibility(cfg), AdsbPlausibility(cfg)
@@ -370,9 +371,10 @@ def test_adsb_check_many_equals_the_checks_one_by_one(monkeypatch, kept):
         assert len(one.state_dict()["last"]) < len(codes)  # addresses were forgotten
 
 
-def test_adsb_check_many_where_numpy_and_the_scalar_test_disagree():
+def test_adsb_check_many_where_numpy_and_the_scalar_test_disagree(monkeypatch):
     """Reports exactly at the larger of the two allowances k·hypot(σ₀, σ) (math's and numpy's, which
     differ in the last bit for these σ) and an ulp either side: check_many decides as check."""
+    monkeypatch.setattr(screening, "_BATCH_FROM", 2)
     rng = np.random.default_rng(12)
     cfg = ScreeningConfig()
     sd0, sd = rng.uniform(5.0, 60.0, (2, 100_000))
