@@ -79,7 +79,7 @@ _INPUT_KINDS = {"p": "plots", "a": "adsb", "m": "positions"}  # admission key ta
 _USED = {kind: f"{kind}_used" for kind in _INPUT_KINDS.values()}
 # a frame's inputs' fields, read in one C loop over its list
 _TIME, _RANGE, _AZIMUTH, _ALTITUDE = (attrgetter(f) for f in ("time", "range_m", "azimuth_rad", "altitude_m"))
-_LAT, _LON = attrgetter("lat"), attrgetter("lon")
+_LAT, _LON, _NACP = attrgetter("lat"), attrgetter("lon"), attrgetter("nacp")
 _ADD, _UPDATE, _REMOVE = "add", "update", "remove"  # kinds of the frame's queued estimator work
 _ROW = itemgetter(3)  # an update's row of the frame's measurements
 _op_kind = itemgetter(0)  # an op's kind (_flush_estimator groups runs of one kind)
@@ -668,19 +668,22 @@ class TrackManager:
                 self._accepted(tr, row, src, self._normalized((float(src.time), x[i], P[i])), None)
 
     def _plausible(self, updates: list[tuple]) -> list[tuple]:
-        """``updates`` without the ADS-B reports :class:`AdsbPlausibility` rejects (counted)."""
-        keep = []
-        check, counts, meas = self.adsb_check.check, self.counts, self._meas
-        for u in updates:
-            src = u[4]
-            if type(src) is AdsbReport:
-                row = u[3]
-                why = check(src.icao24, src.time, meas.z[row], math.sqrt(meas.R[row, 0, 0]), src.nacp)
-                if why is not None:
-                    counts[why] += 1
-                    continue
-            keep.append(u)
-        return keep
+        """``updates`` without the ADS-B reports :class:`AdsbPlausibility` rejects (counted), all of the
+        frame's checked in order in one :meth:`AdsbPlausibility.check_many`."""
+        idx = [j for j, u in enumerate(updates) if type(u[4]) is AdsbReport]
+        if not idx:
+            return updates
+        reports = [updates[j][4] for j in idx]
+        rows = np.fromiter(map(_ROW, map(updates.__getitem__, idx)), np.int64, len(idx))
+        meas = self._meas
+        verdicts = self.adsb_check.check_many([r.icao24 for r in reports], meas.time[rows], meas.z[rows],
+                                              np.sqrt(meas.R[rows, 0, 0]), np.fromiter(map(_NACP, reports), np.int64, len(idx)))
+        dropped = set()
+        for j, why in zip(idx, verdicts):
+            if why is not None:
+                self.counts[why] += 1
+                dropped.add(j)
+        return [u for j, u in enumerate(updates) if j not in dropped] if dropped else updates
 
     def _screen_confirmed(self, updates: list[tuple]) -> tuple[list[int], np.ndarray, tuple]:
         """The radar and ADS-B measurements of confirmed tracks, screened and applied in order by one
