@@ -7,11 +7,11 @@ traffic, 200 aircraft × 28 radars × 3 minutes). The manager's estimator work i
 removed, and each run of queued measurements that ``TrackManager._flush_estimator`` hands to ``_update_run``),
 then replayed on a new ``coupled-sparse`` estimator and coupling graph in two ways, after a warm-up:
 
-* ``manager_path``: what the TrackManager does per run — ``_update_run`` (the run's arrays stacked,
+* ``manager_path``: what the TrackManager does per run — ``_update_run`` (the run's arrays gathered,
   ``Estimator.update_many``, ``CouplingGraph.observe_many`` and the counts);
 * ``kernel``: the compiled loop ``update_batch`` alone on the same arrays, stacked beforehand;
 * with ``--parts``, also the manager path's steps timed one by one (on a third estimator and graph):
-  ``stack`` (the run's columns and its z, C, R arrays, as ``_update_run`` builds them), ``update_many``
+  ``stack`` (the run's columns and its z, C, R arrays, as ``_update_run`` gathers them), ``update_many``
   (the estimator's call, kernel included) and ``coupling`` (``CouplingGraph.observe_many`` and the counts).
   A third replay in the turns changes what the caches hold for the other two: compare ``us_overhead`` only
   between runs with the same setting.
@@ -59,8 +59,8 @@ def record(folder: str | None) -> tuple[list, list, "object"]:
                 return lambda *a: (calls.append((name, a)), f(*a))[1]
             return f
 
-    def recorded_run(run: list) -> None:
-        calls.append(("run", list(run)))
+    def recorded_run(run: list) -> None:  # with the frame's measurements its rows refer to
+        calls.append(("run", (list(run), mgr._meas)))
         update_run(run)
 
     mgr.estimator, mgr._update_run = Recording(), recorded_run
@@ -72,7 +72,7 @@ def record(folder: str | None) -> tuple[list, list, "object"]:
     return [r.id for r in data.radars], calls, mgr
 
 
-def stacked(calls: list, est) -> list:
+def stacked(calls: list, est, mgr) -> list:
     """The kernel's arguments per recorded run (slots as a replay from a new estimator assigns them)."""
     out = []
     for name, a in calls:
@@ -81,11 +81,13 @@ def stacked(calls: list, est) -> list:
         elif name == "remove_aircraft":
             est.remove_aircraft(*a)
         else:
-            _, t, key, radar, z, C, R, _ = zip(*a)
-            n = len(a)
+            run, mgr._meas = a
+            _, t, key, radar, rows, _ = zip(*run)
+            z, C, R = mgr._measurements(rows)
+            n = len(run)
             out.append((np.array([est._ac[k] for k in key], np.int64),
                         np.array([-1 if r is None else est._rad[r] for r in radar], np.int64),
-                        np.array(t, float), np.array(z), np.array(C), np.array(R),
+                        np.array(t, float), z, C, R,
                         np.zeros((n, 2)), np.zeros((n, 2, 2)), np.zeros(n)))
             est.update_many(t, key, radar, np.array(z), np.array(C), np.array(R))
     return out
@@ -100,7 +102,7 @@ def replay(radars: list, calls: list, mgr, args: list, with_parts: bool,
 
     from radartracker.estimation.coupling import CouplingGraph
     from radartracker.registry import make_estimator
-    from radartracker.tracking.manager import _USED, _stacked
+    from radartracker.tracking.manager import _USED
     from radartracker_plugins.coupled_sparse import _kernels as K
 
     ek, em, ep = (make_estimator("coupled-sparse", mgr.estimator.config, radars) for _ in range(3))
@@ -116,9 +118,9 @@ def replay(radars: list, calls: list, mgr, args: list, with_parts: bool,
         for name, a in part:
             if name == "run":  # the steps of TrackManager._update_run (none is refused here)
                 t0 = clock()
-                _, t, key, radar, z, C, R, kind = zip(*a)
-                n = len(a)
-                Z, Cs, Rs = _stacked(z, (n, 2)), _stacked(C, (n, 2, 2)), _stacked(R, (n, 2, 2))
+                run, mgr._meas = a
+                _, t, key, radar, rows, kind = zip(*run)
+                Z, Cs, Rs = mgr._measurements(rows)
                 t1 = clock()
                 ep.update_many(t, key, radar, Z, Cs, Rs)
                 t2 = clock()
@@ -143,7 +145,8 @@ def replay(radars: list, calls: list, mgr, args: list, with_parts: bool,
                 if kernel:
                     K.update_batch(est._F, est._I, est._work.flat, *next(runs))
                 else:
-                    update_run(a)
+                    run, mgr._meas = a
+                    update_run(run)
             elif name == "add_aircraft":
                 est.add_aircraft(*a)
                 coupling.add_aircraft(a[0])
@@ -157,7 +160,7 @@ def replay(radars: list, calls: list, mgr, args: list, with_parts: bool,
         run(calls[i:i + chunk], False)
         if with_parts:
             run_parts(calls[i:i + chunk])
-    n = sum(len(c[1]) for c in calls if c[0] == "run")
+    n = sum(len(c[1][0]) for c in calls if c[0] == "run")
     same = np.array_equal(ek._F, em._F) and (not with_parts or np.array_equal(ek._F, ep._F))
     return cpu[0], cpu[1], parts if with_parts else {}, n, bool(same)
 
@@ -171,7 +174,7 @@ def main() -> None:
     from radartracker.registry import make_estimator
 
     radars, calls, mgr = record(args.folder)
-    kernel_args = stacked(calls, make_estimator("coupled-sparse", mgr.estimator.config, radars))
+    kernel_args = stacked(calls, make_estimator("coupled-sparse", mgr.estimator.config, radars), mgr)
     replay(radars, calls, mgr, kernel_args, args.parts)  # warm-up
     for _ in range(args.repeat):
         tk, tm, parts, n, same = replay(radars, calls, mgr, kernel_args, args.parts)

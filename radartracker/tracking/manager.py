@@ -87,16 +87,6 @@ _op_kind = itemgetter(0)  # an op's kind (_flush_estimator groups runs of one ki
 PREFERRED_ESTIMATORS = ("coupled-sparse", "coupled", "blom", "decoupled")
 
 
-def _stacked(arrays: tuple[np.ndarray, ...], shape: tuple[int, ...]) -> np.ndarray:
-    """The manager's float arrays ``arrays`` (z, C or R of queued measurements) as one new array of ``shape``:
-    their bytes joined, several times faster than ``np.array`` over small arrays; ``np.array`` if one is not
-    contiguous."""
-    try:
-        return np.frombuffer(bytearray().join(arrays), float).reshape(shape)
-    except TypeError:  # a view that is not contiguous has no bytes to join
-        return np.array(arrays, float)
-
-
 def default_estimator() -> str:
     """The best installed estimator plugin: the first of ``PREFERRED_ESTIMATORS`` that is installed."""
     installed = available_estimators()
@@ -924,19 +914,12 @@ class TrackManager:
         the coupling graph and the counts in one call each; one the estimator refuses as singular is counted
         (``*_singular``) and the rest of the run goes on after it."""
         start = 0
-        frame = self._meas
         while start < len(run):
             part = run[start:] if start else run
             _, time, aircraft, radar, rows, kind = zip(*part)
             n = len(part)
             done, failed = n, None
-            try:
-                g = np.fromiter(rows, np.int64, n)
-                z, C, R = frame.z[g], frame.C[g], frame.R[g]
-            except TypeError:  # some of an earlier frame: a confirmed track's tentative measurements
-                meas = [(frame.z[r], frame.C[r], frame.R[r]) if type(r) is int else r for r in rows]
-                z, C, R = (_stacked(tuple(m[k] for m in meas), shape) for k, shape in
-                           enumerate([(n, 2), (n, 2, 2), (n, 2, 2)]))
+            z, C, R = self._measurements(rows)
             try:
                 self.estimator.update_many(time, aircraft, radar, z, C, R)
             except SingularInnovation as exc:
@@ -954,6 +937,24 @@ class TrackManager:
                 log.warning("estimator refused a measurement of track %s: %s", aircraft[done], failed)
                 done += 1
             start += done
+
+    def _measurements(self, rows: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(z, C, R) of queued measurements as new arrays: each a row of the frame's measurements, or (z, C, R)
+        of an earlier frame's (a confirmed track's tentative ones, written in one by one)."""
+        n, frame = len(rows), self._meas
+        try:
+            g = np.fromiter(rows, np.int64, n)
+            earlier: list[int] = []
+        except TypeError:
+            g = np.fromiter((r if type(r) is int else -1 for r in rows), np.int64, n)
+            earlier = np.flatnonzero(g < 0).tolist()
+        if frame is not None:
+            z, C, R = frame.z[g], frame.C[g], frame.R[g]
+        else:  # none of this frame
+            z, C, R = np.empty((n, 2)), np.empty((n, 2, 2)), np.empty((n, 2, 2))
+        for k in earlier:
+            z[k], C[k], R[k] = rows[k]
+        return z, C, R
 
     # --- misses, deletion, events ------------------------------------------------------------------
     def _misses(self, live: list[ManagedTrack], pred: dict, assigned: dict[str, set[int]], t_a: float, t_b: float) -> None:

@@ -186,20 +186,24 @@ def test_garbage_never_corrupts_state(tracking_data, junk):
         not isinstance(i, (Plot, AdsbReport)) for i in stream)
 
 
-def test_queued_measurements_are_stacked_as_np_array_stacks_them():
-    """Oracle: np.array over the same arrays. The manager's z, C, R are rows of its frame arrays (views) or
-    arrays of their own; one that is not contiguous takes np.array's path. The stack is a new, writable array."""
-    from radartracker.tracking.manager import _stacked
+def test_queued_measurements_are_gathered_as_np_array_stacks_them(tracking_data):
+    """Oracle: np.array over the same measurements. Queued ones are rows of the frame's measurements or
+    (z, C, R) of an earlier frame's; the result is new arrays, whatever the mix."""
+    from radartracker.tracking.manager import FrameMeasurements
 
     rng = np.random.default_rng(5)
-    frame = rng.normal(size=(6, 2, 2))
-    rows = (frame[1], frame[4], rng.normal(size=(2, 2)), frame[0])
-    for arrays in (rows, rows[:1], (*rows, frame[2].T)):  # frame[2].T: not contiguous
-        got = _stacked(arrays, (len(arrays), 2, 2))
-        np.testing.assert_array_equal(got, np.array(arrays))
-        assert got.flags.writeable and not np.shares_memory(got, frame)
-    z = tuple(frame[:, 0])
-    np.testing.assert_array_equal(_stacked(z, (6, 2)), frame[:, 0])
+    mgr = TrackManager(tracking_data.radars, tracking_data.reference, ManagerConfig())
+    mgr._meas = FrameMeasurements(rng.normal(size=6), rng.normal(size=(6, 2)), rng.normal(size=(6, 2, 2)),
+                                  rng.normal(size=(6, 2, 2)), np.zeros(6, np.int64))
+    earlier = tuple((rng.normal(size=2), rng.normal(size=(2, 2)), rng.normal(size=(2, 2))) for _ in range(2))
+    for rows in ((4, 1, 1), (earlier[0], 3, earlier[1]), earlier, (5,)):
+        got = mgr._measurements(rows)
+        want = [np.array([getattr(mgr._meas, f)[r] if type(r) is int else r[k] for r in rows]) for k, f in enumerate("zCR")]
+        for g, w, f in zip(got, want, "zCR"):
+            np.testing.assert_array_equal(g, w)
+            assert g.flags.writeable and not np.shares_memory(g, getattr(mgr._meas, f))
+    mgr._meas = None  # an estimator's work with no frame running: earlier frames' measurements only
+    np.testing.assert_array_equal(mgr._measurements(earlier)[2], np.array([m[2] for m in earlier]))
 
 
 def test_a_frames_estimator_work_comes_at_its_end_and_a_refused_measurement_costs_only_itself(tracking_data):
