@@ -633,11 +633,11 @@ class TrackManager:
 
     # --- applying updates -------------------------------------------------------------------------
     def _apply_all(self, updates: list[tuple]) -> None:
-        """The frame's updates (time, seq, track, (z, C, R), input), in order. With screening on, the ADS-B
+        """The frame's updates (time, seq, track, row, input), in order. With screening on, the ADS-B
         reports are checked first (:class:`AdsbPlausibility`, its state per address evolving in the same
         order), and the measurements of confirmed tracks go to their filters in one
-        :meth:`TrackFilter.screen_many`; those it did are booked here (:meth:`_accepted`), the others go
-        through :meth:`_apply`, each at its place in the order."""
+        :meth:`TrackFilter.screen_many`; those it did are booked here, as :meth:`_apply` books an accepted
+        measurement of a confirmed track, the others go through :meth:`_apply`, each at its place in the order."""
         if not self.config.screening.enabled:
             for _, _, tr, row, src in updates:
                 self._apply(tr, row, src)
@@ -649,13 +649,40 @@ class TrackManager:
             plan[rows[i]] = i
         # the states as lists for the events, unless the estimates are as estimate() gives them (any length)
         states = x.tolist() if type(x) is np.ndarray and x.dtype is _F8 and x.shape[1:] == (4,) else None
+        changed, defer, record, apply = self._states.changed, self._deferred.append, self._record, self._apply
         for (_, _, tr, row, src), i in zip(updates, plan):
             if i < 0:
-                self._apply(tr, row, src)
-            elif states is not None:
-                self._accepted(tr, row, src, (float(src.time), x[i], P[i]), states[i])
+                apply(tr, row, src)
+                continue
+            t = float(src.time)
+            if tr.rejected:  # screening accepted it: a run of rejections ends
+                tr.rejected = []
+            tr.estimate = e = (t, x[i], P[i]) if states is not None else self._normalized((t, x[i], P[i]))
+            changed(tr)
+            tr.last_update = src.time
+            if type(src) is Plot:
+                radar, kind = src.radar, "plots"
+                tr.n_plots += 1
+                tr.mode_3a = src.mode_3a or tr.mode_3a
+                h = src.altitude_m
+                if h is not None:
+                    tr.altitude_m = h
+                    if tr.vertical is None:
+                        tr.vertical = AltitudeTrack.start(src.time, h)
+                    else:
+                        tr.vertical.update(src.time, h)
             else:
-                self._accepted(tr, row, src, self._normalized((float(src.time), x[i], P[i])), None)
+                radar, kind = None, "adsb"
+                tr.n_adsb += 1
+                if src.altitude_m is not None:
+                    tr.altitude_m = src.altitude_m
+            tr.history.append(True)
+            defer((_UPDATE, src.time, tr.id, radar, row, kind))
+            tr.status = "confirmed"
+            if states is None:
+                self._emit(src.time, tr, "updated")
+            else:  # _emit's event, its state at hand
+                record(_make_event(TrackEvent, (t, tr.id, "updated", "confirmed", tuple(states[i]))), e[2], tr)
 
     def _plausible(self, updates: list[tuple]) -> list[tuple]:
         """``updates`` without the ADS-B reports :class:`AdsbPlausibility` rejects (counted), all of the
@@ -712,41 +739,6 @@ class TrackManager:
         except Exception as exc:  # a plugin's bug: name it and the frame's first such measurement
             raise self._plugin_failed(f"motion model {self._filter_cls.name!r}", chosen[0][2].id, times[0], exc) from exc
         return rows, done, (x, P)
-
-    def _accepted(self, tr: ManagedTrack, row: int, src: Plot | AdsbReport, estimate: tuple,
-                  state: list[float] | None) -> None:
-        """What :meth:`_apply` does after screening accepted a measurement of confirmed track ``tr`` and
-        updated its filter (:meth:`_screen_confirmed`); ``estimate`` the filter's (t, χ̂, P̂) after it and
-        ``state`` its [x, y, vx, vy] as floats (None: taken from χ̂)."""
-        if tr.rejected:
-            tr.rejected = []
-        tr.estimate = estimate
-        self._states.changed(tr)
-        t = src.time
-        tr.last_update = t
-        if type(src) is Plot:
-            radar, kind = src.radar, "plots"
-            tr.n_plots += 1
-            tr.mode_3a = src.mode_3a or tr.mode_3a
-            h = src.altitude_m
-            if h is not None:
-                tr.altitude_m = h
-                if tr.vertical is None:
-                    tr.vertical = AltitudeTrack.start(t, h)
-                else:
-                    tr.vertical.update(t, h)
-        else:
-            radar, kind = None, "adsb"
-            tr.n_adsb += 1
-            if src.altitude_m is not None:
-                tr.altitude_m = src.altitude_m
-        tr.history.append(True)
-        self._deferred.append((_UPDATE, t, tr.id, radar, row, kind))
-        tr.status = "confirmed"
-        if state is None:
-            self._emit(t, tr, "updated")
-        else:  # _emit's event, its state at hand
-            self._record(_make_event(TrackEvent, (estimate[0], tr.id, "updated", "confirmed", tuple(state))), estimate[2], tr)
 
     def _apply(self, tr: ManagedTrack | None, row: int, src: Plot | AdsbReport | PlaneMeasurement) -> None:
         """Update ``row`` of the frame's measurements (its input ``src``) for track ``tr`` (None: find or start
