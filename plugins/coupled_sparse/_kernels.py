@@ -552,29 +552,53 @@ def rebuild(Yxx, Yxb, ex, nk, rk, Ybb, eb, S, sv, ctr, f4, V, G, v4, idx, S_new,
 
 @njit(cache=True)
 def refresh(S, sv, Pb, bh, ctr, LS, LSi):
-    """Pb = S⁻¹ and ς̂ = S⁻¹ sv through the Cholesky factor of S; False if S is not positive definite."""
+    """Pb = S⁻¹ and ς̂ = S⁻¹ sv through the Cholesky factor S = L Lᵀ; False if S is not positive definite.
+
+    Every entry is summed in the order of the textbook loops (:func:`chol`, then forward substitution and
+    the product Pb = L⁻ᵀ L⁻¹, all over k ascending), but the loops run over independent entries along
+    contiguous rows, so they vectorise: LS holds Lᵀ (its row j is L's column j), LSi holds L⁻¹."""
     n = S.shape[0]
-    if not chol(S, LS, n):
-        return False
-    U = LSi  # U = L⁻ᵀ (upper triangular), by rows: every loop below runs along contiguous rows
-    for c in range(n):
-        for i in range(c, n):
-            acc = 1.0 if i == c else 0.0
-            for k in range(c, i):
-                acc -= LS[i, k] * U[c, k]
-            U[c, i] = acc / LS[i, i]
-    for i in range(n):  # Pb = U Uᵀ = L⁻ᵀ L⁻¹
+    Lt, Li = LS, LSi
+    for j in range(n):  # column j of L: L[i, j] = (S[i, j] − Σ_{k<j} L[i, k] L[j, k]) / L[j, j], i ≥ j
+        for i in range(j, n):
+            Lt[j, i] = S[i, j]
+        for k in range(j):
+            ljk = Lt[k, j]
+            for i in range(j, n):
+                Lt[j, i] -= Lt[k, i] * ljk
+        d = Lt[j, j]
+        if not (0.0 < d < np.inf):
+            return False
+        d = np.sqrt(d)
+        Lt[j, j] = d
+        for i in range(j + 1, n):
+            Lt[j, i] = Lt[j, i] / d
+    for i in range(n):  # row i of L⁻¹: (δ_ic − Σ_{c≤k<i} L[i, k] L⁻¹[k, c]) / L[i, i], c ≤ i
+        for c in range(i):
+            Li[i, c] = 0.0
+        Li[i, i] = 1.0
+        for k in range(i):
+            lik = Lt[k, i]
+            for c in range(k + 1):
+                Li[i, c] -= lik * Li[k, c]
+        d = Lt[i, i]
+        for c in range(i + 1):
+            Li[i, c] = Li[i, c] / d
+    for i in range(n):  # Pb[i, j] = Σ_{k≥i} L⁻¹[k, i] L⁻¹[k, j] for j ≤ i (row i), mirrored
         for j in range(i + 1):
-            acc = 0.0
-            for k in range(i, n):
-                acc += U[i, k] * U[j, k]
-            Pb[i, j] = acc
-            Pb[j, i] = acc
-    for i in range(n):
-        acc = 0.0
-        for k in range(n):
-            acc += Pb[i, k] * sv[k]
-        bh[i] = acc
+            Pb[i, j] = 0.0
+        for k in range(i, n):
+            lki = Li[k, i]
+            for j in range(i + 1):
+                Pb[i, j] += lki * Li[k, j]
+        for j in range(i):
+            Pb[j, i] = Pb[i, j]
+    for i in range(n):  # ς̂ = Pb sv, each entry summed over k ascending (Pb is exactly symmetric: row k)
+        bh[i] = 0.0
+    for k in range(n):
+        svk = sv[k]
+        for i in range(n):
+            bh[i] += Pb[k, i] * svk
     ctr[C_SINCE_REFRESH] = 0
     return True
 

@@ -473,3 +473,61 @@ def test_bias_covariance_stays_exactly_symmetric_and_equals_the_dense_filter():
             sparse.update_many([t[-1] + 1.0] * 2, keys, radars, z[:2], C[:2], R[:2])
     for u, v in zip(before, sparse.joint()):
         np.testing.assert_array_equal(u, v)
+
+
+def _textbook_inverse(S: np.ndarray) -> np.ndarray:
+    """L = chol(S) row by row, U = L⁻ᵀ by forward substitution, Pb = U Uᵀ: plain Python floats, each sum
+    over k ascending (the order refresh promises)."""
+    n = len(S)
+    L = [[0.0] * n for _ in range(n)]
+    for i in range(n):
+        for j in range(i + 1):
+            s = float(S[i, j])
+            for k in range(j):
+                s -= L[i][k] * L[j][k]
+            L[i][j] = s ** 0.5 if i == j else s / L[j][j]
+    U = [[0.0] * n for _ in range(n)]
+    for c in range(n):
+        for i in range(c, n):
+            acc = 1.0 if i == c else 0.0
+            for k in range(c, i):
+                acc -= L[i][k] * U[c][k]
+            U[c][i] = acc / L[i][i]
+    P = np.zeros((n, n))
+    for i in range(n):
+        for j in range(n):
+            acc = 0.0
+            for k in range(max(i, j), n):
+                acc += U[i][k] * U[j][k]
+            P[i, j] = acc
+    return P
+
+
+def test_refresh_sums_in_textbook_order_and_inverts_S():
+    """refresh's vectorised loops give S⁻¹ bit for bit as the textbook loops (Python floats, k ascending),
+    exactly symmetric, within 1e-12 of numpy's inverse; ς̂ = S⁻¹ sv; a non-positive-definite S is refused
+    with Pb untouched."""
+    rng = np.random.default_rng(5)
+    n = 9
+    X = rng.normal(size=(n, 3 * n))
+    S = X @ X.T + np.diag(rng.uniform(0.1, 10.0, n))
+    S = 0.5 * (S + S.T)
+    sv = rng.normal(size=n)
+    Pb, bh, ctr = np.zeros((n, n)), np.zeros(n), np.array([7, 256, 0, 64, 0], np.int64)
+    LS, LSi = np.zeros((n + 3, n + 3)), np.zeros((n + 3, n + 3))  # scratch larger than nb, as in Work
+    assert kernels.refresh(S, sv, Pb, bh, ctr, LS, LSi)
+    P = _textbook_inverse(S)
+    np.testing.assert_array_equal(Pb, P)
+    np.testing.assert_array_equal(Pb, Pb.T)
+    np.testing.assert_allclose(Pb, np.linalg.inv(S), rtol=0, atol=1e-12 * np.abs(np.linalg.inv(S)).max())
+    for i in range(n):
+        acc = 0.0
+        for k in range(n):
+            acc += Pb[i, k] * sv[k]
+        assert bh[i] == acc
+    assert ctr[kernels.C_SINCE_REFRESH] == 0
+    bad = S.copy()
+    bad[4, 4] = -1.0
+    before = Pb.copy()
+    assert not kernels.refresh(bad, sv, Pb, bh, ctr, LS, LSi)
+    np.testing.assert_array_equal(Pb, before)
