@@ -32,7 +32,17 @@ ERR_REBUILD = 6  # recomputing S from the blocks met an aircraft whose Y_ii is n
 # (``_nrt=False``): with it, every array argument of every call and every view costs an atomic increment and
 # decrement (14 % of the kernel's perf samples; update_batch 23 % faster without). carve and carve_work,
 # which return views to Python, keep it.
-kernel = njit(cache=True, _nrt=False)
+
+
+def _probe() -> int:
+    return 0
+
+
+try:  # _nrt is numba's own (underscored) option: a numba without it compiles the kernels with their counts
+    njit(cache=True, _nrt=False)(_probe)()
+    kernel = njit(cache=True, _nrt=False)
+except KeyError:
+    kernel = njit(cache=True)
 
 # ctr: [updates since refresh, refresh_every, updates since rebuild, rebuild_factor, n alive]
 C_SINCE_REFRESH, C_REFRESH_EVERY, C_SINCE_REBUILD, C_REBUILD_FACTOR, C_ALIVE = range(5)
