@@ -8,6 +8,8 @@ Degrees, feet and knots appear only at the I/O edges (see :mod:`radartracker.for
 
 from __future__ import annotations
 
+import collections
+import itertools
 import math
 from collections.abc import Callable, Hashable
 from typing import Any
@@ -154,15 +156,19 @@ class AdsbReport:
     nacp: int = attrs.field(default=8, validator=attrs.validators.in_(range(1, 12)))
 
 
-def _unchecked(cls: type) -> Callable[..., Any]:
-    """A function making ``cls`` (a slotted attrs class) from its field values in order, setting its slots
-    without running converters or validators. Only for :func:`plots_from_columns` and
+def _unchecked(cls: type) -> Callable[..., list]:
+    """A function making a list of ``cls`` (a slotted attrs class) objects from columns of its field values in
+    order, setting its slots without running converters or validators. Only for :func:`plots_from_columns` and
     :func:`reports_from_columns`, once every value has passed the validators' rules."""
-    names = [a.name for a in attrs.fields(cls)]
-    scope = {"_new": object.__new__, "_cls": cls} | {f"_set_{n}": cls.__dict__[n].__set__ for n in names}
-    body = "".join(f"    _set_{n}(self, {n})\n" for n in names)
-    exec(f"def make({', '.join(names)}):\n    self = _new(_cls)\n{body}    return self\n", scope)  # as attrs does
-    return scope["make"]
+    setters = [cls.__dict__[a.name].__set__ for a in attrs.fields(cls)]
+
+    def make(*cols: list) -> list:
+        # a column at a time, by map over the slots' setters: no Python frame per object (issue 13)
+        objs = list(map(object.__new__, itertools.repeat(cls, len(cols[0]))))
+        for set_slot, col in zip(setters, cols):
+            collections.deque(map(set_slot, objs, col), maxlen=0)
+        return objs
+    return make
 
 
 _make_plot, _make_report = _unchecked(Plot), _unchecked(AdsbReport)
@@ -227,7 +233,7 @@ def plots_from_columns(time: np.ndarray, radar: np.ndarray, range_m: np.ndarray,
         return [Plot(t, r, rng, az, None if alt != alt else alt, ms, m3a, tg) for t, r, rng, az, alt, ms, m3a, tg
                 in zip(*(c.tolist() for c in (time, radar, range_m, azimuth_rad, altitude_m, mode_s, mode_3a,
                                                 target)))]
-    return list(map(_make_plot, *cols))
+    return _make_plot(*cols)
 
 
 def reports_from_columns(time: np.ndarray, icao24: np.ndarray, lat: np.ndarray, lon: np.ndarray,
@@ -241,7 +247,7 @@ def reports_from_columns(time: np.ndarray, icao24: np.ndarray, lat: np.ndarray, 
     if any(c is None for c in cols):
         return [AdsbReport(t, icao, la, lo, None if alt != alt else alt, int(n)) for t, icao, la, lo, alt, n
                 in zip(*(c.tolist() for c in (time, icao24, lat, lon, altitude_m, nacp)))]
-    return list(map(_make_report, *cols))
+    return _make_report(*cols)
 
 
 # NACp → 95 % horizontal position bound EPU (m), DO-260B table; σ per axis = EPU / 2.448
