@@ -15,7 +15,10 @@ each bad row and counts it under ``--skip-bad``: the columnar path only ever acc
 * plots: times in order within the block and not before any radar's latest time, so the per-radar
   order holds, and the stream clock (median of the last rows) admits each time: for sorted times the
   median of a window is its middle element;
-* no row equal to another row of the block, nor to a kept row it would be a duplicate of.
+* no row equal to another row of the block, nor to a kept row it would be a duplicate of. Equal rows have
+  equal times, so in a block whose times are in order only the lines of a run of equal times are compared,
+  byte by byte by a compiled loop (:func:`_repeats`), and only the few lines the readers keep as keys are
+  made strings.
 """
 
 from __future__ import annotations
@@ -41,11 +44,12 @@ _HEX, _OCT = _byte_set("0123456789abcdefABCDEF"), _byte_set("01234567")
 _LABEL = _byte_set("".join(map(chr, range(33, 127))))  # printable ASCII without space: nothing for strip()
 
 
-def _read(header: list[str], text: str) -> pa.Table | None:
-    """The block's fields as strings, or ``None`` if a row has the wrong number of fields."""
+def _read(header: list[str], raw: bytes) -> pa.Table | None:
+    """The block's fields (``raw``: its UTF-8 text) as strings, or ``None`` if a row has the wrong number of
+    fields."""
     try:
         return pacsv.read_csv(
-            pa.py_buffer(text.encode()),
+            pa.py_buffer(raw),
             read_options=pacsv.ReadOptions(column_names=header, use_threads=False),
             parse_options=pacsv.ParseOptions(quote_char=False, newlines_in_values=False, ignore_empty_lines=False),
             convert_options=pacsv.ConvertOptions(column_types={c: pa.string() for c in header},
@@ -73,6 +77,7 @@ def warm_up() -> None:
         col = pa.chunked_array([pa.array(values, pa.string())])
         _decimals(*_bytes(col), True)
         _digits(*_bytes(col), _HEX, 6, True)
+    _Lines(b"1\n1\n").repeats(_numbers(pa.chunked_array([pa.array(["1", "1"])])))  # as a block's times are
 
 
 @njit(cache=True)
@@ -130,6 +135,59 @@ def _digits(off, data, allowed, length, optional):  # pragma: no cover (compiled
     return True
 
 
+LONGEST_RUN = 64  # lines of equal times compared pair by pair; a longer run goes to a set of strings
+
+
+@njit(cache=True)
+def _repeats(t, starts, data, longest):  # pragma: no cover (compiled)
+    """For lines in time order (line i: ``data[starts[i]:starts[i + 1]]``, times ``t``): 1 if two lines of a run
+    of equal times are the same bytes, else 0; -1 (not looked at further) at a run longer than ``longest``."""
+    n, i = len(t), 0
+    while i < n:
+        j = i + 1
+        while j < n and t[j] == t[i]:
+            j += 1
+        if j - i > longest:
+            return -1
+        for a in range(i + 1, j):
+            a0, size = starts[a], starts[a + 1] - starts[a]
+            for b in range(i, a):
+                b0 = starts[b]
+                if starts[b + 1] - b0 == size:
+                    k = 0
+                    while k < size and data[a0 + k] == data[b0 + k]:
+                        k += 1
+                    if k == size:
+                        return 1
+        i = j
+    return 0
+
+
+class _Lines:
+    """A block's lines (``raw``: UTF-8 text of whole lines, each ending with its newline), each made a str only
+    when asked for: line ``i`` is ``raw.decode().split("\\n")[i]``."""
+
+    def __init__(self, raw: bytes):
+        self.raw = raw
+        self.data = np.frombuffer(raw, np.uint8)
+        self.starts = np.concatenate([[0], np.flatnonzero(self.data == 10) + 1])
+
+    def __getitem__(self, i: int) -> str:
+        return self.raw[self.starts[i]:self.starts[i + 1] - 1].decode()
+
+    def every(self) -> list[str]:
+        return self.raw.decode().split("\n")[:-1]
+
+    def repeats(self, t: np.ndarray) -> bool:
+        """Whether two lines are the same text (``t``: their times)."""
+        if len(t) < 2 or not np.any(t[1:] < t[:-1]):
+            found = _repeats(t, self.starts, self.data, LONGEST_RUN)
+            if found >= 0:
+                return bool(found)
+        lines = self.every()
+        return len(set(lines)) != len(lines)
+
+
 def _numbers(col: pa.ChunkedArray, *, optional: bool = False) -> np.ndarray | None:
     """The column as floats (NaN where empty, if ``optional``), or ``None`` unless every value is plain."""
     if not _decimals(*_bytes(col), optional):
@@ -164,7 +222,8 @@ def _objects(col: pa.ChunkedArray, *, lower: bool = False) -> tuple[np.ndarray, 
 def plots(reader, first: int, text: str) -> PlotTable | None:
     """``text`` (a plain block of ``plots.csv`` whose first line is ``first``) as a table, with ``reader``'s
     state carried on; ``None`` (``reader`` untouched) where it must be read row by row."""
-    tab = _read(reader.rows.header, text)
+    raw = text.encode()
+    tab = _read(reader.rows.header, raw)
     if tab is None or not len(tab):
         return None
     t = _numbers(tab["time"])
@@ -186,9 +245,9 @@ def plots(reader, first: int, text: str) -> PlotTable | None:
         target = _objects(tab["target"])[0]
     else:
         target = np.full(len(t), None, object)
-    lines = text.split("\n")[:-1]
+    lines = _Lines(raw)
     rid, code, names = _objects(radar)
-    if len(set(lines)) != len(lines) or not _clock_admits(reader.clock, t):
+    if lines.repeats(t) or not _clock_admits(reader.clock, t):
         return None
     for i in np.flatnonzero(t == t[0]).tolist():  # only the first time can equal a radar's latest time
         last = reader.last_time.get(rid[i])
@@ -234,7 +293,8 @@ def _clock_take(clock, t: np.ndarray) -> None:
 def adsb(reader, first: int, text: str) -> AdsbTable | None:
     """``text`` (a plain block of ``adsb.csv``) as a table, with ``reader``'s state carried on; ``None``
     (``reader`` untouched) where it must be read row by row."""
-    tab = _read(reader.rows.header, text)
+    raw = text.encode()
+    tab = _read(reader.rows.header, raw)
     if tab is None or not len(tab):
         return None
     t, lat, lon = _numbers(tab["time"]), _numbers(tab["lat"]), _numbers(tab["lon"])
@@ -245,17 +305,22 @@ def adsb(reader, first: int, text: str) -> AdsbTable | None:
     if not ((np.abs(lat) <= 90).all() and (np.abs(lon) <= 180).all() and ((nacp >= 1) & (nacp <= 11)).all()
             and (nacp == np.floor(nacp)).all()):
         return None
-    lines = text.split("\n")[:-1]
-    if len(distinct := set(lines)) != len(lines) or not distinct.isdisjoint(reader.seen):
-        return None
-    if reader.latest_only:  # the keys of the last run of equal times, as the row checks keep them
+    lines = _Lines(raw)
+    if reader.latest_only:
+        # the keys kept are rows at seen_time: only lines of that time can be among them
+        if lines.repeats(t) or any(lines[i] in reader.seen for i in np.flatnonzero(t == reader.seen_time).tolist()):
+            return None
+        # the keys of the last run of equal times, as the row checks keep them
         j = len(t) - 1
         while j > 0 and t[j - 1] == t[-1]:
             j -= 1
-        keys = set(lines[j:])
+        keys = {lines[i] for i in range(j, len(t))}
         reader.seen = keys | reader.seen if j == 0 and reader.seen_time == t[-1] else keys
         reader.seen_time = float(t[-1])
     else:
-        reader.seen.update(lines)
+        every = lines.every()
+        if len(distinct := set(every)) != len(every) or not distinct.isdisjoint(reader.seen):
+            return None
+        reader.seen.update(every)
     reader.kept += len(t)
     return AdsbTable(time=t, icao24=icao, lat=lat, lon=lon, altitude_m=alt, nacp=nacp.astype(int))

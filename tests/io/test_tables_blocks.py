@@ -20,7 +20,8 @@ from hypothesis import strategies as st
 
 from radartracker.errors import RadarTrackerError
 from radartracker.io.csvblocks import Rows
-from radartracker.io.scenario import read_scenario, write_scenario
+from radartracker.io import columnar
+from radartracker.io.scenario import open_scenario, read_scenario, write_scenario
 from radartracker.simulation.scenarios import build_scenario
 
 BLOCKS = ((700, False), (700, True), (1 << 20, True))  # 700 bytes: about 12 rows a block
@@ -169,3 +170,53 @@ def test_pyarrow_reads_plain_decimals_as_float_does():
 def test_numpy_radians_is_math_radians():
     v = np.random.default_rng(2).uniform(0, 360, 100000)
     assert (np.radians(v) == np.array([math.radians(x) for x in v.tolist()])).all()
+
+
+def _streamed(folder, skip_bad, **kw):
+    """What the streaming replay reads (:func:`open_scenario`: ADS-B duplicates looked for at the latest
+    time only): each file's kept rows and the skip counts, or the error's text."""
+    try:
+        files = open_scenario(folder, skip_bad=skip_bad, **kw)
+        tables = list(files.plot_blocks()) + list(files.adsb_blocks())
+    except RadarTrackerError as exc:
+        return ("refused", type(exc).__name__, str(exc))
+    cols: dict = {}
+    for table in tables:
+        for f in attrs.fields(type(table)):
+            cols.setdefault(f"{type(table).__name__}.{f.name}", []).extend(
+                None if x != x else x for x in getattr(table, f.name).tolist())
+    return ("read", cols, files.data.skipped)
+
+
+def _tie_run(lines, k, size, field):
+    """``size`` rows at the time of line ``k`` after it, told apart by ``field`` (a number), then an exact copy of
+    the first of them: a duplicate within a run of equal times, not next to it."""
+    fields = lines[k].split(",")
+    run = [",".join(fields[:field] + [f"{100 + i}.5"] + fields[field + 1:]) for i in range(size)]
+    lines[k + 1:k + 1] = run + [run[0]]
+
+
+@pytest.mark.parametrize("size", [2, 70])  # compared pair by pair / a run too long for that: by a set of strings
+@pytest.mark.parametrize("name,field", [("plots.csv", 2), ("adsb.csv", 4)])
+def test_duplicates_among_equal_times_streamed(folder, tmp_path, monkeypatch, name, field, size):
+    """Exact duplicates in runs of equal times, within a block and across blocks, give the rows, counts and
+    errors of the row checks when the files are streamed; the compiled comparison of a run's lines is used
+    (it finds the repeat, or none, or leaves a long run to the set of strings)."""
+    work = tmp_path / "s"
+    shutil.copytree(folder, work)
+    lines = (work / name).read_text().split("\n")
+    for k in (len(lines) - 20, len(lines) // 2, 5):  # from the end: the indices before stay put
+        _tie_run(lines, k, size, field)
+    (work / name).write_text("\n".join(lines))
+    found, kernel = [], columnar._repeats
+
+    def spy(*args):
+        found.append(kernel(*args))
+        return found[-1]
+
+    monkeypatch.setattr(columnar, "_repeats", spy)
+    want = _streamed(work, False, block_bytes=1 << 30, fast=False)  # duplicates are counted, never refused
+    assert want[0] == "read" and want[2][f"{name}:duplicate_row"] == 3
+    for block_bytes in (700, 1500, 1 << 20):
+        assert _streamed(work, False, block_bytes=block_bytes, fast=True) == want, block_bytes
+    assert set(found) >= ({0, 1} if size == 2 else {0, -1})
