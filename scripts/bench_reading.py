@@ -6,6 +6,8 @@ line per stage.
 
 * ``read``: ``iter_files(open_scenario(FOLDER))`` used up (blocks read, checked, converted to Plot /
   AdsbReport items and merged in time order);
+* ``blocks``: the part of ``read`` before any item is made: the folder opened and both files read block by
+  block, checked and converted to tables (``ScenarioFiles.plot_blocks`` / ``adsb_blocks``);
 * ``admit``: ``TrackManager.process`` of those items (already in a list) with the frame step replaced by
   one that drops the frame's items: admission (kind, duplicates, lateness, time jumps, stream clock), the
   reordering heap and the release into frames, nothing else;
@@ -81,6 +83,12 @@ def stages(folder: Path):
         n = sum(1 for _ in iter_files(open_scenario(folder)))
         return n, time.process_time() - c0
 
+    def blocks() -> tuple[int, float]:
+        c0 = time.process_time()
+        files = open_scenario(folder)
+        n = sum(map(len, files.plot_blocks())) + sum(map(len, files.adsb_blocks()))
+        return n, time.process_time() - c0
+
     def admit() -> tuple[int, float]:
         items = list(iter_files(open_scenario(folder)))  # made and dropped here: not alive in the other stages
         mgr = _manager(open_scenario(folder))
@@ -107,7 +115,7 @@ def stages(folder: Path):
         mgr.flush()
         return len(items), time.process_time() - c0
 
-    return {"read": read, "admit": admit, "read_admit": read_admit, "frame_inputs": frame_inputs}
+    return {"read": read, "blocks": blocks, "admit": admit, "read_admit": read_admit, "frame_inputs": frame_inputs}
 
 
 def replay(folder: Path, out: Path) -> tuple[int, float]:

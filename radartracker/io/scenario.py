@@ -30,7 +30,7 @@ from radartracker.domain import Aircraft, Radar
 from radartracker.errors import FormatError, InputError
 from radartracker.io import columnar
 from radartracker.io.atomic import atomic_folder
-from radartracker.io.csvblocks import BLOCK_BYTES, Rows, Skipper, read_text
+from radartracker.io.csvblocks import BLOCK_BYTES, Rows, Skipper, newlines, read_text
 from radartracker.io.tables import (ADSB_COLUMNS, BIAS_COLUMNS, PLOT_COLUMNS, RADAR_COLUMNS, TRUTH_COLUMNS, AdsbTable,
                                     PlotTable, ScenarioData, TruthTable, label_spans)
 from radartracker.tracking.admission import StreamClock
@@ -432,7 +432,7 @@ def _data_lines(path: Path) -> int:
     if not path.exists():
         return 0
     with path.open("rb") as f:
-        return max(sum(block.count(b"\n") for block in iter(lambda: f.read(BLOCK_BYTES), b"")) - 1, 0)
+        return max(sum(map(newlines, iter(lambda: f.read(BLOCK_BYTES), b""))) - 1, 0)
 
 
 # --- writing ----------------------------------------------------------------------------------
