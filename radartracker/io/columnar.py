@@ -53,7 +53,8 @@ def _read(header: list[str], raw: bytes) -> pa.Table | None:
             read_options=pacsv.ReadOptions(column_names=header, use_threads=False),
             parse_options=pacsv.ParseOptions(quote_char=False, newlines_in_values=False, ignore_empty_lines=False),
             convert_options=pacsv.ConvertOptions(column_types={c: pa.string() for c in header},
-                                                 strings_can_be_null=False, quoted_strings_can_be_null=False))
+                                                 strings_can_be_null=False, quoted_strings_can_be_null=False,
+                                                 check_utf8=False))  # raw: a str's encoding, UTF-8 already
     except pa.ArrowInvalid:
         return None
 
