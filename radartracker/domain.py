@@ -2,8 +2,8 @@
 
 Internally SI (metres, seconds, radians). Construction validates every field and raises
 ``ValueError`` naming the field, so a bad number never turns into a silent NaN later; plots and
-ADS-B reports made from columns (:func:`plots_from_columns`) are checked column by column instead.
-Degrees, feet and knots appear only at the I/O edges (see :mod:`radartracker.formats`).
+ADS-B reports made from columns (:func:`plots_from_columns`, :func:`plot_rows`) are checked column by
+column instead. Degrees, feet and knots appear only at the I/O edges (see :mod:`radartracker.formats`).
 """
 
 from __future__ import annotations
@@ -158,8 +158,8 @@ class AdsbReport:
 
 def _unchecked(cls: type) -> Callable[..., list]:
     """A function making a list of ``cls`` (a slotted attrs class) objects from columns of its field values in
-    order, setting its slots without running converters or validators. Only for :func:`plots_from_columns` and
-    :func:`reports_from_columns`, once every value has passed the validators' rules."""
+    order, setting its slots without running converters or validators. Only for :func:`plot_rows` and
+    :func:`report_rows`, once every value has passed the validators' rules."""
     setters = [cls.__dict__[a.name].__set__ for a in attrs.fields(cls)]
 
     def make(*cols: list) -> list:
@@ -214,15 +214,23 @@ def _labels(col: Any, validator: Callable, field: attrs.Attribute, types: frozen
 _STR, _STR_OR_NONE = frozenset({str}), frozenset({str, type(None)})
 
 
-def plots_from_columns(time: np.ndarray, radar: np.ndarray, range_m: np.ndarray, azimuth_rad: np.ndarray,
-                       altitude_m: np.ndarray, mode_s: np.ndarray, mode_3a: np.ndarray,
-                       target: np.ndarray) -> list[Plot]:
-    """``Plot(...)`` of each row of these columns (arrays; ``altitude_m`` NaN where absent), in order.
+RowMaker = Callable[[int, int], list]  # rows start:stop of checked columns as objects (see plot_rows)
+
+
+def _rows(make: Callable[..., list], cols: tuple) -> RowMaker:
+    return lambda start, stop: make(*(c[start:stop] for c in cols))
+
+
+def plot_rows(time: np.ndarray, radar: np.ndarray, range_m: np.ndarray, azimuth_rad: np.ndarray,
+              altitude_m: np.ndarray, mode_s: np.ndarray, mode_3a: np.ndarray, target: np.ndarray) -> RowMaker:
+    """These columns (arrays; ``altitude_m`` NaN where absent) checked now, as a function giving ``Plot(...)`` of
+    their rows ``start:stop``, in order: a long table's objects can be made a slice at a time, each just before
+    it is used (fewer of them alive when the collector looks: issue 13).
 
     The columns are checked whole against the rules of Plot's validators (numbers as arrays; radar ids
     and codes with the validators themselves, once per distinct value). When every row passes, the
     objects are made without running the validators again field by field (most of the cost of reading
-    them, issue 13); otherwise each row goes through ``Plot(...)``, which raises the first bad row's error.
+    them, issue 13); otherwise every row goes through ``Plot(...)`` now, which raises the first bad row's error.
     """
     f = attrs.fields(Plot)
     cols = (_numbers(time), _labels(radar, _nonempty, f.radar, _STR), _numbers(range_m, 0.0),
@@ -230,24 +238,39 @@ def plots_from_columns(time: np.ndarray, radar: np.ndarray, range_m: np.ndarray,
             _labels(mode_s, _mode_s, f.mode_s, _STR_OR_NONE), _labels(mode_3a, _mode_3a, f.mode_3a, _STR_OR_NONE),
             target.tolist() if isinstance(target, np.ndarray) else None)
     if any(c is None for c in cols):
-        return [Plot(t, r, rng, az, None if alt != alt else alt, ms, m3a, tg) for t, r, rng, az, alt, ms, m3a, tg
+        made = [Plot(t, r, rng, az, None if alt != alt else alt, ms, m3a, tg) for t, r, rng, az, alt, ms, m3a, tg
                 in zip(*(c.tolist() for c in (time, radar, range_m, azimuth_rad, altitude_m, mode_s, mode_3a,
                                                 target)))]
-    return _make_plot(*cols)
+        return lambda start, stop: made[start:stop]
+    return _rows(_make_plot, cols)
 
 
-def reports_from_columns(time: np.ndarray, icao24: np.ndarray, lat: np.ndarray, lon: np.ndarray,
-                         altitude_m: np.ndarray, nacp: np.ndarray) -> list[AdsbReport]:
-    """``AdsbReport(...)`` of each row of these columns (``nacp`` made an ``int``), checked as
-    :func:`plots_from_columns` checks plots."""
+def plots_from_columns(time: np.ndarray, radar: np.ndarray, range_m: np.ndarray, azimuth_rad: np.ndarray,
+                       altitude_m: np.ndarray, mode_s: np.ndarray, mode_3a: np.ndarray,
+                       target: np.ndarray) -> list[Plot]:
+    """``Plot(...)`` of each row of these columns, in order, checked as :func:`plot_rows` checks them."""
+    return plot_rows(time, radar, range_m, azimuth_rad, altitude_m, mode_s, mode_3a, target)(0, len(time))
+
+
+def report_rows(time: np.ndarray, icao24: np.ndarray, lat: np.ndarray, lon: np.ndarray, altitude_m: np.ndarray,
+                nacp: np.ndarray) -> RowMaker:
+    """These columns checked now, as a function giving ``AdsbReport(...)`` of their rows ``start:stop``
+    (``nacp`` made an ``int``), checked as :func:`plot_rows` checks plots."""
     f = attrs.fields(AdsbReport)
     ok_nacp = isinstance(nacp, np.ndarray) and nacp.dtype.kind in "iu" and bool(((nacp >= 1) & (nacp <= 11)).all())
     cols = (_numbers(time), _labels(icao24, _mode_s, f.icao24, _STR_OR_NONE), _numbers(lat, -90.0, 90.0),
             _numbers(lon, -180.0, 180.0), _numbers(altitude_m, optional=True), nacp.tolist() if ok_nacp else None)
     if any(c is None for c in cols):
-        return [AdsbReport(t, icao, la, lo, None if alt != alt else alt, int(n)) for t, icao, la, lo, alt, n
+        made = [AdsbReport(t, icao, la, lo, None if alt != alt else alt, int(n)) for t, icao, la, lo, alt, n
                 in zip(*(c.tolist() for c in (time, icao24, lat, lon, altitude_m, nacp)))]
-    return _make_report(*cols)
+        return lambda start, stop: made[start:stop]
+    return _rows(_make_report, cols)
+
+
+def reports_from_columns(time: np.ndarray, icao24: np.ndarray, lat: np.ndarray, lon: np.ndarray,
+                         altitude_m: np.ndarray, nacp: np.ndarray) -> list[AdsbReport]:
+    """``AdsbReport(...)`` of each row of these columns, in order, checked as :func:`report_rows` checks them."""
+    return report_rows(time, icao24, lat, lon, altitude_m, nacp)(0, len(time))
 
 
 # NACp → 95 % horizontal position bound EPU (m), DO-260B table; σ per axis = EPU / 2.448

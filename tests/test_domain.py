@@ -159,6 +159,25 @@ def test_columns_give_the_objects_of_the_validating_constructor(seed):
             got[0].time = 1.0
 
 
+@pytest.mark.parametrize("bad", [False, True])
+def test_rows_made_a_slice_at_a_time_are_those_of_the_whole_columns(bad):
+    """plot_rows / report_rows: any slices give the validating constructor's objects of those rows; a bad row
+    raises its error when the columns are handed over, before any slice is asked for."""
+    from radartracker.domain import plot_rows, report_rows
+
+    pc, ac = _plot_columns(500, 7), _report_columns(500, 7)
+    for cols, f, cls in ((pc, plot_rows, Plot), (ac, report_rows, AdsbReport)):
+        want = _one_by_one(cls, cols)
+        if bad:
+            cols["time"] = cols["time"].copy()
+            cols["time"][321] = math.inf
+            assert _error(f, *cols.values()) == _error(_one_by_one, cls, cols) is not None
+            continue
+        rows = f(*cols.values())
+        for start, stop in ((0, 500), (0, 1), (7, 7), (123, 456), (499, 600)):
+            assert rows(start, stop) == want[start:stop]
+
+
 def attrs_values(x) -> tuple:
     import attrs
 

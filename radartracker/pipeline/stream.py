@@ -11,7 +11,7 @@ from collections.abc import Iterable, Iterator
 
 import numpy as np
 
-from radartracker.domain import AdsbReport, Plot, plots_from_columns, reports_from_columns
+from radartracker.domain import AdsbReport, Plot, RowMaker, plot_rows, report_rows
 from radartracker.io.scenario import ScenarioFiles
 from radartracker.io.tables import AdsbTable, PlotTable, ScenarioData
 
@@ -29,20 +29,38 @@ def scenario_stream(data: ScenarioData) -> list[Plot | AdsbReport]:
     return list(iter_scenario(data))
 
 
-def _plots(p: PlotTable, idx: slice | np.ndarray = slice(None)) -> list[Plot]:
-    """The rows ``idx`` (default: all) of ``p`` as :class:`Plot` items (checked column by column)."""
-    return plots_from_columns(p.time[idx], p.radar[idx], p.range_m[idx], p.azimuth_rad[idx], p.altitude_m[idx],
-                              p.mode_s[idx], p.mode_3a[idx], p.target[idx])
+CHUNK = 4096  # items made at a time as the stream is used, just before they are taken (see _merged)
 
 
-def _reports(a: AdsbTable, idx: slice | np.ndarray = slice(None)) -> list[AdsbReport]:
-    """The rows ``idx`` (default: all) of ``a`` as :class:`AdsbReport` items (checked column by column)."""
-    return reports_from_columns(a.time[idx], a.icao24[idx], a.lat[idx], a.lon[idx], a.altitude_m[idx], a.nacp[idx])
+def _plots(p: PlotTable, idx: slice | np.ndarray = slice(None)) -> RowMaker:
+    """The rows ``idx`` (default: all) of ``p`` checked column by column, as :class:`Plot` items on demand."""
+    return plot_rows(p.time[idx], p.radar[idx], p.range_m[idx], p.azimuth_rad[idx], p.altitude_m[idx],
+                     p.mode_s[idx], p.mode_3a[idx], p.target[idx])
 
 
-def _interleaved(plots: list[Plot], reports: list[AdsbReport], order: np.ndarray) -> list[Plot | AdsbReport]:
-    """``plots + reports`` taken in ``order`` (indices into that concatenation)."""
-    return list(map((plots + reports).__getitem__, order.tolist()))
+def _reports(a: AdsbTable, idx: slice | np.ndarray = slice(None)) -> RowMaker:
+    """The rows ``idx`` (default: all) of ``a`` checked column by column, as :class:`AdsbReport` items on demand."""
+    return report_rows(a.time[idx], a.icao24[idx], a.lat[idx], a.lon[idx], a.altitude_m[idx], a.nacp[idx])
+
+
+def _interleaved(plots: RowMaker | None, reports: RowMaker | None,
+                 is_report: np.ndarray) -> Iterator[list[Plot | AdsbReport]]:
+    """The items of ``plots`` and ``reports`` (each in its order; ``None``: no rows) where ``is_report`` is False /
+    True, made and given CHUNK at a time."""
+    i = j = 0
+    for start in range(0, len(is_report), CHUNK):
+        piece = is_report[start:start + CHUNK]
+        n_report = int(np.count_nonzero(piece))
+        n_plot = len(piece) - n_report
+        if not n_report or not n_plot:
+            yield plots(i, i + n_plot) if n_plot else reports(j, j + n_report)
+        else:
+            # plots first in the concatenation, each kind in order: its k-th item goes where its k-th flag is
+            pick = np.empty(len(piece), np.intp)
+            pick[~piece] = np.arange(n_plot)
+            pick[piece] = np.arange(n_plot, len(piece))
+            yield list(map((plots(i, i + n_plot) + reports(j, j + n_report)).__getitem__, pick.tolist()))
+        i, j = i + n_plot, j + n_report
 
 
 def iter_scenario(data: ScenarioData) -> Iterator[Plot | AdsbReport]:
@@ -55,12 +73,8 @@ def iter_scenario(data: ScenarioData) -> Iterator[Plot | AdsbReport]:
     def chunks() -> Iterator[list]:
         for start in range(0, len(order), 8192):
             sl = order[start:start + 8192]
-            is_plot = sl < n
-            # plot rows first in the concatenation, each kind in order: its k-th row goes where its k-th flag is
-            pick = np.empty(len(sl), int)
-            pick[is_plot] = np.arange(int(is_plot.sum()))
-            pick[~is_plot] = np.arange(int(is_plot.sum()), len(sl))
-            yield _interleaved(_plots(p, sl[is_plot]), _reports(a, sl[~is_plot] - n), pick)
+            is_report = sl >= n
+            yield from _interleaved(_plots(p, sl[~is_report]), _reports(a, sl[is_report] - n), is_report)
 
     return itertools.chain.from_iterable(chunks())
 
@@ -83,7 +97,9 @@ def _merged(plot_tables: Iterator[PlotTable], adsb_tables: Iterator[AdsbTable]) 
 
     The last time of the block at hand bounds what its file may still give (+inf once it has ended): a plot
     can go once its time is <= that of the ADS-B file, a report once its time is < that of the plot file.
-    The rows that can go are merged by one stable sort, which uses up at least one of the two blocks."""
+    The rows that can go are checked and merged by one stable sort, which uses up at least one of the two
+    blocks; their items are made CHUNK at a time as the stream is used: a block's worth made at once would
+    outlive several young collections of the cyclic garbage collector, each of which looks at them again."""
     p, a = next(plot_tables, None), next(adsb_tables, None)
     i = j = 0
     while p is not None or a is not None:
@@ -91,12 +107,13 @@ def _merged(plot_tables: Iterator[PlotTable], adsb_tables: Iterator[AdsbTable]) 
         a_last = a.time[-1] if a is not None else math.inf
         i2 = i + int(np.searchsorted(p.time[i:], a_last, side="right")) if p is not None else 0
         j2 = j + int(np.searchsorted(a.time[j:], p_last, side="left")) if a is not None else 0
-        plots = _plots(p, slice(i, i2)) if i2 > i else []
-        reports = _reports(a, slice(j, j2)) if j2 > j else []
-        if plots and reports:
-            yield _interleaved(plots, reports, np.argsort(np.concatenate([p.time[i:i2], a.time[j:j2]]), kind="stable"))
+        plots = _plots(p, slice(i, i2)) if i2 > i else None
+        reports = _reports(a, slice(j, j2)) if j2 > j else None
+        if plots is not None and reports is not None:
+            is_report = np.argsort(np.concatenate([p.time[i:i2], a.time[j:j2]]), kind="stable") >= i2 - i
         else:
-            yield plots or reports
+            is_report = np.full(i2 - i + j2 - j, reports is not None)
+        yield from _interleaved(plots, reports, is_report)
         i, j = i2, j2
         if p is not None and i == len(p):
             p, i = next(plot_tables, None), 0

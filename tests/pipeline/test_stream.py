@@ -14,7 +14,7 @@ from radartracker.domain import AdsbReport, Plot
 from radartracker.errors import FormatError
 from radartracker.geometry.plane import SystemPlane
 from radartracker.io.scenario import open_scenario, read_scenario, write_scenario
-from radartracker.pipeline import recorder
+from radartracker.pipeline import recorder, stream
 from radartracker.pipeline.config import RunConfig
 from radartracker.pipeline.run import replay_folder, run, streamable
 from radartracker.pipeline.stream import NotTimeOrdered, iter_files, scenario_stream
@@ -76,6 +76,19 @@ def test_items_from_the_files_are_those_of_the_tables(unlabelled, prefetch):
     got = list(iter_files(open_scenario(unlabelled, block_bytes=4096), prefetch=prefetch))
     assert len(got) == len(want) == len(data.plots) + len(data.adsb) > 500
     assert got == want
+
+
+@pytest.mark.parametrize("chunk", [1, 7, 100])
+def test_items_are_made_chunk_at_a_time_in_the_same_order(unlabelled, monkeypatch, chunk):
+    """Blocks of both files merged and their items made CHUNK at a time (plots and reports within a chunk):
+    the items and order of the stable sort, in lists of at most CHUNK."""
+    monkeypatch.setattr(stream, "CHUNK", chunk)
+    want = scenario_stream(read_scenario(unlabelled))
+    files = open_scenario(unlabelled, block_bytes=20000)
+    lists = list(stream._merged(stream._ordered(files.plot_blocks(), "p"), stream._ordered(files.adsb_blocks(), "a")))
+    assert [x for items in lists for x in items] == want
+    assert max(map(len, lists)) == chunk < len(want)
+    assert any({type(x) for x in items} == {Plot, AdsbReport} for items in lists) == (chunk > 1)
 
 
 @pytest.mark.parametrize("block_bytes,flush_every", [(4096, 100), (1 << 20, None)])
