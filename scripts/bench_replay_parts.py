@@ -1,6 +1,6 @@
 """Benchmark: ``radartracker replay FOLDER --manager`` taken apart into reading, tracking and recording.
 
-    python scripts/bench_replay_parts.py FOLDER [--repeat 2]
+    python scripts/bench_replay_parts.py FOLDER [--repeat 2] [--record-only]
 
 FOLDER is an unlabelled scenario folder (``scripts/bench_national.py`` writes them). One JSON line, CPU
 µs per input (``time.process_time``, under the replay's collector setting):
@@ -8,7 +8,12 @@ FOLDER is an unlabelled scenario folder (``scripts/bench_national.py`` writes th
 * ``read_us``: the folder's files to the list of ``Plot`` / ``AdsbReport`` items (``iter_files``);
 * ``manager_us``: the TrackManager over that list, events made but not recorded (one run per repeat);
 * ``manager_log_us``: the same with the run's ``Recorder`` taking every event as a row in the manager's
-  ``event_log`` and making rows columns every 8 192 (no tables written), in the same turns.
+  ``event_log`` and making rows columns every 8 192 (no tables written), in the same turns;
+* ``record_us``: in a third run per repeat, where the recorder hands its columns to an ``OutputStream``
+  as the replay's does, the CPU of its ``flush`` calls alone: rows to columns to the CSV rows of
+  ``events.csv`` and ``tracks.csv``, written to a temporary folder (the rows in the cache as the
+  manager left them, which a replay of captured rows would not reproduce); ``--record-only``: these
+  runs alone (the others' lists empty).
 
 What the whole replay costs beyond ``read_us + manager_log_us`` is writing the tables and the run's files
 (``bench_events_path.py`` times that part).
@@ -19,14 +24,17 @@ from __future__ import annotations
 import argparse
 import gc
 import json
+import tempfile
 import time
 from pathlib import Path
 
+from radartracker.geometry.plane import SystemPlane
 from radartracker.io.scenario import open_scenario
 from radartracker.pipeline.config import RunConfig, resolve
 from radartracker.pipeline.recorder import FLUSH_EVERY, Recorder
 from radartracker.pipeline.run import GC_YOUNG_THRESHOLD, motion_factory
 from radartracker.pipeline.stream import iter_files
+from radartracker.pipeline.writer import OutputStream
 from radartracker.tracking.manager import TrackManager
 
 
@@ -34,6 +42,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("folder", type=Path)
     ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--record-only", action="store_true", help="only the runs that time record_us")
     args = ap.parse_args()
     gc.set_threshold(GC_YOUNG_THRESHOLD)
     files = open_scenario(args.folder)
@@ -42,29 +51,40 @@ def main() -> None:
     read = time.process_time() - c
     cfg = resolve(RunConfig(association="manager"), files.data, "coupled-sparse")
 
-    def run(log: bool) -> float:
+    def run(log: bool, out: Path | None = None) -> tuple[float, float]:
+        """CPU µs per input of the run, and of the recorder's flush calls in it."""
         mgr = TrackManager(files.data.radars, files.data.reference, cfg.manager_settings(),
                            filter_factory=motion_factory(cfg))
-        rec = Recorder(keep=False)
+        sink = None if out is None else OutputStream(out, SystemPlane(*files.data.reference))
+        rec = Recorder(sink=sink, keep=False)
         if log:
             mgr.event_log = rec.manager_log
+        flush = 0.0
         c = time.process_time()
         for item in items:
             mgr.process(item)
             if log and len(rec.manager_log) >= FLUSH_EVERY:
+                f = time.process_time()
                 rec.flush()
+                flush += time.process_time() - f
         mgr.flush()
+        f = time.process_time()
         rec.flush()
-        return (time.process_time() - c) / len(items) * 1e6
+        end = time.process_time()
+        if sink is not None:
+            sink.close()
+        return (end - c) / len(items) * 1e6, (flush + end - f) / len(items) * 1e6
 
-    run(False)  # compiled kernels loaded, caches warm
-    plain, logged = [], []
-    for _ in range(args.repeat):
-        plain.append(round(run(False), 2))
-        logged.append(round(run(True), 2))
+    plain, logged, recorded = [], [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        run(True, Path(tmp))  # compiled kernels loaded, caches warm
+        for _ in range(args.repeat):
+            if not args.record_only:
+                plain.append(round(run(False)[0], 2))
+                logged.append(round(run(True)[0], 2))
+            recorded.append(round(run(True, Path(tmp))[1], 2))
     print(json.dumps({"folder": str(args.folder), "inputs": len(items), "read_us": round(read / len(items) * 1e6, 2),
-                      "manager_us": plain, "manager_log_us": logged}))
-
+                      "manager_us": plain, "manager_log_us": logged, "record_us": recorded}))
 
 if __name__ == "__main__":
     main()
