@@ -9,6 +9,7 @@ per ``bias_log_interval_s``.
 from __future__ import annotations
 
 import math
+import struct
 from itertools import chain
 from typing import NamedTuple
 
@@ -70,7 +71,8 @@ class BiasLog:
 
 _NAN16 = np.full(16, math.nan).tobytes()  # the covariance of an event without one
 _NAN44 = np.full((4, 4), math.nan)
-_NO_IDENT = (None, None, None)  # altitude, Mode S, Mode 3/A
+_NO_IDENT = (math.nan, None, None)  # altitude, Mode S, Mode 3/A
+_CHUNK = 1024  # rows of an event_log read at a time (_log_events_of)
 FLUSH_EVERY = 8192  # rows made columns (and handed to the sink) at a time
 
 
@@ -103,37 +105,70 @@ def _events_of(rows: list[tuple]) -> Events:
     return _events(*zip(*heads), np.frombuffer(bytearray(b"".join(covs)), float), *zip(*idents))
 
 
-def _log_events_of(rows: list[tuple], idents: dict[int, tuple]) -> Events:
+def _log_events_of(rows: list[tuple], idents: dict[int, tuple], *, drain: bool = False) -> Events:
     """Rows of a TrackManager's ``event_log`` (event, P, altitude_m, mode_s, mode_3a) as columns. A deleted
     event is recorded without covariance and with the identity of its track's previous event, as on the
     replay's record of it (the track is gone from the manager); ``idents`` holds, for each track whose last
-    row was not its deletion, the identity of that row, updated here for the rows after these."""
+    row was not its deletion, the identity of that row (altitude NaN if none), updated here for the rows
+    after these.
+
+    The rows are read :data:`_CHUNK` at a time, every column of a chunk while its objects are in the cache
+    (a national run's 8 192 rows, spread over the heap, are not); with ``drain`` each chunk is removed
+    from ``rows`` once read, its objects freed while still in the cache."""
     n = len(rows)
-    evs, covs, alt, mode_s, mode_3a = zip(*rows)
-    time, track, kind, status, state = zip(*evs)
-    gone = np.array([k == "deleted" for k in kind], bool).reshape(n)
-    covs = [_NAN44 if P is None else P for P in covs]
-    try:  # the arrays' bytes in one join, unless one is not 16 contiguous float64
-        cov = np.frombuffer(bytearray().join(covs), float)
-    except (BufferError, TypeError):
-        cov = None
-    if cov is None or len(cov) != 16 * n:  # as track_event checks the bytes
-        try:
-            cov = np.array(covs, float).ravel()
-        except ValueError:
-            cov = np.zeros(0)  # refused by _events
-    alt, mode_s, mode_3a, track = list(alt), list(mode_s), list(mode_3a), list(track)
-    live = np.flatnonzero(~gone).tolist()
-    last = dict(zip([track[i] for i in live], live))  # each track's last row here before its deletion
+    time, track, state, cov, alt = np.empty(n), np.empty(n, np.int64), np.empty((n, 4)), np.empty((n, 16)), np.empty(n)
+    texts: list[list[tuple]] = [[], [], [], []]  # kind, status, Mode S, Mode 3/A: a tuple per chunk
+    for a in range(0, n, _CHUNK):
+        evs, covs, alts, modes_s, modes_3a = zip(*(rows[:_CHUNK] if drain else rows[a:a + _CHUNK]))
+        if drain:
+            del rows[:_CHUNK]
+        times, ids, kinds, statuses, x = zip(*evs)
+        b = a + len(times)
+        time[a:b] = _packed("d", times)
+        track[a:b] = _packed("q", ids)
+        state[a:b] = _packed("d", chain.from_iterable(zip(*x))).reshape(4, b - a).T
+        cov[a:b] = _covariances([_NAN44 if P is None else P for P in covs])
+        alt[a:b] = alts  # None: NaN
+        for col, values in zip(texts, (kinds, statuses, modes_s, modes_3a)):
+            col.append(values)
+    kind, status, mode_s, mode_3a = (np.fromiter(chain.from_iterable(c), object, n) for c in texts)
+    gone = kind == "deleted"
+    cov[gone] = math.nan
+    live = np.flatnonzero(~gone)
+    last = dict(zip(track[live].tolist(), live.tolist()))  # each track's last row here before its deletion
     for j in np.flatnonzero(gone).tolist():
-        t = track[j]
+        t = int(track[j])
         i = last.pop(t, None)
         alt[j], mode_s[j], mode_3a[j] = idents.pop(t, _NO_IDENT) if i is None else (alt[i], mode_s[i], mode_3a[i])
         idents.pop(t, None)
-    idents.update({t: (alt[i], mode_s[i], mode_3a[i]) for t, i in last.items()})
-    ev = _events(time, track, kind, status, state, cov, alt, mode_s, mode_3a, [None] * n)
-    ev.cov[gone] = math.nan
-    return ev
+    i = np.fromiter(last.values(), np.int64, len(last))
+    idents.update(zip(last, zip(alt[i].tolist(), mode_s[i].tolist(), mode_3a[i].tolist())))
+    return Events(time=time, track=track, kind=kind, status=status, state=state, cov=cov.reshape(n, 4, 4),
+                  altitude_m=alt, mode_s=mode_s, mode_3a=mode_3a, target=np.empty(n, object))  # target: None
+
+
+def _packed(code: str, values) -> np.ndarray:
+    """Python numbers (float ``d``, integer ``q``) as an array, through one ``struct.pack``: faster than
+    ``np.array`` or ``np.fromiter`` on a sequence."""
+    values = tuple(values)
+    return np.frombuffer(struct.pack(f"{len(values)}{code}", *values), np.dtype(code))
+
+
+def _covariances(covs: list) -> np.ndarray:
+    """4×4 covariances as rows of 16 floats: the arrays' bytes in one join, unless one is not 16 contiguous
+    float64 (then by value); :class:`ValueError` if one is not 4×4."""
+    try:
+        cov = np.frombuffer(bytearray().join(covs), float)
+    except (BufferError, TypeError):
+        cov = None
+    if cov is None or len(cov) != 16 * len(covs):  # as track_event checks the bytes
+        try:
+            cov = np.array(covs, float)
+        except ValueError:
+            cov = None
+    if cov is None or cov.size != 16 * len(covs):
+        raise ValueError("an event's covariance is not a 4×4 array of floats")
+    return cov.reshape(-1, 16)
 
 
 def _concatenate(chunks: list[Events]) -> Events:
@@ -211,8 +246,7 @@ class Recorder:
             self._rows = []
             self._handle(ev)
         if self.manager_log:
-            ev = _log_events_of(self.manager_log, self._idents)
-            self.manager_log.clear()  # the manager's list: emptied, not replaced
+            ev = _log_events_of(self.manager_log, self._idents, drain=True)  # the manager's list: emptied
             self._handle(ev)
 
     def _handle(self, ev: Events) -> None:
