@@ -16,7 +16,9 @@ positions: a table of 8 192 rows allocates a few MB, and fresh memory costs a pa
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Callable
+from operator import itemgetter
 
 import numpy as np
 from numba import njit, uint64
@@ -92,7 +94,9 @@ class Table:
         """A column of values that repeat (hashable), each written as ``text(value)``: the texts are made
         once per distinct value (equal values are written alike, as the first of them)."""
         index: dict = {v: i for i, v in enumerate(dict.fromkeys(values))}
-        self._codes[len(self._kind)] = np.fromiter(map(index.__getitem__, values), np.int64, self.n)
+        # the rows' codes by one itemgetter call and one struct.pack (faster than map and np.fromiter)
+        codes = itemgetter(*values)(index) if len(values) > 1 else [index[v] for v in values]
+        self._codes[len(self._kind)] = np.frombuffer(struct.pack(f"{len(codes)}q", *codes), np.int64).reshape(self.n)
         return self.text([text(v) for v in index])
 
     def _arrays(self) -> tuple:
