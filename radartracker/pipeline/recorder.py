@@ -117,11 +117,11 @@ def _log_events_of(rows: list[tuple], idents: dict[int, tuple], *, drain: bool =
     from ``rows`` once read, its objects freed while still in the cache."""
     n = len(rows)
     time, track, state, cov, alt = np.empty(n), np.empty(n, np.int64), np.empty((n, 4)), np.empty((n, 16)), np.empty(n)
-    texts: list[list[tuple]] = [[], [], [], []]  # kind, status, Mode S, Mode 3/A: a tuple per chunk
-    for a in range(0, n, _CHUNK):
-        evs, covs, alts, modes_s, modes_3a = zip(*(rows[:_CHUNK] if drain else rows[a:a + _CHUNK]))
+    texts: list[list[tuple]] = [[], [], [], []]  # kind, status, Mode S, Mode 3/A: a tuple per chunk, last first
+    for a in reversed(range(0, n, _CHUNK)):  # the last chunk first: drained, it is cut off the list's end
+        evs, covs, alts, modes_s, modes_3a = zip(*rows[a:a + _CHUNK])
         if drain:
-            del rows[:_CHUNK]
+            del rows[a:]
         times, ids, kinds, statuses, x = zip(*evs)
         b = a + len(times)
         time[a:b] = _packed("d", times)
@@ -131,7 +131,7 @@ def _log_events_of(rows: list[tuple], idents: dict[int, tuple], *, drain: bool =
         alt[a:b] = alts  # None: NaN
         for col, values in zip(texts, (kinds, statuses, modes_s, modes_3a)):
             col.append(values)
-    kind, status, mode_s, mode_3a = (np.fromiter(chain.from_iterable(c), object, n) for c in texts)
+    kind, status, mode_s, mode_3a = (np.fromiter(chain.from_iterable(reversed(c)), object, n) for c in texts)
     gone = kind == "deleted"
     cov[gone] = math.nan
     live = np.flatnonzero(~gone)

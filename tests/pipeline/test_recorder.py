@@ -105,12 +105,14 @@ def _same_events(a, b) -> None:
     assert np.array_equal(a.cov, b.cov, equal_nan=True)
 
 
-@pytest.mark.parametrize("keep", [True, False])
-def test_a_managers_event_log_is_recorded_as_its_events_were_through_on_event(keep):
-    """The rows a TrackManager appends to its event_log, made columns 7 at a time, are the events its on_event
-    hook recorded with the replay's former callback: the covariance of the estimate read for the event (none
-    when extrapolated or deleted) and the identity of the track at the event, a deleted track's that of its
-    previous event (it is gone from the manager, its codes as they were then)."""
+@pytest.mark.parametrize(("keep", "chunk"), [(True, 1024), (False, 3)])
+def test_a_managers_event_log_is_recorded_as_its_events_were_through_on_event(keep, chunk, monkeypatch):
+    """The rows a TrackManager appends to its event_log, made columns 7 at a time (read ``chunk`` rows at a
+    time), are the events its on_event hook recorded with the replay's former callback: the covariance of
+    the estimate read for the event (none when extrapolated or deleted) and the identity of the track at the
+    event, a deleted track's that of its previous event (it is gone from the manager, its codes as they
+    were then)."""
+    from radartracker.pipeline import recorder
     from radartracker.pipeline.stream import scenario_stream
     from radartracker.simulation.scenarios import build_scenario
     from radartracker.tracking.manager import ManagerConfig, TrackManager
@@ -127,6 +129,7 @@ def test_a_managers_event_log_is_recorded_as_its_events_were_through_on_event(ke
         else:
             old.track_event(ev, None, ident.pop(ev.track, (None,) * 4))
 
+    monkeypatch.setattr(recorder, "_CHUNK", chunk)
     sink = Sink()
     new = Recorder(sink=sink, keep=keep, flush_every=7)
     mgr = TrackManager(data.radars, data.reference, ManagerConfig(), on_event)
@@ -137,6 +140,7 @@ def test_a_managers_event_log_is_recorded_as_its_events_were_through_on_event(ke
         rows += log[k:]
         if len(log) >= new.flush_every or item is None:
             new.flush()
+            assert log == [] and mgr.event_log is log  # the manager's list, emptied
         assert new.track_ids == old.track_ids
     expected = old.events()
     codes = list(zip([None if math.isnan(a) else a for a in expected.altitude_m.tolist()], expected.mode_s.tolist(),
