@@ -35,6 +35,6 @@ def test_merge_by_blocks_is_the_stable_merge_of_the_items(seed):
     cuts_a = np.sort(rng.integers(0, n_a + 1, int(rng.integers(0, 8)))).tolist()
     got = [x for chunk in _merged(_ordered(_split(p, cuts_p, PlotTable), "p"), _ordered(_split(a, cuts_a, AdsbTable), "a"))
            for x in chunk]
-    want = list(heapq.merge(_plots(p), _reports(a), key=operator.attrgetter("time")))
+    want = list(heapq.merge(_plots(p)(0, n_p), _reports(a)(0, n_a), key=operator.attrgetter("time")))
     assert len(want) == n_p + n_a
     assert got == want
