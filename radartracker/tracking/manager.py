@@ -649,7 +649,8 @@ class TrackManager:
             plan[rows[i]] = i
         # the states as lists for the events, unless the estimates are as estimate() gives them (any length)
         states = x.tolist() if type(x) is np.ndarray and x.dtype is _F8 and x.shape[1:] == (4,) else None
-        changed, defer, record, apply = self._states.changed, self._deferred.append, self._record, self._apply
+        changed, defer, record, apply, took = (self._states.changed, self._deferred.append, self._record, self._apply,
+                                               self._took)
         for (_, _, tr, row, src), i in zip(updates, plan):
             if i < 0:
                 apply(tr, row, src)
@@ -659,24 +660,8 @@ class TrackManager:
                 tr.rejected = []
             tr.estimate = e = (t, x[i], P[i]) if states is not None else self._normalized((t, x[i], P[i]))
             changed(tr)
-            tr.last_update = src.time
-            if type(src) is Plot:
-                radar, kind = src.radar, "plots"
-                tr.n_plots += 1
-                tr.mode_3a = src.mode_3a or tr.mode_3a
-                h = src.altitude_m
-                if h is not None:
-                    tr.altitude_m = h
-                    if tr.vertical is None:
-                        tr.vertical = AltitudeTrack.start(src.time, h)
-                    else:
-                        tr.vertical.update(src.time, h)
-            else:
-                radar, kind = None, "adsb"
-                tr.n_adsb += 1
-                if src.altitude_m is not None:
-                    tr.altitude_m = src.altitude_m
-            tr.history.append(True)
+            radar, kind = (src.radar, "plots") if type(src) is Plot else (None, "adsb")
+            took(tr, src, kind)
             defer((_UPDATE, src.time, tr.id, radar, row, kind))
             tr.status = "confirmed"
             if states is None:
@@ -798,20 +783,7 @@ class TrackManager:
                 return
             except Exception as exc:
                 raise self._plugin_failed(f"motion model {self._filter_cls.name!r}", tr.id, src.time, exc) from exc
-        tr.last_update = src.time
-        if kind == "plots":
-            tr.n_plots += 1
-            tr.mode_3a = src.mode_3a or tr.mode_3a
-            tr.altitude_m = src.altitude_m if src.altitude_m is not None else tr.altitude_m
-            if src.altitude_m is not None:
-                if tr.vertical is None:
-                    tr.vertical = AltitudeTrack.start(src.time, src.altitude_m)
-                else:
-                    tr.vertical.update(src.time, src.altitude_m)
-        elif kind == "adsb":
-            tr.n_adsb += 1
-            tr.altitude_m = src.altitude_m if src.altitude_m is not None else tr.altitude_m
-        tr.history.append(True)
+        self._took(tr, src, kind)
         if tr.status == "tentative":
             tr.pending.append((PlaneMeasurement(src.time, tr.id, radar, z, C, R), kind))
             if sum(tr.history) >= self.config.confirm_m:
@@ -820,6 +792,27 @@ class TrackManager:
             self._estimate(src.time, tr.id, radar, row, kind)
             tr.status = "confirmed"
             self._emit(src.time, tr, "updated")
+
+    @staticmethod
+    def _took(tr: ManagedTrack, src: Plot | AdsbReport | PlaneMeasurement, kind: str) -> None:
+        """Track ``tr`` took measurement ``src`` of ``kind``: its last update, counts, Mode 3/A code, altitude
+        with its vertical filter, and a detection in its history."""
+        tr.last_update = src.time
+        if kind == "plots":
+            tr.n_plots += 1
+            tr.mode_3a = src.mode_3a or tr.mode_3a
+            h = src.altitude_m
+            if h is not None:
+                tr.altitude_m = h
+                if tr.vertical is None:
+                    tr.vertical = AltitudeTrack.start(src.time, h)
+                else:
+                    tr.vertical.update(src.time, h)
+        elif kind == "adsb":
+            tr.n_adsb += 1
+            if src.altitude_m is not None:
+                tr.altitude_m = src.altitude_m
+        tr.history.append(True)
 
     def _screen(self, tr: ManagedTrack, z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray,
                 bias_cov: np.ndarray, t: float, kind: str) -> tuple[str, np.ndarray | None, np.ndarray | None, bool]:
