@@ -113,6 +113,10 @@ def replay(radars: list, calls: list, mgr, args: list, with_parts: bool,
     counts: Counter = Counter()
     runs = iter(args)
 
+    def change(est, coupling, name: str, a: tuple) -> None:  # an aircraft added or removed, as the manager does
+        getattr(est, name)(*a)
+        getattr(coupling, name)(a[0])
+
     def run_parts(part: list) -> None:
         clock = time.process_time
         for name, a in part:
@@ -130,12 +134,8 @@ def replay(radars: list, calls: list, mgr, args: list, with_parts: bool,
                 parts["stack"] += t1 - t0
                 parts["update_many"] += t2 - t1
                 parts["coupling"] += t3 - t2
-            elif name == "add_aircraft":
-                ep.add_aircraft(*a)
-                cp.add_aircraft(a[0])
             else:
-                ep.remove_aircraft(*a)
-                cp.remove_aircraft(a[0])
+                change(ep, cp, name, a)
 
     def run(part: list, kernel: bool) -> None:
         est, coupling = (ek, ck) if kernel else (em, cm)
@@ -147,12 +147,8 @@ def replay(radars: list, calls: list, mgr, args: list, with_parts: bool,
                 else:
                     run, mgr._meas = a
                     update_run(run)
-            elif name == "add_aircraft":
-                est.add_aircraft(*a)
-                coupling.add_aircraft(a[0])
             else:
-                est.remove_aircraft(*a)
-                coupling.remove_aircraft(a[0])
+                change(est, coupling, name, a)
         cpu[not kernel] += time.process_time() - t0
 
     for i in range(0, len(calls), chunk):
