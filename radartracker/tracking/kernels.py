@@ -45,7 +45,22 @@ _LOG_2PI = math.log(2.0 * math.pi)
 _SMALL = 1e-4  # |ωT| below which the CT Taylor series are used (as plugins/motion/ct.py)
 
 
-@njit(cache=True)
+def _probe() -> int:
+    return 0
+
+
+# The kernels that allocate nothing and return no array of their own (the views of a packed buffer have no
+# reference) are compiled without numba's runtime and its reference counts (``_nrt=False``, as
+# plugins/coupled_sparse/_kernels.py): with it, every array argument of every call and every view taken
+# costs an atomic increment and decrement. A numba without the option compiles them with their counts.
+try:
+    njit(cache=True, _nrt=False)(_probe)()
+    kernel, view = njit(cache=True, _nrt=False), njit(cache=True, _nrt=True)
+except KeyError:
+    kernel = view = njit(cache=True)
+
+
+@kernel
 def _symmetrize(P: np.ndarray, n: int) -> None:
     """P[:n, :n] = (P + Pᵀ) / 2 in place."""
     for i in range(n):
@@ -55,7 +70,7 @@ def _symmetrize(P: np.ndarray, n: int) -> None:
             P[j, i] = m
 
 
-@njit(cache=True)
+@kernel
 def measurement_ok(time: float, z: np.ndarray, R: np.ndarray) -> int:
     """0 if (time, z, R) is a valid position measurement, else 1 (time), 2 (z) or 3 (R)."""
     if not math.isfinite(time):
@@ -80,7 +95,7 @@ def measurement_ok(time: float, z: np.ndarray, R: np.ndarray) -> int:
 
 
 # --- the mode filters: each written once, into the caller's arrays (the public functions allocate) ------------
-@njit(cache=True)
+@kernel
 def _cv_predict_inplace(x: np.ndarray, P: np.ndarray, dt: float, q: float) -> None:
     """:func:`cv_predict` of (x[:4], P[:4, :4]) in place: the rows of A P, then its columns (each step reads
     only entries it does not write), Q, symmetrised."""
@@ -111,7 +126,7 @@ def cv_predict(x: np.ndarray, P: np.ndarray, dt: float, q: float) -> tuple[np.nd
     return xp, Pp
 
 
-@njit(cache=True)
+@kernel
 def _ct_predict_into(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_sd: float, xp: np.ndarray,
                      Pp: np.ndarray, F: np.ndarray, FP: np.ndarray) -> None:
     """:func:`ct_predict` of (x[:5], P[:5, :5]) into (xp, Pp), with F and F P in the 5×5 scratch ``F``, ``FP``."""
@@ -172,7 +187,7 @@ def ct_predict(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_sd: f
     return xp, Pp
 
 
-@njit(cache=True)
+@kernel
 def _position_update_into(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray, n: int, xn: np.ndarray,
                           Pn: np.ndarray) -> tuple[float, float, bool]:
     """:func:`position_update` of (x[:n], P[:n, :n]) into (xn[:n], Pn[:n, :n]): (NIS, log-likelihood, ok);
@@ -221,7 +236,7 @@ def position_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray):
     return xn, Pn, nu, S, nis, loglik, True
 
 
-@njit(cache=True)
+@kernel
 def _position_nis(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray) -> tuple[float, bool]:
     """(NIS, ok) of :func:`position_update` alone: its operations for these two, nothing else."""
     nu0, nu1 = z[0] - x[0], z[1] - x[1]
@@ -241,7 +256,7 @@ def _position_nis(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray) ->
     return w0 * w0 + w1 * w1, True
 
 
-@njit(cache=True)
+@kernel
 def _mix_into(w: np.ndarray, X: np.ndarray, P: np.ndarray, m: int, x: np.ndarray, out: np.ndarray) -> None:
     """Mean (into x[:m]) and covariance (into out[:m, :m]) of the first ``m`` components of the mixture
     Σ wᵢ N(Xᵢ, Pᵢ); x and out must not share memory with X, P."""
@@ -278,7 +293,7 @@ def moment_match(w: np.ndarray, X: np.ndarray, P: np.ndarray) -> tuple[np.ndarra
 # allocate what they need and call it, the packed kernels pass views of one buffer.
 
 
-@njit(cache=True)
+@kernel
 def _switching_into(lam: np.ndarray, left: np.ndarray, right: np.ndarray, dt: float, e: np.ndarray,
                     Pi: np.ndarray) -> None:
     """:func:`markov_switching` into ``Pi`` (``e``: len(λ) scratch)."""
@@ -309,7 +324,7 @@ def markov_switching(lam: np.ndarray, left: np.ndarray, right: np.ndarray, dt: f
     return Pi
 
 
-@njit(cache=True)
+@kernel
 def _imm_mix_into(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, Pi: np.ndarray, cbar: np.ndarray, X0: np.ndarray,
                   P0: np.ndarray, w: np.ndarray) -> None:
     """:func:`imm_mix` into (c̄, X⁰, P⁰), ``w``: n scratch."""
@@ -345,7 +360,7 @@ def imm_combine(w: np.ndarray, X: np.ndarray, PP: np.ndarray) -> tuple[np.ndarra
     return x, P
 
 
-@njit(cache=True)
+@kernel
 def _clear(x: np.ndarray, P: np.ndarray, D: int) -> None:
     """x[:D] = 0, P[:D, :D] = 0: a mode's padded state before it is written."""
     for a in range(D):
@@ -354,7 +369,7 @@ def _clear(x: np.ndarray, P: np.ndarray, D: int) -> None:
             P[a, b] = 0.0
 
 
-@njit(cache=True)
+@kernel
 def _imm_predict_into(mu, X, PP, lam, left, right, modes, dt, cbar, Xp, PPp, x_bar, P_bar, v, Pi, X0, P0, F, FP):
     """:func:`imm_predict`, with scratch v (n), Π (n×n), the mixed X⁰ (n×D), P⁰ (n×D×D), F and F P (5×5)."""
     _switching_into(lam, left, right, dt, v, Pi)
@@ -386,7 +401,7 @@ def imm_predict(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, lam: np.ndarray, 
                       np.empty((n, n)), np.empty((n, D)), np.empty((n, D, D)), np.empty((5, 5)), np.empty((5, 5)))
 
 
-@njit(cache=True)
+@kernel
 def _imm_correct_into(cbar, Xp, PPp, x_bar, P_bar, dims, entry_var, z, R, mu, X, PP, x, P, v, Xn, PPn):
     """:func:`imm_correct`, with scratch v (n) and the corrected modes Xn (n×D), PPn (n×D×D)."""
     n, D = Xp.shape
@@ -403,7 +418,12 @@ def _imm_correct_into(cbar, Xp, PPp, x_bar, P_bar, dims, entry_var, z, R, mu, X,
         if d < D:
             Pn[4, 4] = entry_var
         v[j] = math.log(max(cbar[j], 1e-300)) + loglik
-    top = v.max()
+    top = v[0]  # v[:n].max() (numpy's: the first nan if any), written out: its compiled form needs the runtime
+    for j in range(1, n):
+        if math.isnan(top):
+            break
+        if math.isnan(v[j]) or v[j] > top:
+            top = v[j]
     total = 0.0
     for j in range(n):
         mu[j] = math.exp(v[j] - top)
@@ -497,25 +517,25 @@ def _address(typingctx, arr, offset):
     return types.CPointer(arr.dtype)(arr, offset), codegen
 
 
-@njit(cache=True)
+@view
 def _vec(buf: np.ndarray, o: int, n: int) -> np.ndarray:
     """buf[o:o + n] (a view without a reference: block comment above)."""
     return carray(_address(buf, o), (n,))
 
 
-@njit(cache=True)
+@view
 def _mat(buf: np.ndarray, o: int, r: int, c: int) -> np.ndarray:
     """buf[o:o + r c] as an r×c matrix (a view without a reference)."""
     return carray(_address(buf, o), (r, c))
 
 
-@njit(cache=True)
+@view
 def _cube(buf: np.ndarray, o: int, n: int, D: int) -> np.ndarray:
     """buf[o:o + n D D] as n D×D matrices (a view without a reference)."""
     return carray(_address(buf, o), (n, D, D))
 
 
-@njit(cache=True)
+@view
 def _imm_block(buf: np.ndarray, o: int, n: int, D: int):
     """Views (weights n, states n×D, covariances n×D×D, χ 4, P 4×4) of ``buf`` from offset ``o``, as
     :func:`imm_views`'s."""
@@ -523,7 +543,7 @@ def _imm_block(buf: np.ndarray, o: int, n: int, D: int):
     return _vec(buf, o, n), _mat(buf, a, n, D), _cube(buf, b, n, D), _vec(buf, c, 4), _mat(buf, c + 4, 4, 4)
 
 
-@njit(cache=True)
+@view
 def _imm_parts(buf: np.ndarray):
     """(n, D, σ_e², modes, dims, (λ, L, R), state, prediction, scratch (v, Π, Y, YP, F, FP)) of a packed buffer."""
     n, D, m = int(buf[0]), int(buf[1]), int(buf[3])
@@ -536,27 +556,27 @@ def _imm_parts(buf: np.ndarray):
             _imm_block(buf, pred, n, D), scratch)
 
 
-@njit(cache=True)
+@kernel
 def _advance(parts, dt: float) -> None:
     """:func:`imm_predict` by ``dt`` of the packed state into its prediction."""
     _, _, _, modes, _, (lam, left, right), (mu, X, PP, _, _), pred, (v, Pi, Y, YP, F, FP) = parts
     _imm_predict_into(mu, X, PP, lam, left, right, modes, dt, *pred, v, Pi, Y, YP, F, FP)
 
 
-@njit(cache=True)
+@kernel
 def _correct(parts, z: np.ndarray, R: np.ndarray) -> tuple[float, int]:
     """:func:`imm_correct` of the packed prediction into the packed state."""
     _, _, entry_var, _, dims, _, state, pred, (v, _, Y, YP, _, _) = parts
     return _imm_correct_into(*pred, dims, entry_var, z, R, *state, v, Y, YP)
 
 
-@njit(cache=True)
+@kernel
 def imm_advance(buf: np.ndarray, dt: float) -> None:
     """:func:`imm_predict` by ``dt`` of the packed state into its prediction."""
     _advance(_imm_parts(buf), dt)
 
 
-@njit(cache=True)
+@kernel
 def imm_screen(buf: np.ndarray, dt: float, predicted: bool, z: np.ndarray, C: np.ndarray, R: np.ndarray,
                bias: np.ndarray, bias_cov: np.ndarray, zc: np.ndarray, Rc: np.ndarray,
                gate: float) -> tuple[float, float, int]:
@@ -581,7 +601,7 @@ def imm_screen(buf: np.ndarray, dt: float, predicted: bool, z: np.ndarray, C: np
     return d2, nis, code
 
 
-@njit(cache=True)
+@kernel
 def imm_update(buf: np.ndarray, dt: float, predicted: bool, z: np.ndarray, R: np.ndarray) -> tuple[float, int]:
     """Correction of the packed state by position z: from the kept prediction if ``predicted``, else after
     :func:`imm_advance` by ``dt`` (the operations of :func:`imm_cycle`). Returns :func:`imm_correct`'s
@@ -602,7 +622,7 @@ def _pointer(typingctx, address):
     return types.CPointer(types.float64)(types.int64), codegen
 
 
-@njit(cache=True)
+@view
 def _buffer_at(address: int) -> np.ndarray:
     """The packed buffer whose data start at ``address`` (its length read from its settings)."""
     head = carray(_pointer(address), (5,))
@@ -610,7 +630,7 @@ def _buffer_at(address: int) -> np.ndarray:
     return carray(_pointer(address), (_imm_offsets(n, D, m)[-1],))
 
 
-@njit(cache=True)
+@kernel
 def imm_screen_many(addresses: np.ndarray, first: np.ndarray, prev: np.ndarray, times: np.ndarray,
                     z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray,
                     gate: np.ndarray, d2: np.ndarray, zc: np.ndarray, Rc: np.ndarray, x: np.ndarray,
@@ -635,7 +655,9 @@ def imm_screen_many(addresses: np.ndarray, first: np.ndarray, prev: np.ndarray, 
         buf = _buffer_at(addresses[i])
         d2[i], _, code = imm_screen(buf, dt, predicted, z[i], C[i], R[i], bias[i], bias_cov[i], zc[i], Rc[i], gate[i])
         if code == -2:
-            state = _imm_parts(buf)[6]
-            x[i] = state[3]
-            P[i] = state[4]
+            _, _, _, xs, Ps = _imm_parts(buf)[6]
+            for a in range(4):
+                x[i, a] = xs[a]
+                for b in range(4):
+                    P[i, a, b] = Ps[a, b]
             done[i] = True
