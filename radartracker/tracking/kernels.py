@@ -377,14 +377,13 @@ def _imm_predict_into(mu, X, PP, lam, left, right, modes, dt, cbar, Xp, PPp, x_b
     n, D = X.shape
     for j in range(n):
         xp, pp = Xp[j], PPp[j]
-        _clear(xp, pp, D)
-        if modes[j, 0] == 0.0:
-            for a in range(4):
-                xp[a] = X0[j, a]
-                for b in range(4):
-                    pp[a, b] = P0[j, a, b]
+        if modes[j, 0] == 0.0:  # the 4 states, zero padding up to D
+            for a in range(D):
+                xp[a] = X0[j, a] if a < 4 else 0.0
+                for b in range(D):
+                    pp[a, b] = P0[j, a, b] if a < 4 and b < 4 else 0.0
             _cv_predict_inplace(xp, pp, dt, modes[j, 1])
-        else:
+        else:  # writes all of xp[:5], pp[:5, :5] (D = 5 when a CT mode is present)
             _ct_predict_into(X0[j], P0[j], dt, modes[j, 1], modes[j, 2], xp, pp, F, FP)
     _mix_into(cbar, Xp, PPp, 4, x_bar, P_bar)
 
@@ -410,8 +409,9 @@ def _imm_correct_into(cbar, Xp, PPp, x_bar, P_bar, dims, entry_var, z, R, mu, X,
         return math.nan, -1
     for j in range(n):
         xn, Pn = Xn[j], PPn[j]
-        _clear(xn, Pn, D)
         d = int(dims[j])
+        if d < D:  # the update writes [:d], [:d, :d] only
+            _clear(xn, Pn, D)
         _, loglik, okj = _position_update_into(Xp[j], PPp[j], z, R, d, xn, Pn)
         if not okj:
             return math.nan, j
