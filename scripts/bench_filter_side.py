@@ -6,10 +6,12 @@ FOLDER is a scenario folder replayed as ``radartracker replay FOLDER --manager``
 traffic, 200 aircraft × 28 radars × 3 minutes; the default ``imm`` motion model). The calls the manager
 makes on this side are recorded, then replayed on new filters in two ways, after a warm-up:
 
-* ``filter_side``: what ``TrackManager._apply`` does per measurement on this side — the ADS-B plausibility
-  check, ``TrackFilter.screen`` (bias correction, prediction, d² and the update in the gate), ``judge``
-  (the screening run), the ``estimate()`` read, the Mode C altitude filter, and the (rare) track starts;
-* ``kernels``: the compiled ``imm_screen`` calls alone on the same arrays (and the same starts).
+* ``filter_side``: what the TrackManager does on this side — each frame's ADS-B plausibility checks
+  (``check_many``), its measurements of confirmed tracks in one ``TrackFilter.screen_many``, the others'
+  ``screen`` (bias correction, prediction, d² and the update in the gate), ``judge`` (the screening run),
+  the ``estimate()`` reads, the Mode C altitude filter, and the track starts;
+* ``kernels``: the screening calls alone on the same arrays (``screen_many`` with its compiled loop, the
+  compiled ``imm_screen`` of the others) and the same starts.
 
 Both replays alternate, so a changing load on a shared machine hits both alike. One JSON line per repeat:
 CPU µs per measurement (``time.process_time``) of each, their difference, and whether both end with the
@@ -57,14 +59,14 @@ def record(folder: str | None) -> tuple[list, object, object, int]:
     def copy(a):
         return np.array(a, float)
 
-    saved = [(cls, "start"), (cls, "screen"), (cls, "update"), (cls, "estimate"), (screening.AdsbPlausibility, "check"),
-             (AltitudeTrack, "update"), (manager_module, "judge")]
+    saved = [(cls, "start"), (cls, "screen"), (cls, "update"), (cls, "estimate"),
+             (screening.AdsbPlausibility, "check_many"), (AltitudeTrack, "update"), (manager_module, "judge")]
     originals = {(owner, name): owner.__dict__[name] for owner, name in saved}
     logged = {"start": lambda s, a: ("start", key(s), float(a[0]), copy(a[1]), copy(a[2])),
               "screen": lambda s, a: ("screen", key(s), float(a[0]), *map(copy, a[1:6]), a[6] if len(a) > 6 else None),
               "update": lambda s, a: ("update", key(s), float(a[0]), copy(a[1]), copy(a[2])),
               "estimate": lambda s, a: ("estimate", key(s)),
-              "check": lambda s, a: ("adsb", a[0], float(a[1]), copy(a[2]), float(a[3]), int(a[4])),
+              "check_many": lambda s, a: ("adsb", list(a[0]), *map(copy, a[1:4]), np.array(a[4])),
               }
 
     def logging(owner, name):
@@ -83,7 +85,14 @@ def record(folder: str | None) -> tuple[list, object, object, int]:
         return originals[(manager_module, "judge")](config, kind, d2, run, identified, tentative, t, z, R)
 
     alt_start = AltitudeTrack.__dict__["start"].__func__
+    many = cls.__dict__["screen_many"].__func__
+
+    def screen_many(c, filters, *a):  # logged before the call: it changes the filters
+        ops.append(("screen_many", [key(f) for f in filters], *map(copy, a)))
+        return many(c, filters, *a)
+
     try:
+        cls.screen_many = classmethod(screen_many)
         for owner, name in saved[:-1]:
             setattr(owner, name, logging(owner, name))
         manager_module.judge = judge
@@ -98,6 +107,7 @@ def record(folder: str | None) -> tuple[list, object, object, int]:
         for (owner, name), f in originals.items():
             setattr(owner, name, f)
         AltitudeTrack.start = classmethod(alt_start)
+        cls.screen_many = classmethod(many)
     return ops, cfg.manager_settings().screening, factory, len(items)
 
 
@@ -111,7 +121,9 @@ def filter_side(ops: list, config, factory) -> tuple[float, dict]:
     c0 = time.process_time()
     for op in ops:
         kind = op[0]
-        if kind == "screen":
+        if kind == "screen_many":
+            type(filters[op[1][0]]).screen_many([filters[k] for k in op[1]], *op[2:])
+        elif kind == "screen":
             _, f, t, z, C, R, bias, bias_cov, gate = op
             d2, zc, Rc, _ = filters[f].screen(t, z, C, R, bias, bias_cov, gate)
             last = (f, d2, t, zc, Rc)
@@ -124,7 +136,7 @@ def filter_side(ops: list, config, factory) -> tuple[float, dict]:
         elif kind == "estimate":
             filters[op[1]].estimate()
         elif kind == "adsb":
-            adsb.check(*op[1:])
+            adsb.check_many(*op[1:])
         elif kind == "alt_update":
             altitude[op[1]].update(op[2], op[3])
         elif kind == "alt_start":
@@ -143,7 +155,9 @@ def kernels_alone(ops: list, factory) -> tuple[float, dict]:
     c0 = time.process_time()
     for op in ops:
         kind = op[0]
-        if kind == "screen":
+        if kind == "screen_many":
+            type(filters[op[1][0]]).screen_many([filters[k] for k in op[1]], *op[2:])
+        elif kind == "screen":
             _, f, t, z, C, R, bias, bias_cov, gate = op
             flt = filters[f]
             _, _, code = kernels.imm_screen(flt._buf, t - flt.time, flt._pred_time == t, z, C, R, bias, bias_cov,
@@ -164,7 +178,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=5)
     args = ap.parse_args()
     ops, config, factory, n_inputs = record(args.folder)
-    n = sum(1 for op in ops if op[0] in ("screen", "update", "start"))  # measurements given to a filter
+    # measurements given to a filter
+    n = sum(len(op[1]) if op[0] == "screen_many" else 1 for op in ops if op[0] in ("screen_many", "screen", "update", "start"))
     filter_side(ops, config, factory)  # warm-up
     kernels_alone(ops, factory)
     for _ in range(args.repeat):
