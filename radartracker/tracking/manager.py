@@ -712,11 +712,12 @@ class TrackManager:
         meas = self._meas
         g = np.fromiter(map(_ROW, chosen), np.int64, n)
         times, z, C, R, radar = meas.time[g], meas.z[g], meas.C[g], meas.R[g], meas.radar[g]
-        # each radar's (ς̂, P_ς) as the frame reads them, a last row of zeros for the unbiased
+        # the (ς̂, P_ς) of the radars measured here, as the frame reads them (zeros for the unbiased, radar −1)
+        present, index = np.unique(radar, return_inverse=True)
         ids = self._converter.ids
-        table = [self._bias(ids[k]) for k in range(len(ids))] + [(_ZERO2, _ZERO22)]
-        bias = np.array([b for b, _ in table], float)[radar]
-        bias_cov = np.array([P for _, P in table], float)[radar]
+        table = [(_ZERO2, _ZERO22) if k < 0 else self._bias(ids[k]) for k in present.tolist()]
+        bias = np.array([b for b, _ in table], float)[index]
+        bias_cov = np.array([P for _, P in table], float)[index]
         cfg = self.config.screening
         gate = np.where(radar >= 0, cfg.gate("plots", False), cfg.gate("adsb", False))
         try:
