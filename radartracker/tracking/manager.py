@@ -411,9 +411,9 @@ class TrackManager:
                 reports.append(p)
             else:
                 positions.append(p)
-        meas, ok = self._convert_frame(by_radar, reports, positions, live)
+        meas, ok, azimuth = self._convert_frame(by_radar, reports, positions, live)
         self._meas = meas
-        self._track_phases(by_radar)
+        self._track_phases(by_radar, meas.time[:len(azimuth)], azimuth)
         first, base = {}, 0  # the first row of each radar's plots in the frame's measurements
         for rid, plots in by_radar.items():
             first[rid], base = base, base + len(plots)
@@ -489,9 +489,9 @@ class TrackManager:
         return pred["swept"], pred["covered"]
 
     def _convert_frame(self, by_radar: dict[str, list[Plot]], reports: list[AdsbReport], positions: list[PlaneMeasurement],
-                       live: list[ManagedTrack]) -> tuple[FrameMeasurements, np.ndarray]:
+                       live: list[ManagedTrack]) -> tuple[FrameMeasurements, np.ndarray, np.ndarray]:
         """The frame's measurements in the plane, in rows: its plots radar by radar, then its ADS-B reports,
-        then its unbiased positions; and which plots have a valid geometry. The plots and ADS-B positions are
+        then its unbiased positions; which plots have a valid geometry, and the plots' azimuths. The plots and ADS-B positions are
         converted in one pass (:class:`~radartracker.tracking.prepared.PlaneConverter`): a plot at its Mode C
         altitude, else its Mode S track's, else ``primary_altitude_m`` with that guess's spread added to R;
         an ADS-B report has R = σ(NACp)² I, C = 0."""
@@ -533,7 +533,7 @@ class TrackManager:
             R = np.concatenate([R, Ra, Rm])
             radar = np.concatenate([rows, np.full(m, -1, np.int64)])
         times = np.fromiter(map(_TIME, itertools.chain(plots, reports, positions)), float, len(z))
-        return FrameMeasurements(times, z, C, R, radar), ok
+        return FrameMeasurements(times, z, C, R, radar), ok, theta
 
     def _associate(self, rid: str, plots: list[Plot], base: int, valid: np.ndarray, live: list[ManagedTrack],
                    pred: dict, updates: list) -> set[int]:
@@ -594,16 +594,13 @@ class TrackManager:
                 updates.append((plots[k].time, next(seq), tr, base + k, plots[k]))
         return taken
 
-    def _track_phases(self, by_radar: dict[str, list[Plot]]) -> None:
-        """Each radar's antenna phase φ (α(t) = φ + 2πt/T), smoothed over its plots in order:
+    def _track_phases(self, by_radar: dict[str, list[Plot]], t: np.ndarray, theta: np.ndarray) -> None:
+        """Each radar's antenna phase φ (α(t) = φ + 2πt/T), smoothed over its plots in order (times ``t`` and
+        azimuths ``theta`` of the frame's plots radar by radar, as converted):
         p ← 0.98 p + exp(i(θ − 2πt/T)), the exponentials of all the frame's plots in one array call, the
         recurrences in one compiled loop (:func:`~radartracker.tracking.prepared.smooth_phases`)."""
-        plots = list(itertools.chain.from_iterable(by_radar.values()))
-        if not plots:
+        if not len(theta):
             return
-        n = len(plots)
-        theta = np.fromiter(map(_AZIMUTH, plots), float, n)
-        t = np.fromiter(map(_TIME, plots), float, n)
         counts = np.array([len(ps) for ps in by_radar.values()], np.int64)
         period = np.repeat([self.radars[rid].period_s for rid in by_radar], counts)
         terms = np.exp(1j * (theta - 2 * math.pi * t / period))
@@ -689,8 +686,9 @@ class TrackManager:
 
     def _screen_confirmed(self, updates: list[tuple]) -> tuple[list[int], np.ndarray, tuple]:
         """The radar and ADS-B measurements of confirmed tracks, screened and applied in order by one
-        :meth:`TrackFilter.screen_many`: (their indices in ``updates``, done, (χ̂, P̂)), by its rows. A track with another kind of measurement in the frame, or whose
-        first one is older than its estimate, is left to :meth:`_apply`."""
+        :meth:`TrackFilter.screen_many`: (their indices in ``updates``, done, (χ̂, P̂)), by its rows. A track
+        with another kind of measurement in the frame, or whose first one is older than its estimate, is left
+        to :meth:`_apply`."""
         rows: list[int] = []
         excluded: set[int] = set()
         for j, (t, _, tr, _, src) in enumerate(updates):

@@ -121,12 +121,13 @@ class LoopManager(OneAtATimeManager):
             parts.append((r.time, xy, np.zeros((2, 2)), sd * sd * np.eye(2), -1, True))
         for m in positions:
             parts.append((m.time, np.asarray(m.z, float), np.zeros((2, 2)), np.asarray(m.R, float), -1, True))
+        azimuth = np.array([p.azimuth_rad for plots in by_radar.values() for p in plots], float)
         if not parts:
             return FrameMeasurements(np.zeros(0), np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros((0, 2, 2)),
-                                     np.zeros(0, np.int64)), np.zeros(0, bool)
+                                     np.zeros(0, np.int64)), np.zeros(0, bool), azimuth
         t, z, C, R, radar, ok = zip(*parts)
         return (FrameMeasurements(np.array(t, float), np.array(z), np.array(C), np.array(R), np.array(radar, np.int64)),
-                np.array(ok, bool))
+                np.array(ok, bool), azimuth)
 
     def _misses(self, live, pred, assigned, t_a, t_b):
         for rid, radar in self.radars.items():
