@@ -19,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from radartracker.api import kernels
+
 OK = 0
 ERR_NONFINITE = 1  # z, C, R or dt not finite
 ERR_R = 2  # R not positive definite (the information form needs R⁻¹)
@@ -29,20 +31,10 @@ ERR_REBUILD = 6  # recomputing S from the blocks met an aircraft whose Y_ii is n
 
 # The arithmetic kernels below only read and write arrays their caller owns (and views into them); they
 # allocate nothing and return no array, so they are compiled without numba's runtime and its reference counts
-# (``_nrt=False``): with it, every array argument of every call and every view costs an atomic increment and
-# decrement (14 % of the kernel's perf samples; update_batch 23 % faster without). carve and carve_work,
-# which return views to Python, keep it.
-
-
-def _probe() -> int:
-    return 0
-
-
-try:  # _nrt is numba's own (underscored) option: a numba without it compiles the kernels with their counts
-    njit(cache=True, _nrt=False)(_probe)()
-    kernel = njit(cache=True, _nrt=False)
-except KeyError:
-    kernel = njit(cache=True)
+# (``kernels.kernel``: ``_nrt=False`` where numba has it): with it, every array argument of every call and
+# every view costs an atomic increment and decrement (14 % of the kernel's perf samples; update_batch 23 %
+# faster without). carve and carve_work, which return views to Python, keep it.
+kernel = kernels.kernel
 
 # ctr: [updates since refresh, refresh_every, updates since rebuild, rebuild_factor, n alive]
 C_SINCE_REFRESH, C_REFRESH_EVERY, C_SINCE_REBUILD, C_REBUILD_FACTOR, C_ALIVE = range(5)

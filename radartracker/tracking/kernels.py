@@ -50,9 +50,9 @@ def _probe() -> int:
 
 
 # The kernels that allocate nothing and return no array of their own (the views of a packed buffer have no
-# reference) are compiled without numba's runtime and its reference counts (``_nrt=False``, as
-# plugins/coupled_sparse/_kernels.py): with it, every array argument of every call and every view taken
-# costs an atomic increment and decrement. A numba without the option compiles them with their counts.
+# reference) are compiled without numba's runtime and its reference counts (``kernel``: ``_nrt=False``; the
+# ``coupled-sparse`` plugin's kernels use it too): with it, every array argument of every call and every view
+# taken costs an atomic increment and decrement. A numba without the option compiles them with their counts.
 try:
     njit(cache=True, _nrt=False)(_probe)()
     kernel, view = njit(cache=True, _nrt=False), njit(cache=True, _nrt=True)
