@@ -49,3 +49,15 @@ def sweep(pos: np.ndarray, radar_xy: np.ndarray, north: np.ndarray, max_range: n
                 az = (math.atan2(dx, dy) - north[r]) % TWO_PI
                 hit = (az - start[r]) % TWO_PI < width[r]
             swept[r, i] = hit
+
+
+@njit(cache=True)
+def smooth_phases(phase: np.ndarray, terms: np.ndarray, rows: np.ndarray) -> None:
+    """``phase[r]`` ← 0.98 ``phase[r]`` + e for each term e of radar r (``rows[j]``: term j's radar), in
+    order: the antenna phases' recurrences, with CPython's complex × float, (a + ib)(0.98 + 0i), so the same
+    bits as that Python loop."""
+    for j in range(rows.shape[0]):
+        r = rows[j]
+        re, im = phase[r].real, phase[r].imag
+        re, im = re * 0.98 - im * 0.0, re * 0.0 + im * 0.98
+        phase[r] = complex(re + terms[j].real, im + terms[j].imag)

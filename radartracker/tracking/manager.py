@@ -64,8 +64,8 @@ from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.estimation.kalman import SingularInnovation
 from radartracker.estimation.motion import MotionModel
 from radartracker.estimation.base import Estimator, EstimatorConfig, PlaneMeasurement
-from radartracker.tracking.coverage import sweep
-from radartracker.tracking.prepared import PlaneConverter, smooth_phases
+from radartracker.tracking.coverage import smooth_phases, sweep
+from radartracker.tracking.prepared import PlaneConverter
 from radartracker.tracking.states import StateTable
 from radartracker.tracking.filters import MotionConfig, TrackFilter
 from radartracker.tracking.snapshot import load_manager, save_manager
@@ -240,7 +240,8 @@ class TrackManager:
         self._recent: dict[tuple, float] = {}
         self._frame: int | None = None
         self._frame_items: list = []
-        self._phase: dict[str, complex] = {}
+        self._phase = np.zeros(len(rids), complex)  # each radar's antenna phase φ, by row (_track_phases)
+        self._phased = np.zeros(len(rids), bool)  # which radars have one (a plot seen)
         self._events: list[TrackEvent] = []
         self._deferred: list[tuple] = []  # the frame's estimator work, applied at its end (_flush_estimator)
         self._meas: FrameMeasurements | None = None  # the frame's measurements (_convert_frame), while it runs
@@ -308,6 +309,10 @@ class TrackManager:
         mgr._codes = {tr.mode_s: tr.id for tr in mgr.tracks.values() if tr.mode_s is not None}
         for tr in mgr.tracks.values():  # read again from the filters, in the form _estimate_of gives
             tr.estimate = None
+        if isinstance(mgr._phase, dict):  # an earlier release's snapshot: the antenna phases by radar id
+            phases, mgr._phase = mgr._phase, np.zeros(len(mgr.radars), complex)
+            for k, rid in enumerate(mgr.radars):
+                mgr._phase[k], mgr._phased[k] = phases.get(rid, 0j), rid in phases
         mgr._states = StateTable(mgr.tracks.values())
         return mgr
 
@@ -413,7 +418,7 @@ class TrackManager:
                 positions.append(p)
         meas, ok, azimuth = self._convert_frame(by_radar, reports, positions, live)
         self._meas = meas
-        self._track_phases(by_radar, meas.time[:len(azimuth)], azimuth)
+        self._track_phases(meas.radar[:len(azimuth)], meas.time[:len(azimuth)], azimuth)
         first, base = {}, 0  # the first row of each radar's plots in the frame's measurements
         for rid, plots in by_radar.items():
             first[rid], base = base, base + len(plots)
@@ -479,12 +484,10 @@ class TrackManager:
         if "covered" not in pred:
             c, (t_a, t_b) = self._radar_rows, pred["span"]
             m, n = len(c["period"]), len(pred["pos"])
-            start = np.angle(np.array([self._phase.get(rid, 0j) for rid in self.radars], complex).reshape(m))
-            start = start + 2 * math.pi * t_a / c["period"]
-            swept, covered = np.zeros((m, n), bool), np.zeros(n, bool)
+            start = np.angle(self._phase) + 2 * math.pi * t_a / c["period"]
+            swept, covered = np.empty((m, n), bool), np.empty(n, bool)
             sweep(np.ascontiguousarray(pred["pos"], float), c["xy"], c["north"], c["max_range"], start,
-                  2 * math.pi * (t_b - t_a) / c["period"], np.array([rid in self._phase for rid in self.radars], bool),
-                  swept, covered)
+                  2 * math.pi * (t_b - t_a) / c["period"], self._phased, swept, covered)
             pred["swept"], pred["covered"] = swept, covered
         return pred["swept"], pred["covered"]
 
@@ -594,19 +597,16 @@ class TrackManager:
                 updates.append((plots[k].time, next(seq), tr, base + k, plots[k]))
         return taken
 
-    def _track_phases(self, by_radar: dict[str, list[Plot]], t: np.ndarray, theta: np.ndarray) -> None:
-        """Each radar's antenna phase φ (α(t) = φ + 2πt/T), smoothed over its plots in order (times ``t`` and
-        azimuths ``theta`` of the frame's plots radar by radar, as converted):
+    def _track_phases(self, rows: np.ndarray, t: np.ndarray, theta: np.ndarray) -> None:
+        """Each radar's antenna phase φ (α(t) = φ + 2πt/T), smoothed over its plots in order (radar rows
+        ``rows``, times ``t`` and azimuths ``theta`` of the frame's plots, as converted):
         p ← 0.98 p + exp(i(θ − 2πt/T)), the exponentials of all the frame's plots in one array call, the
-        recurrences in one compiled loop (:func:`~radartracker.tracking.prepared.smooth_phases`)."""
+        recurrences in one compiled loop (:func:`~radartracker.tracking.coverage.smooth_phases`)."""
         if not len(theta):
             return
-        counts = np.array([len(ps) for ps in by_radar.values()], np.int64)
-        period = np.repeat([self.radars[rid].period_s for rid in by_radar], counts)
-        terms = np.exp(1j * (theta - 2 * math.pi * t / period))
-        phase = np.array([self._phase.get(rid, 0j) for rid in by_radar], complex)
-        smooth_phases(phase, terms, counts)
-        self._phase.update(zip(by_radar, phase.tolist()))
+        terms = np.exp(1j * (theta - 2 * math.pi * t / self._radar_rows["period"][rows]))
+        smooth_phases(self._phase, terms, rows)
+        self._phased[rows] = True
 
     def _track_with_code(self, code: str | None) -> ManagedTrack | None:
         """The live track with Mode S address ``code`` (at most one: a code's track is looked up before
@@ -711,9 +711,12 @@ class TrackManager:
         g = np.fromiter(map(_ROW, chosen), np.int64, n)
         times, z, C, R, radar = meas.time[g], meas.z[g], meas.C[g], meas.R[g], meas.radar[g]
         # the (ς̂, P_ς) of the radars measured here, as the frame reads them (zeros for the unbiased, radar −1)
-        present, index = np.unique(radar, return_inverse=True)
+        # (a dict of the few radar rows present, by first appearance: np.unique costs ~50 µs a call, a frame's fixed cost)
+        keys = radar.tolist()
+        present = {k: i for i, k in enumerate(dict.fromkeys(keys))}
         ids = self._converter.ids
-        table = [(_ZERO2, _ZERO22) if k < 0 else self._bias(ids[k]) for k in present.tolist()]
+        table = [(_ZERO2, _ZERO22) if k < 0 else self._bias(ids[k]) for k in present]
+        index = np.fromiter(map(present.__getitem__, keys), np.int64, n)
         bias = np.array([b for b, _ in table], float)[index]
         bias_cov = np.array([P for _, P in table], float)[index]
         cfg = self.config.screening
@@ -945,7 +948,7 @@ class TrackManager:
         """Tracks in a radar's coverage whose azimuth its antenna swept in [t_a, t_b) without a plot
         (``assigned``: the indices in ``live`` of the tracks each radar's plots went to): one array pass
         over radars × the frame's tracks (:meth:`_coverage`), then a loop over the misses only."""
-        if not live or not self._phase:
+        if not live or not self._phased.any():
             return
         missed = self._coverage(pred)[0].copy()
         if not missed.any():
@@ -955,9 +958,10 @@ class TrackManager:
         if hits:
             r, i = np.array(hits, np.int64).T
             missed[r, i] = False
-        missed &= np.array([tr.created < t_a for tr in live], bool)[None, :]  # started in this frame: not missed
         for i in np.nonzero(missed)[1].tolist():  # radar by radar, as the antennas swept
             tr = live[i]
+            if tr.created >= t_a:  # started in this frame: not missed
+                continue
             tr.history.append(False)
             if tr.status == "confirmed":
                 tr.status = "coasting"

@@ -16,8 +16,7 @@ five plus one per frame instead of six per radar. The arithmetic between those c
 steps, east-north-up → ECEF, C_s) runs in compiled loops, plot by plot, with RadarFrame's operations in
 the same order (a frame of ~50 plots paid ~40 numpy calls of a few µs each, whatever its size: the
 200-aircraft replay's cost per input). ``tests/tracking/test_prepared.py`` holds it to RadarFrame radar
-by radar. The frame's
-antenna-phase recurrences (:func:`smooth_phases`) are compiled here too.
+by radar.
 """
 
 from __future__ import annotations
@@ -169,18 +168,3 @@ def _bias_jacobian(rows, radar_xy, height, p, rho, alt, J) -> None:
         dn = _nan_max(d, 1e-9)
         J[i, 0, 0], J[i, 1, 0] = dx / dn * dd_drho, dy / dn * dd_drho
         J[i, 0, 1], J[i, 1, 1] = dy, -dx
-
-
-@njit(cache=True)
-def smooth_phases(phase, terms, counts) -> None:
-    """``phase[r]`` ← 0.98 ``phase[r]`` + e for each e of its ``counts[r]`` terms in order (radar r's plots,
-    the radars one after another in ``terms``): the manager's antenna phases, with CPython's complex × float,
-    (a + ib)(0.98 + 0i), so the same bits as that Python loop."""
-    k = 0
-    for r in range(phase.shape[0]):
-        re, im = phase[r].real, phase[r].imag
-        for j in range(k, k + counts[r]):
-            re, im = re * 0.98 - im * 0.0, re * 0.0 + im * 0.98
-            re, im = re + terms[j].real, im + terms[j].imag
-        phase[r] = complex(re, im)
-        k += counts[r]

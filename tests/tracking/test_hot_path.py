@@ -130,13 +130,13 @@ class LoopManager(OneAtATimeManager):
                 np.array(ok, bool), azimuth)
 
     def _misses(self, live, pred, assigned, t_a, t_b):
-        for rid, radar in self.radars.items():
-            if rid not in self._phase or not live:
+        for k, (rid, radar) in enumerate(self.radars.items()):  # phases by radar row
+            if not self._phased[k] or not live:
                 continue
             d = pred["pos"] - self.frames[rid].xy
             rng = np.hypot(d[:, 0], d[:, 1])
             az = np.mod(np.arctan2(d[:, 0], d[:, 1]) - self._north[rid], 2 * np.pi)
-            start = np.angle(self._phase[rid]) + 2 * np.pi * t_a / radar.period_s
+            start = np.angle(self._phase[k]) + 2 * np.pi * t_a / radar.period_s
             swept = np.mod(az - start, 2 * np.pi) < 2 * np.pi * (t_b - t_a) / radar.period_s
             for i in np.flatnonzero(swept & (rng < 0.98 * radar.max_range_m)):
                 tr = live[i]

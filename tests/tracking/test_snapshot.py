@@ -59,6 +59,26 @@ def test_restore_continues_bit_for_bit(tmp_path, items_and_data, estimator, moti
     assert _state(second, ev) == _state(whole, ev_whole)
 
 
+def test_restore_reads_the_antenna_phases_of_an_earlier_release(tmp_path, items_and_data):
+    """An earlier release saved the antenna phases as a dict by radar id: restored, it continues as the
+    uninterrupted run does (oracle: that run), its phases the dict's by radar row."""
+    items, data = items_and_data
+    whole = TrackManager(data.radars, data.reference)
+    ev_whole = whole.process_many(items)
+    half = len(items) // 2
+    first = TrackManager(data.radars, data.reference)
+    ev = [e for i in items[:half] for e in first.process(i)]
+    rids = list(first.radars)
+    phases = {rid: complex(first._phase[k]) for k, rid in enumerate(rids) if first._phased[k]}
+    assert 0 < len(phases) <= len(rids)
+    first._phase, first._phased = phases, np.zeros(len(rids), bool)  # the earlier release's form
+    first.snapshot(tmp_path / "snap")
+    second = TrackManager.restore(tmp_path / "snap")
+    assert [complex(p) for p, on in zip(second._phase, second._phased) if on] == [phases[r] for r in rids if r in phases]
+    ev += second.process_many(items[half:])
+    assert _state(second, ev) == _state(whole, ev_whole)
+
+
 @pytest.fixture
 def saved(tmp_path, items_and_data):
     items, data = items_and_data
