@@ -948,19 +948,16 @@ class TrackManager:
         """Tracks in a radar's coverage whose azimuth its antenna swept in [t_a, t_b) without a plot
         (``assigned``: the indices in ``live`` of the tracks each radar's plots went to): one array pass
         over radars × the frame's tracks (:meth:`_coverage`), then a loop over the misses only."""
-        if not live or not self._phased.any():
+        if not live:
             return
-        missed = self._coverage(pred)[0].copy()
-        if not missed.any():
+        radar, track = np.nonzero(self._coverage(pred)[0])  # radar by radar, as the antennas swept
+        if not len(track):
             return
         row = self._radar_rows["row"]  # a plot of this radar in the frame: not missed
-        hits = [(row[rid], i) for rid, taken in assigned.items() for i in taken]
-        if hits:
-            r, i = np.array(hits, np.int64).T
-            missed[r, i] = False
-        for i in np.nonzero(missed)[1].tolist():  # radar by radar, as the antennas swept
+        hits = {(row[rid], i) for rid, taken in assigned.items() for i in taken}
+        for r, i in zip(radar.tolist(), track.tolist()):
             tr = live[i]
-            if tr.created >= t_a:  # started in this frame: not missed
+            if (r, i) in hits or tr.created >= t_a:  # started in this frame: not missed
                 continue
             tr.history.append(False)
             if tr.status == "confirmed":
@@ -968,23 +965,15 @@ class TrackManager:
                 self._emit(t_b, tr, "coasting")
 
     def _sweep(self, live: list[ManagedTrack], pred: dict, now: float) -> None:
-        """Delete tracks that cannot be confirmed any more, are stale or left every radar's coverage
-        (candidates found with arrays over the frame's tracks, then checked one by one)."""
+        """Delete tracks that cannot be confirmed any more, are stale or left every radar's coverage (one
+        pass over the frame's tracks: a few array calls cost more than it at light traffic)."""
         if not live:
             return
         cfg = self.config
-        covered = self._coverage(pred)[1]
-        n = len(live)
-        last = np.fromiter((tr.last_update for tr in live), float, n)
-        quiet = np.fromiter((tr.n_adsb == 0 for tr in live), bool, n)
-        tentative = np.fromiter((tr.status == "tentative" for tr in live), bool, n)
-        for i in np.flatnonzero(tentative | (now - last > cfg.delete_after_s) | (~covered & quiet)):
-            tr = live[i]
-            if tr.id not in self.tracks:
-                continue
-            misses = len(tr.history) - sum(tr.history)
-            hopeless = tr.status == "tentative" and misses > cfg.confirm_n - cfg.confirm_m
-            if hopeless or now - tr.last_update > cfg.delete_after_s or not (covered[i] or tr.n_adsb):
+        stale, hopeless = cfg.delete_after_s, cfg.confirm_n - cfg.confirm_m  # (misses a tentative track can afford)
+        for tr, covered in zip(live, self._coverage(pred)[1].tolist()):
+            if ((now - tr.last_update > stale or not (covered or tr.n_adsb)
+                 or tr.status == "tentative" and len(tr.history) - sum(tr.history) > hopeless) and tr.id in self.tracks):
                 self._delete(tr, now)
 
     def _delete(self, tr: ManagedTrack, now: float) -> None:
