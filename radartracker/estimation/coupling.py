@@ -27,12 +27,35 @@ from pathlib import Path
 import networkx as nx
 import numpy as np
 
+from radartracker.tracking.kernels import kernel
+
 ADSB = "adsb"
 _NODE = "aircraft:{}".format  # _aircraft_node as a callable for map()
 # two int or str keys are equal as dict keys only if their nodes are (unlike 1, 1.0 and True, one each):
 # observe_many finds the rows of such keys by key, without naming their nodes
 _PLAIN_KEYS = frozenset((int, str))
-_BATCH = 16  # observe_many: from this many measurements on, counted in arrays and written to the graph later
+_BATCH = 16  # observe_many: from this many measurements on, counted in one compiled pass, written to the graph later
+
+
+@kernel
+def _count(rows: np.ndarray, cols: np.ndarray, times: np.ndarray, known: np.ndarray, count: np.ndarray,
+           latest: np.ndarray, source_count: np.ndarray, new: np.ndarray) -> int:
+    """Measurement i (aircraft row ``rows[i]``, source column ``cols[i]``, at ``times[i]``) counted into the
+    tables in order: ``count`` and ``source_count`` + 1, ``latest`` its maximum (``np.fmax``: a NaN time is
+    never latest). ``new[:k]`` = the i of the pairs not ``known`` before, the first of each, marked known;
+    returns k."""
+    k = 0
+    for i in range(rows.shape[0]):
+        r, c = rows[i], cols[i]
+        if not known[r, c]:
+            known[r, c] = True
+            new[k] = i
+            k += 1
+        count[r, c] += 1
+        if times[i] > latest[r, c]:
+            latest[r, c] = times[i]
+        source_count[c] += 1
+    return k
 
 
 def _aircraft_node(key: Hashable) -> str:
@@ -122,15 +145,11 @@ class CouplingGraph:
             cols = np.fromiter(map(self._col.__getitem__, radar), np.intp, n)
         except KeyError:  # a source first seen here
             cols = np.fromiter(map(self._col_of, radar), np.intp, n)
-        new = np.flatnonzero(~self._known[rows, cols])
-        for i, r, c in zip(new.tolist(), rows[new].tolist(), cols[new].tolist()):  # new pairs, in order
-            if not self._known[r, c]:  # (not made earlier in this batch)
-                self._pair[r, c], self._source[c] = self._edge(aircraft[i], radar[i], time[i])
-                self._known[r, c] = True
-        flat = rows * self._count.shape[1] + cols
-        np.add.at(self._count.reshape(-1), flat, 1)
-        np.fmax.at(self._latest.reshape(-1), flat, np.asarray(time, float))  # fmax: a NaN time is never latest
-        np.add.at(self._source_count, cols, 1)
+        new = np.empty(n, np.intp)
+        k = _count(rows, cols, np.asarray(time, float), self._known, self._count, self._latest, self._source_count, new)
+        for i in new[:k].tolist():  # the new pairs join the graph in order
+            r, c = int(rows[i]), int(cols[i])
+            self._pair[r, c], self._source[c] = self._edge(aircraft[i], radar[i], time[i])
         self._dirty = True
 
     def _row_of(self, key: Hashable) -> int:
