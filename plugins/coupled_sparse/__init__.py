@@ -304,8 +304,9 @@ class CoupledSparseEstimator(Estimator):
         return AircraftEstimate(float(self._tx[s]), x, P)
 
     def bias(self, radar: str) -> BiasState:
-        j = 2 * self._radar_index(radar)
-        return BiasState(radar, self._bias_time, self._bh[j:j + 2].copy(), self._Pb[j:j + 2, j:j + 2].copy())
+        """``radar``'s ς̂ and P_ς (copies of :meth:`bias_arrays`' views) at the latest update time."""
+        b, P = self.bias_arrays(radar)
+        return BiasState(radar, self._bias_time, b.copy(), P.copy())
 
     def bias_arrays(self, radar: str) -> tuple[np.ndarray, np.ndarray]:
         """Read-only views of ``radar``'s ς̂ and P_ς in the estimator's storage (:meth:`Estimator.bias_arrays`)."""
