@@ -88,7 +88,7 @@ def stacked(calls: list, est, mgr) -> list:
             out.append((np.array([est._ac[k] for k in key], np.int64),
                         np.array([-1 if r is None else est._rad[r] for r in radar], np.int64),
                         np.array(t, float), z, C, R,
-                        np.zeros((n, 2)), np.zeros((n, 2, 2)), np.zeros(n)))
+                        np.zeros((n, 7))))
             est.update_many(t, key, radar, np.array(z), np.array(C), np.array(R))
     return out
 

@@ -251,17 +251,15 @@ class CoupledSparseEstimator(Estimator):
         Rs = np.ascontiguousarray(R, dtype=float)
         if n == 0:
             return Innovation(np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0))
-        nu, lam, nis = np.zeros((n, 2)), np.zeros((n, 2, 2)), np.zeros(n)
-        code, i = K.update_batch(self._F, self._I, self._work.flat, slots, radars, times, Z, Cs, Rs, nu, lam, nis)
-        # plots before i are applied; plot i was predicted (Λ) or fully applied (S) — as coupled does
-        done = i + (code in (K.ERR_LAMBDA, K.ERR_S, K.ERR_REBUILD))
-        if done:
-            t = max(times[:done].tolist())  # finite: the kernel stops at a non-finite time
-            if not t <= self._bias_time:  # NaN at first, like np.fmax
-                self._bias_time = t
+        out = np.zeros((n, 7))  # ν, Λ, NIS of each plot: one array, one argument
+        code, i, t = K.update_batch(self._F, self._I, self._work.flat, slots, radars, times, Z, Cs, Rs, out)
+        # plots before i are applied; plot i was predicted (Λ) or fully applied (S) — as coupled does; t the
+        # latest time of those (finite: the kernel stops at a non-finite time)
+        if (i or code in (K.ERR_LAMBDA, K.ERR_S, K.ERR_REBUILD)) and not t <= self._bias_time:  # NaN at first
+            self._bias_time = t
         if code != K.OK:
             raise self._failure(code, i, aircraft[i], radar[i], times[i])
-        return Innovation(nu, lam, nis)
+        return Innovation(out[:, :2], out[:, 2:6].reshape(n, 2, 2), out[:, 6])
 
     @staticmethod
     def _failure(code: int, i: int, aircraft: Hashable, radar: str | None, time: float) -> ValueError:

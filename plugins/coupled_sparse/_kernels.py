@@ -618,19 +618,26 @@ def refresh(S, sv, Pb, bh, ctr, LS, LSi):
 
 
 @kernel
-def update_batch(F, I, WF, slots, radars, times, Z, Cs, Rs, out_nu, out_lam, out_nis):
-    """update_one over a batch in order on the packed storage; returns (code, index of the failing plot or len)."""
+def update_batch(F, I, WF, slots, radars, times, Z, Cs, Rs, out):
+    """update_one over a batch in order on the packed storage, ν, Λ and the NIS of plot i into ``out[i]``
+    (2 + 4 + 1 values); returns (code, index of the failing plot or len, the latest time of the plots applied
+    or predicted: −inf if none)."""
     cap, mm, nb = I[0], I[1], I[2]
     Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr, idx = carve(F, I, cap, mm, nb)
     f4, V, G, W, v4, Kb, LS, LSi, io = carve_work(WF, 2 * mm)
+    latest = -np.inf
     for i in range(slots.shape[0]):
+        row = out[i]
         code, nis = update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
-                               slots[i], radars[i], times[i], Z[i], Cs[i], Rs[i], io[7], out_nu[i], out_lam[i],
-                               f4, V, G, W, v4, idx, Kb, LS, LSi)
-        out_nis[i] = nis
+                               slots[i], radars[i], times[i], Z[i], Cs[i], Rs[i], io[7], row[0:2],
+                               row[2:6].reshape((2, 2)), f4, V, G, W, v4, idx, Kb, LS, LSi)
+        row[6] = nis
+        if code == OK or code == ERR_LAMBDA or code == ERR_S or code == ERR_REBUILD:  # applied or predicted
+            if times[i] > latest:
+                latest = times[i]
         if code != OK:
-            return code, i
-    return OK, slots.shape[0]
+            return code, i, latest
+    return OK, slots.shape[0], latest
 
 
 @kernel
