@@ -42,7 +42,8 @@ from radartracker.api import ConfigurationError, InputError, MotionConfig, Singu
 from radartracker_plugins.motion.base import check_measurement, check_time, require_started, start_state
 
 _v = attrs.validators
-_ADDRESS, _EPOCH, _PREDICTED, _COMPILED = (attrgetter(a) for a in ("_address", "time", "_pred_time", "_compiled"))
+_ADDRESS = attrgetter("_address")
+_EPOCH, _PREDICTED = kernels.IMM_EPOCH, kernels.IMM_PREDICTED
 
 
 def _floats(v: Any) -> tuple[float, ...] | None:
@@ -155,7 +156,6 @@ class IMMFilter(TrackFilter):
         modes, self.dims, self.entry_var, self.kernel_modes, self.chain, self.mu0, template = settings
         self.modes = list(modes)
         self.dim = int(max(self.dims))
-        self.time: float | None = None
         self.mu = self.mu0.copy()
         self.X = np.zeros((len(modes), self.dim))  # mode states, padded (class docstring)
         self.PP = np.zeros((len(modes), self.dim, self.dim))
@@ -164,8 +164,8 @@ class IMMFilter(TrackFilter):
 
     def _scratch(self, template: np.ndarray | None = None) -> None:
         """The state (μ, X, PP, χ̂, P̂) moved into one buffer with the settings the packed kernels take
-        (a copy of ``template``, a buffer of the same settings, if given), the prediction from it to
-        time ``_pred_time`` (nan: none), ``_pred`` = (c̄, X̄, P̄ of the modes, χ̄, P̄), and their scratch
+        (a copy of ``template``, a buffer of the same settings, if given), not started, the prediction from
+        it to time ``_pred_time`` (none yet), ``_pred`` = (c̄, X̄, P̄ of the modes, χ̄, P̄), and their scratch
         (:func:`radartracker.api.kernels.imm_buffer`)."""
         self._compiled = self.kernel_modes is not None  # else the modes' rows in the buffer are unused
         self._buf = template.copy() if template is not None else _buffer(
@@ -174,9 +174,28 @@ class IMMFilter(TrackFilter):
         for view, value in zip(state, (self.mu, self.X, self.PP, self.x, self.P)):
             view[...] = value
         self.mu, self.X, self.PP, self.x, self.P = state
-        self._pred_time = math.nan
         self._max_gap = self.config.max_gap_s
         self._address = self._buf.ctypes.data  # the buffer's memory, for screen_many's compiled loop
+
+    # --- the epoch and the kept prediction's time, held in the buffer (screen_many's compiled loop moves them)
+    @property
+    def time(self) -> float | None:
+        """Time (s) of the current estimate; None before :meth:`start`."""
+        t = self._buf[_EPOCH]
+        return None if t != t else float(t)
+
+    @time.setter
+    def time(self, value: float | None) -> None:
+        self._buf[_EPOCH] = math.nan if value is None else value
+
+    @property
+    def _pred_time(self) -> float:
+        """The time ``_pred`` is the prediction for (nan: none)."""
+        return float(self._buf[_PREDICTED])
+
+    @_pred_time.setter
+    def _pred_time(self, value: float) -> None:
+        self._buf[_PREDICTED] = value
 
     # --- IMM cycle -----------------------------------------------------------------------------
     def switching(self, dt: float) -> np.ndarray:
@@ -260,29 +279,10 @@ class IMMFilter(TrackFilter):
         n = len(filters)
         d2, zc, Rc = np.full(n, math.nan), np.zeros((n, 2)), np.zeros((n, 2, 2))
         x, P, done = np.zeros((n, 4)), np.zeros((n, 4, 4)), np.zeros(n, bool)
-        if not n:
-            return d2, zc, Rc, done, x, P
-        addresses = np.fromiter(map(_ADDRESS, filters), np.int64, n)
-        first = np.ones((n, 3))  # each filter's (epoch, whether its kept prediction is for the time, compiled)
-        try:
-            first[:, 0] = np.fromiter(map(_EPOCH, filters), float, n)
-        except TypeError:  # a filter not started (its time None): screened one by one
-            first[:, 0] = [math.nan if f.time is None else f.time for f in filters]
-            first[np.isnan(first[:, 0]), 2] = 0.0
-        first[:, 1] = np.fromiter(map(_PREDICTED, filters), float, n) == times
-        if not all(map(_COMPILED, filters)):
-            first[:, 2] *= np.fromiter(map(_COMPILED, filters), bool, n)
-        order = np.argsort(addresses, kind="stable")  # each measurement's previous one of the same filter
-        same = addresses[order[1:]] == addresses[order[:-1]]
-        prev = np.full(n, -1, np.int64)
-        prev[order[1:][same]] = order[:-1][same]
-        kernels.imm_screen_many(addresses, first, prev, np.ascontiguousarray(times, float), z, C, R, bias, bias_cov,
-                                np.ascontiguousarray(gate, float), d2, zc, Rc, x, P, done)
-        followed = np.zeros(n, bool)  # done measurements whose filter's next one was done too
-        followed[prev[done & (prev >= 0)]] = True
-        for i in np.flatnonzero(done & ~followed).tolist():  # each filter's last one done: its new epoch
-            f = filters[i]
-            f.time, f._pred_time = float(times[i]), math.nan
+        if n:  # the epochs, kept predictions and whether compiled are read (and moved) in the buffers
+            kernels.imm_screen_many(np.fromiter(map(_ADDRESS, filters), np.int64, n),
+                                    np.ascontiguousarray(times, float), z, C, R, bias, bias_cov,
+                                    np.ascontiguousarray(gate, float), d2, zc, Rc, x, P, done)
         return d2, zc, Rc, done, x, P
 
     def update(self, time: float, z: np.ndarray, R: np.ndarray) -> float:
@@ -325,12 +325,13 @@ class IMMFilter(TrackFilter):
 
     # --- snapshots and pickles: the state, not the buffers derived from it -------------------------
     def __getstate__(self) -> dict:
-        return {k: v for k, v in vars(self).items()
-                if k not in ("_buf", "_pred", "_pred_time", "_compiled", "_max_gap", "_address")}
+        skip = ("_buf", "_pred", "_compiled", "_max_gap", "_address")
+        return {**{k: v for k, v in vars(self).items() if k not in skip}, "time": self.time}
 
     def __setstate__(self, state: dict) -> None:
-        vars(self).update(state)
+        vars(self).update((k, v) for k, v in state.items() if k != "time")
         self._scratch()
+        self.time = state.get("time")
 
     def state_dict(self) -> dict:
         """``time``, ``mu`` and each mode's own ``xs``/``Ps`` (without the padding)."""
@@ -363,7 +364,7 @@ class IMMFilter(TrackFilter):
 def _buffer(kernel_modes: np.ndarray | None, dims: np.ndarray, entry_var: float, chain: tuple, max_gap: float) -> np.ndarray:
     """The packed buffer of these settings with a zero state (:func:`radartracker.api.kernels.imm_buffer`)."""
     rows = kernel_modes if kernel_modes is not None else np.zeros((len(dims), 3))
-    return kernels.imm_buffer(rows, dims, entry_var, *chain, max_gap)
+    return kernels.imm_buffer(rows, dims, entry_var, *chain, max_gap, kernel_modes is not None)
 
 
 @functools.lru_cache(maxsize=32)

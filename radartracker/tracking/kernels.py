@@ -463,17 +463,24 @@ def imm_cycle(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, lam: np.ndarray, le
 
 
 # --- packed IMM: one buffer per filter -------------------------------------------------------------------
-# [settings | state (μ, X, PP, χ̂, P̂) | prediction (c̄, X̄, P̄, χ̄, P̄) | scratch (v, Π, Y, YP, F, FP)], the
-# settings [n, D, σ_e², m = len(λ), max_gap_s, modes rows (kind, q, turn_rate_sd), dims, λ, L, R]
-# (markov_switching's chain; m = 0: L is the fixed Π). No kernel allocates (each small allocation ~40 ns), and inside a kernel
+# [header | settings | state (μ, X, PP, χ̂, P̂) | prediction (c̄, X̄, P̄, χ̄, P̄) | scratch (v, Π, Y, YP, F, FP)],
+# the header [n, D, σ_e², m = len(λ), max_gap_s, epoch, prediction's time, compiled, stopped]: the state's
+# time (IMM_EPOCH, nan before start) and the time the prediction is for (IMM_PREDICTED, nan: none) are the
+# filter's own (its Python attributes read them), so that imm_screen_many reads and moves them where they
+# are; compiled is 0 when the modes' rows are unused (modes called in Python); stopped is imm_screen_many's
+# scratch. The settings [modes rows (kind, q, turn_rate_sd), dims, λ, L, R] (markov_switching's chain;
+# m = 0: L is the fixed Π). No kernel allocates (each small allocation ~40 ns), and inside a kernel
 # the parts are numba.carray views of the buffer's memory, which take no reference: an ordinary view
 # costs a reference count up and down (atomic, ~10 ns) for itself and each row taken from it, ~0.9 µs
 # per predict-and-correct cycle. Such views live only inside the call that made them, whose ``buf``
 # argument keeps the memory alive; Python gets ordinary views (:func:`imm_views`).
+IMM_EPOCH, IMM_PREDICTED, _COMPILED, _STOPPED, _HEADER = 5, 6, 7, 8, 9  # header slots (above), its length
+
+
 @njit(cache=True)
 def _imm_offsets(n: int, D: int, m: int) -> tuple[int, int, int, int, int, int, int, int, int]:
     """Offsets in the packed buffer of: modes, dims, λ, L, R, the state, the prediction, the scratch, the end."""
-    modes = 5
+    modes = _HEADER
     dims = modes + 3 * n
     lam = dims + n
     left = lam + m
@@ -485,14 +492,15 @@ def _imm_offsets(n: int, D: int, m: int) -> tuple[int, int, int, int, int, int, 
 
 
 def imm_buffer(modes: np.ndarray, dims: np.ndarray, entry_var: float, lam: np.ndarray, left: np.ndarray,
-               right: np.ndarray, max_gap: float = math.inf) -> np.ndarray:
-    """The packed buffer of an IMM (block comment above): its settings written, state and prediction zero;
-    ``max_gap``: the longest step :func:`imm_screen` takes (the filter's ``max_gap_s``)."""
+               right: np.ndarray, max_gap: float = math.inf, compiled: bool = True) -> np.ndarray:
+    """The packed buffer of an IMM (block comment above): its settings written, state and prediction zero,
+    not started (epoch and prediction's time nan); ``max_gap``: the longest step :func:`imm_screen` takes
+    (the filter's ``max_gap_s``); ``compiled`` False: ``modes`` are not the filter's (imm_screen_many skips it)."""
     n, m = len(dims), len(lam)
     offsets = _imm_offsets(n, int(max(dims)), m)
     buf = np.zeros(offsets[-1])
-    buf[:offsets[5]] = np.concatenate([[n, max(dims), entry_var, m, max_gap], np.ravel(modes), dims, lam,
-                                       np.ravel(left), np.ravel(right)])
+    buf[:offsets[5]] = np.concatenate([[n, max(dims), entry_var, m, max_gap, math.nan, math.nan, float(compiled), 0.0],
+                                       np.ravel(modes), dims, lam, np.ravel(left), np.ravel(right)])
     return buf
 
 
@@ -631,33 +639,35 @@ def _buffer_at(address: int) -> np.ndarray:
 
 
 @kernel
-def imm_screen_many(addresses: np.ndarray, first: np.ndarray, prev: np.ndarray, times: np.ndarray,
-                    z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray,
-                    gate: np.ndarray, d2: np.ndarray, zc: np.ndarray, Rc: np.ndarray, x: np.ndarray,
-                    P: np.ndarray, done: np.ndarray) -> None:
+def imm_screen_many(addresses: np.ndarray, times: np.ndarray, z: np.ndarray, C: np.ndarray, R: np.ndarray,
+                    bias: np.ndarray, bias_cov: np.ndarray, gate: np.ndarray, d2: np.ndarray, zc: np.ndarray,
+                    Rc: np.ndarray, x: np.ndarray, P: np.ndarray, done: np.ndarray) -> None:
     """:func:`imm_screen` of measurement i of the filter whose packed buffer is at ``addresses[i]``, in
     order, while each filter's measurements pass their gate and update it: ``done[i]`` then, with the
-    filter's output (χ̂, P̂) after it in ``x[i]``, ``P[i]``. A filter's first measurement steps from
-    ``first[i]`` = (its epoch, 1 if its kept prediction is for ``times[i]``, 1 if it may be screened here),
-    a later one from its previous measurement ``prev[i]`` if that was done; once one is not done, neither
-    are the filter's later ones, and the filter is as before it (a prediction made is not kept). The
-    buffers are the caller's, alive for the call."""
+    filter's output (χ̂, P̂) after it in ``x[i]``, ``P[i]``. Each steps from its filter's epoch in the buffer,
+    from the prediction kept there if it is for ``times[i]``, and moves the epoch to ``times[i]`` when done;
+    once one is not done (or its filter has not started, or is not compiled), neither are the filter's later
+    ones, and the filter is as before it, keeping the prediction to ``times[i]`` if one was made. The buffers
+    are the caller's, alive for the call."""
     for i in range(len(times)):
-        j = prev[i]
-        if j >= 0:
-            if not done[j]:
-                continue
-            dt, predicted = times[i] - times[j], False
-        else:
-            if first[i, 2] == 0.0:
-                continue
-            dt, predicted = times[i] - first[i, 0], first[i, 1] != 0.0
+        _buffer_at(addresses[i])[_STOPPED] = 0.0
+    for i in range(len(times)):
         buf = _buffer_at(addresses[i])
-        d2[i], _, code = imm_screen(buf, dt, predicted, z[i], C[i], R[i], bias[i], bias_cov[i], zc[i], Rc[i], gate[i])
-        if code == -2:
-            _, _, _, xs, Ps = _imm_parts(buf)[6]
-            for a in range(4):
-                x[i, a] = xs[a]
-                for b in range(4):
-                    P[i, a, b] = Ps[a, b]
-            done[i] = True
+        t0, t = buf[IMM_EPOCH], times[i]
+        if buf[_STOPPED] != 0.0 or buf[_COMPILED] == 0.0 or math.isnan(t0):
+            buf[_STOPPED] = 1.0
+            continue
+        d2[i], _, code = imm_screen(buf, t - t0, buf[IMM_PREDICTED] == t, z[i], C[i], R[i], bias[i], bias_cov[i],
+                                    zc[i], Rc[i], gate[i])
+        if code != -2:
+            buf[_STOPPED] = 1.0
+            if code != -5:  # the prediction to t was made (or was kept) and the state is unchanged
+                buf[IMM_PREDICTED] = t
+            continue
+        buf[IMM_EPOCH], buf[IMM_PREDICTED] = t, math.nan
+        _, _, _, xs, Ps = _imm_parts(buf)[6]
+        for a in range(4):
+            x[i, a] = xs[a]
+            for b in range(4):
+                P[i, a, b] = Ps[a, b]
+        done[i] = True

@@ -362,3 +362,47 @@ def test_screen_refuses_a_step_as_the_default_does():
     assert got[0] == want[0] and got[3] is want[3] is True
     for a, b in zip(fast.estimate(), ref.estimate()):
         np.testing.assert_array_equal(a, b)
+
+
+def test_screen_many_equals_the_default_loop_and_keeps_predictions_right():
+    """IMMFilter.screen_many (one compiled loop over the packed buffers) gives bit for bit what
+    TrackFilter.screen_many's default gives through ``screen`` on copies of the filters: a filter's later
+    measurements after one outside the gate are not done, a filter not started or of modes called in Python
+    is left to ``screen``, and each filter ends with the same epoch, state and predictions, at the time of a
+    prediction kept before the call (which a screening not done has overwritten) and at the times screened."""
+    t, _, zs, Rs = manoeuvre_track(np.random.default_rng(3), n=12)
+    filters = [IMMFilter() for _ in range(3)] + [IMMFilter(), IMMFilter(IMMConfig(modes=(CVMode(), PythonCT())))]
+    for k, f in enumerate(filters[:3] + filters[4:]):
+        f.start(t[k], zs[k], Rs[k])
+        f.update(t[k + 1], zs[k + 1], Rs[k + 1])
+    for f in filters[:3]:
+        f.predict(t[5])  # a prediction kept at another time than the frame's
+    order = [(0, 6), (1, 7), (0, 7), (1, 8), (2, 5), (3, 6), (2, 6), (4, 6), (0, 8)]
+    pick = [filters[i] for i, _ in order]
+    k = np.array([j for _, j in order])
+    C, bias, bias_cov = np.array([[0.8, 2e4], [-0.6, 3e4]]), np.array([30.0, -4e-4]), np.diag([50.0, 2e-8])
+    z = zs[k] + C @ bias
+    z[1, 0] += 5e3  # filter 1's first measurement: a gross error
+    args = (t[k], z, np.repeat(C[None], len(k), 0), Rs[k], np.repeat(bias[None], len(k), 0),
+            np.repeat(bias_cov[None], len(k), 0), np.full(len(k), 30.0))
+    refs = copy.deepcopy(filters)
+    default = {id(f): r for f, r in zip(filters, refs)}
+    got = IMMFilter.screen_many(pick, *args)
+    want = TrackFilter.screen_many([default[id(f)] for f in pick], *args)
+    assert got[3].tolist() == [True, False, True, False, True, False, True, False, True]
+    want[3][[5, 7]] = False  # not started, modes in Python: the default screens them, screen_many leaves them
+    np.testing.assert_array_equal(got[3], want[3])
+    for i in np.flatnonzero(got[3]):
+        np.testing.assert_array_equal(got[4][i], want[4][i])
+        np.testing.assert_array_equal(got[5][i], want[5][i])
+    for a, b in zip(got[:3], want[:3]):
+        np.testing.assert_array_equal(a[:5], b[:5])
+    assert math.isnan(got[0][5]) and math.isnan(got[0][7])
+    for f, r in zip(filters[:3], refs[:3]):
+        assert f.time == r.time
+        for a, b in zip(f.estimate(), r.estimate()):
+            np.testing.assert_array_equal(a, b)
+        for time in (t[5], t[7], t[9]):
+            for a, b in zip(f.predict(time), r.predict(time)):
+                np.testing.assert_array_equal(a, b)
+    assert filters[3].time is None and filters[4].time == t[4]  # left as they were

@@ -249,7 +249,8 @@ def test_packed_imm_kernels_equal_the_array_kernels(modes, switching):
         chain = (np.zeros(0), Pi / Pi.sum(axis=1, keepdims=True), np.zeros((0, 0)))
     kmodes = np.array([[0.0 if m[0] == "cv" else 1.0, m[1], m[2] if len(m) > 2 else 0.0] for m in modes])
     buf = kernels.imm_buffer(kmodes, dims, entry_var, *chain, 60.0)
-    settings = np.concatenate([[n, D, entry_var, len(chain[0]), 60.0], kmodes.ravel(), dims, *map(np.ravel, chain)])
+    header = [n, D, entry_var, len(chain[0]), 60.0, np.nan, np.nan, 1.0, 0.0]  # not started, compiled
+    settings = np.concatenate([header, kmodes.ravel(), dims, *map(np.ravel, chain)])
     np.testing.assert_array_equal(buf[:len(settings)], settings)
     state, pred = kernels.imm_views(buf)
     state[0][:] = rng.dirichlet(np.ones(n))
