@@ -34,12 +34,14 @@ MOTION_GROUP = "radartracker.motion_models"
 
 def _group(group: str) -> dict[str, Any]:
     """The entry points of ``group`` by name (a later one of the same name wins, as ``entry_points`` lists them)."""
-    return dict(_entry_points(group, _path_state()))
+    return dict(_entry_points(group, path_state()))
 
 
-def _path_state() -> tuple:
+def path_state() -> tuple:
     """``sys.path`` and the modification time of each of its folders: installing or removing a package there
-    (a dist-info folder made or deleted) or changing the path changes it."""
+    (a dist-info folder made or deleted) or changing the path changes it. What is read from the installed
+    distributions' metadata (entry points) is kept per state; a file edited in place inside an installed
+    dist-info (no folder on the path modified) is not seen until the path changes."""
     state = []
     for p in sys.path:
         try:

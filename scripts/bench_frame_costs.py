@@ -45,7 +45,7 @@ import numpy as np
 FRAME_METHODS = ("_run_frame", "_predict", "_convert_frame", "_track_phases", "_associate", "_exact", "_misses",
                  "_coverage", "_sweep", "_apply")
 # steps a replay takes once: (module, attribute path) as the caller looks them up
-RUN_STEPS = (("radartracker.tracking.manager", "TrackManager._run_frame"), ("radartracker.cli", "build_parser"),
+RUN_STEPS = (("radartracker.tracking.manager", "TrackManager._run_frame"), ("radartracker.cli", "_parser"),
              ("radartracker.pipeline.writer", "prepare"),
              ("radartracker.pipeline.run", "replay_folder"), ("radartracker.pipeline.run", "open_scenario"),
              ("radartracker.pipeline.writer", "OutputStream.__init__"), ("radartracker.pipeline.run", "resolve"),

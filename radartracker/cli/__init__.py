@@ -9,19 +9,44 @@ commands are registered in ``pyproject.toml`` exactly like a plugin's.
 from __future__ import annotations
 
 import argparse
+import copy
+import functools
 import logging
 import os
 import sys
+from collections.abc import Callable
 from importlib.metadata import entry_points
 from pathlib import Path
 
 from radartracker.cli.replay import register_demo, register_replay  # noqa: F401 (entry points name them here)
 from radartracker.errors import ConfigurationError, RadarTrackerError
+from radartracker.registry import path_state
 
 COMMAND_GROUP = "radartracker.commands"
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """A new parser of the command line: the common options and one sub-command per entry point of
+    :data:`COMMAND_GROUP` (in name order; one that fails to load is left out with a warning)."""
+    registers, warnings = _commands()
+    for w in warnings:
+        print(w, file=sys.stderr)
+    return _new_parser(registers)
+
+
+def _commands() -> tuple[list[Callable[[argparse._SubParsersAction], None]], list[str]]:
+    """The ``register`` functions of :data:`COMMAND_GROUP`'s entry points in name order, and a warning for
+    each entry point that failed to load."""
+    registers, warnings = [], []
+    for ep in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
+        try:
+            registers.append(ep.load())
+        except Exception as exc:  # a broken plugin must not take the whole CLI down
+            warnings.append(f"radartracker: warning: command {ep.name!r} ({ep.value}) not loaded: {exc}")
+    return registers, warnings
+
+
+def _new_parser(registers: list[Callable[[argparse._SubParsersAction], None]]) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="radartracker",
         description="Multi-radar surveillance: tracking with radar bias estimation.",
@@ -31,14 +56,21 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--quiet", action="store_true", dest="quiet_all",
                         help="no progress bars and no library logs (Dask...); errors only (also after a command)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for ep in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
-        try:
-            register = ep.load()
-        except Exception as exc:  # a broken plugin must not take the whole CLI down
-            print(f"radartracker: warning: command {ep.name!r} ({ep.value}) not loaded: {exc}", file=sys.stderr)
-            continue
+    for register in registers:
         register(sub)
     return parser
+
+
+@functools.lru_cache(maxsize=4)
+def _parser(state: tuple) -> tuple[argparse.ArgumentParser, tuple[str, ...]]:
+    """The parser :func:`main` uses and the warnings of its building, built once per state of the path
+    (:func:`radartracker.registry.path_state`): reading every installed distribution's entry points and
+    building a dozen sub-parsers took ~16 ms CPU at each call of ``main`` in one process (embedding,
+    tests, benchmarks). A command installed or removed between two calls makes or removes a dist-info
+    folder in a folder of the path, which changes the state: a new parser is built. Parsing does not
+    change a parser; help is formatted at the terminal's width of the moment."""
+    registers, warnings = _commands()
+    return _new_parser(registers), tuple(warnings)
 
 
 QUIET_ENV = {"TQDM_DISABLE": "1", "DASK_LOGGING__DISTRIBUTED": "error"}  # progress bars, Dask's own loggers
@@ -46,7 +78,13 @@ QUIET_LOGGERS = ("", "distributed", "dask", "bokeh", "tornado", "asyncio", "py.w
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser, warnings = _parser(path_state())
+    for w in warnings:  # a broken command, named at every call as when the parser was built each time
+        print(w, file=sys.stderr)
+    args = parser.parse_args(argv)
+    # an option not given holds the cached parser's default object: a list changed in place by one call
+    # (an ``append`` option) must not become the next call's default
+    vars(args).update({k: copy.copy(v) for k, v in vars(args).items() if isinstance(v, (list, dict, set))})
     # a command's own --quiet default must not undo `radartracker --quiet COMMAND`
     args.quiet = args.quiet_all or bool(getattr(args, "quiet", False))
     logging.basicConfig(

@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from radartracker.cli import main
+from radartracker.cli import _parser, main
 from radartracker.pipeline.writer import TRACK_COLUMNS
 
 
@@ -87,7 +87,16 @@ def test_estimator_option_reaches_the_plugin_on_both_paths(tmp_path):
                  "--estimator-option", "refresh_every=-1"]) == 2
 
 
-def test_quiet_silences_progress_and_library_logs_then_restores(monkeypatch):
+@pytest.fixture()
+def fresh_parser():
+    """main() keeps its parser per state of the path, each command's function bound when it was built: a
+    test that replaces a command's function has it built anew, and leaves no parser holding the replacement."""
+    _parser.cache_clear()
+    yield
+    _parser.cache_clear()
+
+
+def test_quiet_silences_progress_and_library_logs_then_restores(monkeypatch, fresh_parser):
     import logging
     import os
 
@@ -105,7 +114,7 @@ def test_quiet_silences_progress_and_library_logs_then_restores(monkeypatch):
     assert "TQDM_DISABLE" not in os.environ
 
 
-def test_quiet_before_the_command_reaches_commands_with_their_own_quiet(monkeypatch):
+def test_quiet_before_the_command_reaches_commands_with_their_own_quiet(monkeypatch, fresh_parser):
     seen = []
     monkeypatch.setattr("radartracker.cli._cmd_estimators", lambda args: seen.append(args.quiet) or 0)
     assert main(["--quiet", "estimators"]) == 0 and main(["estimators"]) == 0
