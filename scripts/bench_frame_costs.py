@@ -16,6 +16,9 @@ beside what the inputs pay; this script measures the three.
   there (``_run_frame`` less the ``_apply`` of its inputs) is what a frame costs whatever the traffic. One
   line per method (``"part": "frame"``) gives its µs per frame in that thin replay and in the whole one
   (timed the same way), and µs per input of the whole one.
+* **progress bar**: what the bar of a replay without ``--quiet`` adds per input, over the folder's inputs with
+  a body that does nothing (``"part": "progress"``): the plain loop (``--quiet``), tqdm's own iterator (the
+  replay's loop before) and the pieces of ``radartracker.pipeline.run.counted`` (the loop now), µs per input.
 * **per input**: the rest of the untimed whole replay's CPU, ``(total − per_run − frames × per_frame) /
   inputs`` (reading, admission, ``_apply``, events, and the frame work that grows with inputs and tracks).
 
@@ -206,6 +209,42 @@ def own_us(frames: list[dict], overhead_s: float) -> float:
                                 for f in frames]))
 
 
+def progress_costs(folder: Path, repeat: int) -> dict:
+    """CPU µs per input of a loop that does nothing over the folder's inputs: plain, through tqdm's iterator,
+    and in the pieces of :func:`radartracker.pipeline.run.counted` (the bar as the replay sets it up)."""
+    from tqdm import tqdm
+
+    from radartracker.io.scenario import open_scenario
+    from radartracker.pipeline.run import counted
+    from radartracker.pipeline.stream import iter_files
+
+    items = list(iter_files(open_scenario(folder)))
+    sink = io.StringIO()  # the bar's text, if the loop outlasts its delay
+
+    def plain() -> None:
+        for _ in items:
+            pass
+
+    def tqdm_iterator() -> None:
+        for _ in tqdm(items, total=len(items), delay=2.0, mininterval=1.0, file=sink):
+            pass
+
+    def pieces() -> None:
+        with tqdm(total=len(items), delay=2.0, mininterval=1.0, file=sink) as bar:
+            for piece in counted(items, bar):
+                for _ in piece:
+                    pass
+
+    cpu: dict[str, list[float]] = defaultdict(list)
+    for _ in range(max(repeat, 3)):  # in turns: a load that comes and goes falls on all three
+        for name, loop in (("plain", plain), ("tqdm_iterator", tqdm_iterator), ("pieces", pieces)):
+            c0 = time.process_time()
+            loop()
+            cpu[name].append(time.process_time() - c0)
+    return {"folder": str(folder), "part": "progress", "inputs": len(items),
+            **{f"{k}_us_per_input": round(1e6 * min(v) / len(items), 3) for k, v in cpu.items()}}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("folders", type=Path, nargs="+")
@@ -228,6 +267,7 @@ def main() -> None:
             for line in steps:
                 print(json.dumps({"folder": str(folder), **line}), flush=True)
             per_run = cut_cpu - cut_frames
+            print(json.dumps(progress_costs(folder, repeat)), flush=True)
             thin_run, thin_frames = frame_costs(sparse, tmp / "out")
             total = min(replay_cpu(folder, tmp / "out") for _ in range(repeat))
             timed_run, frames = frame_costs(folder, tmp / "out")

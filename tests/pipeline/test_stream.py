@@ -16,7 +16,8 @@ from radartracker.geometry.plane import SystemPlane
 from radartracker.io.scenario import open_scenario, read_scenario, write_scenario
 from radartracker.pipeline import recorder, stream
 from radartracker.pipeline.config import RunConfig
-from radartracker.pipeline.run import replay_folder, run, streamable
+from radartracker.pipeline import run as run_module
+from radartracker.pipeline.run import counted, replay_folder, run, streamable
 from radartracker.pipeline.stream import NotTimeOrdered, iter_files, scenario_stream
 from radartracker.pipeline.writer import OutputStream, prepare, write_outputs
 from radartracker.simulation.scenarios import build_scenario
@@ -112,6 +113,38 @@ def test_the_cli_streams_a_folder_and_config_reproduces_it(unlabelled, whole, tm
     again = tmp_path / "b"
     assert main(["--quiet", "replay", str(unlabelled), "--config", str(out / "config.json"), "--out", str(again)]) == 0
     _same(again, whole)
+
+
+def test_the_progress_bar_moves_on_by_each_piece_once_used():
+    moves = []
+
+    class Bar:
+        def update(self, n):
+            moves.append(n)
+
+    items, used = list(range(1000)), []
+    for piece in counted(iter(items), Bar(), every=256):
+        assert sum(moves) == len(used)  # the pieces before, not this one
+        used += piece
+    assert used == items and moves == [256, 256, 256, 232]
+
+
+def test_a_replay_with_its_progress_bar_writes_the_same_bytes_and_counts_every_input(unlabelled, whole, tmp_path,
+                                                                                      monkeypatch):
+    closed = []
+
+    class Bar(run_module.tqdm):
+        def close(self):
+            if not self.disable:  # a closed bar is disabled; tqdm closes again when it is collected
+                closed.append((self.n, self.total))
+            super().close()
+
+    monkeypatch.setattr(run_module, "tqdm", Bar)
+    out = prepare(tmp_path / "out")
+    replay_folder(unlabelled, MANAGER, out, progress=True)
+    _same(out, whole)
+    lines = sum(len((unlabelled / f).read_text().splitlines()) - 1 for f in ("plots.csv", "adsb.csv"))
+    assert closed == [(lines, lines)]
 
 
 def test_files_out_of_time_order_are_read_whole(unlabelled, whole, tmp_path):
