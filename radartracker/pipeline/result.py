@@ -35,12 +35,20 @@ CONSISTENCY_FACTOR = 2.0
 GRACE_S = 20.0  # a target counts as observed this long after its first plot (M-of-N confirmation)
 
 
+_PLAIN = frozenset({str, int, bool, type(None)})  # exact types strict() gives back as they are
+
+
 def strict(value):
     """``value`` with every non-finite float replaced by ``None`` (strict JSON: null, never NaN)."""
+    t = type(value)  # the exact types of a summary's ~700 values first, without a call per plain value
+    if t is float:
+        return value if math.isfinite(value) else None
+    if t in _PLAIN:
+        return value
     if isinstance(value, dict):
-        return {str(k): strict(v) for k, v in value.items()}
+        return {k if type(k) is str else str(k): v if type(v) in _PLAIN else strict(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [strict(v) for v in value]
+        return [v if type(v) in _PLAIN else strict(v) for v in value]
     if isinstance(value, (float, np.floating)):
         return float(value) if math.isfinite(value) else None
     if isinstance(value, np.integer):

@@ -311,7 +311,7 @@ def replay_folder(folder: Path | str, config: RunConfig, out: Path | str, *, pro
             result = run(files.data, config, progress=progress, inputs=iter_files(files, prefetch=prefetch),
                          sink=sink, total=files.rows)
             result.label_spans = files.label_spans
-            result.summary()  # evaluated before the tables replace an earlier run's (write_outputs)
+            summary = result.summary()  # evaluated before the tables replace an earlier run's
         except NotTimeOrdered as exc:
             sink.abort(exc)
             log.info("%s: reading the whole scenario instead of streaming it", exc)
@@ -320,7 +320,7 @@ def replay_folder(folder: Path | str, config: RunConfig, out: Path | str, *, pro
             raise
         else:
             sink.close()
-            write_outputs(result, out)
+            write_outputs(result, out, summary=summary)
             return result
     from radartracker.io.sources import read_source
 

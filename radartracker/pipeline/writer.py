@@ -120,13 +120,15 @@ def _header(columns: tuple[str, ...]) -> bytes:
     return (",".join(columns) + "\n").encode("utf-8")
 
 
-def write_outputs(result: RunResult, out: Path | str, *, figures: bool = False) -> None:
+def write_outputs(result: RunResult, out: Path | str, *, figures: bool = False, summary: dict | None = None) -> None:
     """Write the run's files into ``out`` (prepared by :func:`prepare`; created if missing), each replacing
     the earlier run's atomically, ``config.json`` last; the three tables only if the run did not write
-    them as it went (``result.streamed``)."""
+    them as it went (``result.streamed``). ``summary``: ``result.summary()``, when the caller made it
+    already (a streamed run, before its tables replaced the earlier run's)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    summary = result.summary()  # the evaluation and the rows, before any earlier file is replaced
+    if summary is None:  # the evaluation and the rows, before any earlier file is replaced
+        summary = result.summary()
     rows = None if result.streamed else table_rows(result.events, result.biases, result.plane)
     retire_earlier(out)
     if rows is not None:

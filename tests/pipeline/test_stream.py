@@ -147,6 +147,15 @@ def test_a_replay_with_its_progress_bar_writes_the_same_bytes_and_counts_every_i
     assert closed == [(lines, lines)]
 
 
+def test_a_streamed_replay_makes_its_summary_once(unlabelled, whole, tmp_path, monkeypatch):
+    made = []
+    summary = run_module.RunResult.summary
+    monkeypatch.setattr(run_module.RunResult, "summary", lambda self: made.append(1) or summary(self))
+    replay_folder(unlabelled, MANAGER, prepare(tmp_path / "out"), progress=False)
+    assert len(made) == 1
+    _same(tmp_path / "out", whole)
+
+
 def test_files_out_of_time_order_are_read_whole(unlabelled, whole, tmp_path):
     """plots.csv sorted by radar (each radar in time order, the file not): the same outputs, read whole."""
     folder = tmp_path / "scen"
