@@ -19,6 +19,10 @@ beside what the inputs pay; this script measures the three.
 * **progress bar**: what the bar of a replay without ``--quiet`` adds per input, over the folder's inputs with
   a body that does nothing (``"part": "progress"``): the plain loop (``--quiet``), tqdm's own iterator (the
   replay's loop before) and the pieces of ``radartracker.pipeline.run.counted`` (the loop now), µs per input.
+* **bias log**: each radar's bias recorded once a second after one of its plots, whatever the traffic
+  (``"part": "bias_log"``): the records of the replay, and µs per record of the replay's way (the
+  estimator's ``bias_arrays`` into ``Recorder.bias_arrays``) and of the way before (a ``BiasState`` from
+  ``bias`` into ``Recorder.bias``), replayed in turns on the replay's final estimator.
 * **per input**: the rest of the untimed whole replay's CPU, ``(total − per_run − frames × per_frame) /
   inputs`` (reading, admission, ``_apply``, events, and the frame work that grows with inputs and tracks).
 
@@ -245,6 +249,52 @@ def progress_costs(folder: Path, repeat: int) -> dict:
             **{f"{k}_us_per_input": round(1e6 * min(v) / len(items), 3) for k, v in cpu.items()}}
 
 
+def bias_log_costs(folder: Path, out: Path, repeat: int) -> dict:
+    """The bias records of a replay of ``folder`` (item time and radar, captured), and CPU µs per record of
+    recording them again on the run's final estimator: through ``bias_arrays`` and through a BiasState."""
+    import radartracker.pipeline.run as run_module
+    from radartracker.pipeline.recorder import Recorder
+
+    calls, made = [], []
+    make = run_module.make_estimator
+    record = Recorder.bias_arrays
+
+    def capture(self, time, radar, *arrays):
+        calls.append((time, radar))
+        return record(self, time, radar, *arrays)
+
+    run_module.make_estimator = lambda *a, **k: made.append(make(*a, **k)) or made[-1]
+    Recorder.bias_arrays = capture
+    try:
+        replay_cpu(folder, out)
+    finally:
+        run_module.make_estimator, Recorder.bias_arrays = make, record
+    est = made[-1]
+
+    def arrays() -> None:
+        rec = Recorder()
+        for t, rid in calls:
+            if rec.bias_due(rid, t):
+                rec.bias_arrays(t, rid, *est.bias_arrays(rid))
+        rec.biases()
+
+    def states() -> None:
+        rec = Recorder()
+        for t, rid in calls:
+            if rec.bias_due(rid, t):
+                rec.bias(t, est.bias(rid))
+        rec.biases()
+
+    cpu: dict[str, list[float]] = defaultdict(list)
+    for _ in range(max(repeat, 5)):
+        for name, loop in (("bias_arrays", arrays), ("bias_state", states)):
+            c0 = time.process_time()
+            loop()
+            cpu[name].append(time.process_time() - c0)
+    return {"folder": str(folder), "part": "bias_log", "records": len(calls),
+            **{f"{k}_us_per_record": round(1e6 * float(np.median(v)) / len(calls), 2) for k, v in cpu.items()}}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("folders", type=Path, nargs="+")
@@ -268,6 +318,7 @@ def main() -> None:
                 print(json.dumps({"folder": str(folder), **line}), flush=True)
             per_run = cut_cpu - cut_frames
             print(json.dumps(progress_costs(folder, repeat)), flush=True)
+            print(json.dumps(bias_log_costs(folder, tmp / "out", repeat)), flush=True)
             thin_run, thin_frames = frame_costs(sparse, tmp / "out")
             total = min(replay_cpu(folder, tmp / "out") for _ in range(repeat))
             timed_run, frames = frame_costs(folder, tmp / "out")

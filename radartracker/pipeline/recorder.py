@@ -203,7 +203,7 @@ class Recorder:
         self.manager_log: list[tuple] = []  # a TrackManager's event_log: (event, P, altitude_m, mode_s, mode_3a)
         self._idents: dict[int, tuple] = {}  # _log_events_of: identity of each track at its last row
         self._chunks: list[Events] = []  # events made columns and kept
-        self._bias: list[tuple] = []
+        self._bias: list[tuple] = []  # (time, radar, the bytes of ς̂ and P_ς: 6 floats)
         self._bias_last: dict[str, float] = {}
         self._bias_sent = 0  # bias rows already handed to the sink
         self._track_ids: set[int] = set()
@@ -233,9 +233,19 @@ class Recorder:
 
     def bias(self, time: float, state: BiasState) -> None:
         """Record ``state`` unless this radar was recorded less than the interval before ``time``."""
-        if self.bias_due(state.radar, time):
-            self._bias.append((float(time), state.radar, np.asarray(state.bias, float), np.asarray(state.cov, float)))
-            self._bias_last[state.radar] = time
+        self.bias_arrays(time, state.radar, state.bias, state.cov)
+
+    def bias_arrays(self, time: float, radar: str, bias: np.ndarray, cov: np.ndarray) -> None:
+        """Record ``radar``'s bias ``bias`` (ς̂) and its covariance ``cov`` (P_ς), copied now, unless this radar
+        was recorded less than the interval before ``time``: what :meth:`bias` records of a BiasState, from
+        an estimator's ``bias_arrays`` (its own arrays, changing with its next update) without making one."""
+        if self.bias_due(radar, time):
+            bias, cov = np.asarray(bias, float), np.asarray(cov, float)
+            if bias.size != 2 or cov.size != 4:
+                raise ValueError(f"radar {radar!r}: a bias is 2 floats and its covariance 2×2, got shapes "
+                                 f"{bias.shape} and {cov.shape}")
+            self._bias.append((float(time), radar, bias.tobytes() + cov.tobytes()))  # 6 floats, copied
+            self._bias_last[radar] = time
             if self.sink is not None and len(self._bias) - self._bias_sent >= self.flush_every:
                 self.flush()
 
@@ -281,6 +291,6 @@ class Recorder:
 
     def biases(self, start: int = 0) -> BiasLog:
         rows = self._bias[start:]
-        cols = list(zip(*rows)) if rows else [[]] * 4
-        return BiasLog(np.array(cols[0], float), _obj(list(cols[1])), np.array(cols[2], float).reshape(-1, 2),
-                       np.array(cols[3], float).reshape(-1, 2, 2))
+        time, radar, values = zip(*rows) if rows else ((), (), ())
+        v = np.frombuffer(b"".join(values), float).reshape(-1, 6)
+        return BiasLog(np.array(time, float), _obj(list(radar)), v[:, :2].copy(), v[:, 2:].reshape(-1, 2, 2).copy())

@@ -174,3 +174,41 @@ def test_event_log_deletions_and_covariances_of_any_layout():
     rec.manager_log.append((rows[0][0], np.eye(6), None, None, None))
     with pytest.raises(ValueError, match="4×4"):
         rec.flush()
+
+
+@pytest.mark.parametrize("keep", [True, False])
+def test_biases_recorded_from_arrays_or_states_are_the_values_at_that_time(keep):
+    from radartracker.domain import BiasState
+
+    rng = np.random.default_rng(7)
+    storage = rng.normal(0, 1, (6, 6))  # as an estimator's own arrays: views, changed by its next update
+    sink = Sink()
+    rec = Recorder(bias_log_interval_s=1.0, sink=sink, keep=keep, flush_every=4)
+    expected = []
+    for i in range(14):
+        t, radar, j = 0.2 * i, f"R{i % 3}", 2 * (i % 3)
+        bias, cov = storage[j:j + 2, 0], storage[j:j + 2, j:j + 2]
+        due = t - max([e[0] for e in expected if e[1] == radar], default=-math.inf) >= 1.0
+        if due:
+            expected.append((t, radar, bias.tolist(), cov.tolist()))
+        if i % 2:
+            rec.bias_arrays(t, radar, bias, cov)
+        else:
+            rec.bias(t, BiasState(radar, t, bias.copy(), cov.copy()))
+        storage += 1.0  # the next update
+    rec.flush()
+    assert sink.bias_rows == len(expected) and 0 < len(expected) < 14
+    if keep:
+        b = rec.biases()
+        assert b.time.tolist() == [e[0] for e in expected] and b.radar.tolist() == [e[1] for e in expected]
+        assert b.value.tolist() == [e[2] for e in expected] and b.cov.tolist() == [e[3] for e in expected]
+        assert b.value.flags.c_contiguous and b.cov.shape == (len(expected), 2, 2)
+    assert Recorder().biases().value.shape == (0, 2) and Recorder().biases().cov.shape == (0, 2, 2)
+
+
+def test_a_bias_that_is_not_two_floats_is_refused():
+    with pytest.raises(ValueError, match="2×2"):
+        Recorder().bias_arrays(0.0, "R1", np.zeros(3), np.eye(2))
+    rec = Recorder()
+    rec.bias_arrays(0.0, "R1", np.array([1, 2]), np.array([[3, 0], [0, 4]]))  # integers: as floats
+    assert rec.biases().value.tolist() == [[1.0, 2.0]] and rec.biases().cov.dtype == float
