@@ -402,7 +402,6 @@ class TrackManager:
         pred = self._predict(live, 0.5 * (t_a + t_b))
         pred["span"] = (t_a, t_b)
         updates: list[tuple] = []  # (time, seq, track or None, row of the frame's measurements, input)
-        assigned: dict[str, set[int]] = {}
         by_radar: dict[str, list[Plot]] = {}  # the frame's plots of each radar, in order (one pass, not one per radar)
         reports, positions = [], []
         for p in items:
@@ -422,9 +421,7 @@ class TrackManager:
         first, base = {}, 0  # the first row of each radar's plots in the frame's measurements
         for rid, plots in by_radar.items():
             first[rid], base = base, base + len(plots)
-        for rid in self.radars:  # in the radars' order (which plot of a time is applied first)
-            if rid in first:
-                assigned[rid] = self._associate(rid, by_radar[rid], first[rid], ok, live, pred, updates)
+        assigned = self._associate(by_radar, first, ok, live, pred, updates)
         seq = self._seq
         for k, rep in enumerate(reports, base):
             updates.append((rep.time, next(seq), self._track_with_code(rep.icao24), k, rep))
@@ -538,64 +535,83 @@ class TrackManager:
         times = np.fromiter(map(_TIME, itertools.chain(plots, reports, positions)), float, len(z))
         return FrameMeasurements(times, z, C, R, radar), ok, theta
 
-    def _associate(self, rid: str, plots: list[Plot], base: int, valid: np.ndarray, live: list[ManagedTrack],
-                   pred: dict, updates: list) -> set[int]:
-        """Radar ``rid``'s plots of the frame (rows ``base`` … of its measurements) to their tracks, as
-        updates; returns the indices in ``live`` of the tracks they went to (module docstring, step 3)."""
+    def _associate(self, by_radar: dict[str, list[Plot]], first: dict[str, int], valid: np.ndarray,
+                   live: list[ManagedTrack], pred: dict, updates: list) -> dict[str, set[int]]:
+        """The frame's plots to their tracks, as updates, radar by radar in the radars' order (which plot of a
+        time is applied first; ``first``: the row of each radar's first plot in the frame's measurements): by
+        Mode S address, the others by gating (:meth:`_gate`). Returns the indices in ``live`` of the tracks each
+        radar's plots went to (module docstring, step 3). One call per frame, not per radar: light traffic has
+        a plot or two per radar and frame."""
+        seq, index, counts, valid = self._seq, pred["index"], self.counts, valid.tolist()
+        assigned: dict[str, set[int]] = {}
+        for rid in self.radars:
+            plots = by_radar.get(rid)
+            if plots is None:
+                continue
+            base = first[rid]
+            taken: set[int] = set()
+            rest: list[int] = []
+            for k, p in enumerate(plots):
+                code = p.mode_s
+                if not valid[base + k]:
+                    counts["plots_impossible_geometry"] += 1
+                elif code is None:
+                    rest.append(k)
+                elif (i := index.get(code)) is None:
+                    updates.append((p.time, next(seq), None, base + k, p))
+                elif i in taken:
+                    counts["plots_duplicate_in_scan"] += 1
+                else:
+                    taken.add(i)
+                    updates.append((p.time, next(seq), live[i], base + k, p))
+            if rest:
+                self._gate(rid, plots, base, rest, taken, live, pred, updates)
+            assigned[rid] = taken
+        return assigned
+
+    def _gate(self, rid: str, plots: list[Plot], base: int, rest: list[int], taken: set[int], live: list[ManagedTrack],
+              pred: dict, updates: list) -> None:
+        """Radar ``rid``'s plots ``rest`` without a Mode S address (their rows ``base`` + k) to tracks by gating on
+        position (bias-corrected), Mode 3/A code and Mode C altitude, the nearest in gate first (confirmed tracks
+        before tentative ones); a plot near a confirmed track that is not its own starts no track. Adds the
+        tracks taken to ``taken``."""
         end = base + len(plots)
         meas = self._meas
-        z, C, R, ok = meas.z[base:end], meas.C[base:end], meas.R[base:end], valid[base:end]
+        z, C, R = meas.z[base:end], meas.C[base:end], meas.R[base:end]
         seq = self._seq
-        index = pred["index"]
-        taken: set[int] = set()
-        rest: list[int] = []
-        for k, p in enumerate(plots):
-            if not ok[k]:
-                self.counts["plots_impossible_geometry"] += 1
-            elif p.mode_s is not None and p.mode_s in index and index[p.mode_s] not in taken:
-                taken.add(index[p.mode_s])
-                updates.append((p.time, next(seq), live[index[p.mode_s]], base + k, p))
-            elif p.mode_s is not None and p.mode_s in index:
-                self.counts["plots_duplicate_in_scan"] += 1
-            elif p.mode_s is not None:
-                updates.append((p.time, next(seq), None, base + k, p))
-            else:
-                rest.append(k)
-        if rest:
-            if "codes" not in pred:  # the tracks' Mode 3/A codes and which have a Mode S address: only for such plots
-                pred["codes"] = np.array([tr.mode_3a for tr in live], object).reshape(len(live))
-                pred["mode_s"] = np.array([tr.mode_s is not None for tr in live], bool).reshape(len(live))
-            free = ~pred["mode_s"]
-            free[list(taken)] = False
-            codes = pred["codes"]
-            allowed = np.array([free & ((codes == None) | (codes == plots[k].mode_3a) | (plots[k].mode_3a is None))  # noqa: E711
-                                for k in rest]).reshape(len(rest), len(live))
-            zr = z[rest]
-            pairs = candidate_pairs(zr, pred["pos"], self.config.search_radius_m, allowed)
-            bias, bias_cov = self._bias(rid)
-            if len(pairs):
-                pos, vel, cov = self._exact(live, pred, pairs[:, 1])
-                dt = np.array([plots[rest[k]].time for k in pairs[:, 0]]) - pred["t"]
-                d2, cost = gate_costs(zr[pairs[:, 0]], C[rest][pairs[:, 0]], R[rest][pairs[:, 0]], bias, bias_cov,
-                                      pos + vel * dt[:, None], cov)
-                # Mode C: a pair whose altitudes disagree is not a pair; d_h² joins the cost (its mean, 1, if unknown)
-                h = np.array([np.nan if plots[rest[k]].altitude_m is None else plots[rest[k]].altitude_m for k in pairs[:, 0]])
-                d2h = altitude_d2(h, [live[i].vertical for i in pairs[:, 1]], dt + pred["t"])
-                d2 = np.where(d2h > ALTITUDE_GATE, np.inf, d2)
-                cost = cost + np.where(np.isnan(d2h), 1.0, d2h)
-                tier = np.array([t.status == "tentative" for t in live], int)
-                matches, in_gate = assign_tiers(pairs, d2, cost, self.config.gate, tier, self.config.new_track_exclusion)
-            else:
-                matches, in_gate = {}, np.zeros(0, bool)
-            for j, k in enumerate(rest):
-                tr = live[matches[j]] if j in matches else None
-                if tr is not None:
-                    taken.add(matches[j])
-                elif j < len(in_gate) and in_gate[j]:  # near a confirmed track, not its plot: no new track
-                    self.counts["plots_near_confirmed_track"] += 1
-                    continue
-                updates.append((plots[k].time, next(seq), tr, base + k, plots[k]))
-        return taken
+        if "codes" not in pred:  # the tracks' Mode 3/A codes and which have a Mode S address: only for such plots
+            pred["codes"] = np.array([tr.mode_3a for tr in live], object).reshape(len(live))
+            pred["mode_s"] = np.array([tr.mode_s is not None for tr in live], bool).reshape(len(live))
+        free = ~pred["mode_s"]
+        free[list(taken)] = False
+        codes = pred["codes"]
+        allowed = np.array([free & ((codes == None) | (codes == plots[k].mode_3a) | (plots[k].mode_3a is None))  # noqa: E711
+                            for k in rest]).reshape(len(rest), len(live))
+        zr = z[rest]
+        pairs = candidate_pairs(zr, pred["pos"], self.config.search_radius_m, allowed)
+        bias, bias_cov = self._bias(rid)
+        if len(pairs):
+            pos, vel, cov = self._exact(live, pred, pairs[:, 1])
+            dt = np.array([plots[rest[k]].time for k in pairs[:, 0]]) - pred["t"]
+            d2, cost = gate_costs(zr[pairs[:, 0]], C[rest][pairs[:, 0]], R[rest][pairs[:, 0]], bias, bias_cov,
+                                  pos + vel * dt[:, None], cov)
+            # Mode C: a pair whose altitudes disagree is not a pair; d_h² joins the cost (its mean, 1, if unknown)
+            h = np.array([np.nan if plots[rest[k]].altitude_m is None else plots[rest[k]].altitude_m for k in pairs[:, 0]])
+            d2h = altitude_d2(h, [live[i].vertical for i in pairs[:, 1]], dt + pred["t"])
+            d2 = np.where(d2h > ALTITUDE_GATE, np.inf, d2)
+            cost = cost + np.where(np.isnan(d2h), 1.0, d2h)
+            tier = np.array([t.status == "tentative" for t in live], int)
+            matches, in_gate = assign_tiers(pairs, d2, cost, self.config.gate, tier, self.config.new_track_exclusion)
+        else:
+            matches, in_gate = {}, np.zeros(0, bool)
+        for j, k in enumerate(rest):
+            tr = live[matches[j]] if j in matches else None
+            if tr is not None:
+                taken.add(matches[j])
+            elif j < len(in_gate) and in_gate[j]:  # near a confirmed track, not its plot: no new track
+                self.counts["plots_near_confirmed_track"] += 1
+                continue
+            updates.append((plots[k].time, next(seq), tr, base + k, plots[k]))
 
     def _track_phases(self, rows: np.ndarray, t: np.ndarray, theta: np.ndarray) -> None:
         """Each radar's antenna phase φ (α(t) = φ + 2πt/T), smoothed over its plots in order (radar rows
