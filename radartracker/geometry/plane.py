@@ -45,6 +45,12 @@ class SystemPlane:
         x, y = self._fwd.transform(np.asarray(lon, float), np.asarray(lat, float), errcheck=True)
         return np.asarray(x), np.asarray(y)
 
+    def to_plane_inplace(self, lon, lat) -> tuple:
+        """Plane (x, y) of WGS84 ``lon``, ``lat`` (degrees), written over them where they are ``array('d')``
+        or C-contiguous float64 arrays (pyproj's ``inplace``; else new arrays), and returned:
+        :meth:`to_plane` without its copies."""
+        return self._fwd.transform(lon, lat, errcheck=True, inplace=True)
+
     def to_geodetic(self, x, y) -> tuple[np.ndarray, np.ndarray]:
         """WGS84 (lat, lon) in degrees of plane (x, y) in metres."""
         lon, lat = self._fwd.transform(

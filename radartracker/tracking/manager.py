@@ -506,32 +506,30 @@ class TrackManager:
                                                 by_code[p.mode_s].altitude_m is not None else primary)
                        for h, p in zip(heights, plots)]
         alt = np.array(heights, float)
-        # each radar's plots are together: its row repeated, not looked up plot by plot
-        rows = np.repeat(np.array([self._converter.row[rid] for rid in by_radar], np.int64),
-                         [len(ps) for ps in by_radar.values()])
         rho = np.fromiter(map(_RANGE, plots), float, n)
         theta = np.fromiter(map(_AZIMUTH, plots), float, n)
-        lat = np.fromiter(map(_LAT, reports), float, len(reports))
-        lon = np.fromiter(map(_LON, reports), float, len(reports))
-        z, C, R, ok, adsb_xy = self._converter.convert(rows, rho, theta, alt, lat, lon)
+        m, k = len(reports), len(by_radar)
+        lat = np.fromiter(map(_LAT, reports), float, m)
+        lon = np.fromiter(map(_LON, reports), float, m)
+        sd = np.fromiter(map(nacp_sigma_m, map(_NACP, reports)), float, m)
+        # each radar's plots are together: its row and count, not a row looked up plot by plot
+        z, C, R, radar, ok = self._converter.convert_frame(
+            np.fromiter(map(self._converter.row.__getitem__, by_radar), np.int64, k),
+            np.fromiter(map(len, by_radar.values()), np.int64, k), rho, theta, alt, lat, lon, sd)
+        rows = radar[:n]
         # an assumed altitude is uncertain: near the radar its error moves the plot by km along the beam
         if unknown:
             guess = np.fromiter((p.altitude_m is None for p in plots), bool, n) & (alt == primary)
             if guess.any():  # all radars' at once (element by element: the same numbers as radar by radar)
-                R[guess] += altitude_spread(C[guess], rho[guess], alt[guess], self._converter.height[rows[guess]],
-                                            self.config.primary_altitude_sd_m)
-        radar = rows
-        if reports or positions:  # unbiased rows: C = 0, radar row −1
-            m = len(reports) + len(positions)
-            sd2 = np.fromiter((nacp_sigma_m(r.nacp) for r in reports), float, len(reports)) ** 2
-            Ra = np.zeros((len(reports), 2, 2))
-            Ra[:, 0, 0] = Ra[:, 1, 1] = sd2
+                R[:n][guess] += altitude_spread(C[:n][guess], rho[guess], alt[guess],
+                                                self._converter.height[rows[guess]], self.config.primary_altitude_sd_m)
+        if positions:  # unbiased rows: C = 0, radar row −1
             zm = np.array([np.asarray(p.z, float) for p in positions], float).reshape(len(positions), 2)
             Rm = np.array([np.asarray(p.R, float) for p in positions], float).reshape(len(positions), 2, 2)
-            z = np.concatenate([z, adsb_xy.reshape(len(reports), 2), zm])
-            C = np.concatenate([C, np.zeros((m, 2, 2))])
-            R = np.concatenate([R, Ra, Rm])
-            radar = np.concatenate([rows, np.full(m, -1, np.int64)])
+            z = np.concatenate([z, zm])
+            C = np.concatenate([C, np.zeros((len(positions), 2, 2))])
+            R = np.concatenate([R, Rm])
+            radar = np.concatenate([radar, np.full(len(positions), -1, np.int64)])
         times = np.fromiter(map(_TIME, itertools.chain(plots, reports, positions)), float, len(z))
         return FrameMeasurements(times, z, C, R, radar), ok, theta
 

@@ -42,7 +42,39 @@ def test_one_pass_over_all_radars_equals_radar_frame_per_radar():
         assert list(ok[k]) == list(okr)
     for r, p in zip(reports, xy):
         assert tuple(p) == tuple(float(v) for v in plane.to_plane(r.lat, r.lon))
+    # R is numpy's C W Cᵀ bit for bit (the replay's outputs depend on it)
+    assert (R == C @ conv.W[rows] @ np.swapaxes(C, 1, 2)).all()
+    # the frame's rows: plots radar by radar from (radar row, count) runs, then the ADS-B reports
+    order = np.argsort(rows, kind="stable")
+    radars, counts = np.unique(rows[order], return_counts=True)
+    sd = rng.uniform(1.0, 100.0, len(reports))
+    zf, Cf, Rf, rf, okf = conv.convert_frame(radars, counts, rho[order], theta[order], alt[order],
+                                             np.array([r.lat for r in reports]), np.array([r.lon for r in reports]), sd)
+    n = len(plots)
+    assert list(rf) == list(rows[order]) + [-1] * len(reports) and list(okf) == list(ok[order])
+    assert zf[:n].tobytes() == z[order].tobytes() and Cf[:n].tobytes() == C[order].tobytes()
+    assert Rf[:n].tobytes() == R[order].tobytes() and zf[n:].tobytes() == xy.tobytes()
+    assert (Cf[n:] == 0).all() and (Rf[n:] == (sd**2)[:, None, None] * np.eye(2)).all()
     # no plots, only ADS-B: nothing to locate
     z0, C0, R0, ok0, xy0 = conv.convert(rows[:0], rho[:0], theta[:0], alt[:0], np.array([reports[0].lat]),
                                         np.array([reports[0].lon]))
     assert z0.shape == (0, 2) and C0.shape == (0, 2, 2) and ok0.shape == (0,) and tuple(xy0[0]) == tuple(xy[0])
+
+
+def test_compiled_products_round_as_fused_multiply_adds_from_zero():
+    """_dot2(a0, a1, b0, b1) = fma(a1, b1, fma(a0, b0, +0)) + 0 (oracle: exact rational arithmetic, rounded
+    once per step), on values of all magnitudes and zeros of either sign; never −0."""
+    from fractions import Fraction
+
+    from radartracker.tracking.prepared import _dot2
+
+    def fma(a: float, b: float, c: float) -> float:  # correctly rounded a·b + c (a zero result: +0 here)
+        return float(Fraction(a) * Fraction(b) + Fraction(c))
+
+    rng = np.random.default_rng(5)
+    values = rng.normal(size=(4000, 4)) * 10.0 ** rng.integers(-160, 150, (4000, 4))
+    values[:200] = rng.choice([0.0, -0.0, 1e-170, -1e-170, 1.0, -3.0], (200, 4))
+    for a0, a1, b0, b1 in values.tolist():
+        got, want = _dot2(a0, a1, b0, b1), fma(a1, b1, fma(a0, b0, 0.0)) + 0.0
+        assert got == want and math.copysign(1, got) == math.copysign(1, want)
+        assert not (got == 0 and math.copysign(1, got) < 0)
