@@ -1,6 +1,6 @@
 """Benchmark: ``radartracker replay FOLDER --manager`` taken apart into reading, tracking and recording.
 
-    python scripts/bench_replay_parts.py FOLDER [--repeat 2] [--record-only]
+    python scripts/bench_replay_parts.py FOLDER [--repeat 2] [--record-only] [--convert]
 
 FOLDER is an unlabelled scenario folder (``scripts/bench_national.py`` writes them). One JSON line, CPU
 µs per input (``time.process_time``, under the replay's collector setting):
@@ -17,6 +17,12 @@ FOLDER is an unlabelled scenario folder (``scripts/bench_national.py`` writes th
 
 What the whole replay costs beyond ``read_us + manager_log_us`` is writing the tables and the run's files
 (``bench_events_path.py`` times that part).
+
+``--convert``: a second line, the frames' conversion to the plane alone: the TrackManager's
+``_convert_frame`` calls of one run captured (each frame's plots by radar, ADS-B reports, positions, and
+its live tracks' Mode S addresses and altitudes), then replayed on a new manager ``--repeat`` × 3 times;
+``convert_us_per_frame`` and ``convert_us_per_input`` per round (the per-frame cost that light traffic pays
+per input, without the rest of the replay's noise).
 """
 
 from __future__ import annotations
@@ -26,6 +32,7 @@ import gc
 import json
 import tempfile
 import time
+import types
 from pathlib import Path
 
 from radartracker.geometry.plane import SystemPlane
@@ -43,6 +50,7 @@ def main() -> None:
     ap.add_argument("folder", type=Path)
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--record-only", action="store_true", help="only the runs that time record_us")
+    ap.add_argument("--convert", action="store_true", help="also time the frames' conversions alone")
     args = ap.parse_args()
     gc.set_threshold(GC_YOUNG_THRESHOLD)
     files = open_scenario(args.folder)
@@ -85,6 +93,41 @@ def main() -> None:
             recorded.append(round(run(True, Path(tmp))[1], 2))
     print(json.dumps({"folder": str(args.folder), "inputs": len(items), "read_us": round(read / len(items) * 1e6, 2),
                       "manager_us": plain, "manager_log_us": logged, "record_us": recorded}))
+    if args.convert:
+        print(json.dumps({"folder": str(args.folder), **convert_costs(files, cfg, items, 3 * args.repeat)}))
+
+
+def convert_costs(files, cfg, items: list, rounds: int) -> dict:
+    """CPU µs per frame and per input of the run's ``TrackManager._convert_frame`` calls replayed alone."""
+    def manager() -> TrackManager:
+        return TrackManager(files.data.radars, files.data.reference, cfg.manager_settings(),
+                            filter_factory=motion_factory(cfg))
+
+    calls, original = [], TrackManager._convert_frame
+
+    def capture(self, by_radar, reports, positions, live):
+        live_now = [types.SimpleNamespace(mode_s=t.mode_s, altitude_m=t.altitude_m) for t in live]
+        calls.append(({r: list(p) for r, p in by_radar.items()}, list(reports), list(positions), live_now))
+        return original(self, by_radar, reports, positions, live)
+
+    TrackManager._convert_frame = capture
+    try:
+        mgr = manager()
+        for item in items:
+            mgr.process(item)
+        mgr.flush()
+    finally:
+        TrackManager._convert_frame = original
+    mgr, per_frame = manager(), []
+    inputs = sum(sum(map(len, c[0].values())) + len(c[1]) + len(c[2]) for c in calls)
+    for _ in range(rounds):
+        c = time.process_time()
+        for call in calls:
+            mgr._convert_frame(*call)
+        per_frame.append((time.process_time() - c) / len(calls) * 1e6)
+    return {"part": "convert", "frames": len(calls), "inputs_per_frame": round(inputs / len(calls), 1),
+            "convert_us_per_frame": [round(v, 1) for v in per_frame],
+            "convert_us_per_input": [round(v * len(calls) / inputs, 2) for v in per_frame]}
 
 if __name__ == "__main__":
     main()
