@@ -58,7 +58,7 @@ from radartracker.estimation.coupling import CouplingGraph
 from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, ScreeningConfig,
                                                bias_corrected, judge)
 from radartracker.tracking.admission import ClockConfig, StreamClock
-from radartracker.domain import AdsbReport, BiasState, Plot, Radar, nacp_sigma_m
+from radartracker.domain import AdsbReport, BiasState, Plot, Radar
 from radartracker.errors import PluginError
 from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.estimation.kalman import SingularInnovation
@@ -511,11 +511,11 @@ class TrackManager:
         m, k = len(reports), len(by_radar)
         lat = np.fromiter(map(_LAT, reports), float, m)
         lon = np.fromiter(map(_LON, reports), float, m)
-        sd = np.fromiter(map(nacp_sigma_m, map(_NACP, reports)), float, m)
+        nacp = np.fromiter(map(_NACP, reports), np.int64, m)
         # each radar's plots are together: its row and count, not a row looked up plot by plot
         z, C, R, radar, ok = self._converter.convert_frame(
             np.fromiter(map(self._converter.row.__getitem__, by_radar), np.int64, k),
-            np.fromiter(map(len, by_radar.values()), np.int64, k), rho, theta, alt, lat, lon, sd)
+            np.fromiter(map(len, by_radar.values()), np.int64, k), rho, theta, alt, lat, lon, nacp)
         rows = radar[:n]
         # an assumed altitude is uncertain: near the radar its error moves the plot by km along the beam
         if unknown:

@@ -34,7 +34,7 @@ from numba.extending import intrinsic
 from pyproj import Transformer
 from pyproj.enums import TransformDirection
 
-from radartracker.domain import Radar
+from radartracker.domain import Radar, nacp_sigma_m
 from radartracker.geometry.plane import _EARTH_RADIUS_M, RadarFrame, SystemPlane
 from radartracker.tracking.kernels import kernel
 
@@ -69,13 +69,13 @@ class PlaneConverter:
                                       self.W.reshape(len(fr), 4)])
 
     def convert_frame(self, radars: np.ndarray, counts: np.ndarray, rho: np.ndarray, theta: np.ndarray,
-                      alt: np.ndarray, lat: np.ndarray, lon: np.ndarray, sd: np.ndarray,
+                      alt: np.ndarray, lat: np.ndarray, lon: np.ndarray, nacp: np.ndarray,
                       iterations: int = 4) -> tuple[np.ndarray, ...]:
         """A frame's n plots radar by radar (``counts[k]`` plots of the radar in row ``radars[k]``, after
-        those of the radars before it), then its m ADS-B positions (``lat``, ``lon``, per-axis σ ``sd``),
-        as rows of z (n+m, 2), C_s (n+m, 2, 2), R (n+m, 2, 2) and the radar's row (n+m; −1: ADS-B), and
-        the plots' validity (n): a plot's row as :meth:`convert`'s, an ADS-B row its plane position with
-        C = 0 and R = σ² I.
+        those of the radars before it), then its m ADS-B positions (``lat``, ``lon``, NACp ``nacp``), as
+        rows of z (n+m, 2), C_s (n+m, 2, 2), R (n+m, 2, 2) and the radar's row (n+m; −1: ADS-B), and the
+        plots' validity (n): a plot's row as :meth:`convert`'s, an ADS-B row its plane position with C = 0
+        and R = σ² I, σ = :func:`~radartracker.domain.nacp_sigma_m` of its NACp (ValueError if not 1 … 11).
 
         The frame's points are transformed by pyproj in place, in Python ``array('d')`` buffers (its
         documented ``inplace``, with the input type that its argument handling passes straight through: no
@@ -85,7 +85,8 @@ class PlaneConverter:
         :func:`_newton_step`, the same operations in the same order as RadarFrame's numpy expressions),
         then the plots' and the reports' WGS84 → plane in one call; :func:`_finish` writes the rows."""
         radars, counts = np.asarray(radars, np.int64), np.asarray(counts, np.int64)
-        rho, theta, alt, lat, lon, sd = map(np.asarray, (rho, theta, alt, lat, lon, sd), repeat(float))
+        rho, theta, alt, lat, lon = map(np.asarray, (rho, theta, alt, lat, lon), repeat(float))
+        nacp = np.asarray(nacp, np.int64)
         n, m = len(rho), len(lat)
         cx, cy, cz, px, py = _ZERO * n, _ZERO * n, _ZERO * n, _ZERO * (n + m), _ZERO * (n + m)
         x, y, h, X, Y = map(np.frombuffer, (cx, cy, cz, px, py))  # views: ECEF → (lon, lat, h); plane x, y
@@ -99,7 +100,7 @@ class PlaneConverter:
         _gather(x, y, lon, lat, X, Y)
         self.plane.to_plane_inplace(px, py)
         z, C, R = np.empty((n + m, 2)), np.empty((n + m, 2, 2)), np.empty((n + m, 2, 2))
-        _finish(rows, self._site, work, X, Y, h, sd, valid, z, C, R)
+        _finish(rows, self._site, work, X, Y, h, nacp, _NACP_SD, valid, z, C, R)
         return z, C, R, rows, valid
 
     def convert(self, rows: np.ndarray, rho: np.ndarray, theta: np.ndarray, alt: np.ndarray,
@@ -108,7 +109,8 @@ class PlaneConverter:
         positions), also their plane positions (m, 2) from the same pyproj call (:meth:`convert_frame`)."""
         m = 0 if lat is None else len(lat)
         ll = (np.zeros(0), np.zeros(0)) if lat is None else (lat, lon)
-        z, C, R, _, valid = self.convert_frame(rows, np.ones(len(rows), np.int64), rho, theta, alt, *ll, np.zeros(m))
+        z, C, R, _, valid = self.convert_frame(rows, np.ones(len(rows), np.int64), rho, theta, alt, *ll,
+                                               np.full(m, 8, np.int64))
         n = len(valid)
         return (z[:n], C[:n], R[:n], valid) + ((z[n:],) if lat is not None else ())
 
@@ -119,6 +121,7 @@ _ZERO = array("d", [0.0])  # × n: a buffer of n doubles that pyproj transforms 
 # plane (x, y), W (4); _newton_start's ``work`` rows: ρ, h, sin θ, cos θ, ε
 _H, _SP, _CP, _SL, _CL, _X0, _Y0, _Z0, _PX, _PY, _W = range(11)
 _RHO, _ALT, _ST, _CT, _EL = range(5)
+_NACP_SD = np.array([math.nan] + [nacp_sigma_m(k) for k in range(1, 12)])  # an ADS-B position's σ by its NACp
 
 
 @njit(cache=True)
@@ -212,10 +215,11 @@ def _dot2(a0, a1, b0, b1):
 
 
 @kernel
-def _finish(rows, site, work, px, py, h, sd, valid, z, C, R) -> None:
+def _finish(rows, site, work, px, py, h, nacp, nacp_sd, valid, z, C, R) -> None:
     """The frame's rows: a plot's validity (its height within 1 cm of its altitude), plane position, C_s
     (:func:`radartracker.geometry.plane.bias_jacobian`, plot by plot) and R = (C_s W) C_sᵀ
-    (``C @ W @ C.swapaxes(1, 2)``'s bits, :func:`_dot2`); an ADS-B row's position, C = 0 and R = σ² I."""
+    (``C @ W @ C.swapaxes(1, 2)``'s bits, :func:`_dot2`); an ADS-B row's position, C = 0 and R = σ² I
+    (σ = ``nacp_sd[nacp]``)."""
     n = work.shape[1]
     for i in range(n):
         r, rho, alt = rows[i], work[_RHO, i], work[_ALT, i]
@@ -236,8 +240,10 @@ def _finish(rows, site, work, px, py, h, sd, valid, z, C, R) -> None:
         t10, t11 = _dot2(c10, c11, w00, w10), _dot2(c10, c11, w01, w11)
         R[i, 0, 0], R[i, 0, 1] = _dot2(t00, t01, c00, c01), _dot2(t00, t01, c10, c11)
         R[i, 1, 0], R[i, 1, 1] = _dot2(t10, t11, c00, c01), _dot2(t10, t11, c10, c11)
-    for j in range(sd.shape[0]):
-        i, s2 = n + j, sd[j] * sd[j]
+    for j in range(nacp.shape[0]):
+        if not 1 <= nacp[j] < nacp_sd.shape[0]:
+            raise ValueError("nacp: must be 1..11 (0 means unknown accuracy, unusable)")
+        i, s2 = n + j, nacp_sd[nacp[j]] * nacp_sd[nacp[j]]
         z[i, 0], z[i, 1] = px[i], py[i]
         C[i, 0, 0] = C[i, 0, 1] = C[i, 1, 0] = C[i, 1, 1] = 0.0
         R[i, 0, 0], R[i, 0, 1], R[i, 1, 0], R[i, 1, 1] = s2, 0.0, 0.0, s2

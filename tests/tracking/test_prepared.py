@@ -4,8 +4,9 @@ phase recurrence equals the Python loop it replaces."""
 import math
 
 import numpy as np
+import pytest
 
-from radartracker.domain import AdsbReport, Plot
+from radartracker.domain import AdsbReport, Plot, nacp_sigma_m
 from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.pipeline.stream import scenario_stream
 from radartracker.simulation.scenarios import build_scenario
@@ -47,14 +48,20 @@ def test_one_pass_over_all_radars_equals_radar_frame_per_radar():
     # the frame's rows: plots radar by radar from (radar row, count) runs, then the ADS-B reports
     order = np.argsort(rows, kind="stable")
     radars, counts = np.unique(rows[order], return_counts=True)
-    sd = rng.uniform(1.0, 100.0, len(reports))
-    zf, Cf, Rf, rf, okf = conv.convert_frame(radars, counts, rho[order], theta[order], alt[order],
-                                             np.array([r.lat for r in reports]), np.array([r.lon for r in reports]), sd)
+    nacp = rng.integers(1, 12, len(reports))
+    lat, lon = np.array([r.lat for r in reports]), np.array([r.lon for r in reports])
+    zf, Cf, Rf, rf, okf = conv.convert_frame(radars, counts, rho[order], theta[order], alt[order], lat, lon, nacp)
     n = len(plots)
     assert list(rf) == list(rows[order]) + [-1] * len(reports) and list(okf) == list(ok[order])
     assert zf[:n].tobytes() == z[order].tobytes() and Cf[:n].tobytes() == C[order].tobytes()
     assert Rf[:n].tobytes() == R[order].tobytes() and zf[n:].tobytes() == xy.tobytes()
+    sd = np.array([nacp_sigma_m(int(a)) for a in nacp])
     assert (Cf[n:] == 0).all() and (Rf[n:] == (sd**2)[:, None, None] * np.eye(2)).all()
+    for bad in (0, 12):
+        with pytest.raises(ValueError, match="nacp"):
+            conv.convert_frame(radars, counts, rho[order], theta[order], alt[order], lat, lon, np.full(len(lat), bad))
+    with pytest.raises(ValueError, match="counts"):
+        conv.convert_frame(radars, counts + 1, rho[order], theta[order], alt[order], lat, lon, nacp)
     # no plots, only ADS-B: nothing to locate
     z0, C0, R0, ok0, xy0 = conv.convert(rows[:0], rho[:0], theta[:0], alt[:0], np.array([reports[0].lat]),
                                         np.array([reports[0].lon]))
