@@ -1,6 +1,6 @@
 """CPU cost of the estimator side of each measurement in the TrackManager, against the compiled kernel alone.
 
-    python scripts/bench_estimator_side.py [FOLDER] [--repeat 3] [--parts]
+    python scripts/bench_estimator_side.py [FOLDER] [--repeat 3] [--parts] [--evict MB]
 
 FOLDER is a scenario folder replayed as ``radartracker replay FOLDER --manager`` does (default: simulated
 traffic, 200 aircraft × 28 radars × 3 minutes). The manager's estimator work is recorded (aircraft added and
@@ -18,8 +18,10 @@ then replayed on a new ``coupled-sparse`` estimator and coupling graph in two wa
 
 All include the (rare) add/remove of aircraft, so the difference of the first two is the per-measurement
 overhead around the kernel; they run in turns of 64 runs, so a changing load on a shared machine hits them
-alike. One JSON line per repeat: CPU µs per measurement (``time.process_time``), and whether the
-replays end in the same estimator state (bit for bit).
+alike. With ``--evict MB``, MB of memory is read before each run, untimed, as the rest of a frame's work
+does between two of the estimator's runs in a replay: the caches' refill is a cost per run (per frame),
+which light traffic pays on fewer measurements. One JSON line per repeat: CPU µs per measurement
+(``time.process_time``), and whether the replays end in the same estimator state (bit for bit).
 """
 
 from __future__ import annotations
@@ -93,11 +95,12 @@ def stacked(calls: list, est, mgr) -> list:
     return out
 
 
-def replay(radars: list, calls: list, mgr, args: list, with_parts: bool,
+def replay(radars: list, calls: list, mgr, args: list, with_parts: bool, evict: np.ndarray | None = None,
            chunk: int = 64) -> tuple[float, float, dict, int, bool]:
     """CPU seconds of replaying ``calls`` by the compiled loop alone, by the manager's path and (``with_parts``)
     by its parts, each on a new estimator and coupling graph, in turns of ``chunk`` runs (so a changing machine
-    load hits them alike); the number of measurements, and whether all end in the same estimator state."""
+    load hits them alike), ``evict`` read before each run, untimed; the number of measurements, and whether
+    all end in the same estimator state."""
     from collections import Counter
 
     from radartracker.estimation.coupling import CouplingGraph
@@ -121,6 +124,8 @@ def replay(radars: list, calls: list, mgr, args: list, with_parts: bool,
         clock = time.process_time
         for name, a in part:
             if name == "run":  # the steps of TrackManager._update_run (none is refused here)
+                if evict is not None:
+                    evict.sum()
                 t0 = clock()
                 run, mgr._meas = a
                 _, t, key, radar, rows, kind = zip(*run)
@@ -139,9 +144,14 @@ def replay(radars: list, calls: list, mgr, args: list, with_parts: bool,
 
     def run(part: list, kernel: bool) -> None:
         est, coupling = (ek, ck) if kernel else (em, cm)
-        t0 = time.process_time()
+        clock = time.process_time
+        t0 = clock()
         for name, a in part:
             if name == "run":
+                if evict is not None:  # untimed
+                    cpu[not kernel] += clock() - t0
+                    evict.sum()
+                    t0 = clock()
                 if kernel:
                     K.update_batch(est._F, est._I, est._work.flat, *next(runs))
                 else:
@@ -149,7 +159,7 @@ def replay(radars: list, calls: list, mgr, args: list, with_parts: bool,
                     update_run(run)
             else:
                 change(est, coupling, name, a)
-        cpu[not kernel] += time.process_time() - t0
+        cpu[not kernel] += clock() - t0
 
     for i in range(0, len(calls), chunk):
         run(calls[i:i + chunk], True)
@@ -166,15 +176,17 @@ def main() -> None:
     ap.add_argument("folder", nargs="?")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--parts", action="store_true", help="also time the manager path's steps one by one")
+    ap.add_argument("--evict", type=float, metavar="MB", help="read MB of memory before each run (untimed)")
     args = ap.parse_args()
+    evict = None if args.evict is None else np.ones(int(args.evict * 2**17))
     from radartracker.registry import make_estimator
 
     radars, calls, mgr = record(args.folder)
     kernel_args = stacked(calls, make_estimator("coupled-sparse", mgr.estimator.config, radars), mgr)
-    replay(radars, calls, mgr, kernel_args, args.parts)  # warm-up
+    replay(radars, calls, mgr, kernel_args, args.parts, evict)  # warm-up
     for _ in range(args.repeat):
-        tk, tm, parts, n, same = replay(radars, calls, mgr, kernel_args, args.parts)
-        print(json.dumps({"bench": "estimator_side", "folder": args.folder, "measurements": n,
+        tk, tm, parts, n, same = replay(radars, calls, mgr, kernel_args, args.parts, evict)
+        print(json.dumps({"bench": "estimator_side", "folder": args.folder, "evict_mb": args.evict, "measurements": n,
                           "aircraft_added": sum(c[0] == "add_aircraft" for c in calls),
                           "runs": sum(c[0] == "run" for c in calls),
                           "us_kernel": round(tk / n * 1e6, 2), "us_manager_path": round(tm / n * 1e6, 2),
