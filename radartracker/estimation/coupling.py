@@ -26,8 +26,7 @@ from pathlib import Path
 
 import networkx as nx
 import numpy as np
-
-from radartracker.tracking.kernels import kernel
+from numba import njit
 
 ADSB = "adsb"
 _NODE = "aircraft:{}".format  # _aircraft_node as a callable for map()
@@ -37,7 +36,8 @@ _PLAIN_KEYS = frozenset((int, str))
 _BATCH = 16  # observe_many: from this many measurements on, counted in one compiled pass, written to the graph later
 
 
-@kernel
+# compiled when imported (from the disk cache after the first time): the warm-up's tiny run has no batch this long
+@njit("intp(intp[:], intp[:], float64[:], boolean[:, :], int64[:, :], float64[:, :], int64[:], intp[:])", cache=True)
 def _count(rows: np.ndarray, cols: np.ndarray, times: np.ndarray, known: np.ndarray, count: np.ndarray,
            latest: np.ndarray, source_count: np.ndarray, new: np.ndarray) -> int:
     """Measurement i (aircraft row ``rows[i]``, source column ``cols[i]``, at ``times[i]``) counted into the
