@@ -531,3 +531,43 @@ def test_refresh_sums_in_textbook_order_and_inverts_S():
     before = Pb.copy()
     assert not kernels.refresh(bad, sv, Pb, bh, ctr, LS, LSi)
     np.testing.assert_array_equal(Pb, before)
+
+
+def test_batch_bias_epoch_is_the_latest_time_applied_and_its_innovations_those_of_one_by_one():
+    """Oracles: the latest time among the plots a batch applied (written out here: times out of order across
+    aircraft, a plot refused for its R in the middle), and the same plots given one by one to update(). A batch
+    stopped by the refused plot leaves the state and bias epoch of the plots before it (their maximum time, not
+    the last one's); a batch of those plots gives the single updates' ν, Λ and NIS; an empty batch, empty arrays."""
+    sc = make_linear_scenario(n_aircraft=3, n_radars=2, duration=30.0, rng=4, q=0.3, adsb_aircraft=1)
+    cfg = EstimatorConfig(motion=MotionModel(0.3))
+    batch, single = (make_estimator("coupled-sparse", cfg, sc.radar_ids) for _ in range(2))
+    for e in (batch, single):
+        for k, x in sc.initial.items():
+            e.add_aircraft(k, 0.0, x, P0)
+    keys, r = list(sc.initial), sc.radar_ids
+    time = [5.0, 3.0, 4.0, 9.0, 10.0]  # the latest applied (5.0) is neither the first applied nor the last
+    key = [keys[0], keys[1], keys[2], keys[0], keys[1]]
+    radar = [r[0], r[1], None, r[0], r[1]]
+    z = np.array([[1e3, 2e3], [3e3, 1e3], [2e3, 2e3], [1.1e3, 2e3], [3e3, 1.2e3]])
+    C = np.array([bias_jacobian(zi, np.zeros(2)) for zi in z])
+    R = np.array([np.diag([900.0, 400.0])] * 5)
+    R[3] = -np.eye(2)  # refused: the batch stops before it, having applied three plots
+    with pytest.raises(SingularInformation) as err:
+        batch.update_many(time, key, radar, z, C, R)
+    assert err.value.index == 3
+    got = batch.update_many(time[:0], [], [], z[:0], C[:0], R[:0])
+    assert got.nu.shape == (0, 2) and got.S.shape == (0, 2, 2) and got.nis.shape == (0,)
+    for i in range(3):
+        single.update(PlaneMeasurement(time[i], key[i], radar[i], z[i], C[i], R[i]))
+    assert batch.bias(r[0]).time == 5.0 == max(time[:3]) == single.bias(r[0]).time
+    np.testing.assert_array_equal(batch._F, single._F)
+    fresh = [make_estimator("coupled-sparse", cfg, sc.radar_ids) for _ in range(2)]
+    for e in fresh:
+        for k, x in sc.initial.items():
+            e.add_aircraft(k, 0.0, x, P0)
+    inn = fresh[0].update_many(time[:3], key[:3], radar[:3], z[:3], C[:3], R[:3])
+    for i in range(3):
+        one = fresh[1].update(PlaneMeasurement(time[i], key[i], radar[i], z[i], C[i], R[i]))
+        np.testing.assert_array_equal(inn.nu[i], one.nu)
+        np.testing.assert_array_equal(inn.S[i], one.S)
+        assert inn.nis[i] == one.nis
