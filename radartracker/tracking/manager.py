@@ -454,8 +454,7 @@ class TrackManager:
     def _predict(self, live: list[ManagedTrack], t: float) -> dict[str, np.ndarray]:
         """Straight-line extrapolation of every live track to ``t`` (for search, misses, coverage), as
         arrays over the frame's tracks; the filters' own predictions are computed only for gating candidates."""
-        t0, x = self._states.read(live, self._estimate_of)
-        pos = x[:, :2] + x[:, 2:] * np.maximum(t - t0, 0.0)[:, None]
+        pos = self._states.positions(live, self._estimate_of, t)
         # identities are fixed while a frame is associated: index them once per frame, not per radar
         index = {m: i for i, m in enumerate([tr.mode_s for tr in live]) if m}
         return {"pos": pos, "t": t, "exact": {}, "index": index}

@@ -33,10 +33,14 @@ def test_rows_follow_starts_changes_and_ends_through_compaction():
             table.changed(tr)
         for k in sorted(rng.choice(len(live), min(len(live), rng.integers(0, 25)), replace=False), reverse=True):
             table.remove(live.pop(k).id)  # tracks end, anywhere in the order
+        t = float(rng.uniform(0, 100))  # after some estimates, before others
+        pos = table.positions(live, lambda tr: tr.estimate, t)
         t0, x = table.read(live, lambda tr: tr.estimate)
         want_t0, want_x = _direct(live)
         np.testing.assert_array_equal(t0, want_t0)
         np.testing.assert_array_equal(x, want_x)
+        # the straight-line extrapolation, as numpy's expression of it rounds it (oracle)
+        np.testing.assert_array_equal(pos, want_x[:, :2] + want_x[:, 2:] * np.maximum(t - want_t0, 0.0)[:, None])
     assert table._used < 4 * len(live) + 2048  # removed rows are dropped, not kept for ever
 
 
