@@ -36,7 +36,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from llvmlite import ir
 from numba import carray, njit, types
+from numba.core import cgutils
 from numba.extending import intrinsic
 
 from radartracker.estimation.screening import bias_correct_into, position_d2
@@ -630,12 +632,33 @@ def _pointer(typingctx, address):
     return types.CPointer(types.float64)(types.int64), codegen
 
 
+@intrinsic
+def _prefetch(typingctx, address):
+    """Ask the processor to bring the cache line at integer ``address`` into its caches (llvm.prefetch: for
+    reading, kept; the name without its pointer suffix, which LLVM completes for its version)."""
+    def codegen(context, builder, sig, args):
+        i8p, i32 = ir.IntType(8).as_pointer(), ir.IntType(32)
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32]),
+                                            "llvm.prefetch")
+        builder.call(fn, [builder.inttoptr(args[0], i8p), i32(0), i32(3), i32(1)])
+        return context.get_dummy_value()
+    return types.void(types.int64), codegen
+
+
 @view
 def _buffer_at(address: int) -> np.ndarray:
     """The packed buffer whose data start at ``address`` (its length read from its settings)."""
     head = carray(_pointer(address), (5,))
     n, D, m = int(head[0]), int(head[1]), int(head[3])
     return carray(_pointer(address), (_imm_offsets(n, D, m)[-1],))
+
+
+@kernel
+def _fetch_buffer(address: int) -> None:
+    """Prefetch the packed buffer at ``address`` line by line (64-byte lines; all of it: a screening reads
+    settings, state and prediction and writes the scratch)."""
+    for a in range(address, address + 8 * _buffer_at(address).size, 64):
+        _prefetch(a)
 
 
 @kernel
@@ -652,6 +675,8 @@ def imm_screen_many(addresses: np.ndarray, times: np.ndarray, z: np.ndarray, C: 
     for i in range(len(times)):
         _buffer_at(addresses[i])[_STOPPED] = 0.0
     for i in range(len(times)):
+        if i + 1 < len(times):  # the next buffer comes from memory while this one is screened (~2 µs)
+            _fetch_buffer(addresses[i + 1])
         buf = _buffer_at(addresses[i])
         t0, t = buf[IMM_EPOCH], times[i]
         if buf[_STOPPED] != 0.0 or buf[_COMPILED] == 0.0 or math.isnan(t0):
