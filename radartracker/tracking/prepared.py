@@ -18,8 +18,8 @@ between those calls (Newton's start and steps, east-north-up → ECEF, C_s, R) r
 by plot, with RadarFrame's operations in the same order (a frame of ~50 plots paid ~40 numpy calls of a
 few µs each, whatever its size: the 200-aircraft replay's cost per input); R = C_s W C_sᵀ as numpy's
 ``matmul`` rounds it through OpenBLAS (fused multiply-adds, :func:`_dot2`: one BLAS call per 2×2 product
-cost ~0.2 µs per plot). ``tests/tracking/test_prepared.py`` holds it to RadarFrame radar by radar and R to
-numpy's bit for bit.
+cost ~0.2 µs per plot). ``tests/tracking/test_prepared.py`` holds it to RadarFrame radar by radar and the
+products' rounding to exact arithmetic.
 """
 
 from __future__ import annotations
