@@ -456,7 +456,9 @@ class TrackManager:
         arrays over the frame's tracks; the filters' own predictions are computed only for gating candidates."""
         pos = self._states.positions(live, self._estimate_of, t)
         # identities are fixed while a frame is associated: index them once per frame, not per radar
-        index = {m: i for i, m in enumerate([tr.mode_s for tr in live]) if m}
+        index = {tr.mode_s: i for i, tr in enumerate(live)}
+        index.pop(None, None)
+        index.pop("", None)
         return {"pos": pos, "t": t, "exact": {}, "index": index}
 
     @staticmethod

@@ -10,10 +10,13 @@ order they started in), and writes only the rows of the tracks marked changed si
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
+from operator import itemgetter
 from typing import Any
 
 import numpy as np
 from numba import njit
+
+_TIME, _STATE = itemgetter(0), itemgetter(1)  # of an estimate (t, x, P)
 
 
 class StateTable:
@@ -71,11 +74,11 @@ class StateTable:
         if len(live) != len(self._row) or (live and live[-1].id not in self._row):
             self.__init__(live)
         if self._changed:
-            tracks, self._changed = list(self._changed.values()), {}
-            est = [estimate_of(tr) for tr in tracks]
-            rows = np.fromiter([self._row[tr.id] for tr in tracks], np.int64, len(tracks))
-            self._rows[rows, 0] = np.fromiter([e[0] for e in est], float, len(est))
-            xs = [np.asarray(e[1], float) for e in est]
+            changed, self._changed = self._changed, {}
+            est = list(map(estimate_of, changed.values()))
+            rows = np.fromiter(map(self._row.__getitem__, changed), np.int64, len(est))  # (changed: by id)
+            self._rows[rows, 0] = np.fromiter(map(_TIME, est), float, len(est))
+            xs = list(map(_STATE, est))
             if len(set(map(len, xs))) == 1:
                 self._rows[rows, 1:] = np.concatenate(xs).reshape(len(xs), -1)[:, :4]
             else:
