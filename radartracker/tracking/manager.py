@@ -237,7 +237,8 @@ class TrackManager:
         self._heap: list = []  # the others, as (time, arrival number, input)
         self._newest: float | None = None
         self._horizon = -math.inf  # everything at or before this time has been released
-        self._recent: dict[tuple, float] = {}
+        self._recent: dict[tuple, float] = {}  # admission keys of inputs after the horizon (duplicates), and older
+        self._recent_limit = 10_000  # the size at which the older ones are forgotten (_release)
         self._frame: int | None = None
         self._frame_items: list = []
         self._phase = np.zeros(len(rids), complex)  # each radar's antenna phase φ, by row (_track_phases)
@@ -390,8 +391,10 @@ class TrackManager:
                     # frames without input still sweep the antennas (misses) — a long gap is one sweep
                     self._frame = self._frame + 1 if frame - self._frame < 240 else frame
             self._frame_items.append(item)
-        if len(self._recent) > 10_000:  # forget duplicates older than the horizon
+        if len(self._recent) > self._recent_limit:  # forget keys at or before the horizon: such an input is late
             self._recent = {k: t for k, t in self._recent.items() if t > self._horizon}
+            # at twice what is left (or 10 000): a table of a long reorder window is not swept every few inputs
+            self._recent_limit = max(10_000, 2 * len(self._recent))
 
     # --- one frame ----------------------------------------------------------------------------
     def _run_frame(self, frame: int) -> None:

@@ -88,6 +88,32 @@ def test_out_of_order_within_window_late_and_duplicates(tracking_data):
     assert sum(counts.values()) == len(items) + 2
 
 
+def test_duplicates_caught_and_their_table_kept_small_on_a_long_stream():
+    """Every input sent twice (the copy a second later, inside the reorder window) over a stream of
+    >10 000 admission keys: each copy is counted a duplicate (oracle: the count sent), and the table of
+    keys is swept of those before the horizon whenever it passes 10 000 (or twice what the window holds)."""
+    from radartracker.simulation.traffic import traffic_scenario
+
+    data = traffic_scenario(seed=3, duration=240.0, aircraft=100, radars=8).run()
+    items = list(scenario_stream(data))
+    assert len(items) > 10_000
+    mgr = TrackManager(data.radars, data.reference)
+    copies, biggest = [], 0
+    for i in items:
+        while copies and copies[0].time <= i.time - 1.0:
+            mgr.process(copies.pop(0))
+        mgr.process(i)
+        copies.append(i)
+        biggest = max(biggest, len(mgr._recent))
+    for i in copies:
+        mgr.process(i)
+    mgr.flush()
+    counts = mgr.accounting()
+    assert counts.get("plots_duplicate", 0) + counts.get("adsb_duplicate", 0) == len(items)
+    assert sum(counts.values()) == 2 * len(items)
+    assert biggest <= 10_000  # swept as it passed 10 000 (the window holds a few hundred keys)
+
+
 def test_snapshot_restore_in_a_fresh_process(tmp_path, tracking_data):
     """Half, snapshot, restore in a new interpreter, the rest == one uninterrupted replay (1e-12)."""
     from radartracker.io.scenario import write_scenario
