@@ -54,11 +54,17 @@ def _mkstemp(folder: Path, name: str) -> Path:
 
 @contextmanager
 def atomic_path(path: Path | str) -> Iterator[Path]:
-    """A temporary path beside ``path`` for a library that writes by file name; renamed on success."""
+    """A temporary path beside ``path`` for a library that writes by file name; flushed to disk and renamed
+    on success."""
     path = Path(path)
     tmp = _mkstemp(path.parent, path.name)
     try:
         yield Path(tmp)
+        fd = os.open(tmp, os.O_RDONLY)  # what the library wrote, on disk before the rename (as atomic_open's)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
         os.replace(tmp, path)
     except BaseException:
         with suppress(FileNotFoundError):

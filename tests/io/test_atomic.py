@@ -71,3 +71,21 @@ def test_replay_interrupted_while_writing_leaves_the_earlier_outputs(tmp_path, m
     with pytest.raises(KeyboardInterrupt):
         write_outputs(result, out)
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_a_file_written_by_name_is_on_disk_before_it_is_renamed(tmp_path, monkeypatch):
+    """atomic_path (a library writing by file name, e.g. the coupling graph) syncs what was written before
+    the rename, as atomic_open does: the final name never points at a file still in the page cache."""
+    import os
+
+    from radartracker.io import atomic
+
+    calls = []
+    real_fsync, real_replace = os.fsync, os.replace
+    monkeypatch.setattr(atomic.os, "fsync", lambda fd: (calls.append(("fsync", os.readlink(f"/proc/self/fd/{fd}"))),
+                                                        real_fsync(fd))[1])
+    monkeypatch.setattr(atomic.os, "replace", lambda a, b: (calls.append(("replace", str(a))), real_replace(a, b))[1])
+    with atomic.atomic_path(tmp_path / "out.graphml") as tmp:
+        tmp.write_text("<graphml/>")
+    assert [c[0] for c in calls] == ["fsync", "replace"] and calls[0][1] == calls[1][1]
+    assert (tmp_path / "out.graphml").read_text() == "<graphml/>"
