@@ -1,9 +1,11 @@
 """The columnar reader's syntax checks (compiled loops over a string column's bytes) accept exactly what
-the regular expressions of the row checks' rules accept."""
+the regular expressions of the row checks' rules accept, and its numbers are what ``float()`` reads."""
 
+import math
 import random
 import re
 
+import numpy as np
 import pyarrow as pa
 import pytest
 
@@ -32,11 +34,61 @@ def test_decimals_are_the_plain_syntax(optional):
     verdict = {v: rule.fullmatch(v) is not None or (optional and v == "") for v in values}
     assert 0.05 < sum(verdict.values()) / len(verdict) < 0.95
     for v in values:
-        assert columnar._decimals(*columnar._bytes(_column([v])), optional) == verdict[v], v
+        assert (_decimals([v], optional)[0] != 0) == verdict[v], v
     good = [v for v in values if verdict[v]]
-    assert columnar._decimals(*columnar._bytes(_column(good)), optional)
+    assert _decimals(good, optional)[0] != 0
     bad = next(v for v in values if not verdict[v])
-    assert not columnar._decimals(*columnar._bytes(_column(good + [bad])), optional)
+    assert _decimals(good + [bad], optional)[0] == 0
+
+
+def _decimals(values: list[str], optional: bool) -> tuple[int, np.ndarray]:
+    out = np.full(len(values), -1.0)
+    return columnar._decimals(*columnar._bytes(_column(values)), optional, out), out
+
+
+def _decimal_texts(rng: random.Random, n: int) -> list[str]:
+    """Plain decimals of 1 to 19 digits, some with an exponent (in and out of the range converted directly)."""
+    texts = []
+    for _ in range(n):
+        digits = "".join(rng.choice("0123456789") for _ in range(rng.randint(1, 19)))
+        point = rng.randint(0, len(digits))
+        t = rng.choice(["", "", "-"]) + digits[:point] + rng.choice([".", ".", ""]) + digits[point:]
+        if rng.random() < 0.3:
+            t += rng.choice("eE") + rng.choice(["", "+", "-"]) + str(rng.randint(0, 40))
+        texts.append(t)
+    return texts
+
+
+def test_decimals_converts_as_float_does():
+    """Each value the kernel converts is float()'s double bit for bit; it says when some is left to pyarrow."""
+    rng = random.Random(4)
+    texts = _decimal_texts(rng, 20000) + ["0", "-0", "-0.0", ".5", "5.", "1e22", "1e23", "9e-22", "123456789012345",
+                                          "1234567890123456", "0.000000000000000000001", "1" * 15 + "e7"]
+    converted = 0
+    for t in texts:
+        found, out = _decimals([t], False)
+        assert found in (1, 2), t
+        if found == 1:
+            converted += 1
+            assert out.view(np.int64)[0] == np.float64(float(t)).view(np.int64), t
+    assert 0.3 < converted / len(texts) < 0.9
+    assert _decimals(["1.5", "", "-2e3"], True)[0] == 1 and np.isnan(_decimals(["1.5", "", "-2e3"], True)[1][1])
+    assert _decimals(["1.5", "1" * 16], False)[0] == 2
+
+
+@pytest.mark.parametrize("optional", [False, True])
+def test_numbers_are_what_float_reads(optional):
+    """Columns converted directly, through pyarrow (a value outside the direct conversion) or refused."""
+    rng = random.Random(5)
+    texts = [t for t in _decimal_texts(rng, 5000) if len(t.lstrip("-").replace(".", "")) <= 15 and "e" not in t.lower()]
+    for column in (texts, texts + ["1" * 17], texts + ["1e300"], texts + [""]):
+        got = columnar._numbers(_column(column), optional=optional)
+        if "" in column and not optional:
+            assert got is None
+            continue
+        want = np.array([float(t) if t else math.nan for t in column])
+        assert np.array_equal(got, want, equal_nan=True) and (np.signbit(got) == np.signbit(want)).all()
+    assert columnar._numbers(_column(texts + ["1e400"])) is None  # not finite
 
 
 @pytest.mark.parametrize("digits, length, pattern", [(16, 6, "[0-9a-fA-F]{6}"), (8, 4, "[0-7]{4}")])
