@@ -117,7 +117,7 @@ def _log_events_of(rows: list[tuple], idents: dict[int, tuple], *, drain: bool =
     from ``rows`` once read, its objects freed while still in the cache."""
     n = len(rows)
     time, track, state, cov, alt = np.empty(n), np.empty(n, np.int64), np.empty((n, 4)), np.empty((n, 16)), np.empty(n)
-    texts: list[list[tuple]] = [[], [], [], []]  # kind, status, Mode S, Mode 3/A: a tuple per chunk, last first
+    texts = np.empty((4, n), object)  # kind, status, Mode S, Mode 3/A
     for a in reversed(range(0, n, _CHUNK)):  # the last chunk first: drained, it is cut off the list's end
         evs, covs, alts, modes_s, modes_3a = zip(*rows[a:a + _CHUNK])
         if drain:
@@ -126,16 +126,17 @@ def _log_events_of(rows: list[tuple], idents: dict[int, tuple], *, drain: bool =
         b = a + len(times)
         time[a:b] = _packed("d", times)
         track[a:b] = _packed("q", ids)
-        state[a:b] = _packed("d", chain.from_iterable(zip(*x))).reshape(4, b - a).T
+        state[a:b] = _packed("d", chain.from_iterable(x)).reshape(b - a, 4)
         cov[a:b] = _covariances([_NAN44 if P is None else P for P in covs])
         alt[a:b] = alts  # None: NaN
         for col, values in zip(texts, (kinds, statuses, modes_s, modes_3a)):
-            col.append(values)
-    kind, status, mode_s, mode_3a = (np.fromiter(chain.from_iterable(reversed(c)), object, n) for c in texts)
+            col[a:b] = values
+    kind, status, mode_s, mode_3a = texts
     gone = kind == "deleted"
     cov[gone] = math.nan
     live = np.flatnonzero(~gone)
-    last = dict(zip(track[live].tolist(), live.tolist()))  # each track's last row here before its deletion
+    tracks, later = np.unique(track[live][::-1], return_index=True)  # each track's last row before its deletion
+    last = dict(zip(tracks.tolist(), live[len(live) - 1 - later].tolist()))  # (not a dict of all n rows: ~1.3x the CPU)
     for j in np.flatnonzero(gone).tolist():
         t = int(track[j])
         i = last.pop(t, None)
