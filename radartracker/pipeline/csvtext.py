@@ -114,12 +114,14 @@ class Table:
         return (kinds, index, text_row, self._num[:k], self._neg[:k], self._flag[:k], np.array(self._dec, np.int64),
                 _POW10, *self._packed)
 
-    def _size(self, select: np.ndarray | slice, columns: int) -> int:
-        """Bytes enough for the rows ``select`` of ``columns`` columns (after :meth:`_arrays`): a number's at
-        most 24 (sign, 19 digits, point), the rows' texts, and the separators."""
+    def _size(self, select: np.ndarray | slice, columns: np.ndarray) -> int:
+        """Bytes enough for the rows ``select`` of the columns ``columns`` (after :meth:`_arrays`): each field
+        as often as the most repeated column (a number's at most 24: sign, 19 digits, point; a text's own
+        bytes), and the separators."""
         start, end, _ = self._packed
         rows = len(range(self.n)[select]) if isinstance(select, slice) else len(select)
-        return rows * (24 * len(self._dec) + columns) + int((end[:, select] - start[:, select]).sum())
+        fields = rows * 24 * len(self._dec) + int((end[:, select] - start[:, select]).sum())
+        return _repeats(columns) * fields + rows * len(columns)
 
     def rows(self, select: np.ndarray | None = None, columns: list[int] | None = None) -> str:
         """The rows ``select`` (all by default; each row ended by a newline) of the columns ``columns``
@@ -129,7 +131,7 @@ class Table:
             return ""
         cols = np.arange(len(self._kind)) if columns is None else np.asarray(columns, np.int64)
         arrays = self._arrays()
-        out = np.empty(self._size(select, len(cols)), np.uint8)
+        out = np.empty(self._size(select, cols), np.uint8)
         used, _ = _write(cols, *arrays, select, out, cols[:0], np.zeros(self.n, np.bool_), out[:0])
         return out[:used].tobytes().decode("utf-8")
 
@@ -142,10 +144,17 @@ class Table:
         mask = np.asarray(mask, np.bool_).reshape(self.n)
         cols = np.asarray(columns, np.int64)
         arrays = self._arrays()
-        out = np.empty(self._size(slice(None), len(self._kind)), np.uint8)
-        part = np.empty(self._size(np.flatnonzero(mask), len(cols)), np.uint8)
+        out = np.empty(self._size(slice(None), np.arange(len(self._kind))), np.uint8)
+        # a part's row (its fields, each from the row, and fewer separators, each column at most r times) is no
+        # longer than r rows: a bound without summing the part's texts (pages never written cost nothing)
+        part = np.empty(_repeats(cols) * len(out), np.uint8)
         used, used_part = _write(np.arange(len(self._kind)), *arrays, np.arange(self.n), out, cols, mask, part)
         return out[:used].data, part[:used_part].data
+
+
+def _repeats(columns: np.ndarray) -> int:
+    """How often the most repeated of ``columns`` (column numbers) is taken (1 if none)."""
+    return int(np.bincount(columns).max()) if len(columns) else 1
 
 
 def _pack(columns: list[list[str]], n: int, codes: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

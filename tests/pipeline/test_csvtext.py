@@ -77,6 +77,8 @@ def test_labels_and_a_part_of_the_rows_written_in_the_same_pass():
     assert bytes(full).decode() == t.rows() == "".join(f"{c or ''},{v},{k}\n" for c, v, k in zip(codes, field, kinds))
     assert bytes(part).decode() == t.rows(np.flatnonzero(mask), [2, 0, 1]) == "".join(
         f"{k},{c or ''},{v}\n" for c, v, k, m in zip(codes, field, kinds, mask) if m)
+    _, twice = t.rows_and_part(np.ones(len(x), bool), [1, 1, 1, 0])  # a part longer than the rows
+    assert bytes(twice).decode() == t.rows(None, [1, 1, 1, 0]) == "".join(f"{v},{v},{v},{c or ''}\n" for c, v in zip(codes, field))
     assert Table(0).labels([]).rows_and_part(np.zeros(0, bool), [0]) == (b"", b"")
 
 
