@@ -132,7 +132,7 @@ class Table:
         cols = np.arange(len(self._kind)) if columns is None else np.asarray(columns, np.int64)
         arrays = self._arrays()
         out = np.empty(self._size(select, cols), np.uint8)
-        used, _ = _write(cols, *arrays, select, out, cols[:0], np.zeros(self.n, np.bool_), out[:0])
+        used, _ = _write(cols, *arrays, select, out, _runs(cols[:0]), np.zeros(self.n, np.bool_), out[:0])
         return out[:used].tobytes().decode("utf-8")
 
     def rows_and_part(self, mask: np.ndarray, columns: list[int]) -> tuple[memoryview, memoryview]:
@@ -148,8 +148,17 @@ class Table:
         # a part's row (its fields, each from the row, and fewer separators, each column at most r times) is no
         # longer than r rows: a bound without summing the part's texts (pages never written cost nothing)
         part = np.empty(_repeats(cols) * len(out), np.uint8)
-        used, used_part = _write(np.arange(len(self._kind)), *arrays, np.arange(self.n), out, cols, mask, part)
+        used, used_part = _write(np.arange(len(self._kind)), *arrays, np.arange(self.n), out, _runs(cols), mask, part)
         return out[:used].data, part[:used_part].data
+
+
+def _runs(columns: np.ndarray) -> np.ndarray:
+    """``columns`` (field numbers) as runs of consecutive ones, each run's first and last ((m, 2)): a run of
+    fields is copied, with its commas, as one slice."""
+    if not len(columns):
+        return np.zeros((0, 2), np.int64)
+    cut = np.flatnonzero(np.diff(columns) != 1) + 1
+    return np.stack([columns[np.r_[0, cut]], columns[np.r_[cut - 1, len(columns) - 1]]], axis=1)
 
 
 def _repeats(columns: np.ndarray) -> int:
@@ -208,10 +217,11 @@ def _digits(x, scale, num, neg, flag):  # pragma: no cover (compiled)
 
 
 @njit(cache=True)
-def _write(cols, kinds, index, text_row, num, neg, flag, dec, pow10, start, end, buf, select, out, part_cols,
+def _write(cols, kinds, index, text_row, num, neg, flag, dec, pow10, start, end, buf, select, out, part_runs,
            in_part, part):  # pragma: no cover (compiled)
     """Write rows ``select`` of columns ``cols`` into ``out`` and, of those rows r with ``in_part[r]``, the
-    fields ``part_cols`` (numbers in ``cols``) into ``part``, copied; returns the bytes written into each."""
+    fields ``part_runs`` (runs of consecutive fields, first and last, numbers in ``cols``: :func:`_runs`) into
+    ``part``, copied; returns the bytes written into each."""
     pos = 0
     used = 0
     first = np.empty(len(cols), np.int64)  # where each field of the row starts and ends in out
@@ -254,13 +264,13 @@ def _write(cols, kinds, index, text_row, num, neg, flag, dec, pow10, start, end,
         out[pos] = 10  # newline
         pos += 1
         if in_part[r]:
-            for i in range(len(part_cols)):
+            for i in range(len(part_runs)):
                 if i:
                     part[used] = 44
                     used += 1
-                for j in range(first[part_cols[i]], last[part_cols[i]]):
-                    part[used] = out[j]
-                    used += 1
+                a, b = first[part_runs[i, 0]], last[part_runs[i, 1]]  # fields a run apart, with their commas
+                part[used:used + b - a] = out[a:b]
+                used += b - a
             part[used] = 10
             used += 1
     return pos, used
