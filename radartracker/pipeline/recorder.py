@@ -105,12 +105,24 @@ def _events_of(rows: list[tuple]) -> Events:
     return _events(*zip(*heads), np.frombuffer(bytearray(b"".join(covs)), float), *zip(*idents))
 
 
-def _log_events_of(rows: list[tuple], idents: dict[int, tuple], *, drain: bool = False) -> Events:
-    """Rows of a TrackManager's ``event_log`` (event, P, altitude_m, mode_s, mode_3a) as columns. A deleted
-    event is recorded without covariance and with the identity of its track's previous event, as on the
-    replay's record of it (the track is gone from the manager); ``idents`` holds, for each track whose last
-    row was not its deletion, the identity of that row (altitude NaN if none), updated here for the rows
-    after these.
+class _Idents(NamedTuple):
+    """Each track's identity at its last row that was not its deletion (:func:`_log_events_of`): track ids,
+    altitude (m, NaN if none), Mode S and Mode 3/A, as columns."""
+
+    track: np.ndarray
+    altitude_m: np.ndarray
+    mode_s: np.ndarray
+    mode_3a: np.ndarray
+
+
+_NO_IDENTS = _Idents(np.zeros(0, np.int64), np.zeros(0), _obj([]), _obj([]))
+
+
+def _log_events_of(rows: list[tuple], idents: _Idents, *, drain: bool = False) -> tuple[Events, _Idents]:
+    """Rows of a TrackManager's ``event_log`` (event, P, altitude_m, mode_s, mode_3a) as columns, and
+    ``idents`` after them. A deleted event is recorded without covariance and with the identity of its
+    track's previous event, as on the replay's record of it (the track is gone from the manager);
+    ``idents`` holds, for each track whose last row was not its deletion, the identity of that row.
 
     The rows are read :data:`_CHUNK` at a time, every column of a chunk while its objects are in the cache
     (a national run's 8 192 rows, spread over the heap, are not); with ``drain`` each chunk is removed
@@ -135,17 +147,33 @@ def _log_events_of(rows: list[tuple], idents: dict[int, tuple], *, drain: bool =
     gone = kind == "deleted"
     cov[gone] = math.nan
     live = np.flatnonzero(~gone)
-    tracks, later = np.unique(track[live][::-1], return_index=True)  # each track's last row before its deletion
-    last = dict(zip(tracks.tolist(), live[len(live) - 1 - later].tolist()))  # (not a dict of all n rows: ~1.3x the CPU)
-    for j in np.flatnonzero(gone).tolist():
+    tracks, later = np.unique(track[live][::-1], return_index=True)
+    lasts = live[len(live) - 1 - later]  # each track's last row here that is not a deletion
+    dead = np.flatnonzero(gone)
+    ended = np.unique(track[dead])
+    last, before = _where(tracks, ended), _where(idents.track, ended)  # of the few tracks deleted here
+    for j in dead.tolist():
         t = int(track[j])
-        i = last.pop(t, None)
-        alt[j], mode_s[j], mode_3a[j] = idents.pop(t, _NO_IDENT) if i is None else (alt[i], mode_s[i], mode_3a[i])
-        idents.pop(t, None)
-    i = np.fromiter(last.values(), np.int64, len(last))
-    idents.update(zip(last, zip(alt[i].tolist(), mode_s[i].tolist(), mode_3a[i].tolist())))
+        i, k = last.pop(t, None), before.pop(t, None)
+        if i is not None:
+            i = lasts[i]
+            alt[j], mode_s[j], mode_3a[j] = alt[i], mode_s[i], mode_3a[i]
+        else:
+            alt[j], mode_s[j], mode_3a[j] = _NO_IDENT if k is None else (
+                idents.altitude_m[k], idents.mode_s[k], idents.mode_3a[k])
+    new = np.flatnonzero(~np.isin(tracks, ended))
+    old = np.flatnonzero(~np.isin(idents.track, np.concatenate([tracks, ended])))
+    i = lasts[new]
+    idents = _Idents(*(np.concatenate([c[old], now]) for c, now in zip(
+        idents, (tracks[new], alt[i], mode_s[i], mode_3a[i]))))
     return Events(time=time, track=track, kind=kind, status=status, state=state, cov=cov.reshape(n, 4, 4),
-                  altitude_m=alt, mode_s=mode_s, mode_3a=mode_3a, target=np.empty(n, object))  # target: None
+                  altitude_m=alt, mode_s=mode_s, mode_3a=mode_3a, target=np.empty(n, object)), idents  # target: None
+
+
+def _where(tracks: np.ndarray, ended: np.ndarray) -> dict[int, int]:
+    """Where each of ``ended`` is in ``tracks`` (those that are)."""
+    i = np.flatnonzero(np.isin(tracks, ended))
+    return dict(zip(tracks[i].tolist(), i.tolist()))
 
 
 def _packed(code: str, values) -> np.ndarray:
@@ -202,7 +230,7 @@ class Recorder:
         self.sink, self.keep, self.flush_every = sink, keep or sink is None, flush_every or FLUSH_EVERY
         self._rows: list[tuple] = []  # events not yet made columns: (head, covariance bytes, identity)
         self.manager_log: list[tuple] = []  # a TrackManager's event_log: (event, P, altitude_m, mode_s, mode_3a)
-        self._idents: dict[int, tuple] = {}  # _log_events_of: identity of each track at its last row
+        self._idents = _NO_IDENTS  # _log_events_of: identity of each track at its last row
         self._chunks: list[Events] = []  # events made columns and kept
         self._bias: list[tuple] = []  # (time, radar, the bytes of ς̂ and P_ς: 6 floats)
         self._bias_last: dict[str, float] = {}
@@ -257,7 +285,7 @@ class Recorder:
             self._rows = []
             self._handle(ev)
         if self.manager_log:
-            ev = _log_events_of(self.manager_log, self._idents, drain=True)  # the manager's list: emptied
+            ev, self._idents = _log_events_of(self.manager_log, self._idents, drain=True)  # the list emptied
             self._handle(ev)
 
     def _handle(self, ev: Events) -> None:
@@ -281,7 +309,7 @@ class Recorder:
     def events(self) -> Events:
         """The events recorded (those kept, and those not yet made columns)."""
         chunks = self._chunks + ([_events_of(self._rows)] if self._rows else []) + (
-            [_log_events_of(self.manager_log, dict(self._idents))] if self.manager_log else [])
+            [_log_events_of(self.manager_log, self._idents)[0]] if self.manager_log else [])
         return chunks[0] if len(chunks) == 1 else _concatenate(chunks)
 
     @property
