@@ -13,7 +13,9 @@ FOLDER is an unlabelled scenario folder (``scripts/bench_national.py`` writes th
   as the replay's does, the CPU of its ``flush`` calls alone: rows to columns to the CSV rows of
   ``events.csv`` and ``tracks.csv``, written to a temporary folder (the rows in the cache as the
   manager left them, which a replay of captured rows would not reproduce); ``--record-only``: these
-  runs alone (the others' lists empty).
+  runs alone (the others' lists empty); ``record_write_us``: of that, the ``OutputStream.events`` calls
+  (the columns to CSV rows, written), the rest being the rows made columns (``_log_events_of``) and the
+  bias rows.
 
 What the whole replay costs beyond ``read_us + manager_log_us`` is writing the tables and the run's files
 (``bench_events_path.py`` times that part).
@@ -59,11 +61,11 @@ def main() -> None:
     read = time.process_time() - c
     cfg = resolve(RunConfig(association="manager"), files.data, "coupled-sparse")
 
-    def run(log: bool, out: Path | None = None) -> tuple[float, float]:
-        """CPU µs per input of the run, and of the recorder's flush calls in it."""
+    def run(log: bool, out: Path | None = None) -> tuple[float, float, float]:
+        """CPU µs per input of the run, of the recorder's flush calls in it and of their sink's events calls."""
         mgr = TrackManager(files.data.radars, files.data.reference, cfg.manager_settings(),
                            filter_factory=motion_factory(cfg))
-        sink = None if out is None else OutputStream(out, SystemPlane(*files.data.reference))
+        sink = None if out is None else TimedStream(out, SystemPlane(*files.data.reference))
         rec = Recorder(sink=sink, keep=False)
         if log:
             mgr.event_log = rec.manager_log
@@ -81,20 +83,35 @@ def main() -> None:
         end = time.process_time()
         if sink is not None:
             sink.close()
-        return (end - c) / len(items) * 1e6, (flush + end - f) / len(items) * 1e6
+        per_input = 1e6 / len(items)
+        return (end - c) * per_input, (flush + end - f) * per_input, sink.cpu * per_input if sink is not None else 0.0
 
-    plain, logged, recorded = [], [], []
+    plain, logged, recorded, written = [], [], [], []
     with tempfile.TemporaryDirectory() as tmp:
         run(True, Path(tmp))  # compiled kernels loaded, caches warm
         for _ in range(args.repeat):
             if not args.record_only:
                 plain.append(round(run(False)[0], 2))
                 logged.append(round(run(True)[0], 2))
-            recorded.append(round(run(True, Path(tmp))[1], 2))
+            _, record, write = run(True, Path(tmp))
+            recorded.append(round(record, 2))
+            written.append(round(write, 2))
     print(json.dumps({"folder": str(args.folder), "inputs": len(items), "read_us": round(read / len(items) * 1e6, 2),
-                      "manager_us": plain, "manager_log_us": logged, "record_us": recorded}))
+                      "manager_us": plain, "manager_log_us": logged, "record_us": recorded,
+                      "record_write_us": written}))
     if args.convert:
         print(json.dumps({"folder": str(args.folder), **convert_costs(files, cfg, items, 3 * args.repeat)}))
+
+
+class TimedStream(OutputStream):
+    """An OutputStream that adds up the CPU of its ``events`` calls (s) in ``cpu``."""
+
+    cpu = 0.0
+
+    def events(self, ev) -> None:
+        c = time.process_time()
+        super().events(ev)
+        self.cpu += time.process_time() - c
 
 
 def convert_costs(files, cfg, items: list, rounds: int) -> dict:
