@@ -28,11 +28,19 @@ def main() -> None:
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2))
     for minutes in sorted({r["minutes"] for r in rows}):
         sel = sorted((r for r in rows if r["minutes"] == minutes), key=lambda r: r["aircraft"])
-        a.plot([r["aircraft"] for r in sel], [r["us_per_input"] for r in sel], "o-", label=f"replay, {minutes:g} min")
+        line, = a.plot([r["aircraft"] for r in sel], [r["us_per_input"] for r in sel], "o-", label=f"replay, {minutes:g} min")
+        for r in sel:  # the spread of a --repeat set (its runs' µs per input)
+            if r.get("repeats"):
+                us = [v[0] for v in r["repeats"]]
+                a.vlines(r["aircraft"], min(us), max(us), color=line.get_color(), alpha=0.5)
     sel = sorted(rows, key=lambda r: r["aircraft"])
     a.plot([r["aircraft"] for r in sel], [r["filterpy_us"] for r in sel], "k.", label="FilterPy predict+update")
-    a.set(xlabel="aircraft airborne", ylabel="µs per input (plot or ADS-B report)", xscale="log", yscale="log",
-          title="Cost per input against traffic")
+    a.set(xlabel="aircraft airborne", ylabel="µs per input (plot or ADS-B report)", xscale="log",
+          ylim=(0, 1.3 * max(max(r["us_per_input"], r["filterpy_us"]) for r in rows)),
+          title="Cost per input against traffic (bars: spread of repeated runs)")
+    sizes = sorted({r["aircraft"] for r in rows})
+    a.set_xticks(sizes, [str(n) for n in sizes])
+    a.minorticks_off()
     a.legend(fontsize=8)
     b2 = b.twinx()
     for n in sorted({r["aircraft"] for r in rows}):
