@@ -19,7 +19,6 @@ from pathlib import Path
 import numpy as np
 
 from radartracker.io.atomic import atomic_open, atomic_path, prepare_output_folder, write_text
-from radartracker.io.graphml import write_graphml
 from radartracker.pipeline.csvtext import Table
 from radartracker.pipeline.recorder import BiasLog, Events
 from radartracker.pipeline.result import RunResult
@@ -139,8 +138,8 @@ def write_outputs(result: RunResult, out: Path | str, *, figures: bool = False, 
             with atomic_open(out / name, "wb") as f:
                 f.write(_header(cols))
                 f.write(text)
-    with atomic_path(out / "coupling.graphml") as tmp:  # networkx's bytes, ~5x faster (radartracker.io.graphml)
-        write_graphml(result.coupling.graph, tmp)
+    with atomic_path(out / "coupling.graphml") as tmp:
+        result.coupling.write_graphml(tmp)
     if figures:
         from radartracker.pipeline.figures import plot_biases, plot_tracks_over_truth
 
