@@ -22,7 +22,13 @@ from radartracker.io.recording import TrackPoints, read_new4, write_plt
 from radartracker.io.scenario import read_radars, read_scenario
 from radartracker.io.tables import ScenarioData
 from radartracker.simulation.simulator import KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator
+from radartracker.tracking.association import (ALTITUDE_GATE, AltitudeTrack, altitude_d2, assign, assign_tiers,
+                                                candidate_pairs, gate_costs)
+from radartracker.tracking.associators import (NEW_TRACK, REFUSED, Association, AssociationSettings, Associator,
+                                               RadarPlots)
 from radartracker.tracking.filters import MotionConfig, TrackFilter
+from radartracker.tracking.frame import Prediction
+from radartracker.tracking.track import Track
 from radartracker.tracking import kernels  # compiled CV/CT predictions and position update (numba)
 
 __all__ = [
@@ -34,4 +40,6 @@ __all__ = [
     "read_new4", "read_radars", "read_scenario", "symmetrize", "validated_prior", "write_plt", "kernels",
     "atomic_open", "atomic_path", "prepare_output_folder", "write_text", "replace_outputs", "read_text",
     "KinematicTrajectory", "Leg",
+    "ALTITUDE_GATE", "AltitudeTrack", "Association", "AssociationSettings", "Associator", "NEW_TRACK", "Prediction",
+    "REFUSED", "RadarPlots", "Track", "altitude_d2", "assign", "assign_tiers", "candidate_pairs", "gate_costs",
 ]

@@ -23,13 +23,22 @@ from typing import Any
 
 import attrs
 
-from radartracker.errors import ConfigurationError
+from radartracker.domain import Radar
+from radartracker.errors import ConfigurationError, SnapshotError
 from radartracker.estimation.base import Estimator, EstimatorConfig
+from radartracker.tracking.associators import AssociationSettings, Associator
+from radartracker.tracking.config import ManagerConfig
+from radartracker.tracking.events import TrackEvent
 from radartracker.tracking.filters import MotionConfig, TrackFilter
+from radartracker.tracking.manager import TrackManager
+from radartracker.tracking.schema import read_manager, restore_state
 
 ESTIMATOR_GROUP = "radartracker.estimators"
 RECONSTRUCTOR_GROUP = "radartracker.reconstructors"
 MOTION_GROUP = "radartracker.motion_models"
+ASSOCIATOR_GROUP = "radartracker.associators"
+# exact estimators first, the scalable one before the dense one (docs/estimators.md); decoupled is a last resort
+PREFERRED_ESTIMATORS = ("coupled-sparse", "coupled", "blom", "decoupled")
 
 
 def _group(group: str) -> dict[str, Any]:
@@ -78,6 +87,22 @@ def available_estimators() -> list[str]:
 def load_estimator(name: str) -> type[Estimator]:
     """The estimator class registered under ``name``."""
     return _load(ESTIMATOR_GROUP, name, "estimator", Estimator)
+
+
+def default_estimator() -> str:
+    """The best installed estimator plugin: the first of ``PREFERRED_ESTIMATORS`` that is installed."""
+    installed = available_estimators()
+    return next((n for n in PREFERRED_ESTIMATORS if n in installed), installed[0] if installed else PREFERRED_ESTIMATORS[0])
+
+
+def available_associators() -> list[str]:
+    """Names of the installed associator plugins."""
+    return sorted(_group(ASSOCIATOR_GROUP))
+
+
+def load_associator(name: str) -> type[Associator]:
+    """The associator class registered under ``name``."""
+    return _load(ASSOCIATOR_GROUP, name, "associator", Associator)
 
 
 def available_reconstructors() -> list[str]:
@@ -272,11 +297,61 @@ def make_filter_factory(spec: str | type[TrackFilter] | Callable[[], TrackFilter
     return CallableFilterFactory(spec)
 
 
+def make_associator(spec: str | Associator, settings: AssociationSettings | None = None) -> Associator:
+    """Associator plugin ``spec`` built with ``settings``, or the instance ``spec`` as it is."""
+    if isinstance(spec, Associator):
+        return spec
+    return load_associator(spec)(settings or AssociationSettings())
+
+
+def motion_q(cfg: ManagerConfig) -> dict[str, str]:
+    """``cfg.motion_options``, plus ``q`` = the estimator's process noise ``estimator_config.motion.q``
+    when the motion model has a ``q`` setting that neither ``motion`` nor the options set: one aircraft
+    process-noise density for the estimator and the track filters unless told otherwise."""
+    options = dict(cfg.motion_options)
+    if cfg.motion is None and "q" not in options and "q" in option_fields(load_motion_model(cfg.motion_model).config_class):
+        options["q"] = repr(cfg.estimator_config.motion.q)
+    return options
+
+
+def make_manager(radars: list[Radar], reference: tuple[float, float], config: ManagerConfig | None = None,
+                 on_event: Callable[[TrackEvent], None] | None = None, *, estimator: str | Estimator | None = None,
+                 filter_factory: Any = None, associator: str | Associator | None = None) -> TrackManager:
+    """A :class:`TrackManager` with its plugins built from ``config``'s names, or given here (an estimator
+    instance is given each radar it lacks); ``on_event(event)`` is called for every event."""
+    cfg = config or ManagerConfig()
+    ids = [r.id for r in radars]
+    est = (make_estimator(cfg.estimator, cfg.estimator_config, ids, cfg.estimator_options) if estimator is None
+           else make_estimator(estimator, None, ids))
+    new_filter = (make_filter_factory(cfg.motion_model, motion_q(cfg), cfg.motion) if filter_factory is None
+                  else make_filter_factory(filter_factory))
+    settings = AssociationSettings(cfg.gate, cfg.search_radius_m, cfg.new_track_exclusion)
+    mgr = TrackManager(radars, reference, cfg, estimator=est, new_filter=new_filter,
+                       associator=make_associator(cfg.associator if associator is None else associator, settings))
+    if on_event is not None:
+        mgr.events.subscribe(lambda event, track: on_event(event))
+    return mgr
+
+
+def restore_manager(path: str | os.PathLike, on_event: Callable[[TrackEvent], None] | None = None, **plugins: Any
+                    ) -> TrackManager:
+    """A manager continuing exactly where :meth:`TrackManager.snapshot` left off, its plugins built from the
+    snapshot's configuration (or given as in :func:`make_manager`, of the classes it was made with);
+    :class:`SnapshotError` naming ``path`` for anything else."""
+    meta, blob = read_manager(path)
+    try:
+        mgr = make_manager(meta["radars"], tuple(meta["reference"]), meta["config"], on_event, **plugins)
+    except (ConfigurationError, ValueError, TypeError) as exc:
+        raise SnapshotError(str(path), f"cannot restore: {exc}") from None
+    return restore_state(mgr, meta, blob, path)
+
+
 def plugin_listing() -> str:
     """What ``radartracker estimators`` prints: every installed plugin by group, with its options."""
     lines = []
     for group, title, attr in ((ESTIMATOR_GROUP, "estimators", "options_class"),
                                (MOTION_GROUP, "motion models", "config_class"),
+                               (ASSOCIATOR_GROUP, "associators", None),
                                (RECONSTRUCTOR_GROUP, "reconstructors", None)):
         lines.append(f"{title}:")
         for name, ep in sorted(_group(group).items()):

@@ -1,3 +1,4 @@
+from radartracker.registry import make_manager
 """CPU cost of the estimator side of each measurement in the TrackManager, against the compiled kernel alone.
 
     python scripts/bench_estimator_side.py [FOLDER] [--repeat 3] [--parts] [--evict MB]
@@ -51,7 +52,7 @@ def record(folder: str | None) -> tuple[list, list, "object"]:
         data, items = files.data, iter_files(files)
     # as `replay --manager`: simulated traffic carries truth labels, so "auto" would pick labels association
     cfg = resolve(RunConfig(association="manager"), data, "coupled-sparse")
-    mgr = TrackManager(data.radars, data.reference, cfg.manager_settings(), None, filter_factory=motion_factory(cfg))
+    mgr = make_manager(data.radars, data.reference, cfg.manager_settings(), None, filter_factory=motion_factory(cfg))
     est, calls, update_run = mgr.estimator, [], mgr._update_run
 
     class Recording:  # forwards everything; logs the calls that add or remove aircraft

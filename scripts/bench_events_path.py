@@ -1,3 +1,4 @@
+from radartracker.registry import make_manager
 """Benchmark: the events-and-outputs part of ``radartracker replay FOLDER --manager``, in CPU µs per input.
 
     python scripts/bench_events_path.py FOLDER [--repeat 3]
@@ -68,7 +69,7 @@ def main() -> None:
         t, x, P = TrackManager._estimate_of(tr)
         current.append((ev, _Track(tr.id, (t, x.copy(), P.copy()), tr.altitude_m, tr.mode_s, tr.mode_3a)))
 
-    mgr = TrackManager(files.data.radars, files.data.reference, cfg.manager_settings(), capture, estimator=est,
+    mgr = make_manager(files.data.radars, files.data.reference, cfg.manager_settings(), capture, estimator=est,
                        filter_factory=runmod.motion_factory(cfg))
     for item in iter_files(files):
         mgr.process(item)

@@ -1,3 +1,4 @@
+from radartracker.registry import make_manager
 """Benchmark pieces of the TrackManager's hot path, one JSON line each (docs/performance.md, "Manager and
 estimator hot path").
 
@@ -40,7 +41,7 @@ def record_estimator_calls(data, record: bool = True) -> tuple[list, list, float
     from radartracker.pipeline.stream import iter_scenario
     from radartracker.tracking.manager import ManagerConfig, TrackManager
 
-    mgr = TrackManager(data.radars, data.reference, ManagerConfig())
+    mgr = make_manager(data.radars, data.reference, ManagerConfig())
     est, calls = mgr.estimator, []
 
     class Recording:

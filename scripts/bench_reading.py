@@ -1,3 +1,4 @@
+from radartracker.registry import make_manager
 """Benchmark: what each input of a streamed replay costs before the TrackManager's frames (issue 13), one JSON
 line per stage.
 
@@ -51,7 +52,7 @@ def _manager(files, frames: bool = False):
     from radartracker.tracking.manager import TrackManager
 
     cfg = resolve(RunConfig(), files.data, "coupled-sparse")
-    mgr = TrackManager(files.data.radars, files.data.reference, cfg.manager_settings(), None,
+    mgr = make_manager(files.data.radars, files.data.reference, cfg.manager_settings(), None,
                        filter_factory=motion_factory(cfg))
     if not frames:
         mgr._run_frame = lambda frame: setattr(mgr, "_frame_items", [])

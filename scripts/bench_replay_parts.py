@@ -37,6 +37,7 @@ import time
 import types
 from pathlib import Path
 
+from radartracker.registry import make_manager
 from radartracker.geometry.plane import SystemPlane
 from radartracker.io.scenario import open_scenario
 from radartracker.pipeline.config import RunConfig, resolve
@@ -63,7 +64,7 @@ def main() -> None:
 
     def run(log: bool, out: Path | None = None) -> tuple[float, float, float]:
         """CPU µs per input of the run, of the recorder's flush calls in it and of their sink's events calls."""
-        mgr = TrackManager(files.data.radars, files.data.reference, cfg.manager_settings(),
+        mgr = make_manager(files.data.radars, files.data.reference, cfg.manager_settings(),
                            filter_factory=motion_factory(cfg))
         sink = None if out is None else TimedStream(out, SystemPlane(*files.data.reference))
         rec = Recorder(sink=sink, keep=False)
@@ -117,7 +118,7 @@ class TimedStream(OutputStream):
 def convert_costs(files, cfg, items: list, rounds: int) -> dict:
     """CPU µs per frame and per input of the run's ``TrackManager._convert_frame`` calls replayed alone."""
     def manager() -> TrackManager:
-        return TrackManager(files.data.radars, files.data.reference, cfg.manager_settings(),
+        return make_manager(files.data.radars, files.data.reference, cfg.manager_settings(),
                             filter_factory=motion_factory(cfg))
 
     calls, original = [], TrackManager._convert_frame

@@ -27,6 +27,7 @@ import time
 import attrs
 import numpy as np
 
+from radartracker.registry import make_manager
 from radartracker.domain import AdsbReport, Plot
 from radartracker.estimation.screening import ScreeningConfig
 from radartracker.io.tables import ScenarioData
@@ -84,7 +85,7 @@ def inject(items: list, rate: float, rng: np.random.Generator) -> tuple[list, di
 
 
 def run(data: ScenarioData, items: list, config: ManagerConfig) -> tuple[TrackManager, list]:
-    mgr = TrackManager(data.radars, data.reference, config)
+    mgr = make_manager(data.radars, data.reference, config)
     events = []
     for item in items:
         events.extend(mgr.process(item))

@@ -34,6 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import tracking_scenarios as scenarios  # noqa: E402
 from tracking_stonesoup import load_tracks, plots_digest, save_tracks, stonesoup_gnn  # noqa: E402
 
+from radartracker.registry import make_manager
 from radartracker.io.tables import ScenarioData  # noqa: E402
 from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, track_metrics  # noqa: E402
 from radartracker.pipeline.stream import scenario_stream  # noqa: E402
@@ -46,7 +47,7 @@ GRID_S, GRACE_S, C_M, HIGH_M = 2.0, 20.0, 2000.0, 7000.0
 def run_manager(data: ScenarioData, config: ManagerConfig) -> tuple[dict[int, TrackHistory], dict, float]:
     """Confirmed-track histories from the manager's events, the largest final bias errors (range m,
     azimuth millidegrees) against the simulated biases, and wall seconds."""
-    mgr = TrackManager(data.radars, data.reference, config)
+    mgr = make_manager(data.radars, data.reference, config)
     started = time.perf_counter()
     events = mgr.process_many(scenario_stream(data))
     wall = time.perf_counter() - started

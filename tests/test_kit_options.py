@@ -6,6 +6,7 @@ import attrs
 import numpy as np
 import pytest
 
+from radartracker.registry import make_manager
 from radartracker.cli import main
 from radartracker.errors import ConfigurationError, PluginError
 from radartracker.pipeline.stream import scenario_stream
@@ -121,12 +122,12 @@ def test_manager_takes_an_estimator_instance_and_a_filter_factory(tiny):
 
     config = ManagerConfig(estimator="coupled")
     est = make_estimator("decoupled", config.estimator_config, [])
-    mgr = TrackManager(data.radars, data.reference, config, estimator=est, filter_factory=factory)
+    mgr = make_manager(data.radars, data.reference, config, estimator=est, filter_factory=factory)
     mgr.process_many(items)
     assert mgr.estimator is est and sorted(est.radars) == sorted(r.id for r in data.radars)
     assert mgr.confirmed_tracks() and all(any(t.filter is f for f in made) for t in mgr.tracks.values())
     # the same run by names and options gives the same biases
-    by_name = TrackManager(data.radars, data.reference,
+    by_name = make_manager(data.radars, data.reference,
                            attrs.evolve(config, estimator="decoupled", motion_model="cv",
                                         motion_options={"q": "3", "prior_sd_velocity_mps": "250"}))
     by_name.process_many(items)
@@ -146,7 +147,7 @@ def test_a_plugin_raising_during_a_run_is_named(tiny):
                 raise TypeError("kaboom")
             return super().update(m)
 
-    mgr = TrackManager(data.radars, data.reference, ManagerConfig(), estimator=Broken())
+    mgr = make_manager(data.radars, data.reference, ManagerConfig(), estimator=Broken())
     with pytest.raises(PluginError, match=r"estimator 'broken' failed on track \d+ .*at t=4\d\.\d+ s: TypeError: kaboom"):
         mgr.process_many(items)
 
@@ -154,7 +155,7 @@ def test_a_plugin_raising_during_a_run_is_named(tiny):
         def update(self, time, z, R):
             raise KeyError("inside the filter")
 
-    mgr = TrackManager(data.radars, data.reference, ManagerConfig(), filter_factory=BrokenFilter)
+    mgr = make_manager(data.radars, data.reference, ManagerConfig(), filter_factory=BrokenFilter)
     with pytest.raises(PluginError, match="motion model 'cv' failed on track .* KeyError"):
         mgr.process_many(items)
 
@@ -164,10 +165,10 @@ def test_manager_filters_share_the_estimators_process_noise_by_default(tiny):
     data, items = tiny
     for model, options, q in (("cv", {}, 5.0), ("imm", {}, 5.0), ("cv", {"q": "2"}, 2.0)):
         config = ManagerConfig(motion_model=model, motion_options=options)
-        mgr = TrackManager(data.radars, data.reference, config)
+        mgr = make_manager(data.radars, data.reference, config)
         mgr.process_many(items[:200])
         assert mgr.tracks and all(t.filter.config.q == q for t in mgr.tracks.values())
     assert ManagerConfig().estimator_config.motion.q == 5.0
-    mgr = TrackManager(data.radars, data.reference, ManagerConfig(motion_model="adaptive"))  # no q setting
+    mgr = make_manager(data.radars, data.reference, ManagerConfig(motion_model="adaptive"))  # no q setting
     mgr.process_many(items[:200])
     assert mgr.tracks and all(t.filter.config == AdaptiveConfig() for t in mgr.tracks.values())

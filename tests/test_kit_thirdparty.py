@@ -9,6 +9,7 @@ import textwrap
 import numpy as np
 import pytest
 
+from radartracker.registry import make_manager, restore_manager
 from radartracker.cli import main
 from radartracker.errors import ConfigurationError
 from radartracker.io.scenario import write_scenario
@@ -233,7 +234,7 @@ def test_bad_option_from_the_cli_names_plugin_key_and_valid_keys(thirdparty, sce
 
 def test_thirdparty_in_the_track_manager(thirdparty, short_demo):
     """By name with its options (as the CLI sets them), and as an instance."""
-    mgr = TrackManager(short_demo.radars, short_demo.reference,
+    mgr = make_manager(short_demo.radars, short_demo.reference,
                        ManagerConfig(estimator="thirdparty", estimator_options={"bias_forgetting": "1.05"}))
     assert mgr.estimator.options.bias_forgetting == 1.05
     items = scenario_stream(short_demo)
@@ -241,7 +242,7 @@ def test_thirdparty_in_the_track_manager(thirdparty, short_demo):
     assert mgr.accounting().get("plots_used", 0) > 0
     assert set(mgr.biases()) == {r.id for r in short_demo.radars}
     inst = make_estimator("thirdparty", mgr.config.estimator_config, [], {"bias_forgetting": "1.05"})
-    mgr2 = TrackManager(short_demo.radars, short_demo.reference, ManagerConfig(), estimator=inst)
+    mgr2 = make_manager(short_demo.radars, short_demo.reference, ManagerConfig(), estimator=inst)
     assert mgr2.estimator is inst and sorted(inst.radars) == sorted(r.id for r in short_demo.radars)
     mgr2.process_many(items)
     for rid, b in mgr2.biases().items():
@@ -255,12 +256,12 @@ def test_thirdparty_manager_snapshot_continues_bit_for_bit(thirdparty, short_dem
     items = scenario_stream(short_demo)
     half = len(items) // 2
     config = ManagerConfig(estimator="thirdparty", estimator_options={"bias_forgetting": "1.05"})
-    whole, first = (TrackManager(short_demo.radars, short_demo.reference, config) for _ in range(2))
+    whole, first = (make_manager(short_demo.radars, short_demo.reference, config) for _ in range(2))
     for i in items[:half]:
         whole.process(i)
         first.process(i)
     first.snapshot(tmp_path / "snap.rts")
-    restored = TrackManager.restore(tmp_path / "snap.rts")
+    restored = restore_manager(tmp_path / "snap.rts")
     assert restored.estimator.options.bias_forgetting == 1.05
     events = [whole.process(i) for i in items[half:]] + [whole.flush()]
     again = [restored.process(i) for i in items[half:]] + [restored.flush()]

@@ -65,6 +65,31 @@ def test_core_has_no_import_cycles():
     assert cycles == [], f"import cycles: {cycles[:5]}"
 
 
+def _folder(module: str) -> str:
+    """The part of the core a module belongs to: its folder (``tracking``), or the top-level module itself."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else parts[0]
+
+
+def folder_graph(g: nx.DiGraph) -> nx.DiGraph:
+    """Imports between the core's folders and top-level modules (an edge when any module of one imports any
+    module of the other), each edge with one import that makes it."""
+    out = nx.DiGraph()
+    for a, b in g.edges:
+        fa, fb = _folder(a), _folder(b)
+        if fa != fb and fb != "radartracker":
+            out.add_edge(fa, fb, via=(a, b))
+    return out
+
+
+def test_core_folders_have_no_import_cycles():
+    """No circle between folders either (pipeline → fusion → pipeline is a circle even when no two modules
+    import each other): the core's parts can be read bottom-up."""
+    f = folder_graph(_graph(ROOT / "radartracker", "radartracker"))
+    cycles = [[(u, f.edges[u, v]["via"]) for u, v in zip(c, c[1:] + c[:1])] for c in nx.simple_cycles(f)]
+    assert cycles == [], f"folder import cycles: {cycles[:3]}"
+
+
 def test_plugins_import_only_the_public_api():
     offending = []
     for path in (ROOT / "plugins").rglob("*.py"):
@@ -90,3 +115,18 @@ def test_the_walker_sees_a_cycle_and_an_internal_import(tmp_path):
     plug = tmp_path / "plug.py"
     plug.write_text("from radartracker.tracking.manager import TrackManager\n")
     assert "radartracker.tracking.manager" in _imports(plug, "radartracker_plugins.plug")
+
+
+def test_the_folder_walker_sees_a_circle_of_folders(tmp_path):
+    """Folders x and y whose modules import each other's (no module cycle) make a folder cycle."""
+    pkg = tmp_path / "pkg"
+    for d in ("x", "y"):
+        (pkg / d).mkdir(parents=True)
+        (pkg / d / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "x" / "a.py").write_text("from pkg.y.b import v\n")
+    (pkg / "y" / "b.py").write_text("v = 1\n")
+    (pkg / "y" / "c.py").write_text("from pkg.x.d import w\n")
+    (pkg / "x" / "d.py").write_text("w = 2\n")
+    g = _graph(pkg, "pkg")
+    assert not list(nx.simple_cycles(g)) and list(nx.simple_cycles(folder_graph(g)))

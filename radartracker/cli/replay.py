@@ -33,6 +33,9 @@ def add_run_options(p: argparse.ArgumentParser, *, estimator_options: bool = Tru
     p.add_argument("--motion-model", default=None,
                    help="track filter plugin for --association manager (cv, imm, adaptive, fading; "
                         "default: ManagerConfig's); refused on the labelled path, which has no track filters")
+    p.add_argument("--associator", default=None,
+                   help="association plugin of the TrackManager (gnn, labels, or an installed third party's; "
+                        "default gnn)")
     p.add_argument("--motion-option", action="append", default=[], metavar="KEY=VALUE",
                    help="a setting of the motion model (repeatable; see `radartracker estimators`)")
     if estimator_options:
@@ -65,6 +68,8 @@ def run_config(args: argparse.Namespace, base: RunConfig | None = None) -> RunCo
             changes["fusion"] = {}
     if args.motion_model is not None:
         changes["motion_model"] = args.motion_model
+    if getattr(args, "associator", None) is not None:
+        changes["associator"] = args.associator
     if args.motion_option:
         changes["motion_options"] = base.motion_options | parse_key_values(args.motion_option, "--motion-option")
     if getattr(args, "estimator_option", None):
@@ -83,6 +88,7 @@ def run_config(args: argparse.Namespace, base: RunConfig | None = None) -> RunCo
             changes.update(manager={})
             changes.setdefault("motion_model", None)
             changes.setdefault("motion_options", {})
+            changes.setdefault("associator", None)
     return attrs.evolve(base, **changes)
 
 

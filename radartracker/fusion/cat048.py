@@ -194,30 +194,3 @@ def local_tracks_from_asterix(path: Path | str, *, radars: Path | str | None = N
                                    mode_3a=[], target=[])
     return (ScenarioData(data.reference, data.radars, empty, data.adsb, aircraft=data.aircraft, name=data.name,
                          skipped={k: v for k, v in skipped.items() if v}), LocalTracks(reports, ends))
-
-
-def collect_local_tracks(data: ScenarioData, config=None) -> LocalTracks:
-    """The local tracks the distributed architecture's per-radar trackers make of ``data``'s plots
-    (``config`` a RunConfig; its motion model and estimator settings apply): the input a radar head
-    that tracks would send, for :func:`write_local_tracks`."""
-    from radartracker.pipeline.config import RunConfig, resolve
-    from radartracker.pipeline.run import motion_factory
-    from radartracker.fusion.distributed import local_trackers
-    from radartracker.pipeline.stream import iter_scenario
-    from radartracker.domain import Plot
-    from radartracker.tracking.manager import default_estimator
-
-    config = config or RunConfig(architecture="distributed")
-    cfg = resolve(config, data, config.estimator or default_estimator())
-    reports, ends, now = [], [], [0.0]
-    managers = local_trackers(data, cfg, motion_factory(cfg) if cfg.motion_model is not None else None,
-                              reports.append, lambda rid, track: ends.append(LocalTrackEnd(now[0], rid, track)))
-    for item in iter_scenario(data):
-        if isinstance(item, Plot):
-            now[0] = item.time
-            managers[item.radar].process(item)
-    for mgr in managers.values():
-        mgr.flush()
-    reports.sort(key=lambda r: r.time)
-    ends.sort(key=lambda e: e.time)
-    return LocalTracks(reports, ends)

@@ -91,7 +91,7 @@ class LocalTrackEnd:
 @attrs.define
 class LocalTracks:
     """Local track reports and ends from outside the run (e.g. CAT048 from radar heads), each list in
-    time order; :func:`~radartracker.fusion.distributed.run_distributed` then runs no local trackers."""
+    time order; :func:`~radartracker.pipeline.distributed.run_distributed` then runs no local trackers."""
 
     reports: list[LocalReport]
     ends: list[LocalTrackEnd]

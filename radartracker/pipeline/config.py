@@ -24,8 +24,9 @@ from radartracker.estimation.base import EstimatorConfig
 from radartracker.estimation.screening import ScreeningConfig
 from radartracker.fusion.center import FusionConfig
 from radartracker.io.tables import ScenarioData
+from radartracker.registry import FilterFactory, load_motion_model, make_filter_factory, option_fields
 from radartracker.tracking.admission import ClockConfig
-from radartracker.tracking.manager import ManagerConfig
+from radartracker.tracking.config import ManagerConfig
 
 CONFIG_FORMAT = "radartracker-run-config"
 CONFIG_VERSION = 1
@@ -127,7 +128,7 @@ def _evolved(what: str, obj: Any, values: dict[str, Any]) -> Any:
 
 
 _FROM_RUN = ("estimator", "estimator_config", "motion_model", "motion", "motion_options", "estimator_options",
-             "primary_altitude_m", "screening", "clock")  # set from the run's own settings, not from ``manager``
+             "primary_altitude_m", "screening", "clock", "associator")  # set from the run's own settings, not from ``manager``
 MANAGER_SETTINGS = _values(ManagerConfig(), exclude=_FROM_RUN)
 ESTIMATOR_SETTINGS = _values(EstimatorConfig(), exclude=("motion",))
 SCREENING_SETTINGS = _values(ScreeningConfig())
@@ -161,7 +162,8 @@ class RunConfig:
 
     ``association``: ``labels`` (truth labels, else Mode S addresses — for evaluation), ``manager``
     (the TrackManager) or ``auto`` (labels when every plot carries one). ``estimator`` /
-    ``motion_model``: plugin names with their ``KEY=VALUE`` options. ``q`` (m²/s³): the aircraft
+    ``motion_model``: plugin names with their ``KEY=VALUE`` options; ``associator``: the TrackManager's
+    associator plugin (default ``gnn``). ``q`` (m²/s³): the aircraft
     white-acceleration density, for the estimator and the track filters alike. ``default_altitude_m``:
     the altitude assumed for a plot whose aircraft never reports one. ``bias_log_interval_s``: the
     least time between two rows of one radar in ``biases.csv``. ``estimator_config`` / ``manager``:
@@ -176,6 +178,7 @@ class RunConfig:
     estimator_options: dict[str, str] = attrs.field(factory=dict, converter=_str_dict)
     motion_model: str | None = None
     motion_options: dict[str, str] = attrs.field(factory=dict, converter=_str_dict)
+    associator: str | None = None
     q: float = attrs.field(default=DEFAULT_Q, converter=float, validator=_q)
     default_altitude_m: float | None = attrs.field(default=None)
     bias_log_interval_s: float = attrs.field(default=1.0, validator=_optional_positive("bias_log_interval_s"))
@@ -228,6 +231,7 @@ class RunConfig:
         base = ManagerConfig(estimator=self.estimator or ManagerConfig().estimator,
                              estimator_config=self.estimator_settings(),
                              motion_model=self.motion_model or ManagerConfig().motion_model,
+                             associator=self.associator or ManagerConfig().associator,
                              primary_altitude_m=default_altitude() if self.default_altitude_m is None
                              else self.default_altitude_m,
                              screening=self.screening_settings(), clock=self.clock_settings())
@@ -267,6 +271,8 @@ def resolve(config: RunConfig, data: ScenarioData, estimator_name: str) -> RunCo
                 "carries the aircraft motion, constant velocity with --q); use --association manager")
         if config.manager:
             raise ConfigurationError(f"manager settings {sorted(config.manager)} need --association manager")
+        if config.associator is not None:
+            raise ConfigurationError("--associator chooses the TrackManager's association; use --association manager")
         labels = config.labels or LabelsConfig()
         if labels.drop_after_s is None:
             labels = attrs.evolve(labels, drop_after_s=3.0 * max(r.period_s for r in data.radars) + 30.0)
@@ -278,8 +284,10 @@ def resolve(config: RunConfig, data: ScenarioData, estimator_name: str) -> RunCo
         labels = None
         manager = _merged(MANAGER_SETTINGS, _typed_overrides("manager", MANAGER_SETTINGS, config.manager))
         motion = config.motion_model or ManagerConfig().motion_model
+    associator = None if association == "labels" else config.associator or ManagerConfig().associator
     return attrs.evolve(
         config, association=association, estimator=estimator_name, motion_model=motion, labels=labels,
+        associator=associator,
         manager=manager, default_altitude_m=default_altitude() if config.default_altitude_m is None
         else float(config.default_altitude_m),
         estimator_config=_merged(ESTIMATOR_SETTINGS, _typed_overrides("estimator_config", ESTIMATOR_SETTINGS,
@@ -311,3 +319,13 @@ def read_config(path: Path | str) -> RunConfig:
         return RunConfig(**settings)
     except (TypeError, ValueError) as exc:
         raise ConfigurationError(f"{path}: {exc}") from None
+
+
+def motion_factory(cfg: RunConfig) -> FilterFactory:
+    """The track-filter factory of ``cfg``: its motion model, with ``q`` set from the run unless the
+    motion options set it (when the model has a ``q`` setting)."""
+    cls = load_motion_model(cfg.motion_model)
+    options = dict(cfg.motion_options)
+    if "q" in option_fields(cls.config_class) and "q" not in options:
+        options["q"] = repr(cfg.q)
+    return make_filter_factory(cfg.motion_model, options)

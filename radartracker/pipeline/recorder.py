@@ -9,8 +9,6 @@ per ``bias_log_interval_s``.
 from __future__ import annotations
 
 import math
-import struct
-from itertools import chain
 from typing import NamedTuple
 
 import attrs
@@ -70,15 +68,12 @@ class BiasLog:
 
 
 _NAN16 = np.full(16, math.nan).tobytes()  # the covariance of an event without one
-_NAN44 = np.full((4, 4), math.nan)
-_NO_IDENT = (math.nan, None, None)  # altitude, Mode S, Mode 3/A
-_CHUNK = 1024  # rows of an event_log read at a time (_log_events_of)
 FLUSH_EVERY = 8192  # rows made columns (and handed to the sink) at a time
 
 
 class _Head(NamedTuple):
     """What :meth:`Recorder.event` records of an event besides its covariance and identity: the fields of
-    a :class:`~radartracker.tracking.manager.TrackEvent`, in its order."""
+    a :class:`~radartracker.tracking.events.TrackEvent`, in its order."""
 
     time: float
     track: int
@@ -87,117 +82,19 @@ class _Head(NamedTuple):
     state: tuple
 
 
-def _events(time, track, kind, status, state, cov: np.ndarray, altitude_m, mode_s, mode_3a, target) -> Events:
-    """:class:`Events` of n events from their fields (sequences of n; ``state`` of 4-tuples, ``cov`` the
-    16 n covariance values)."""
+def _events_of(rows: list[tuple]) -> Events:
+    """Rows (event, covariance bytes, identity) as columns."""
+    heads, covs, idents = zip(*rows)
+    time, track, kind, status, state = zip(*heads)
     n = len(time)
+    cov = np.frombuffer(b"".join(covs), float)
     if len(cov) != 16 * n:
         raise ValueError("an event's covariance is not a 4×4 array of floats")
+    altitude_m, mode_s, mode_3a, target = zip(*idents)
     return Events(time=np.array(time, float), track=np.array(track, int), kind=_obj(kind), status=_obj(status),
-                  state=np.fromiter(chain.from_iterable(state), float, 4 * n).reshape(n, 4), cov=cov.reshape(n, 4, 4),
-                  altitude_m=np.array(altitude_m, float), mode_s=_obj(mode_s), mode_3a=_obj(mode_3a),
-                  target=_obj(target))
-
-
-def _events_of(rows: list[tuple]) -> Events:
-    """Rows of :meth:`Recorder.event` / :meth:`Recorder.track_event` as columns."""
-    heads, covs, idents = zip(*rows)
-    return _events(*zip(*heads), np.frombuffer(bytearray(b"".join(covs)), float), *zip(*idents))
-
-
-class _Idents(NamedTuple):
-    """Each track's identity at its last row that was not its deletion (:func:`_log_events_of`): track ids,
-    altitude (m, NaN if none), Mode S and Mode 3/A, as columns."""
-
-    track: np.ndarray
-    altitude_m: np.ndarray
-    mode_s: np.ndarray
-    mode_3a: np.ndarray
-
-
-_NO_IDENTS = _Idents(np.zeros(0, np.int64), np.zeros(0), _obj([]), _obj([]))
-
-
-def _log_events_of(rows: list[tuple], idents: _Idents, *, drain: bool = False) -> tuple[Events, _Idents]:
-    """Rows of a TrackManager's ``event_log`` (event, P, altitude_m, mode_s, mode_3a) as columns, and
-    ``idents`` after them. A deleted event is recorded without covariance and with the identity of its
-    track's previous event, as on the replay's record of it (the track is gone from the manager);
-    ``idents`` holds, for each track whose last row was not its deletion, the identity of that row.
-
-    The rows are read :data:`_CHUNK` at a time, every column of a chunk while its objects are in the cache
-    (a national run's 8 192 rows, spread over the heap, are not); with ``drain`` each chunk is removed
-    from ``rows`` once read, its objects freed while still in the cache."""
-    n = len(rows)
-    time, track, state, cov, alt = np.empty(n), np.empty(n, np.int64), np.empty((n, 4)), np.empty((n, 16)), np.empty(n)
-    texts = np.empty((4, n), object)  # kind, status, Mode S, Mode 3/A
-    for a in reversed(range(0, n, _CHUNK)):  # the last chunk first: drained, it is cut off the list's end
-        evs, covs, alts, modes_s, modes_3a = zip(*rows[a:a + _CHUNK])
-        if drain:
-            del rows[a:]
-        times, ids, kinds, statuses, x = zip(*evs)
-        b = a + len(times)
-        time[a:b] = _packed("d", times)
-        track[a:b] = _packed("q", ids)
-        state[a:b] = _packed("d", chain.from_iterable(x)).reshape(b - a, 4)
-        cov[a:b] = _covariances([_NAN44 if P is None else P for P in covs])
-        alt[a:b] = alts  # None: NaN
-        for col, values in zip(texts, (kinds, statuses, modes_s, modes_3a)):
-            col[a:b] = values
-    kind, status, mode_s, mode_3a = texts
-    gone = kind == "deleted"
-    cov[gone] = math.nan
-    live = np.flatnonzero(~gone)
-    tracks, later = np.unique(track[live][::-1], return_index=True)
-    lasts = live[len(live) - 1 - later]  # each track's last row here that is not a deletion
-    dead = np.flatnonzero(gone)
-    ended = np.unique(track[dead])
-    last, before = _where(tracks, ended), _where(idents.track, ended)  # of the few tracks deleted here
-    for j in dead.tolist():
-        t = int(track[j])
-        i, k = last.pop(t, None), before.pop(t, None)
-        if i is not None:
-            i = lasts[i]
-            alt[j], mode_s[j], mode_3a[j] = alt[i], mode_s[i], mode_3a[i]
-        else:
-            alt[j], mode_s[j], mode_3a[j] = _NO_IDENT if k is None else (
-                idents.altitude_m[k], idents.mode_s[k], idents.mode_3a[k])
-    new = np.flatnonzero(~np.isin(tracks, ended))
-    old = np.flatnonzero(~np.isin(idents.track, np.concatenate([tracks, ended])))
-    i = lasts[new]
-    idents = _Idents(*(np.concatenate([c[old], now]) for c, now in zip(
-        idents, (tracks[new], alt[i], mode_s[i], mode_3a[i]))))
-    return Events(time=time, track=track, kind=kind, status=status, state=state, cov=cov.reshape(n, 4, 4),
-                  altitude_m=alt, mode_s=mode_s, mode_3a=mode_3a, target=np.empty(n, object)), idents  # target: None
-
-
-def _where(tracks: np.ndarray, ended: np.ndarray) -> dict[int, int]:
-    """Where each of ``ended`` is in ``tracks`` (those that are)."""
-    i = np.flatnonzero(np.isin(tracks, ended))
-    return dict(zip(tracks[i].tolist(), i.tolist()))
-
-
-def _packed(code: str, values) -> np.ndarray:
-    """Python numbers (float ``d``, integer ``q``) as an array, through one ``struct.pack``: faster than
-    ``np.array`` or ``np.fromiter`` on a sequence."""
-    values = tuple(values)
-    return np.frombuffer(struct.pack(f"{len(values)}{code}", *values), np.dtype(code))
-
-
-def _covariances(covs: list) -> np.ndarray:
-    """4×4 covariances as rows of 16 floats: the arrays' bytes in one join, unless one is not 16 contiguous
-    float64 (then by value); :class:`ValueError` if one is not 4×4."""
-    try:
-        cov = np.frombuffer(bytearray().join(covs), float)
-    except (BufferError, TypeError):
-        cov = None
-    if cov is None or len(cov) != 16 * len(covs):  # as track_event checks the bytes
-        try:
-            cov = np.array(covs, float)
-        except ValueError:
-            cov = None
-    if cov is None or cov.size != 16 * len(covs):
-        raise ValueError("an event's covariance is not a 4×4 array of floats")
-    return cov.reshape(-1, 16)
+                  state=np.array(state, float).reshape(n, 4), cov=cov.reshape(n, 4, 4),
+                  altitude_m=np.array([math.nan if a is None else a for a in altitude_m], float),
+                  mode_s=_obj(mode_s), mode_3a=_obj(mode_3a), target=_obj(target))
 
 
 def _concatenate(chunks: list[Events]) -> Events:
@@ -215,9 +112,7 @@ class Recorder:
     An event is kept as one row (its immutable TrackEvent or fields, its covariance's bytes, its identity)
     until ``flush_every`` of them are made columns at once (:class:`Events`, 8 bytes a number): a
     national-scale run records millions of events.
-    A TrackManager records its events without a call per event by appending rows to :attr:`manager_log`
-    (its ``event_log``); whoever feeds it calls :meth:`flush` once that holds ``flush_every`` rows. They are
-    made columns after those of :meth:`event` and :meth:`track_event`: feed a recorder one way or the other.
+    A TrackManager's events come through :meth:`listen`, subscribed to its event sink.
     With a ``sink`` (:class:`radartracker.pipeline.writer.OutputStream`) events and biases are handed on
     as they are made columns; ``keep=False`` then drops them once handed on, so that memory does not grow
     with the recording's length (what :attr:`track_ids` keeps, one integer per track with an estimate,
@@ -229,8 +124,6 @@ class Recorder:
         self.bias_log_interval_s = bias_log_interval_s
         self.sink, self.keep, self.flush_every = sink, keep or sink is None, flush_every or FLUSH_EVERY
         self._rows: list[tuple] = []  # events not yet made columns: (head, covariance bytes, identity)
-        self.manager_log: list[tuple] = []  # a TrackManager's event_log: (event, P, altitude_m, mode_s, mode_3a)
-        self._idents = _NO_IDENTS  # _log_events_of: identity of each track at its last row
         self._chunks: list[Events] = []  # events made columns and kept
         self._bias: list[tuple] = []  # (time, radar, the bytes of ς̂ and P_ς: 6 floats)
         self._bias_last: dict[str, float] = {}
@@ -256,25 +149,30 @@ class Recorder:
         if len(self._rows) >= self.flush_every:
             self._columns()
 
+    def listen(self, event, track) -> None:
+        """Record a TrackManager's ``event`` of ``track`` (subscribe this method to the manager's
+        :class:`~radartracker.tracking.events.EventSink`): with the filter's covariance when the event's
+        state is the track's estimate (not extrapolated; never for a deletion), and the track's identity."""
+        cov = None
+        if event.kind != "deleted":
+            t0, _, P = track.estimate()
+            if t0 == event.time:
+                cov = np.ascontiguousarray(np.asarray(P, float)[:4, :4])
+        self.track_event(event, cov, (track.altitude_m, track.mode_s, track.mode_3a, track.target))
+
     def bias_due(self, radar: str, time: float) -> bool:
         """Whether :meth:`bias` would record ``radar``'s bias at ``time`` (ask before building the state)."""
         return time - self._bias_last.get(radar, -math.inf) >= self.bias_log_interval_s
 
     def bias(self, time: float, state: BiasState) -> None:
-        """Record ``state`` unless this radar was recorded less than the interval before ``time``."""
-        self.bias_arrays(time, state.radar, state.bias, state.cov)
-
-    def bias_arrays(self, time: float, radar: str, bias: np.ndarray, cov: np.ndarray) -> None:
-        """Record ``radar``'s bias ``bias`` (ς̂) and its covariance ``cov`` (P_ς), copied now, unless this radar
-        was recorded less than the interval before ``time``: what :meth:`bias` records of a BiasState, from
-        an estimator's ``bias_arrays`` (its own arrays, changing with its next update) without making one."""
-        if self.bias_due(radar, time):
-            bias, cov = np.asarray(bias, float), np.asarray(cov, float)
+        """Record ``state`` (copied) unless its radar was recorded less than the interval before ``time``."""
+        if self.bias_due(state.radar, time):
+            bias, cov = np.asarray(state.bias, float), np.asarray(state.cov, float)
             if bias.size != 2 or cov.size != 4:
-                raise ValueError(f"radar {radar!r}: a bias is 2 floats and its covariance 2×2, got shapes "
+                raise ValueError(f"radar {state.radar!r}: a bias is 2 floats and its covariance 2×2, got shapes "
                                  f"{bias.shape} and {cov.shape}")
-            self._bias.append((float(time), radar, bias.tobytes() + cov.tobytes()))  # 6 floats, copied
-            self._bias_last[radar] = time
+            self._bias.append((float(time), state.radar, bias.tobytes() + cov.tobytes()))  # 6 floats, copied
+            self._bias_last[state.radar] = time
             if self.sink is not None and len(self._bias) - self._bias_sent >= self.flush_every:
                 self.flush()
 
@@ -283,9 +181,6 @@ class Recorder:
         if self._rows:
             ev = _events_of(self._rows)
             self._rows = []
-            self._handle(ev)
-        if self.manager_log:
-            ev, self._idents = _log_events_of(self.manager_log, self._idents, drain=True)  # the list emptied
             self._handle(ev)
 
     def _handle(self, ev: Events) -> None:
@@ -308,15 +203,13 @@ class Recorder:
 
     def events(self) -> Events:
         """The events recorded (those kept, and those not yet made columns)."""
-        chunks = self._chunks + ([_events_of(self._rows)] if self._rows else []) + (
-            [_log_events_of(self.manager_log, self._idents)[0]] if self.manager_log else [])
+        chunks = self._chunks + ([_events_of(self._rows)] if self._rows else [])
         return chunks[0] if len(chunks) == 1 else _concatenate(chunks)
 
     @property
     def track_ids(self) -> set[int]:
         """The tracks with an estimate (a ``confirmed`` or ``updated`` event) so far."""
-        return self._track_ids | {r[0].track for rows in (self._rows, self.manager_log) for r in rows
-                                  if r[0].kind in TRACK_KINDS}
+        return self._track_ids | {r[0].track for r in self._rows if r[0].kind in TRACK_KINDS}
 
     def biases(self, start: int = 0) -> BiasLog:
         rows = self._bias[start:]

@@ -41,18 +41,17 @@ from radartracker.estimation.kalman import SingularInnovation
 from radartracker.estimation.measurement import convert_adsb, convert_plots, fill_altitudes, merge, plot_keys
 from radartracker.estimation.screening import REINIT, REJECT, LabelledScreen
 from radartracker.fusion.center import LocalTracks
-from radartracker.fusion.distributed import run_distributed
+from radartracker.pipeline.distributed import run_distributed
 from radartracker.geometry.plane import SystemPlane
 from radartracker.io.scenario import open_scenario
 from radartracker.io.tables import ScenarioData
-from radartracker.pipeline.config import RunConfig, resolve
+from radartracker.pipeline.config import RunConfig, motion_factory, resolve
 from radartracker.pipeline.recorder import Recorder
 from radartracker.pipeline.result import RunResult
 from radartracker.pipeline.stream import NotTimeOrdered, iter_files, iter_scenario
 from radartracker.pipeline.writer import OutputStream, write_outputs
-from radartracker.registry import FilterFactory, load_motion_model, make_estimator, make_filter_factory, option_fields
+from radartracker.registry import FilterFactory, default_estimator, make_estimator, make_manager
 from radartracker.tracking.admission import StreamClock
-from radartracker.tracking.manager import TrackManager, default_estimator
 
 log = logging.getLogger(__name__)
 GC_YOUNG_THRESHOLD = 50_000  # chosen by measurement: docs/performance.md, "Garbage collection"
@@ -241,9 +240,8 @@ def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: Fil
                 progress: bool, inputs: Iterable | None = None,
                 total: int | None = None) -> tuple[Counter, CouplingGraph]:
     """Association by the TrackManager; events carry the track filter's state and covariance."""
-    mgr = TrackManager(data.radars, data.reference, cfg.manager_settings(), estimator=est, filter_factory=factory)
-    rows = mgr.event_log = rec.manager_log  # each event appended as a row: no call per event
-    every = rec.flush_every
+    mgr = make_manager(data.radars, data.reference, cfg.manager_settings(), estimator=est, filter_factory=factory)
+    mgr.events.subscribe(rec.listen)
     if inputs is None:
         inputs, total = iter_scenario(data), len(data.plots) + len(data.adsb)
     bar = tqdm(total=total, desc=f"track {cfg.estimator}/{cfg.motion_model}", unit="item", delay=2.0,
@@ -252,11 +250,9 @@ def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: Fil
         for piece in counted(inputs, bar) if progress else (inputs,):
             for item in piece:
                 mgr.process(item)
-                if len(rows) >= every:
-                    rec.flush()
                 rid = getattr(item, "radar", None)
                 if rid is not None and rec.bias_due(rid, item.time):  # each radar's bias once a second
-                    rec.bias_arrays(item.time, rid, *est.bias_arrays(rid))  # no BiasState: ~2.5 µs less a record
+                    rec.bias(item.time, est.bias(rid))
     mgr.flush()
     return Counter(mgr.accounting()), mgr.coupling
 
@@ -268,16 +264,6 @@ def counted(inputs: Iterable, bar: tqdm, every: int = PROGRESS_EVERY) -> Iterato
     while piece := list(itertools.islice(it, every)):
         yield piece
         bar.update(len(piece))
-
-
-def motion_factory(cfg: RunConfig) -> FilterFactory:
-    """The track-filter factory of ``cfg``: its motion model, with ``q`` set from the run unless the
-    motion options set it (when the model has a ``q`` setting)."""
-    cls = load_motion_model(cfg.motion_model)
-    options = dict(cfg.motion_options)
-    if "q" in option_fields(cls.config_class) and "q" not in options:
-        options["q"] = repr(cfg.q)
-    return make_filter_factory(cfg.motion_model, options)
 
 
 def streamable(folder: Path | str, config: RunConfig) -> bool:

@@ -53,7 +53,7 @@ def _exercise(config: RunConfig, labelled: bool) -> None:
     from radartracker.pipeline.run import run
     from radartracker.registry import make_estimator
     from radartracker.simulation.scenarios import build_scenario
-    from radartracker.tracking.manager import default_estimator
+    from radartracker.registry import default_estimator
 
     data = build_scenario("tracking", seed=3, duration=120.0).run()
     if not labelled:

@@ -15,6 +15,7 @@ import shutil
 from pathlib import Path
 
 from radartracker.io.atomic import write_text
+from radartracker.registry import restore_manager
 from radartracker.tracking.manager import TrackManager
 
 _NAME = re.compile(r"checkpoint-(\d{6})$")
@@ -51,4 +52,4 @@ def write_checkpoint(state_dir: Path, seq: int, mgr: TrackManager, service_state
 def read_checkpoint(folder: Path) -> tuple[TrackManager, dict]:
     """The manager and the service state of one checkpoint folder."""
     state = json.loads((folder / "service.json").read_text(encoding="utf-8"))
-    return TrackManager.restore(folder / "manager.snapshot"), state
+    return restore_manager(folder / "manager.snapshot"), state

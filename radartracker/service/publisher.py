@@ -26,7 +26,8 @@ import numpy as np
 
 from radartracker.service.codec import blocks, cat062_bytes
 from radartracker.geometry.plane import SystemPlane
-from radartracker.tracking.manager import TrackEvent, TrackManager
+from radartracker.tracking.events import TrackEvent
+from radartracker.tracking.manager import TrackManager
 
 UDP_PAYLOAD = 1472  # an Ethernet frame's UDP payload (1500 − IP and UDP headers): no IP fragments
 

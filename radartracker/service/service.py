@@ -40,7 +40,9 @@ from radartracker.service.endpoints import Endpoint, open_receiver, open_sender
 from radartracker.service.metrics import ServiceMetrics
 from radartracker.service.publisher import Publisher, track_rows
 from radartracker.service.receiver import Receiver
-from radartracker.tracking.manager import TrackEvent, TrackManager, default_estimator
+from radartracker.registry import default_estimator, make_manager
+from radartracker.tracking.events import TrackEvent
+from radartracker.tracking.manager import TrackManager
 log = logging.getLogger(__name__)
 
 PUBLISH_MODES = ("update", "periodic", "both")
@@ -57,8 +59,7 @@ def build_manager(radars: list[Radar], estimator: str | None = None, motion_mode
     (:func:`radartracker.pipeline.run.run`): same settings, estimator and motion-model factory, so the
     service's tracks are the replay's; the system plane is centred on the radars' mean position.
     ``manager``: overrides of :class:`ManagerConfig` settings, as ``RunConfig.manager``."""
-    from radartracker.pipeline.config import RunConfig, resolve
-    from radartracker.pipeline.run import motion_factory
+    from radartracker.pipeline.config import RunConfig, motion_factory, resolve
 
     name = estimator or default_estimator()
     # with the association named, resolve() reads nothing of the scenario
@@ -67,7 +68,7 @@ def build_manager(radars: list[Radar], estimator: str | None = None, motion_mode
     mcfg = cfg.manager_settings()
     est = make_estimator(name, cfg.estimator_settings(), [r.id for r in radars], cfg.estimator_options)
     ref = (float(np.mean([r.lat for r in radars])), float(np.mean([r.lon for r in radars])))
-    return TrackManager(radars, ref, mcfg, estimator=est, filter_factory=motion_factory(cfg))
+    return make_manager(radars, ref, mcfg, estimator=est, filter_factory=motion_factory(cfg))
 
 
 @attrs.frozen

@@ -50,12 +50,17 @@ manoeuvre, repeated times and a long gap), ``consistency`` (on straight constant
 q = 1 m²/s³ and the truth's initial velocity drawn from the prior, the mean NEES and NIS are not
 above their 99.9 % χ² bounds: a model may be cautious, not overconfident) and ``snapshot``.
 
+Associator checks (``ASSOCIATOR_CHECKS``, :mod:`radartracker.testing.associators`): ``contract``,
+``obvious`` (plots at well separated tracks go to them, far and impossible plots to none) and ``manager``
+(a TrackManager with it confirms tracks on a built-in scenario and accounts for every input).
+
 All data are generated here from fixed seeds, so a check gives the same verdict every time; a whole
 plugin takes a few seconds.
 """
 
+from radartracker.testing.associators import ASSOCIATOR_CHECKS, check_associator
 from radartracker.testing.common import CheckFailed
 from radartracker.testing.estimators import ESTIMATOR_CHECKS, EXACT_CHECKS, check_estimator
 from radartracker.testing.motion import MOTION_CHECKS, check_motion_model
 
-__all__ = ["CheckFailed", "ESTIMATOR_CHECKS", "EXACT_CHECKS", "MOTION_CHECKS", "check_estimator", "check_motion_model"]
+__all__ = ["ASSOCIATOR_CHECKS", "CheckFailed", "check_associator", "ESTIMATOR_CHECKS", "EXACT_CHECKS", "MOTION_CHECKS", "check_estimator", "check_motion_model"]

@@ -9,8 +9,9 @@ For radar r at plane position (x_r, y_r) and a track predicted at (x, y) (DESIGN
   (α − α_r(t_a)) mod 2π < 2π (t_b − t_a)/T_r. Only tracks within 0.98 ρ_max,r count (the edge of
   coverage is where detection fails for reasons of its own).
 
-One compiled pass over radars × tracks, written for the manager's frame (thousands of tracks, tens of
-radars: the numpy version made ~30 array passes and temporaries per frame).
+The antenna phase φ_r is estimated from the radar's plots, each giving exp(i(θ − 2πt/T_r)), smoothed
+as p ← 0.98 p + exp(i(θ − 2πt/T_r)), φ_r = arg p (:class:`AntennaSweep`). The sweep itself is one
+compiled pass over radars × tracks (:func:`sweep`).
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ import math
 
 import numpy as np
 from numba import njit
+
+from radartracker.domain import Radar
 
 TWO_PI = 2.0 * math.pi
 
@@ -51,13 +54,45 @@ def sweep(pos: np.ndarray, radar_xy: np.ndarray, north: np.ndarray, max_range: n
             swept[r, i] = hit
 
 
-@njit(cache=True)
-def smooth_phases(phase: np.ndarray, terms: np.ndarray, rows: np.ndarray) -> None:
-    """``phase[r]`` ← 0.98 ``phase[r]`` + e for each term e of radar r (``rows[j]``: term j's radar), in
-    order: the antenna phases' recurrences, with CPython's complex × float, (a + ib)(0.98 + 0i), so the same
-    bits as that Python loop."""
-    for j in range(rows.shape[0]):
-        r = rows[j]
-        re, im = phase[r].real, phase[r].imag
-        re, im = re * 0.98 - im * 0.0, re * 0.0 + im * 0.98
-        phase[r] = complex(re + terms[j].real, im + terms[j].imag)
+class AntennaSweep:
+    """The radars' antenna phases, and which tracks each antenna swept during a frame (module docstring).
+
+    ``xy``: the radars' plane positions (m×2), ``north``: the grid azimuth of true north at each (the
+    meridian convergence, rad), in the order of ``radars``."""
+
+    def __init__(self, radars: list[Radar], xy: np.ndarray, north: np.ndarray) -> None:
+        self.row = {r.id: k for k, r in enumerate(radars)}
+        self.xy, self.north = np.asarray(xy, float).reshape(len(radars), 2), np.asarray(north, float)
+        self.period = np.array([r.period_s for r in radars], float)
+        self.max_range = np.array([r.max_range_m for r in radars], float)
+        self.phase = np.zeros(len(radars), complex)  # p_r
+        self.phased = np.zeros(len(radars), bool)  # which radars have had a plot
+
+    def observe(self, rows: np.ndarray, t: np.ndarray, theta: np.ndarray) -> None:
+        """Plots of radars ``rows`` at times ``t`` with azimuths ``theta``, in order."""
+        terms = np.exp(1j * (theta - TWO_PI * t / self.period[rows]))
+        phase = self.phase
+        for r, e in zip(rows.tolist(), terms.tolist()):
+            phase[r] = 0.98 * phase[r] + e
+        self.phased[rows] = True
+
+    def sweep(self, positions: np.ndarray, t_a: float, t_b: float) -> tuple[np.ndarray, np.ndarray]:
+        """(swept: radars × tracks, covered: tracks) for tracks at ``positions`` during [t_a, t_b)."""
+        n = len(positions)
+        start = np.angle(self.phase) + TWO_PI * t_a / self.period
+        swept, covered = np.empty((len(self.period), n), bool), np.empty(n, bool)
+        sweep(np.ascontiguousarray(positions, float), self.xy, self.north, self.max_range, start,
+              TWO_PI * (t_b - t_a) / self.period, self.phased, swept, covered)
+        return swept, covered
+
+    def state_dict(self) -> dict:
+        return {"phase_re": self.phase.real.tolist(), "phase_im": self.phase.imag.tolist(),
+                "phased": self.phased.tolist()}
+
+    def load_state_dict(self, state: dict) -> None:
+        re, im = np.asarray(state["phase_re"], float), np.asarray(state["phase_im"], float)
+        phased = np.asarray(state["phased"], bool)
+        m = len(self.period)
+        if re.shape != (m,) or im.shape != (m,) or phased.shape != (m,) or not (np.isfinite(re).all() and np.isfinite(im).all()):
+            raise ValueError(f"antenna phases: {m} finite values expected per radar")
+        self.phase, self.phased = re + 1j * im, phased

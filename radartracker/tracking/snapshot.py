@@ -49,31 +49,17 @@ import msgpack
 import numpy as np
 
 from radartracker.errors import SnapshotError
-from radartracker.tracking.filters import TrackFilter
 
 MAGIC = b"\x89RTSNAP\n"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 _HEADER = struct.Struct(">8sIQ32s")
 _PACKAGES = ("radartracker.", "radartracker_plugins.")
-# rebuilt by the constructor from (radars, reference, config), or not part of the state
-_REBUILT = frozenset({"config", "radars", "reference", "plane", "frames", "_north", "_radar_rows", "_converter",
-                      "_filter_cls", "on_event", "event_log", "_events", "_codes", "_biases", "_deferred",
-                      "_states", "_meas"})
-# _events: those the last call returned; _codes, _states: an index and a table of the tracks; _biases, _deferred,
-# _meas: a frame's, empty between calls
 _COUNT = re.compile(r"count\((-?\d+)(?:, (-?\d+))?\)")
-
-
-class _LoadInto:
-    """A decoded ``state`` tag: a state dict for an object the restored manager already has."""
-
-    def __init__(self, state: dict) -> None:
-        self.state = state
 
 
 # --- encoding --------------------------------------------------------------------------------------
 
-def _class_name(obj: object) -> str:
+def class_name(obj: object) -> str:
     return f"{type(obj).__module__}.{type(obj).__qualname__}"
 
 
@@ -107,11 +93,6 @@ def _enc(obj: Any, where: str) -> Any:
         if m is None:
             raise TypeError(f"{where}: cannot save {obj!r} (integer counters only)")
         return _tag("count", [int(m[1]), int(m[2] or 1)])
-    if isinstance(obj, TrackFilter):
-        return _tag("filter", [_class_name(obj), _enc(obj.config, f"{where}.config"),
-                               _enc(obj.state_dict(), f"{where} state")])
-    if callable(getattr(obj, "state_dict", None)):
-        return _tag("state", _enc(obj.state_dict(), f"{where} state"))
     cls = type(obj)
     if attrs.has(cls) and cls.__module__.startswith(_PACKAGES):
         fields = [[f.name, _enc(getattr(obj, f.name), f"{where}.{f.name}")] for f in attrs.fields(cls)]
@@ -157,7 +138,7 @@ def _array(dtype: str, shape: list, order: str, data: bytes) -> np.ndarray:
     return np.frombuffer(data, dt).reshape(shape, order=order).copy(order="K")
 
 
-def _hook(make_filter: Callable[[Any], TrackFilter] | None) -> Callable[[dict], Any]:
+def _hook() -> Callable[[dict], Any]:
     def pairs(v: list) -> list[tuple]:
         return [(k, x) for k, x in v]
 
@@ -185,21 +166,19 @@ def _hook(make_filter: Callable[[Any], TrackFilter] | None) -> Callable[[dict], 
             return itertools.count(int(v[0]), int(v[1]))
         if t == "attrs":
             return _build(_record_class(v[0], v[1]), v[2])
-        if t == "filter" and make_filter is not None:
-            f = make_filter(v[1])
-            if _class_name(f) != v[0]:
-                raise ValueError(f"the track filters were {v[0]}, this manager makes {_class_name(f)}")
-            f.load_state_dict(v[2])
-            return f
-        if t == "state":
-            return _LoadInto(v)
         raise ValueError(f"unknown or misplaced tag {t!r}")
 
     return decode
 
 
-def _unpack(data: bytes, make_filter: Callable[[Any], TrackFilter] | None) -> Any:
-    return msgpack.unpackb(data, object_hook=_hook(make_filter), raw=False, strict_map_key=False)
+def decode(data: bytes) -> Any:
+    """The value of msgpack ``data`` written by :func:`encode` (tags resolved, nothing executed)."""
+    return msgpack.unpackb(data, object_hook=_hook(), raw=False, strict_map_key=False)
+
+
+def encode(value: Any, where: str) -> bytes:
+    """``value`` (plain values, NumPy arrays, attrs classes of radartracker) as msgpack bytes."""
+    return msgpack.packb(_enc(value, where), use_bin_type=True)
 
 
 # --- files ----------------------------------------------------------------------------------------
@@ -233,56 +212,12 @@ def read_snapshot_file(path: Path | str) -> bytes:
     if version > FORMAT_VERSION:
         raise SnapshotError(name, f"snapshot format version {version} is newer than this release reads "
                                   f"({FORMAT_VERSION}); restore it with the release that wrote it")
-    if version < 1:
-        raise SnapshotError(name, f"snapshot format version {version} does not exist")
+    if version < FORMAT_VERSION:
+        raise SnapshotError(name, f"snapshot format version {version} was written by an earlier release (its state "
+                                  f"was the manager's attributes); this release reads version {FORMAT_VERSION}")
     payload = data[_HEADER.size:]
     if len(payload) != n:
         raise SnapshotError(name, f"truncated or padded: payload of {len(payload)} bytes, header says {n}")
     if hashlib.sha256(payload).digest() != digest:
         raise SnapshotError(name, "corrupted: SHA-256 of the payload does not match the header")
     return payload
-
-
-# --- the manager ----------------------------------------------------------------------------------
-
-def save_manager(mgr: Any, path: Path | str) -> None:
-    """Write ``mgr``'s whole state to ``path`` (see the module docstring)."""
-    meta = {"kind": "TrackManager", "radars": list(mgr.radars.values()), "reference": tuple(mgr.reference),
-            "config": mgr.config, "estimator": _class_name(mgr.estimator)}
-    state = {k: v for k, v in vars(mgr).items() if k not in _REBUILT}
-    try:
-        blob = msgpack.packb(_enc(state, "manager"), use_bin_type=True)
-        payload = msgpack.packb([_enc(meta, "manager"), blob], use_bin_type=True)
-    except (OverflowError, ValueError, TypeError) as exc:  # an unsupported type, an int beyond 64 bits
-        raise SnapshotError(str(path), f"not written: {exc}") from None
-    write_snapshot_file(path, payload)
-
-
-def load_manager(cls: type, path: Path | str, on_event: Callable | None = None, **plugins: Any) -> Any:
-    """A ``cls`` (TrackManager) rebuilt from its meta and filled with the saved state.
-
-    ``plugins`` (``estimator=``, ``filter_factory=``) rebuild a manager that was given its plugins
-    as objects; they must be of the classes the snapshot was made with.
-    """
-    payload = read_snapshot_file(path)
-    try:
-        meta, blob = _unpack(payload, None)
-        if not isinstance(meta, dict) or meta.get("kind") != "TrackManager" or not isinstance(blob, bytes):
-            raise ValueError("the payload is not a TrackManager snapshot")
-        mgr = cls(meta["radars"], meta["reference"], meta["config"], on_event=on_event, **plugins)
-        if _class_name(mgr.estimator) != meta["estimator"]:
-            raise ValueError(f"the estimator was {meta['estimator']}, this manager makes {_class_name(mgr.estimator)} "
-                             "(pass the estimator it was made with)")
-        state = _unpack(blob, mgr._filter_cls)
-        if not isinstance(state, dict) or set(state) - set(vars(mgr)):
-            raise ValueError(f"state attribute(s) {sorted(set(state) - set(vars(mgr)))} unknown to this release")
-        for name, value in state.items():
-            if isinstance(value, _LoadInto):
-                getattr(mgr, name).load_state_dict(value.state)
-            else:
-                setattr(mgr, name, value)
-    except SnapshotError:
-        raise
-    except Exception as exc:  # anything a crafted but well-checksummed file can provoke
-        raise SnapshotError(str(path), f"cannot restore: {type(exc).__name__}: {exc}") from None
-    return mgr

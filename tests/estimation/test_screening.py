@@ -8,6 +8,7 @@ import pytest
 from scipy import stats
 from scipy.spatial.distance import mahalanobis
 
+from radartracker.registry import make_manager, restore_manager
 from radartracker.domain import AdsbReport, Plot
 from radartracker.estimation import screening
 from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlausibility, ScreeningConfig,
@@ -168,7 +169,7 @@ def demo():
 
 
 def _run(data, items, **config):
-    mgr = TrackManager(data.radars, data.reference, ManagerConfig(estimator=ESTIMATOR, **config))
+    mgr = make_manager(data.radars, data.reference, ManagerConfig(estimator=ESTIMATOR, **config))
     mgr.process_many(items)
     return mgr
 
@@ -409,13 +410,13 @@ def test_snapshot_mid_rejection_run_continues_exactly(demo, tmp_path):
     items = faulty[:first] + [attrs.evolve(donor, time=faulty[first].time - 0.01, mode_s=code)] + faulty[first:]
     items = [x for x in items if x.time < 240.0]
     whole = _run(data, items)
-    mgr = TrackManager(data.radars, data.reference, ManagerConfig(estimator=ESTIMATOR))
+    mgr = make_manager(data.radars, data.reference, ManagerConfig(estimator=ESTIMATOR))
     k = 0
     while not any(t.rejected for t in mgr.tracks.values()):
         mgr.process(items[k])
         k += 1
     mgr.snapshot(tmp_path / "snap")
-    restored = TrackManager.restore(tmp_path / "snap")
+    restored = restore_manager(tmp_path / "snap")
     assert [t.rejected[0][0] for t in restored.tracks.values() if t.rejected] == \
         [t.rejected[0][0] for t in mgr.tracks.values() if t.rejected]
     restored.process_many(items[k:])

@@ -12,7 +12,8 @@ import pytest
 
 from radartracker.cli import main
 from radartracker.fusion import local_tracks_from_asterix
-from radartracker.fusion.cat048 import collect_local_tracks, write_local_tracks
+from radartracker.fusion.cat048 import write_local_tracks
+from radartracker.pipeline.distributed import collect_local_tracks
 from radartracker.fusion.center import LocalTrackEnd, LocalTracks
 from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.io.asterix import NM

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from radartracker.registry import make_manager
 from radartracker.pipeline.recorder import Recorder, _concatenate
 from radartracker.tracking.manager import TrackEvent
 
@@ -105,79 +106,42 @@ def _same_events(a, b) -> None:
     assert np.array_equal(a.cov, b.cov, equal_nan=True)
 
 
-@pytest.mark.parametrize(("keep", "chunk"), [(True, 1024), (False, 3)])
-def test_a_managers_event_log_is_recorded_as_its_events_were_through_on_event(keep, chunk, monkeypatch):
-    """The rows a TrackManager appends to its event_log, made columns 7 at a time (read ``chunk`` rows at a
-    time), are the events its on_event hook recorded with the replay's former callback: the covariance of
-    the estimate read for the event (none when extrapolated or deleted) and the identity of the track at the
-    event, a deleted track's that of its previous event (it is gone from the manager, its codes as they
-    were then)."""
-    from radartracker.pipeline import recorder
+@pytest.mark.parametrize("keep", [True, False])
+def test_a_managers_events_are_recorded_with_the_track_as_it_was(keep):
+    """Recorder.listen, subscribed to a TrackManager's events, records each with the covariance of the
+    estimate when the event's state is it (none when extrapolated or deleted) and the identity of the track
+    then (oracle: a second listener reading the track itself at each event), made columns 7 at a time."""
     from radartracker.pipeline.stream import scenario_stream
     from radartracker.simulation.scenarios import build_scenario
-    from radartracker.tracking.manager import ManagerConfig, TrackManager
+    from radartracker.tracking.config import ManagerConfig
 
-    data = build_scenario("paris", seed=1, duration=120.0).run()  # a tentative track's codes change once
-    old, ident, rows = Recorder(), {}, []
+    data = build_scenario("paris", seed=1, duration=120.0).run()
+    old = Recorder()
 
-    def on_event(ev):  # the replay's callback before the event log (run.py, session 5)
-        tr = mgr.tracks.get(ev.track)
-        if tr is not None:
-            idt = ident[ev.track] = (tr.altitude_m, tr.mode_s, tr.mode_3a, None)
-            t0, _, P = tr.estimate or tr.filter.estimate()
-            old.track_event(ev, P if t0 == ev.time else None, idt)
-        else:
-            old.track_event(ev, None, ident.pop(ev.track, (None,) * 4))
+    def oracle(ev, tr):
+        t0, _, P = tr.filter.estimate()
+        keep_cov = ev.kind != "deleted" and t0 == ev.time
+        old.track_event(ev, np.array(P, float) if keep_cov else None, (tr.altitude_m, tr.mode_s, tr.mode_3a, None))
 
-    monkeypatch.setattr(recorder, "_CHUNK", chunk)
     sink = Sink()
     new = Recorder(sink=sink, keep=keep, flush_every=7)
-    mgr = TrackManager(data.radars, data.reference, ManagerConfig(), on_event)
-    log = mgr.event_log = new.manager_log
-    for item in [*scenario_stream(data), None]:
-        k = len(log)
-        mgr.process(item) if item is not None else mgr.flush()
-        rows += log[k:]
-        if len(log) >= new.flush_every or item is None:
-            new.flush()
-            assert log == [] and mgr.event_log is log  # the manager's list, emptied
+    mgr = make_manager(data.radars, data.reference, ManagerConfig())
+    mgr.events.subscribe(new.listen)
+    mgr.events.subscribe(oracle)
+    for item in scenario_stream(data):
+        mgr.process(item)
         assert new.track_ids == old.track_ids
+    mgr.flush()
+    new.flush()
     expected = old.events()
-    codes = list(zip([None if math.isnan(a) else a for a in expected.altitude_m.tolist()], expected.mode_s.tolist(),
-                     expected.mode_3a.tolist()))
-    changed = sum(r[0].kind == "deleted" and tuple(r[2:]) != c for r, c in zip(rows, codes, strict=True))
-    assert len(expected) > 200 and changed > 0 and max(len(c) for c in sink.chunks) > 7
+    assert len(expected) > 200 and max(len(c) for c in sink.chunks) >= 7
     assert np.isnan(expected.cov).all(axis=(1, 2)).any() and not np.isnan(expected.cov).all()
     _same_events(_concatenate(sink.chunks), expected)
     assert len(new.events()) == (len(expected) if keep else 0)
 
 
-def test_event_log_deletions_and_covariances_of_any_layout():
-    """A covariance is read by value whatever its memory layout or float type; a deleted event has none and
-    its track's codes at its previous event, made columns before or with it; one not 4×4 is refused."""
-    P = np.arange(16.0).reshape(4, 4)
-    rows = [(TrackEvent(1.0, 1, "created", "tentative", (0.0, 0.0, 0.0, 0.0)), P.T, None, "abc", None),
-            (TrackEvent(2.0, 1, "confirmed", "confirmed", (1.0, 0.0, 0.0, 0.0)), P.astype(np.float32), 5.0, "abc", "1"),
-            (TrackEvent(2.0, 2, "created", "tentative", (1.0, 0.0, 0.0, 0.0)), None, None, None, None),
-            (TrackEvent(3.0, 1, "deleted", "deleted", (1.0, 0.0, 0.0, 0.0)), P, 7.0, "abc", "2"),
-            (TrackEvent(3.0, 2, "deleted", "deleted", (1.0, 0.0, 0.0, 0.0)), P, 8.0, "def", "3")]
-    rec = Recorder()
-    rec.manager_log += rows[:2]
-    rec.flush()
-    rec.manager_log += rows[2:]
-    ev = rec.events()
-    assert np.array_equal(ev.cov[0], P.T) and np.array_equal(ev.cov[1], P) and np.isnan(ev.cov[2:]).all()
-    assert ev.altitude_m[3] == 5.0 and np.isnan(ev.altitude_m[4])
-    assert ev.mode_s.tolist() == ["abc", "abc", None, "abc", None]
-    assert ev.mode_3a.tolist() == [None, "1", None, "1", None]
-    rec = Recorder()
-    rec.manager_log.append((rows[0][0], np.eye(6), None, None, None))
-    with pytest.raises(ValueError, match="4×4"):
-        rec.flush()
-
-
 @pytest.mark.parametrize("keep", [True, False])
-def test_biases_recorded_from_arrays_or_states_are_the_values_at_that_time(keep):
+def test_biases_recorded_are_the_values_at_that_time(keep):
     from radartracker.domain import BiasState
 
     rng = np.random.default_rng(7)
@@ -191,10 +155,7 @@ def test_biases_recorded_from_arrays_or_states_are_the_values_at_that_time(keep)
         due = t - max([e[0] for e in expected if e[1] == radar], default=-math.inf) >= 1.0
         if due:
             expected.append((t, radar, bias.tolist(), cov.tolist()))
-        if i % 2:
-            rec.bias_arrays(t, radar, bias, cov)
-        else:
-            rec.bias(t, BiasState(radar, t, bias.copy(), cov.copy()))
+        rec.bias(t, BiasState(radar, t, bias, cov))  # views of the estimator's arrays: copied when recorded
         storage += 1.0  # the next update
     rec.flush()
     assert sink.bias_rows == len(expected) and 0 < len(expected) < 14
@@ -207,8 +168,10 @@ def test_biases_recorded_from_arrays_or_states_are_the_values_at_that_time(keep)
 
 
 def test_a_bias_that_is_not_two_floats_is_refused():
+    from radartracker.domain import BiasState
+
     with pytest.raises(ValueError, match="2×2"):
-        Recorder().bias_arrays(0.0, "R1", np.zeros(3), np.eye(2))
+        Recorder().bias(0.0, BiasState("R1", 0.0, np.zeros(3), np.eye(2)))
     rec = Recorder()
-    rec.bias_arrays(0.0, "R1", np.array([1, 2]), np.array([[3, 0], [0, 4]]))  # integers: as floats
+    rec.bias(0.0, BiasState("R1", 0.0, np.array([1, 2]), np.array([[3, 0], [0, 4]])))  # integers: as floats
     assert rec.biases().value.tolist() == [[1.0, 2.0]] and rec.biases().cov.dtype == float

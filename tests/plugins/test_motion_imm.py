@@ -13,13 +13,15 @@ import pytest
 from filterpy.kalman import IMMEstimator, KalmanFilter
 from scipy.linalg import expm
 
+from radartracker.registry import make_manager
 from radartracker.geometry.kinematics import propagate
 from radartracker.estimation.motion import MotionModel
 from radartracker.api import ConfigurationError, TrackFilter
 from radartracker.pipeline.stream import scenario_stream
 from radartracker.registry import make_filter_factory
 from radartracker.simulation.scenarios import build_scenario
-from radartracker.tracking.manager import ManagerConfig, TrackManager, motion_q
+from radartracker.registry import motion_q
+from radartracker.tracking.manager import ManagerConfig, TrackManager
 from radartracker.simulation.simulator import KinematicTrajectory, Leg
 from radartracker_plugins.motion import CTMode, CVConfig, CVFilter, CVMode, IMMConfig, IMMFilter
 from radartracker_plugins.motion.ct import ct_noise, ct_transition
@@ -235,7 +237,7 @@ def test_manager_events_and_biases_with_imm_equal_a_numpy_imm():
     assert imm_config.q == config.estimator_config.motion.q
 
     def replay(factory=None):
-        mgr = TrackManager(data.radars, data.reference, config, filter_factory=factory)
+        mgr = make_manager(data.radars, data.reference, config, filter_factory=factory)
         events = mgr.process_many(scenario_stream(data))
         return events, {rid: mgr.estimator.bias(rid) for rid in mgr.radars}, mgr.accounting()
 

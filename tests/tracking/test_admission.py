@@ -6,6 +6,7 @@ import statistics
 import numpy as np
 import pytest
 
+from radartracker.registry import make_manager
 from radartracker.domain import Plot
 from radartracker.tracking.admission import ClockConfig, StreamClock
 from radartracker.tracking.manager import TrackManager
@@ -148,12 +149,12 @@ def test_manager_releases_in_time_then_arrival_order(demo_data, seed):
     times = (np.round(np.arange(n) * 0.05 + rng.choice([0.0, 0.0, -1.0, -2.5], n) * rng.random(n), 1)).tolist()
     radar = demo_data.radars[0].id
     items = [Plot(t, radar, 1000.0 + k, 1.0) for k, t in enumerate(times)]  # distinct: no duplicates
-    mgr = TrackManager(demo_data.radars, demo_data.reference)
+    mgr = make_manager(demo_data.radars, demo_data.reference)
     got: list[Plot] = []
 
-    def run_frame(frame: int) -> None:
-        got.extend(mgr._frame_items)
-        mgr._frame_items = []
+    def run_frame(frame: int) -> None:  # the frames' inputs as they are handed over, not tracked
+        got.extend(mgr.gathered)
+        mgr.gathered = []
 
     mgr._run_frame = run_frame
     for item in items:
@@ -190,7 +191,7 @@ def test_manager_far_future_plot_costs_no_good_input(demo_data, ahead):
                              stream[k].altitude_m, stream[k].mode_s)] + stream[k:]
 
     def counts(items):
-        mgr = TrackManager(demo_data.radars, demo_data.reference)
+        mgr = make_manager(demo_data.radars, demo_data.reference)
         mgr.process_many(items)
         return mgr.accounting(), mgr
 
@@ -256,7 +257,7 @@ def test_manager_time_jump_is_not_remembered_as_a_duplicate(demo_data):
     k = len(stream) // 2
     p = stream[k]
     ahead = Plot(p.time + 1800.0, p.radar, p.range_m, p.azimuth_rad, p.altitude_m, p.mode_s)
-    mgr = TrackManager(demo_data.radars, demo_data.reference)
+    mgr = make_manager(demo_data.radars, demo_data.reference)
     mgr.process_many(stream[:k] + [ahead] + stream[k:k + 20] + [ahead, stream[k + 20]] + stream[k + 20:])
     assert mgr.counts["plots_time_jump"] == 2
     assert mgr.counts["plots_duplicate"] == 1

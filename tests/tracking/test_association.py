@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter
 
+from radartracker.registry import make_manager
 from radartracker.domain import Aircraft
 from radartracker.geometry.plane import SystemPlane
 from radartracker.simulation.scenarios import _radar
@@ -103,7 +104,7 @@ def _scenario(aircraft_specs, duration=420.0, seed=3, false_per_scan=0.0):
 
 def _run(data):
     """Every event of the TrackManager (default settings, so the default motion model) over ``data``."""
-    mgr = TrackManager(data.radars, data.reference, ManagerConfig(estimator="coupled-sparse"))
+    mgr = make_manager(data.radars, data.reference, ManagerConfig(estimator="coupled-sparse"))
     return mgr.process_many(scenario_stream(data))
 
 

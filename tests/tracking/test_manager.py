@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from radartracker.registry import make_manager, restore_manager
 from radartracker.domain import AdsbReport, Plot
 from radartracker.tracking.manager import ManagerConfig, TrackManager
 from radartracker.estimation.base import PlaneMeasurement
@@ -58,7 +59,7 @@ def test_every_input_accounted_for(tracking_result, tracking_data):
 
 def test_events_returned_and_called_back(tracking_data):
     seen = []
-    mgr = TrackManager(tracking_data.radars, tracking_data.reference, ManagerConfig(), on_event=seen.append)
+    mgr = make_manager(tracking_data.radars, tracking_data.reference, ManagerConfig(), on_event=seen.append)
     items = [i for i in scenario_stream(tracking_data) if i.time < 200]
     returned = mgr.process_many(items)
     assert returned == seen and {e.kind for e in returned} >= {"created", "confirmed", "updated", "deleted"}
@@ -68,15 +69,15 @@ def test_events_returned_and_called_back(tracking_data):
 
 def test_out_of_order_within_window_late_and_duplicates(tracking_data):
     items = [i for i in scenario_stream(tracking_data) if i.time < 150]
-    ref = TrackManager(tracking_data.radars, tracking_data.reference)
+    ref = make_manager(tracking_data.radars, tracking_data.reference)
     ref_events = ref.process_many(items)
     rng = random.Random(3)
     shuffled = sorted(items, key=lambda i: i.time + rng.uniform(-0.9, 0.9))  # within the 2 s window
-    mgr = TrackManager(tracking_data.radars, tracking_data.reference)
+    mgr = make_manager(tracking_data.radars, tracking_data.reference)
     assert mgr.process_many(shuffled) == ref_events
     late = Plot(10.0, "A", 50e3, 1.0)
     dup = items[-1]
-    mgr2 = TrackManager(tracking_data.radars, tracking_data.reference)
+    mgr2 = make_manager(tracking_data.radars, tracking_data.reference)
     for i in items:
         mgr2.process(i)
     mgr2.process(dup)
@@ -97,14 +98,14 @@ def test_duplicates_caught_and_their_table_kept_small_on_a_long_stream():
     data = traffic_scenario(seed=3, duration=240.0, aircraft=100, radars=8).run()
     items = list(scenario_stream(data))
     assert len(items) > 10_000
-    mgr = TrackManager(data.radars, data.reference)
+    mgr = make_manager(data.radars, data.reference)
     copies, biggest = [], 0
     for i in items:
         while copies and copies[0].time <= i.time - 1.0:
             mgr.process(copies.pop(0))
         mgr.process(i)
         copies.append(i)
-        biggest = max(biggest, len(mgr._recent))
+        biggest = max(biggest, len(mgr.admission.keys))
     for i in copies:
         mgr.process(i)
     mgr.flush()
@@ -122,20 +123,21 @@ def test_snapshot_restore_in_a_fresh_process(tmp_path, tracking_data):
     script = textwrap.dedent(f"""
         import pickle, sys
         from radartracker.io.scenario import read_scenario
-        from radartracker.tracking.manager import ManagerConfig, TrackManager
+        from radartracker.registry import make_manager, restore_manager
+        from radartracker.tracking.config import ManagerConfig
         from radartracker.pipeline.stream import scenario_stream
         data = read_scenario({str(tmp_path / 'scen')!r})
         items = [i for i in scenario_stream(data) if i.time < 400]
         half = len(items) // 2
         if sys.argv[1] == "first":
-            mgr = TrackManager(data.radars, data.reference, ManagerConfig(estimator="coupled"))
+            mgr = make_manager(data.radars, data.reference, ManagerConfig(estimator="coupled"))
             ev = [mgr.process(i) for i in items[:half]]
             mgr.snapshot({str(tmp_path / 'snap.pkl')!r})
         elif sys.argv[1] == "second":
-            mgr = TrackManager.restore({str(tmp_path / 'snap.pkl')!r})
+            mgr = restore_manager({str(tmp_path / 'snap.pkl')!r})
             ev = [mgr.process(i) for i in items[half:]] + [mgr.flush()]
         else:
-            mgr = TrackManager(data.radars, data.reference, ManagerConfig(estimator="coupled"))
+            mgr = make_manager(data.radars, data.reference, ManagerConfig(estimator="coupled"))
             ev = [mgr.process(i) for i in items] + [mgr.flush()]
         out = [e for batch in ev for e in batch]
         biases = {{r: (mgr.estimator.bias(r).bias.tolist(), mgr.estimator.bias(r).cov.tolist()) for r in mgr.estimator.radars}}
@@ -162,7 +164,7 @@ def test_snapshot_restore_in_a_fresh_process(tmp_path, tracking_data):
 def test_triangulated_position_feeds_a_track(tracking_data):
     """An unbiased position with covariance (e.g. a fix) is associated by gating and used."""
     items = [i for i in scenario_stream(tracking_data) if i.time < 120]
-    mgr = TrackManager(tracking_data.radars, tracking_data.reference)
+    mgr = make_manager(tracking_data.radars, tracking_data.reference)
     mgr.process_many(items)
     tr = next(t for t in mgr.tracks.values() if t.status == "confirmed" and t.mode_s is None)
     t0, x, _ = tr.filter.estimate()
@@ -188,7 +190,7 @@ def _garbage():
 @given(_garbage())
 def test_garbage_never_corrupts_state(tracking_data, junk):
     items = [i for i in scenario_stream(tracking_data) if i.time < 60]
-    mgr = TrackManager(tracking_data.radars, tracking_data.reference, ManagerConfig(estimator="coupled"))
+    mgr = make_manager(tracking_data.radars, tracking_data.reference, ManagerConfig(estimator="coupled"))
     stream = list(items)
     for k, g in enumerate(junk):
         if isinstance(g, tuple):
@@ -212,24 +214,45 @@ def test_garbage_never_corrupts_state(tracking_data, junk):
         not isinstance(i, (Plot, AdsbReport)) for i in stream)
 
 
-def test_queued_measurements_are_gathered_as_np_array_stacks_them(tracking_data):
-    """Oracle: np.array over the same measurements. Queued ones are rows of the frame's measurements or
-    (z, C, R) of an earlier frame's; the result is new arrays, whatever the mix."""
-    from radartracker.tracking.manager import FrameMeasurements
+def test_the_estimator_feed_applies_its_operations_in_order_as_new_stacked_arrays():
+    """Oracle: the operations queued, replayed by hand. Additions, each run of measurements (one
+    update_many with np.array stacks of their z, C, R: new arrays, not the caller's) and removals reach the
+    estimator in the order queued; the coupling graph and the counts follow."""
+    from collections import Counter
+
+    from radartracker.estimation.coupling import CouplingGraph
+    from radartracker.tracking.feed import AddAircraft, EstimatorFeed, Measure, RemoveAircraft
+
+    calls = []
+
+    class Log:
+        name = "log"
+
+        def add_aircraft(self, key, time, x, P):
+            calls.append(("add", key))
+
+        def remove_aircraft(self, key):
+            calls.append(("remove", key))
+
+        def update_many(self, time, aircraft, radar, z, C, R):
+            calls.append(("update", tuple(aircraft), z.copy(), C.copy(), R.copy(), z, C, R))
 
     rng = np.random.default_rng(5)
-    mgr = TrackManager(tracking_data.radars, tracking_data.reference, ManagerConfig())
-    mgr._meas = FrameMeasurements(rng.normal(size=6), rng.normal(size=(6, 2)), rng.normal(size=(6, 2, 2)),
-                                  rng.normal(size=(6, 2, 2)), np.zeros(6, np.int64))
-    earlier = tuple((rng.normal(size=2), rng.normal(size=(2, 2)), rng.normal(size=(2, 2))) for _ in range(2))
-    for rows in ((4, 1, 1), (earlier[0], 3, earlier[1]), earlier, (5,)):
-        got = mgr._measurements(rows)
-        want = [np.array([getattr(mgr._meas, f)[r] if type(r) is int else r[k] for r in rows]) for k, f in enumerate("zCR")]
-        for g, w, f in zip(got, want, "zCR"):
-            np.testing.assert_array_equal(g, w)
-            assert g.flags.writeable and not np.shares_memory(g, getattr(mgr._meas, f))
-    mgr._meas = None  # an estimator's work with no frame running: earlier frames' measurements only
-    np.testing.assert_array_equal(mgr._measurements(earlier)[2], np.array([m[2] for m in earlier]))
+    z, C, R = rng.normal(size=(4, 2)), rng.normal(size=(4, 2, 2)), rng.normal(size=(4, 2, 2))
+    counts = Counter()
+    feed = EstimatorFeed(Log(), CouplingGraph(["a"]), counts, None)
+    ops = [AddAircraft(0.0, 1, np.zeros(4), np.eye(4)), Measure(0.1, 1, "a", z[0], C[0], R[0], "plots"),
+           Measure(0.2, 1, None, z[1], C[1], R[1], "adsb"), AddAircraft(0.3, 2, np.zeros(4), np.eye(4)),
+           Measure(0.4, 2, "a", z[2], C[2], R[2], "plots"), RemoveAircraft(0.5, 1)]
+    for op in ops:
+        feed.add(op)
+    feed.flush()
+    assert [c[:2] for c in calls] == [("add", 1), ("update", (1, 1)), ("add", 2), ("update", (2,)), ("remove", 1)]
+    for call, rows in ((calls[1], [0, 1]), (calls[3], [2])):
+        for got, want, mine in zip(call[2:5], (z[rows], C[rows], R[rows]), (z, C, R)):
+            np.testing.assert_array_equal(got, want)
+        assert not any(np.shares_memory(a, b) for a in call[5:] for b in (z, C, R))
+    assert counts == Counter({"plots_used": 2, "adsb_used": 1}) and feed.pending == []
 
 
 def test_a_frames_estimator_work_comes_at_its_end_and_a_refused_measurement_costs_only_itself(tracking_data):
@@ -246,10 +269,10 @@ def test_a_frames_estimator_work_comes_at_its_end_and_a_refused_measurement_cost
         name = "spy"
         frame = None
 
-        def bias_arrays(self, radar):
-            b, P = super().bias_arrays(radar)
-            reads.setdefault((radar, Spy.frame), set()).add((*b.tolist(), *P.ravel().tolist()))
-            return b, P
+        def bias(self, radar):
+            b = super().bias(radar)
+            reads.setdefault((radar, Spy.frame), set()).add((*b.bias.tolist(), *b.cov.ravel().tolist()))
+            return b
 
         def update(self, m):
             if len(received) == 500:  # one refusal, inside some frame's batch
@@ -258,7 +281,7 @@ def test_a_frames_estimator_work_comes_at_its_end_and_a_refused_measurement_cost
             received.append(m.time)
             return super().update(m)
 
-    mgr = TrackManager(tracking_data.radars, tracking_data.reference, ManagerConfig(), estimator=Spy())
+    mgr = make_manager(tracking_data.radars, tracking_data.reference, ManagerConfig(), estimator=Spy())
     run_frame = mgr._run_frame
 
     def spy_frame(frame):

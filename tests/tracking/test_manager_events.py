@@ -6,9 +6,11 @@ import pickle
 
 import pytest
 
+from radartracker.registry import make_manager, restore_manager
 from radartracker.pipeline.stream import scenario_stream
 from radartracker.simulation.scenarios import build_scenario
-from radartracker.tracking.manager import EVENT_KINDS, ManagerConfig, TrackEvent, TrackManager, _make_event
+from radartracker.tracking.config import ManagerConfig
+from radartracker.tracking.events import EVENT_KINDS, EventSink, TrackEvent
 
 
 def test_track_event_is_an_immutable_record():
@@ -16,7 +18,6 @@ def test_track_event_is_an_immutable_record():
     assert (ev.time, ev.track, ev.kind, ev.status, ev.state) == (12.5, 7, "updated", "confirmed", (1.0, -2.0, 3.5, 0.0))
     with pytest.raises(AttributeError):
         ev.kind = "deleted"
-    assert _make_event(TrackEvent, (12.5, 7, "updated", "confirmed", (1.0, -2.0, 3.5, 0.0))) == ev
     same, other = TrackEvent(*ev), ev._replace(track=8)
     assert ev == same and not ev != same and hash(ev) == hash(same) and len({ev, same, other}) == 2
     assert ev != other and not ev == other
@@ -32,7 +33,7 @@ def tracking():
 
 def test_on_event_gets_what_process_returns(tracking):
     seen = []
-    mgr = TrackManager(tracking.radars, tracking.reference, ManagerConfig(), seen.append)
+    mgr = make_manager(tracking.radars, tracking.reference, ManagerConfig(), seen.append)
     returned = mgr.process_many(scenario_stream(tracking))
     assert len(returned) > 100 and {e.kind for e in returned} >= {"created", "confirmed", "updated", "deleted"}
     assert all(a is b for a, b in zip(returned, seen, strict=True))
@@ -44,43 +45,47 @@ def test_snapshot_right_after_events_restores(tracking, tmp_path):
     """A manager whose last call returned events (held until the next call) is saved and continues alike."""
     items = scenario_stream(tracking)
     half = len(items) // 2
-    whole = TrackManager(tracking.radars, tracking.reference, ManagerConfig())
+    whole = make_manager(tracking.radars, tracking.reference, ManagerConfig())
     expected = whole.process_many(items)
-    first = TrackManager(tracking.radars, tracking.reference, ManagerConfig())
+    first = make_manager(tracking.radars, tracking.reference, ManagerConfig())
     got = []
     k = 0
     while k < half or not got or not got[-1]:  # stop right after a call that returned events
         got.append(first.process(items[k]))
         k += 1
     first.snapshot(tmp_path / "s.rtsnap")
-    second = TrackManager.restore(tmp_path / "s.rtsnap")
+    second = restore_manager(tmp_path / "s.rtsnap")
     assert [e for evs in got for e in evs] + second.process_many(items[k:]) == expected
 
 
-def test_event_log_rows_are_the_events_with_covariance_and_codes(tracking, tmp_path):
-    """Each event is appended to event_log as (event, P, altitude, Mode S, Mode 3/A): P the filter's
-    covariance when the event's state is its estimate at the event's time, else None; the track's codes
-    then. The list is not part of a snapshot. The oracle reads the filter as each event is made, in a
-    manager that updates one measurement at a time (the batched one has updated a frame's filters by then)."""
+def test_listeners_get_each_event_with_its_track_as_it_happens(tracking):
+    """A listener of the manager's EventSink gets every event with its track, when it happens: the event's
+    state is the track's estimate then (oracle: the filter read in the listener itself), or that estimate
+    extrapolated in a straight line for a coasting or deleted event; the events the calls return are the
+    same objects in the same order."""
     import numpy as np
 
-    from tests.tracking.reference import OneAtATimeManager
+    seen = []
 
-    expected, tracks = [], {}
+    def listen(ev, tr):
+        t0, x, _ = tr.filter.estimate()
+        x = np.asarray(x, float)[:4]
+        dt = max(ev.time - t0, 0.0)
+        seen.append((ev, tr.id, x[:2] + x[2:4] * dt, tr.status))
 
-    def on_event(ev):  # called just before the row is appended
-        tr = tracks[ev.track] = mgr.tracks.get(ev.track) or tracks[ev.track]
-        t0, _, P = tr.filter.estimate()
-        expected.append((ev, P if t0 == ev.time else None, tr.altitude_m, tr.mode_s, tr.mode_3a))
+    mgr = make_manager(tracking.radars, tracking.reference, ManagerConfig())
+    mgr.events.subscribe(listen)
+    returned = mgr.process_many(scenario_stream(tracking)[:3000])
+    assert len(returned) == len(seen) > 100
+    for ev, (got, tid, pos, status) in zip(returned, seen):
+        assert ev is got and ev.track == tid and ev.status == status
+        np.testing.assert_allclose(ev.state[:2], pos, rtol=1e-12, atol=1e-6)
+    assert {e.kind for e in returned} >= {"created", "confirmed", "updated", "deleted"}
 
-    mgr = OneAtATimeManager(tracking.radars, tracking.reference, ManagerConfig(), on_event)
-    mgr.process_many(scenario_stream(tracking)[:3000])
-    mgr = TrackManager(tracking.radars, tracking.reference, ManagerConfig())
-    mgr.event_log = log = []
-    mgr.process_many(scenario_stream(tracking)[:3000])
-    assert len(log) == len(expected) > 100 and sum(r[1] is None for r in log) > 10
-    for row, want in zip(log, expected):
-        assert row[0] == want[0] and row[2:] == want[2:]
-        assert (row[1] is None) == (want[1] is None) and (row[1] is None or np.array_equal(row[1], want[1]))
-    mgr.snapshot(tmp_path / "s.rtsnap")
-    assert TrackManager.restore(tmp_path / "s.rtsnap").event_log is None
+
+def test_event_sink_takes_what_was_emitted_once():
+    sink, got = EventSink(), []
+    sink.subscribe(lambda ev, tr: got.append((ev, tr)))
+    a = TrackEvent(1.0, 1, "created", "tentative", (0.0, 0.0, 0.0, 0.0))
+    sink.emit(a, "track")
+    assert sink.take() == [a] and sink.take() == [] and got == [(a, "track")]

@@ -23,13 +23,16 @@ from tqdm import tqdm
 from radartracker.domain import AdsbReport, Plot, nacp_sigma_m
 from radartracker.estimation.base import Estimator
 from radartracker.estimation.coupling import CouplingGraph
-from radartracker.fusion.center import FusionCentre, FusionConfig, LocalReport, LocalTracks, SystemTrack
+from radartracker.fusion.center import (FusionCentre, FusionConfig, LocalReport, LocalTrackEnd, LocalTracks,
+                                       SystemTrack)
 from radartracker.geometry.plane import SystemPlane
 from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.recorder import Recorder
 from radartracker.pipeline.stream import iter_scenario
-from radartracker.registry import FilterFactory, make_estimator
-from radartracker.tracking.manager import TrackEvent, TrackManager
+from radartracker.registry import FilterFactory, default_estimator, make_estimator, make_manager
+from radartracker.tracking.events import TrackEvent
+from radartracker.tracking.manager import TrackManager
+from radartracker.tracking.track import Track
 
 
 def run_distributed(data: ScenarioData, cfg, est: Estimator, factory: FilterFactory, rec: Recorder,
@@ -106,23 +109,44 @@ def local_trackers(data: ScenarioData, cfg, factory: FilterFactory, report: Call
     # tracks carry the whole bias, which the centre then estimates
     local_settings = attrs.evolve(cfg.estimator_settings(), bias_sd_range_m=1e-6, bias_sd_azimuth_rad=1e-12)
     for radar in data.radars:
-        def on_event(ev: TrackEvent, rid: str = radar.id) -> None:
+        def on_event(ev: TrackEvent, tr: Track, rid: str = radar.id) -> None:
             if ev.kind == "deleted":
                 drop(rid, ev.track)
                 return
-            tr = managers[rid].tracks.get(ev.track)
-            if tr is None or ev.kind not in ("confirmed", "updated"):
+            if ev.kind not in ("confirmed", "updated"):
                 return
             t0, x, P = tr.filter.estimate()
             report(LocalReport(t0, rid, ev.track, np.array(x, float), np.array(P, float), tr.altitude_m,
                                tr.mode_s, tr.mode_3a))
 
         local_est = make_estimator(cfg.estimator, local_settings, [radar.id], cfg.estimator_options)
-        managers[radar.id] = TrackManager([radar], data.reference, mcfg, on_event, estimator=local_est,
-                                          filter_factory=factory)
+        managers[radar.id] = make_manager([radar], data.reference, mcfg, estimator=local_est, filter_factory=factory)
+        managers[radar.id].events.subscribe(on_event)
     return managers
 
 
 def _log_biases(rec: Recorder, est: Estimator, t: float) -> None:
     for rid in est.radars:
         rec.bias(t, est.bias(rid))
+
+
+def collect_local_tracks(data: ScenarioData, config=None) -> LocalTracks:
+    """The local tracks the distributed architecture's per-radar trackers make of ``data``'s plots
+    (``config`` a RunConfig; its motion model and estimator settings apply): the input a radar head
+    that tracks would send, for :func:`write_local_tracks`."""
+    from radartracker.pipeline.config import RunConfig, motion_factory, resolve
+
+    config = config or RunConfig(architecture="distributed")
+    cfg = resolve(config, data, config.estimator or default_estimator())
+    reports, ends, now = [], [], [0.0]
+    managers = local_trackers(data, cfg, motion_factory(cfg) if cfg.motion_model is not None else None,
+                              reports.append, lambda rid, track: ends.append(LocalTrackEnd(now[0], rid, track)))
+    for item in iter_scenario(data):
+        if isinstance(item, Plot):
+            now[0] = item.time
+            managers[item.radar].process(item)
+    for mgr in managers.values():
+        mgr.flush()
+    reports.sort(key=lambda r: r.time)
+    ends.sort(key=lambda e: e.time)
+    return LocalTracks(reports, ends)

@@ -1,0 +1,126 @@
+"""The estimator feed: a frame's work for the bias estimator plugin and the coupling graph, as typed
+operations applied in the order they arose at the frame's end.
+
+The manager's screening, gating and track filters correct every measurement of a frame with the bias
+estimate (ς̂, P_ς) as it was at the frame's start (docs/design-notes.md, "The TrackManager reads the bias
+estimate once per frame"): :meth:`EstimatorFeed.bias` reads each radar's :class:`BiasState` once per
+frame, and the estimator changes only in :meth:`EstimatorFeed.flush`. There an aircraft is added when its
+track is confirmed (:class:`AddAircraft`), each run of raw measurements z = C_x χ + C_s ς + w of
+confirmed tracks goes to ``Estimator.update_many`` (:class:`Measure`), and an aircraft is removed when
+its track ends (:class:`RemoveAircraft`).
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+from collections import Counter
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+
+from radartracker.errors import PluginError
+from radartracker.estimation.base import Estimator
+from radartracker.estimation.coupling import CouplingGraph
+from radartracker.estimation.kalman import SingularInnovation
+
+log = logging.getLogger(__name__)
+_ZERO2, _ZERO22 = np.zeros(2), np.zeros((2, 2))
+
+
+class AddAircraft(NamedTuple):
+    time: float
+    aircraft: int
+    state: np.ndarray
+    cov: np.ndarray
+
+
+class Measure(NamedTuple):
+    time: float
+    aircraft: int
+    radar: str | None
+    z: np.ndarray
+    C: np.ndarray
+    R: np.ndarray
+    kind: str  # "plots", "adsb" or "positions": counted as "<kind>_used"
+
+
+class RemoveAircraft(NamedTuple):
+    time: float
+    aircraft: int
+
+
+Operation = AddAircraft | Measure | RemoveAircraft
+PluginFailure = Callable[[str, "int | None", float, Exception], PluginError]
+
+
+class EstimatorFeed:
+    """Queues a frame's :data:`Operation` s and applies them to ``estimator`` and ``coupling`` (module
+    docstring); measurements used are counted in ``counts``. ``failed(plugin, track, time, exc)`` makes
+    the error a plugin's exception ends the run with."""
+
+    def __init__(self, estimator: Estimator, coupling: CouplingGraph, counts: Counter, failed: PluginFailure) -> None:
+        self.estimator = estimator
+        self.coupling = coupling
+        self.counts = counts
+        self.failed = failed
+        self.pending: list[Operation] = []
+        self._biases: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+
+    def bias(self, radar: str | None) -> tuple[np.ndarray, np.ndarray]:
+        """(ς̂, P_ς) of ``radar`` as at the frame's start (zeros for an unbiased source, ``None``)."""
+        if radar is None:
+            return _ZERO2, _ZERO22
+        b = self._biases.get(radar)
+        if b is None:
+            state = self.estimator.bias(radar)
+            b = self._biases[radar] = (np.asarray(state.bias, float), np.asarray(state.cov, float))
+        return b
+
+    def add(self, op: Operation) -> None:
+        self.pending.append(op)
+
+    def flush(self) -> None:
+        """Apply the queued operations in order, each run of measurements in one ``update_many``."""
+        ops, self.pending = self.pending, []
+        self._biases = {}
+        name = f"estimator {self.estimator.name!r}"
+        for kind, group in itertools.groupby(ops, type):
+            if kind is Measure:
+                self._measure(list(group))
+                continue
+            for op in group:
+                try:
+                    if kind is AddAircraft:
+                        self.estimator.add_aircraft(op.aircraft, op.time, op.state, op.cov)
+                    else:
+                        self.estimator.remove_aircraft(op.aircraft)
+                except Exception as exc:
+                    raise self.failed(name, op.aircraft, op.time, exc) from exc
+                if kind is AddAircraft:
+                    self.coupling.add_aircraft(op.aircraft)
+                else:
+                    self.coupling.remove_aircraft(op.aircraft)
+
+    def _measure(self, run: list[Measure]) -> None:
+        """``run`` to the estimator in one ``update_many``; a measurement it refuses as singular is counted
+        (``<kind>_singular``) and the rest of the run goes on after it."""
+        while run:
+            time, aircraft, radar, z, C, R, kind = zip(*run)
+            done = n = len(run)
+            try:
+                self.estimator.update_many(time, aircraft, radar, np.array(z, float), np.array(C, float),
+                                           np.array(R, float))
+            except SingularInnovation as exc:
+                done = getattr(exc, "index", 0)
+                log.warning("estimator refused a measurement of track %s: %s", aircraft[done], exc)
+            except Exception as exc:
+                i = getattr(exc, "index", 0)
+                raise self.failed(f"estimator {self.estimator.name!r}", aircraft[i], time[i], exc) from exc
+            self.coupling.observe_many(aircraft[:done], radar[:done], time[:done])
+            self.counts.update(f"{k}_used" for k in kind[:done])
+            if done < n:
+                self.counts[f"{kind[done]}_singular"] += 1
+                done += 1
+            run = run[done:]

@@ -1,0 +1,112 @@
+"""The manager's track: an aircraft's estimate (its own filter), identity, status and detection history."""
+
+from __future__ import annotations
+
+from collections import deque
+from typing import NamedTuple
+
+import attrs
+import numpy as np
+
+from radartracker.domain import Aircraft, AdsbReport, Plot
+from radartracker.estimation.base import PlaneMeasurement
+from radartracker.tracking.association import AltitudeTrack
+from radartracker.tracking.filters import TrackFilter
+
+TRACK_STATUSES = ("tentative", "confirmed", "coasting", "deleted")
+_F8 = np.dtype(float)
+
+
+class Pending(NamedTuple):
+    """A tentative track's measurement, held for the bias estimator until the track is confirmed."""
+
+    measurement: PlaneMeasurement
+    kind: str  # "plots", "adsb" or "positions"
+
+
+@attrs.define(eq=False)
+class Track:
+    """One track of the TrackManager.
+
+    ``filter`` (a motion-model plugin) holds the kinematic estimate χ = [x, y, vx, vy] and P; the track
+    adds what the manager decides with: ``status`` (one of ``TRACK_STATUSES``), the identity its
+    measurements carried (Mode S address, Mode 3/A code, truth label ``target`` in simulations), the last
+    Mode C altitude and its vertical filter (for gating), ``detections`` (hit or miss of the last N
+    opportunities, for M-of-N confirmation), ``pending`` measurements of a tentative track, and the run of
+    consecutive screening rejections ``rejected`` (:func:`radartracker.estimation.screening.judge`).
+    """
+
+    id: int
+    filter: TrackFilter
+    status: str = attrs.field(validator=attrs.validators.in_(TRACK_STATUSES))
+    created: float
+    last_update: float
+    mode_s: str | None = None
+    mode_3a: str | None = None
+    target: object = None
+    altitude_m: float | None = None
+    detections: deque = attrs.field(factory=deque)
+    pending: list[Pending] = attrs.field(factory=list)
+    n_plots: int = 0
+    n_adsb: int = 0
+    rejected: list = attrs.field(factory=list)
+    vertical: AltitudeTrack | None = None
+    _estimate: tuple | None = attrs.field(default=None, repr=False)
+
+    @property
+    def aircraft(self) -> Aircraft | None:
+        """The aircraft identity the track carries (known by its Mode S address), else None."""
+        return None if self.mode_s is None else Aircraft(self.mode_s, mode_3a=self.mode_3a)
+
+    @property
+    def live(self) -> bool:
+        return self.status in ("confirmed", "coasting")
+
+    def estimate(self) -> tuple[float, np.ndarray, np.ndarray]:
+        """The filter's (time, χ, P), χ a contiguous float vector; read once after each change of the filter."""
+        if self._estimate is None:
+            t, x, P = self.filter.estimate()
+            if type(x) is not np.ndarray or x.dtype is not _F8 or x.ndim != 1 or not x.flags.c_contiguous:
+                x = np.ascontiguousarray(x, float).ravel()
+            self._estimate = (t, x, P)
+        return self._estimate
+
+    def changed(self) -> None:
+        """The filter changed: :meth:`estimate` reads it again."""
+        self._estimate = None
+
+    def state_at(self, time: float) -> tuple[float, float, float, float]:
+        """[x, y, vx, vy] at ``time``, extrapolated in a straight line from the estimate (never backwards)."""
+        t0, x, _ = self.estimate()
+        x0, y0, vx, vy = x.tolist()[:4]
+        dt = max(time - t0, 0.0)
+        return x0 + vx * dt, y0 + vy * dt, vx, vy
+
+    def took(self, src: Plot | AdsbReport | PlaneMeasurement, kind: str) -> None:
+        """The track used measurement ``src`` of ``kind``: its last update, counts, Mode 3/A code, altitude
+        with its vertical filter, and a detection in its history."""
+        self.last_update = src.time
+        if kind == "plots":
+            self.n_plots += 1
+            self.mode_3a = src.mode_3a or self.mode_3a
+            h = src.altitude_m
+            if h is not None:
+                self.altitude_m = h
+                if self.vertical is None:
+                    self.vertical = AltitudeTrack.start(src.time, h)
+                else:
+                    self.vertical.update(src.time, h)
+        elif kind == "adsb":
+            self.n_adsb += 1
+            if src.altitude_m is not None:
+                self.altitude_m = src.altitude_m
+        self.detections.append(True)
+
+    def missed(self) -> None:
+        """An antenna swept the track without a plot for it."""
+        self.detections.append(False)
+
+    def hopeless(self, confirm_m: int, confirm_n: int) -> bool:
+        """A tentative track that can no longer make ``confirm_m`` hits out of ``confirm_n``."""
+        misses = len(self.detections) - sum(self.detections)
+        return self.status == "tentative" and misses > confirm_n - confirm_m
