@@ -23,8 +23,6 @@ beside what the inputs pay; this script measures the three.
   (``"part": "bias_log"``): the records of the replay, and µs per record of the replay's way (the
   estimator's ``bias_arrays`` into ``Recorder.bias_arrays``) and of the way before (a ``BiasState`` from
   ``bias`` into ``Recorder.bias``), replayed in turns on the replay's final estimator.
-* **coupling.graphml**: CPU ms of writing the replay's coupling graph through networkx and through
-  ``radartracker.io.graphml`` (the same bytes), in turns (``"part": "graphml"``).
 * **per input**: the rest of the untimed whole replay's CPU, ``(total − per_run − frames × per_frame) /
   inputs`` (reading, admission, ``_apply``, events, and the frame work that grows with inputs and tracks).
 
@@ -251,33 +249,27 @@ def progress_costs(folder: Path, repeat: int) -> dict:
             **{f"{k}_us_per_input": round(1e6 * min(v) / len(items), 3) for k, v in cpu.items()}}
 
 
-def bias_log_and_graphml_costs(folder: Path, out: Path, repeat: int) -> list[dict]:
-    """From a replay of ``folder`` with its bias records (item time and radar), final estimator and coupling
-    graph captured: CPU µs per record of recording them again on that estimator, through ``bias_arrays`` and
-    through a BiasState; and CPU ms of writing ``coupling.graphml`` through networkx and through
-    ``radartracker.io.graphml`` (the replay's way now)."""
-    import networkx as nx
-
+def bias_log_costs(folder: Path, out: Path, repeat: int) -> dict:
+    """From a replay of ``folder`` with its bias records (item time and radar) and final estimator captured:
+    CPU µs per record of recording them again on that estimator, through ``bias_arrays`` and through a
+    BiasState."""
     import radartracker.pipeline.run as run_module
-    from radartracker.io.graphml import write_graphml
     from radartracker.pipeline.recorder import Recorder
 
-    calls, made, results = [], [], []
-    make, write, record = run_module.make_estimator, run_module.write_outputs, Recorder.bias_arrays
+    calls, made = [], []
+    make, record = run_module.make_estimator, Recorder.bias_arrays
 
     def capture(self, time, radar, *arrays):
         calls.append((time, radar))
         return record(self, time, radar, *arrays)
 
     run_module.make_estimator = lambda *a, **k: made.append(make(*a, **k)) or made[-1]
-    run_module.write_outputs = lambda result, *a, **k: results.append(result) or write(result, *a, **k)
     Recorder.bias_arrays = capture
     try:
         replay_cpu(folder, out)
     finally:
-        run_module.make_estimator, run_module.write_outputs, Recorder.bias_arrays = make, write, record
-    est, graph = made[-1], results[-1].coupling.graph
-    gml = out.parent / "coupling_bench.graphml"  # not in ``out``: a later replay there refuses files not its own
+        run_module.make_estimator, Recorder.bias_arrays = make, record
+    est = made[-1]
 
     def arrays() -> None:
         rec = Recorder()
@@ -295,18 +287,13 @@ def bias_log_and_graphml_costs(folder: Path, out: Path, repeat: int) -> list[dic
 
     cpu: dict[str, list[float]] = defaultdict(list)
     for _ in range(max(repeat, 5)):  # in turns
-        for name, loop in (("bias_arrays", arrays), ("bias_state", states),
-                           ("io_graphml", lambda: write_graphml(graph, gml)),
-                           ("networkx", lambda: nx.write_graphml(graph, str(gml)))):
+        for name, loop in (("bias_arrays", arrays), ("bias_state", states)):
             c0 = time.process_time()
             loop()
             cpu[name].append(time.process_time() - c0)
     median = {k: float(np.median(v)) for k, v in cpu.items()}
     bias = {f"{k}_us_per_record": round(1e6 * median[k] / len(calls), 2) for k in ("bias_arrays", "bias_state")}
-    writing = {f"{k}_ms": round(1e3 * median[k], 2) for k in ("io_graphml", "networkx")}
-    return [{"folder": str(folder), "part": "bias_log", "records": len(calls), **bias},
-            {"folder": str(folder), "part": "graphml", "nodes": graph.number_of_nodes(),
-             "edges": graph.number_of_edges(), **writing}]
+    return {"folder": str(folder), "part": "bias_log", "records": len(calls), **bias}
 
 
 def main() -> None:
@@ -332,8 +319,7 @@ def main() -> None:
                 print(json.dumps({"folder": str(folder), **line}), flush=True)
             per_run = cut_cpu - cut_frames
             print(json.dumps(progress_costs(folder, repeat)), flush=True)
-            for line in bias_log_and_graphml_costs(folder, tmp / "out", repeat):
-                print(json.dumps(line), flush=True)
+            print(json.dumps(bias_log_costs(folder, tmp / "out", repeat)), flush=True)
             thin_run, thin_frames = frame_costs(sparse, tmp / "out")
             total = min(replay_cpu(folder, tmp / "out") for _ in range(repeat))
             timed_run, frames = frame_costs(folder, tmp / "out")

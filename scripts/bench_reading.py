@@ -16,10 +16,6 @@ line per stage.
 * ``frame_inputs``: ``admit`` with each frame's inputs taken in as ``_run_frame`` takes them, before any
   track is looked at: gathered by kind and radar, converted to the plane (``_convert_frame``, all plots at
   the altitude they carry or the primary one: no track exists), the antenna phases (``_track_phases``);
-* ``numbers`` (only when asked for with ``--stage numbers``): the number columns of every plain block of
-  both files (pyarrow string columns, read beforehand) made floats by ``columnar._numbers`` (the compiled
-  syntax check converting each value of at most 15 digits itself) and by the check then pyarrow's cast (the
-  way before session 8), in turns: µs per input of each, one line per turn;
 * ``replay`` (with ``--replay``): ``radartracker replay FOLDER --manager`` in this process, after a warm-up
   replay of ``--warm-up`` (default FOLDER itself: imports and compiled-kernel caches loaded).
 
@@ -123,50 +119,6 @@ def stages(folder: Path):
     return {"read": read, "blocks": blocks, "admit": admit, "read_admit": read_admit, "frame_inputs": frame_inputs}
 
 
-def numbers(folder: Path, repeat: int) -> None:
-    """The ``numbers`` lines (see the module's docstring)."""
-    import numpy as np
-    import pyarrow as pa
-    import pyarrow.compute as pc
-
-    from radartracker.io import columnar
-    from radartracker.io.csvblocks import Rows, Skipper
-    from radartracker.io.tables import ADSB_COLUMNS, PLOT_COLUMNS
-
-    cols, n = [], 0
-    for name, header, numeric in (("plots.csv", PLOT_COLUMNS, ("time", "range_m", "azimuth_deg", "altitude_m")),
-                                  ("adsb.csv", ADSB_COLUMNS, ("time", "lat", "lon", "altitude_m", "nacp"))):
-        rows = Rows(folder / name, header, Skipper(False))
-        for _, text, _ in rows.blocks():
-            tab = columnar._read(rows.header, text.encode())
-            n += len(tab)
-            cols += [(tab[k], k == "altitude_m") for k in numeric]
-
-    def through_pyarrow(col, optional: bool):  # columnar._numbers before session 8
-        off, data = columnar._bytes(col)
-        if not columnar._decimals(off, data, optional, np.empty(len(off) - 1)):
-            return None
-        if optional:
-            col = pc.if_else(pc.equal(col, ""), pa.scalar(None, pa.string()), col)
-        v = pc.cast(col, pa.float64()).to_numpy(zero_copy_only=False)
-        finite = np.isfinite(v)
-        return v if (finite | np.isnan(v)).all() and (optional or finite.all()) else None
-
-    def run(convert) -> float:
-        c0 = time.process_time()
-        for col, optional in cols:
-            convert(col, optional=optional)
-        return time.process_time() - c0
-
-    for turn in range(repeat + 1):  # the first turn warms up
-        a, b = run(columnar._numbers), run(through_pyarrow)
-        if turn:
-            print(json.dumps({"folder": str(folder), "stage": "numbers", "inputs": n, "columns": len(cols),
-                              "direct_us_per_input": round(a / n * 1e6, 3),
-                              "pyarrow_us_per_input": round(b / n * 1e6, 3),
-                              "load1": round(os.getloadavg()[0], 2)}), flush=True)
-
-
 def replay(folder: Path, out: Path) -> tuple[int, float]:
     from radartracker.cli import main
 
@@ -204,8 +156,6 @@ def main() -> None:
                 if args.stage is None or name in args.stage:
                     f()  # warm-up
                     measure(name, args.folder, f, args.repeat)
-            if args.stage is not None and "numbers" in args.stage:
-                numbers(args.folder, args.repeat)
     if args.replay or args.only_replay:
         from radartracker.io.scenario import open_scenario
         from radartracker.pipeline.stream import iter_files

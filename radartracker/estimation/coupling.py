@@ -28,8 +28,6 @@ import networkx as nx
 import numpy as np
 from numba import njit
 
-from radartracker.io.graphml import write_graphml
-
 ADSB = "adsb"
 _NODE = "aircraft:{}".format  # _aircraft_node as a callable for map()
 # two int or str keys are equal as dict keys only if their nodes are (unlike 1, 1.0 and True, one each):
@@ -307,5 +305,5 @@ class CouplingGraph:
         }
 
     def write_graphml(self, path: Path | str) -> None:
-        """The graph as GraphML at ``path``: ``networkx.write_graphml``'s bytes (:mod:`radartracker.io.graphml`)."""
-        write_graphml(self.graph, path)
+        """The graph as GraphML at ``path``, written by ``networkx.write_graphml``."""
+        nx.write_graphml(self.graph, str(path))

@@ -8,10 +8,9 @@ the functions return ``None`` and the block is read row by row, which names the 
 each bad row and counts it under ``--skip-bad``: the columnar path only ever accepts. What it asks:
 
 * numbers match a plain decimal syntax (:data:`DECIMAL`: ``-12.5``, ``1e3``), a subset of what ``float()``
-  reads, and are finite; the compiled loop that checks the syntax on the column's bytes also converts a value
-  of at most 15 digits and a small exponent exactly (:func:`_decimals`), pyarrow any other (pyarrow and
-  ``float()`` both round such text correctly, so to the same double); the codes' digits are checked by
-  compiled loops too;
+  reads, checked by pyarrow's regular expression match, and are finite; pyarrow's cast converts them (it
+  rounds decimal text correctly, as ``float()`` does, so to the same double); the codes' digits are checked
+  by a compiled loop on the column's bytes;
 * ranges, codes (hex Mode S / ICAO, octal Mode 3/A, already lower case or not) and radar ids as the
   row checks ask, with no space around a field (the row checks strip it);
 * plots: times in order within the block and not before any radar's latest time, so the per-radar
@@ -33,7 +32,8 @@ from numba import njit
 
 from radartracker.io.tables import AdsbTable, PlotTable
 
-DECIMAL = r"-?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?"  # the plain decimal syntax (\d: [0-9]), checked by _decimals
+DECIMAL = r"-?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?"  # the plain decimal syntax (\d: [0-9]), checked by _numbers
+_WHOLE_DECIMAL = f"^{DECIMAL}$"  # RE2 (pyarrow): \d is [0-9] there too
 
 
 def _byte_set(chars: str) -> np.ndarray:
@@ -44,6 +44,7 @@ def _byte_set(chars: str) -> np.ndarray:
 
 _HEX, _OCT = _byte_set("0123456789abcdefABCDEF"), _byte_set("01234567")
 _LABEL = _byte_set("".join(map(chr, range(33, 127))))  # printable ASCII without space: nothing for strip()
+_NO_TEXT = pa.scalar(None, pa.string())
 
 
 def _read(header: list[str], raw: bytes) -> pa.Table | None:
@@ -77,80 +78,8 @@ def warm_up() -> None:
     """Compile (or load from numba's cache) the checks' kernels on a tiny column, so that a replay's first
     block does not wait for them (:func:`radartracker.pipeline.warmup.warm_up`)."""
     for values in (["1.5", ""], [""]):  # the second: no bytes at all
-        col = pa.chunked_array([pa.array(values, pa.string())])
-        _decimals(*_bytes(col), True, np.empty(len(values)))
-        _digits(*_bytes(col), _HEX, 6, True)
+        _digits(*_bytes(pa.chunked_array([pa.array(values, pa.string())])), _HEX, 6, True)
     _Lines(b"1\n1\n").repeats(_numbers(pa.chunked_array([pa.array(["1", "1"])])))  # as a block's times are
-
-
-_POW10 = np.array([float(10 ** k) for k in range(23)])  # the powers of ten that are doubles exactly
-_EXACT_DIGITS = 10 ** 14  # a mantissa below it takes one more digit and stays below 2**53 (exact as a double)
-
-
-@njit(cache=True)
-def _decimals(off, data, optional, out):  # pragma: no cover (compiled)
-    """Whether every value matches :data:`DECIMAL` whole (or is empty, if ``optional``): 0 if not, else 1 when
-    ``out`` holds every value as ``float()`` reads it (NaN where empty), 2 when some value is not there.
-
-    A value is converted when its digits (at most 15 significant) make an integer m and its decimal exponent e
-    lies in [-22, 22]: m and 10**|e| are doubles exactly, so the one product or quotient, correctly rounded,
-    is the double nearest the decimal value, as ``float()`` gives (the fast path of correct conversions)."""
-    exact = True
-    for i in range(len(off) - 1):
-        j, end = off[i], off[i + 1]
-        if j == end:
-            if optional:
-                out[i] = np.nan
-                continue
-            return 0
-        negative = data[j] == 45  # -
-        if negative:
-            j += 1
-        mantissa, scale, fits = 0, 0, True
-        whole = 0
-        while j < end and 48 <= data[j] <= 57:
-            if mantissa < _EXACT_DIGITS:
-                mantissa = mantissa * 10 + (np.int64(data[j]) - 48)
-            else:
-                fits = False
-            j += 1
-            whole += 1
-        fraction = 0
-        if j < end and data[j] == 46:  # .
-            j += 1
-            while j < end and 48 <= data[j] <= 57:
-                if mantissa < _EXACT_DIGITS:
-                    mantissa = mantissa * 10 + (np.int64(data[j]) - 48)
-                    scale -= 1
-                else:
-                    fits = False
-                j += 1
-                fraction += 1
-        if whole == 0 and fraction == 0:
-            return 0
-        if j < end and (data[j] == 101 or data[j] == 69):  # e E
-            j += 1
-            sign = 1
-            if j < end and (data[j] == 43 or data[j] == 45):  # + -
-                sign = 44 - np.int64(data[j])  # + -> 1, - -> -1
-                j += 1
-            exponent, digits = 0, 0
-            while j < end and 48 <= data[j] <= 57:
-                if exponent < 100000:
-                    exponent = exponent * 10 + (np.int64(data[j]) - 48)
-                j += 1
-                digits += 1
-            if digits == 0:
-                return 0
-            scale += sign * exponent
-        if j != end:
-            return 0
-        if not fits or scale < -22 or scale > 22:
-            exact = False
-            continue
-        v = mantissa / _POW10[-scale] if scale < 0 else mantissa * _POW10[scale]
-        out[i] = -v if negative else v
-    return 1 if exact else 2
 
 
 @njit(cache=True)
@@ -224,23 +153,17 @@ class _Lines:
 
 
 def _numbers(col: pa.ChunkedArray, *, optional: bool = False) -> np.ndarray | None:
-    """The column as floats (NaN where empty, if ``optional``), or ``None`` unless every value is plain."""
-    off, data = _bytes(col)
-    v = np.empty(len(off) - 1)
-    found = _decimals(off, data, optional, v)
-    if found == 1:  # each value converted, finite
-        v.flags.writeable = False  # as pyarrow's column without nulls: one signature for the kernels given it
-        return v
-    if found == 0:
-        return None
+    """The column as floats (NaN where empty, if ``optional``; read-only, as pyarrow's column without nulls is,
+    so that the kernels given it see one type), or ``None`` unless every value is a finite plain decimal."""
     if optional:
-        col = pc.if_else(pc.equal(col, ""), pa.scalar(None, pa.string()), col)
-    try:
-        v = pc.cast(col, pa.float64()).to_numpy(zero_copy_only=False)
-    except pa.ArrowInvalid:
+        col = pc.if_else(pc.equal(col, ""), _NO_TEXT, col)
+    if not pc.all(pc.match_substring_regex(col, _WHOLE_DECIMAL), min_count=0).as_py():  # nulls skipped
         return None
-    finite = np.isfinite(v)
-    return v if (finite | np.isnan(v)).all() and (optional or finite.all()) else None
+    v = pc.cast(col, pa.float64()).to_numpy(zero_copy_only=False)
+    if not np.isfinite(v[~np.isnan(v)] if optional else v).all():  # beyond the largest double, e.g. 1e400
+        return None
+    v.flags.writeable = False
+    return v
 
 
 def _codes(col: pa.ChunkedArray, digits: int, length: int, *, optional: bool = True) -> np.ndarray | None:

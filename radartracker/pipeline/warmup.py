@@ -59,10 +59,7 @@ def _exercise(config: RunConfig, labelled: bool) -> None:
     if not labelled:
         data.plots.target = np.full(len(data.plots), None, dtype=object)
         data.truth = None
-    result = run(data, config, progress=False)
-    from radartracker.pipeline.writer import table_rows
-
-    table_rows(result.events, result.biases, result.plane)  # the tables' compiled row writer (csvtext)
+    run(data, config, progress=False)
     from radartracker.io import columnar
 
     columnar.warm_up()  # the streamed reader's checks of a block's columns

@@ -5,8 +5,10 @@
 with a ``config.json`` holds a complete run. The folder is prepared (checked for writing, earlier
 results refused or removed) by :func:`prepare` before the computation starts.
 
-The three tables are written either at the end (:func:`write_outputs`) or as the run goes
-(:class:`OutputStream`, fed by the recorder), with the same bytes.
+The three tables are pyarrow tables written by ``pyarrow.csv`` (RFC 4180: texts quoted, a missing value
+an empty field), each number rounded to its column's decimals (:data:`DECIMALS`) and written as the
+shortest text that reads back as the rounded double. They are written either at the end
+(:func:`write_outputs`) or as the run goes (:class:`OutputStream`, fed by the recorder), alike.
 """
 
 from __future__ import annotations
@@ -17,9 +19,11 @@ from contextlib import ExitStack
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.csv as pacsv
 
 from radartracker.io.atomic import atomic_open, atomic_path, prepare_output_folder, write_text
-from radartracker.pipeline.csvtext import Table
 from radartracker.pipeline.recorder import BiasLog, Events
 from radartracker.pipeline.result import RunResult
 
@@ -29,8 +33,13 @@ TRACK_COLUMNS = ("time", "track", "lat", "lon", "x_m", "y_m", "vx_mps", "vy_mps"
                  "mode_s", "mode_3a")
 EVENT_COLUMNS = ("time", "track", "event", "status", "lat", "lon", "x_m", "y_m", "vx_mps", "vy_mps", "sd_x_m",
                  "sd_y_m", "altitude_m", "mode_s", "mode_3a")
-log = logging.getLogger(__name__)
 BIAS_COLUMNS = ("time", "radar", "range_bias_m", "azimuth_bias_deg", "sd_range_m", "sd_azimuth_deg")
+# the decimals each number column is rounded to (docs/formats.md)
+DECIMALS = {"time": 3, "lat": 8, "lon": 8, "x_m": 2, "y_m": 2, "vx_mps": 3, "vy_mps": 3, "sd_x_m": 2, "sd_y_m": 2,
+            "altitude_m": 1, "range_bias_m": 3, "azimuth_bias_deg": 6, "sd_range_m": 3, "sd_azimuth_deg": 6}
+_CSV = pacsv.WriteOptions(include_header=False, quoting_style="needed")
+_NO_TEXT = pa.scalar(None, pa.string())
+log = logging.getLogger(__name__)
 
 
 def prepare(out: Path | str, *, overwrite: bool = False) -> Path:
@@ -46,42 +55,59 @@ def retire_earlier(out: Path) -> None:
     (out / "config.json").unlink(missing_ok=True)
 
 
-def _code(v: object) -> str:
-    """An identity code's field: empty for none."""
-    return str(v) if v else ""
+
+def _numbers(x, column: str, *, optional: bool = False) -> pa.Array:
+    """The column's numbers rounded to its decimals d (:data:`DECIMALS`; ``numpy.round``: rint(x·10^d) / 10^d,
+    half to even, within an ulp of the decimal; x itself where x·10^d overflows, as it then has no digit
+    below 10^-d); ``optional``: null (an empty field) where not finite, else written ``nan``, ``inf``."""
+    x = np.asarray(x, float)
+    with np.errstate(over="ignore", invalid="ignore"):
+        r = np.round(x, DECIMALS[column])
+    v = np.where(np.isinf(r), x, r)
+    return pa.array(v, pa.float64(), mask=~np.isfinite(v) if optional else None)
 
 
-def _rows(ev: Events, plane) -> tuple[memoryview, memoryview]:
-    """The rows of ``events.csv`` and of ``tracks.csv`` (the track estimates among them, without kind
-    and status) for ``ev``, UTF-8 encoded: the columns made once, the rows written by one compiled pass
-    (:mod:`radartracker.pipeline.csvtext`, the bytes of Python's ``%.<d>f``)."""
-    if not len(ev):
-        return memoryview(b""), memoryview(b"")
+def _texts(values) -> pa.Array:
+    """Texts (``str`` or ``None`` each), null (an empty field) where ``None`` or empty."""
+    a = pa.array(values, pa.string())
+    return pc.if_else(pc.equal(a, ""), _NO_TEXT, a)
+
+
+def _rows(ev: Events, plane) -> tuple[pa.Table, pa.Table]:
+    """The rows of ``events.csv`` and of ``tracks.csv`` (the track estimates among them, without event and
+    status) for ``ev``, as tables of the files' columns."""
     lat, lon = plane.to_geodetic(ev.state[:, 0], ev.state[:, 1])
     s = ev.state
     with np.errstate(invalid="ignore"):  # a negative variance: no standard deviation, an empty field
         sd_x, sd_y = np.sqrt(ev.cov[:, 0, 0]), np.sqrt(ev.cov[:, 1, 1])
-    t = (Table(len(ev)).number(ev.time, 3).integer(ev.track).labels(ev.kind.tolist()).labels(ev.status.tolist())
-         .number(lat, 8).number(lon, 8).number(s[:, 0], 2).number(s[:, 1], 2).number(s[:, 2], 3)
-         .number(s[:, 3], 3).number(sd_x, 2, optional=True).number(sd_y, 2, optional=True)
-         .number(ev.altitude_m, 1, optional=True).labels(ev.mode_s.tolist(), _code)
-         .labels(ev.mode_3a.tolist(), _code))
-    return t.rows_and_part(ev.estimate_mask(), [0, 1, *range(4, 15)])
+    columns = [_numbers(ev.time, "time"), pa.array(ev.track, pa.int64()), _texts(ev.kind), _texts(ev.status),
+               _numbers(lat, "lat"), _numbers(lon, "lon"), _numbers(s[:, 0], "x_m"), _numbers(s[:, 1], "y_m"),
+               _numbers(s[:, 2], "vx_mps"), _numbers(s[:, 3], "vy_mps"), _numbers(sd_x, "sd_x_m", optional=True),
+               _numbers(sd_y, "sd_y_m", optional=True), _numbers(ev.altitude_m, "altitude_m", optional=True),
+               _texts(ev.mode_s), _texts(ev.mode_3a)]
+    events = pa.Table.from_arrays(columns, names=list(EVENT_COLUMNS))
+    return events, events.filter(pa.array(ev.estimate_mask(), pa.bool_())).select(list(TRACK_COLUMNS))
 
 
-def _bias_rows(b: BiasLog) -> bytes:
-    if not len(b.time):
-        return b""
+def _bias_rows(b: BiasLog) -> pa.Table:
+    """The rows of ``biases.csv`` for ``b``: Δr (m) and Δθ (degrees) with their standard deviations."""
     with np.errstate(invalid="ignore"):
         sd = np.sqrt(b.cov[:, [0, 1], [0, 1]])
-    return (Table(len(b.time)).number(b.time, 3).text(list(map(str, b.radar.tolist()))).number(b.value[:, 0], 3)
-            .number(np.degrees(b.value[:, 1]), 6).number(sd[:, 0], 3).number(np.degrees(sd[:, 1]), 6).rows()
-            .encode("utf-8"))
+    columns = [_numbers(b.time, "time"), _texts([str(r) for r in b.radar.tolist()]),
+               _numbers(b.value[:, 0], "range_bias_m"), _numbers(np.degrees(b.value[:, 1]), "azimuth_bias_deg"),
+               _numbers(sd[:, 0], "sd_range_m"), _numbers(np.degrees(sd[:, 1]), "sd_azimuth_deg")]
+    return pa.Table.from_arrays(columns, names=list(BIAS_COLUMNS))
 
 
-def table_rows(ev: Events, biases: BiasLog, plane) -> tuple[memoryview, memoryview, bytes]:
-    """The rows (without header, UTF-8 encoded) of ``events.csv``, ``tracks.csv`` and ``biases.csv``."""
+def table_rows(ev: Events, biases: BiasLog, plane) -> tuple[pa.Table, pa.Table, pa.Table]:
+    """The rows of ``events.csv``, ``tracks.csv`` and ``biases.csv``."""
     return (*_rows(ev, plane), _bias_rows(biases))
+
+
+def _write_rows(f, table: pa.Table) -> None:
+    """``table``'s rows (no header) as CSV onto the binary file ``f``."""
+    if table.num_rows:
+        pacsv.write_csv(table, f, _CSV)
 
 
 class OutputStream:
@@ -102,11 +128,11 @@ class OutputStream:
 
     def events(self, ev: Events) -> None:
         events, tracks = _rows(ev, self.plane)
-        self._events.write(events)
-        self._tracks.write(tracks)
+        _write_rows(self._events, events)
+        _write_rows(self._tracks, tracks)
 
     def biases(self, b: BiasLog) -> None:
-        self._biases.write(_bias_rows(b))
+        _write_rows(self._biases, _bias_rows(b))
 
     def close(self) -> None:
         retire_earlier(self.out)
@@ -133,11 +159,11 @@ def write_outputs(result: RunResult, out: Path | str, *, figures: bool = False, 
     retire_earlier(out)
     if rows is not None:
         events, tracks, biases = rows
-        for name, cols, text in (("tracks.csv", TRACK_COLUMNS, tracks), ("events.csv", EVENT_COLUMNS, events),
-                                 ("biases.csv", BIAS_COLUMNS, biases)):
+        for name, cols, table in (("tracks.csv", TRACK_COLUMNS, tracks), ("events.csv", EVENT_COLUMNS, events),
+                                  ("biases.csv", BIAS_COLUMNS, biases)):
             with atomic_open(out / name, "wb") as f:
                 f.write(_header(cols))
-                f.write(text)
+                _write_rows(f, table)
     with atomic_path(out / "coupling.graphml") as tmp:
         result.coupling.write_graphml(tmp)
     if figures:
