@@ -14,6 +14,7 @@ from radartracker.estimation.base import (AircraftEstimate, Estimator, Estimator
 from radartracker.estimation.kalman import SingularInnovation, correct, gain, nis, symmetrize
 from radartracker.estimation.measurement import convert_plots, fill_altitudes, plot_keys
 from radartracker.estimation.motion import MotionModel
+from radartracker.estimation.state import StateCheck
 from radartracker.geometry.kinematics import propagate
 from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.io.atomic import atomic_open, atomic_path, prepare_output_folder, replace_outputs, write_text
@@ -34,4 +35,5 @@ __all__ = [
     "read_new4", "read_radars", "read_scenario", "symmetrize", "validated_prior", "write_plt", "kernels",
     "atomic_open", "atomic_path", "prepare_output_folder", "write_text", "replace_outputs", "read_text",
     "KinematicTrajectory", "Leg",
+    "StateCheck",
 ]
