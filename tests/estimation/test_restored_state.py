@@ -303,7 +303,6 @@ def test_crafted_snapshots_are_refused_and_never_kill_the_process(tmp_path):
     """Six snapshots with a valid checksum whose coupled-sparse state has an out-of-range slot, a huge radar
     count, an out-of-range radar index, a short array, a free slot beyond the storage and a huge aircraft
     count: restoring each in a subprocess gives a SnapshotError naming the file and the field, no signal."""
-    from radartracker.simulation.scenarios import build_scenario
     from radartracker.tracking.manager import ManagerConfig, TrackManager
     from tests.tracking.test_snapshot import items_and_data
 

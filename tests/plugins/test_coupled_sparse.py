@@ -12,7 +12,7 @@ from scipy.linalg import cho_factor, cho_solve
 from radartracker.estimation.kalman import SingularInnovation
 from radartracker.simulation.linsim import bias_jacobian, make_linear_scenario
 from radartracker.estimation.motion import MotionModel
-from radartracker.estimation.base import Estimator, EstimatorConfig, Innovation, PlaneMeasurement
+from radartracker.estimation.base import Estimator, EstimatorConfig, PlaneMeasurement
 from radartracker.registry import make_estimator
 from radartracker_plugins.coupled_sparse import CoupledSparseEstimator, SingularInformation
 from radartracker_plugins.coupled_sparse._layout import C_SINCE_REFRESH
