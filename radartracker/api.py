@@ -14,6 +14,7 @@ from radartracker.estimation.base import (AircraftEstimate, Estimator, Estimator
 from radartracker.estimation.kalman import SingularInnovation, correct, gain, nis, symmetrize
 from radartracker.estimation.measurement import convert_plots, fill_altitudes, plot_keys
 from radartracker.estimation.motion import MotionModel
+from radartracker.estimation.state import StateCheck
 from radartracker.geometry.kinematics import propagate
 from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.io.atomic import atomic_open, atomic_path, prepare_output_folder, replace_outputs, write_text
@@ -42,4 +43,5 @@ __all__ = [
     "KinematicTrajectory", "Leg",
     "ALTITUDE_GATE", "AltitudeTrack", "Association", "AssociationSettings", "Associator", "NEW_TRACK", "Prediction",
     "REFUSED", "RadarPlots", "Track", "altitude_d2", "assign", "assign_tiers", "candidate_pairs", "gate_costs",
+    "StateCheck",
 ]

@@ -91,7 +91,8 @@ class AcceptsDuplicates(DecoupledEstimator):
 
 class ForgetsBiasesInSnapshots(DecoupledEstimator):
     def state_dict(self):
-        return {k: v for k, v in super().state_dict().items() if k != "_s"}
+        state = super().state_dict()
+        return {**state, "radars": {r: [None, np.zeros(2), self.config.bias_prior()] for r in state["radars"]}}
 
 
 class BatchDropsLast(DecoupledEstimator):

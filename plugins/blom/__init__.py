@@ -38,7 +38,7 @@ from collections.abc import Hashable
 
 import numpy as np
 
-from radartracker.api import AircraftEstimate, BiasState, Estimator, Innovation, PlaneMeasurement, correct
+from radartracker.api import AircraftEstimate, BiasState, Estimator, Innovation, PlaneMeasurement, StateCheck, correct
 
 _ADSB = None  # source key of unbiased measurements
 
@@ -74,6 +74,38 @@ class BlomEstimator(Estimator):
 
     def remove_aircraft(self, key: Hashable) -> None:
         del self._x[key]
+
+    def state_dict(self) -> dict:
+        """The bias filter (ς̂, P̂_ς, the column of each radar, its epoch) and each aircraft's
+        [epoch, χ̂, P̂, {source: (C_s, R)}]."""
+        return {"radars": dict(self._rad), "s": self._s.copy(), "Ps": self._Ps.copy(), "bias_time": self._bias_time,
+                "aircraft": {k: [t, x.copy(), P.copy(), {src: (C.copy(), R.copy()) for src, (C, R) in srcs.items()}]
+                             for k, (t, x, P, srcs) in self._x.items()}}
+
+    def load_state_dict(self, state: dict) -> None:
+        """Take back a :meth:`state_dict`, checked first: this estimator's radars at columns 0, 2, 4, …,
+        finite values, covariances symmetric positive semi-definite, each aircraft's sources known radars
+        (or None, ADS-B) with a 2×2 C_s and a positive definite R (F_x needs R⁻¹)."""
+        c = StateCheck("blom", state, ("radars", "s", "Ps", "bias_time", "aircraft"))
+        rad = c.mapping("radars")
+        c.names("radars", self.radars, rad)
+        if rad != {r: 2 * i for i, r in enumerate(self.radars)}:
+            raise c.fail(f"radar columns {list(rad.items())[:10]!r} are not this estimator's radars at 0, 2, 4, …")
+        s, Ps = c.gaussian("bias", state["s"], state["Ps"], 2 * len(rad))
+        aircraft = {}
+        for key, entry in c.mapping("aircraft").items():
+            t, x, P, sources = c.sequence(f"aircraft {key!r}", entry, length=4)
+            what = f"aircraft {key!r}"
+            aircraft[key] = [c.number(f"{what} epoch", t), *c.gaussian(what, x, P, 4), {}]
+            for src, pair in c.mapping(f"{what} sources", sources).items():
+                if src is not _ADSB and src not in rad:
+                    raise c.fail(f"{what}: source {src!r} is not a radar of this estimator")
+                C, R = c.sequence(f"{what} source {src!r}", pair, length=2)
+                C, R = c.array(f"{what} C of {src!r}", (2, 2), value=C), c.array(f"{what} R of {src!r}", (2, 2), value=R)
+                c.covariance(f"{what} R of {src!r}", R, definite=True)
+                aircraft[key][3][src] = (C, R)
+        bias_time = c.number("bias_time", state["bias_time"], none=True)
+        self._s, self._Ps, self._x, self._bias_time = s, Ps, aircraft, bias_time
 
     def _predict_biases(self, time: float) -> None:
         if self._bias_time is not None and self.config.bias_drifts:

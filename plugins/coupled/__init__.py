@@ -24,7 +24,8 @@ from collections.abc import Hashable
 
 import numpy as np
 
-from radartracker.api import (AircraftEstimate, BiasState, Estimator, Innovation, PlaneMeasurement, SingularInnovation, validated_prior)
+from radartracker.api import (AircraftEstimate, BiasState, Estimator, Innovation, PlaneMeasurement, SingularInnovation,
+                              StateCheck, validated_prior)
 
 
 class CoupledEstimator(Estimator):
@@ -78,6 +79,42 @@ class CoupledEstimator(Estimator):
         self._P[k:k + 4, :] = 0.0
         self._P[:, k:k + 4] = 0.0
         self._free.append(k)
+
+    # --- snapshots -------------------------------------------------------------------------------
+    def state_dict(self) -> dict:
+        """The used part of ξ̂ and P̂ (``size`` entries), where each radar, aircraft and free slot starts in it,
+        each aircraft's epoch and the bias epoch."""
+        n = self._size
+        return {"size": n, "x": self._x[:n].copy(), "P": self._P[:n, :n].copy(), "radars": dict(self._rad),
+                "aircraft": {k: list(v) for k, v in self._ac.items()}, "free": list(self._free),
+                "bias_time": self._bias_time}
+
+    def load_state_dict(self, state: dict) -> None:
+        """Take back a :meth:`state_dict`, checked first: ``size`` the length of ξ̂ (never allocated from the
+        number alone), the radars this estimator's, every radar block (2 entries), aircraft and free slot (4)
+        inside it, disjoint and covering it, values finite, P̂ symmetric and positive semi-definite over the
+        radars and aircraft."""
+        c = StateCheck("coupled", state, ("size", "x", "P", "radars", "aircraft", "free", "bias_time"))
+        x = c.array("x", (None,))
+        n = c.integer("size", state["size"], len(x), len(x))
+        P = c.array("P", (n, n))
+        c.names("radars", self.radars, c.mapping("radars"))
+        rad = {r: c.integer(f"start of radar {r!r}", k, 0, n - 2) for r, k in state["radars"].items()}
+        ac = {}
+        for key, entry in c.mapping("aircraft").items():
+            start, epoch = c.sequence(f"aircraft {key!r}", entry, length=2)
+            ac[key] = [c.integer(f"start of aircraft {key!r}", start, 0, n - 4), c.number(f"epoch of {key!r}", epoch)]
+        free = [c.integer("a free slot's start", k, 0, n - 4) for k in c.sequence("free", max_len=n)]
+        used = np.zeros(n, np.int64)
+        for k, width in [(k, 2) for k in rad.values()] + [(v[0], 4) for v in ac.values()] + [(k, 4) for k in free]:
+            used[k:k + width] += 1
+        if np.any(used != 1):
+            raise c.fail(f"radar, aircraft and free blocks overlap or leave gaps (entry {int(np.argmax(used != 1))})")
+        live = [k + i for k in rad.values() for i in range(2)] + [v[0] + i for v in ac.values() for i in range(4)]
+        c.covariance("P over the radars and aircraft", P[np.ix_(live, live)])
+        bias_time = c.number("bias_time", state["bias_time"], none=True)
+        self._x, self._P, self._size, self._rad, self._ac, self._free = x, P, n, rad, ac, free
+        self._bias_time = bias_time
 
     # --- filter ----------------------------------------------------------------------------------
     def _predict_aircraft(self, k: int, dt: float) -> None:

@@ -54,15 +54,21 @@ exact filter cannot stay sparse. A config with ``bias_drifts`` raises ValueError
 
 from __future__ import annotations
 
-from collections.abc import Hashable, Sequence
-
-import numpy as np
+from collections.abc import Hashable
 
 import attrs
+import numpy as np
 
-from radartracker.api import (AircraftEstimate, BiasState, Estimator, EstimatorConfig, Innovation, MotionModel, PlaneMeasurement, SingularInnovation, validated_prior)
+from radartracker.api import (AircraftEstimate, BiasState, Estimator, EstimatorConfig, Innovation, MotionModel,
+                              PlaneMeasurement, SingularInnovation, validated_prior)
 
 from . import _kernels as K
+from ._layout import (C_ALIVE, C_REBUILD_FACTOR, C_REFRESH_EVERY, ERR_LAMBDA, ERR_NONFINITE, ERR_R, ERR_REBUILD,
+                      ERR_S, ERR_YII, OK, STORE, allocate, carve, carve_work)
+from ._linalg import chol
+from ._refresh import rebuild as _rebuild
+from ._refresh import refresh
+from ._state import checked_state
 
 
 class SingularInformation(SingularInnovation):
@@ -70,13 +76,14 @@ class SingularInformation(SingularInnovation):
 
 
 _WHY = {
-    K.ERR_NONFINITE: "non-finite time, z, C or R",
-    K.ERR_R: "measurement noise covariance R is not positive definite (the information form needs R⁻¹)",
-    K.ERR_YII: "aircraft information block Y_ii is not positive definite",
-    K.ERR_LAMBDA: "innovation covariance Λ is not positive definite",
-    K.ERR_S: "bias Schur complement S is not positive definite",
-    K.ERR_REBUILD: "recomputing S from the blocks met an aircraft block Y_ii that is not positive definite",
+    ERR_NONFINITE: "non-finite time, z, C or R",
+    ERR_R: "measurement noise covariance R is not positive definite (the information form needs R⁻¹)",
+    ERR_YII: "aircraft information block Y_ii is not positive definite",
+    ERR_LAMBDA: "innovation covariance Λ is not positive definite",
+    ERR_S: "bias Schur complement S is not positive definite",
+    ERR_REBUILD: "recomputing S from the blocks met an aircraft block Y_ii that is not positive definite",
 }
+_APPLIED = (OK, ERR_LAMBDA, ERR_S, ERR_REBUILD)  # codes after which the plot was applied or its aircraft predicted
 
 
 @attrs.frozen
@@ -114,47 +121,44 @@ class CoupledSparseEstimator(Estimator):
         self._ac: dict[Hashable, int] = {}  # key -> slot
         self._free: list[int] = []
         self._bias_time = float("nan")  # latest update time, as coupled's global bias epoch
-        self._ctr = np.array([0, refresh_every, 0, rebuild_factor, 0], np.int64)
         self._alloc(0, 0)
+        self._ctr[:] = 0, refresh_every, 0, rebuild_factor, 0
 
     # --- storage -----------------------------------------------------------------------------
-    _STORE = ("_Yxx", "_Yxb", "_ex", "_tx", "_Ybb", "_eb", "_S", "_sv", "_Pb", "_bh", "_nk", "_rk", "_ctr")
-
     def _alloc(self, cap: int, m: int) -> None:
         """(Re)allocate for ``cap`` aircraft slots and ``m`` radars, keeping the contents: every array a view
-        into one float and one int buffer (``_F``, ``_I``; layout ``_kernels.carve``)."""
-        nb, mm = 2 * m, max(m, 1)
-        nf, ni = K.storage_sizes(cap, mm, nb)
-        F, I = np.zeros(nf), np.zeros(ni, np.int64)
-        I[:3] = cap, mm, nb
-        new = K.carve(F, I, cap, mm, nb)
-        new[10][:] = -1  # nk: free slot
-        for name, dst in zip(self._STORE, new[:-1]):
-            src = getattr(self, name, None)
+        into one float and one int buffer (``_F``, ``_I``; layout ``_layout.carve``), the scratch into ``_WF``."""
+        F, I, WF = allocate(cap, m, self._q)
+        st = carve(F, I)
+        for name, dst in zip(STORE, st):
+            src = getattr(self, "_" + name, None)
             if src is not None:  # what is kept: the old extent of each array
                 dst[tuple(slice(0, n) for n in src.shape)] = src
-            setattr(self, name, dst)
-        self._F, self._I = F, I
-        self._work = K.Work(m, new[-1], self._q)
+            setattr(self, "_" + name, dst)
+        self._F, self._I, self._WF = F, I, WF
+        self._st, self._wk = st, carve_work(WF, 2 * max(m, 1))
         # bias_arrays(): read-only views of each radar's block of ς̂ and P_ς, by radar index
         self._bias_views = [(self._bh[2 * j:2 * j + 2], self._Pb[2 * j:2 * j + 2, 2 * j:2 * j + 2]) for j in range(m)]
         for v in self._bias_views:
             v[0].flags.writeable = v[1].flags.writeable = False
 
     def state_dict(self) -> dict:
-        """The default state without the buffers behind the arrays and the views into them (rebuilt on load)."""
-        return {k: v for k, v in super().state_dict().items()
-                if k not in ("_F", "_I", "_bias_views", "_radar_codes")}
+        """Radars, aircraft slots, free slots, the bias epoch and the stored arrays (module ``_state``)."""
+        return {"radars": list(self._rad), "aircraft": dict(self._ac), "free": list(self._free),
+                "bias_time": self._bias_time, **{name: getattr(self, "_" + name).copy() for name in STORE}}
 
     def load_state_dict(self, state: dict) -> None:
-        super().load_state_dict(state)
-        self._alloc(self._Yxx.shape[0], self._Ybb.shape[0] // 2)  # the loaded arrays into packed storage
-        self._radar_codes = {**self._rad, None: -1}
+        """Take back a :meth:`state_dict`, every field checked against the others first (``_state``)."""
+        checked = checked_state(state, list(self._rad), self._ctr[C_REFRESH_EVERY], self._ctr[C_REBUILD_FACTOR])
+        for name in STORE:  # the checked arrays, then packed into new storage of their size
+            setattr(self, "_" + name, checked[name])
+        self._ac, self._free, self._bias_time = checked["aircraft"], checked["free"], checked["bias_time"]
+        self._alloc(len(checked["tx"]), len(self._rad))
 
     def __setstate__(self, state: dict) -> None:
         """copy.deepcopy: the copied arrays no longer share one buffer; pack them again."""
         self.__dict__.update(state)
-        self._alloc(self._Yxx.shape[0], self._Ybb.shape[0] // 2)
+        self._alloc(self._Yxx.shape[0], len(self._rad))
 
     def add_radar(self, radar: str) -> None:
         if radar in self._rad:
@@ -175,7 +179,7 @@ class CoupledSparseEstimator(Estimator):
             raise ValueError(f"aircraft {key!r} already estimated")
         state, cov = validated_prior(key, state, cov)
         L = np.zeros((4, 4))
-        if not K.chol(cov, L, 4):
+        if not chol(cov, L, 4):
             raise SingularInformation(f"aircraft {key!r}: prior covariance is not positive definite "
                                       "(the information form needs its inverse)")
         if not self._free:
@@ -188,87 +192,38 @@ class CoupledSparseEstimator(Estimator):
         self._ex[s] = self._Yxx[s] @ state
         self._tx[s], self._nk[s] = float(time), 0
         self._ac[key] = s
-        self._ctr[K.C_ALIVE] += 1
+        self._ctr[C_ALIVE] += 1
 
     def remove_aircraft(self, key: Hashable) -> None:
         """Marginalise aircraft ``key`` into Y_bb, η_b (S unchanged) and free its slot."""
-        s = self._ac.pop(key)
-        w = self._work
-        k = int(self._nk[s])
-        if k > 0:
-            K.bias_index(self._rk, s, k, w.idx)
-            if not K.conditional(self._Yxx, self._Yxb, self._ex, s, 2 * k, w.f4[0], w.V, w.v4[0], w.G, w.v4[1]):
-                raise SingularInformation(f"aircraft {key!r}: {_WHY[K.ERR_YII]}")
-            K.add_contribution(self._Ybb, self._eb, w.idx, w.V, w.v4[0], 2 * k, -1.0)
-        self._nk[s] = -1
+        s = self._slot(key)
+        if K.marginalise(self._st, self._wk, s) != OK:
+            raise SingularInformation(f"aircraft {key!r}: {_WHY[ERR_YII]}")
+        del self._ac[key]
         self._free.append(s)
-        self._ctr[K.C_ALIVE] -= 1
 
     # --- filter ------------------------------------------------------------------------------
     def update(self, m: PlaneMeasurement) -> Innovation:
-        """One measurement: :meth:`update_arrays` on its fields (one kernel call per measurement, where
-        building the batch arrays cost more than the update), ν and Λ copied out of its scratch."""
+        """One measurement through the compiled update (``_kernels.update_one``); ν, Λ copied out of its scratch."""
+        s = self._slot(m.aircraft)
+        j = self._radar_codes[m.radar] if m.radar in self._radar_codes else self._radar_index(m.radar)
         z = np.ascontiguousarray(m.z, dtype=float)
         C = np.ascontiguousarray(m.C, dtype=float)
         R = np.ascontiguousarray(m.R, dtype=float)
-        if z.shape != (2,) or C.shape != (2, 2) or R.shape != (2, 2):  # as update_many's batch would refuse it
-            nu, lam, nis = self.update_many([m.time], [m.aircraft], [m.radar], z[None], C[None], R[None])
-            return Innovation(nu[0], lam[0], float(nis[0]))
-        self.update_arrays(m.time, m.aircraft, m.radar, z, C, R)
-        w = self._work
-        return Innovation(w.nu.copy(), w.lam.copy(), float(w.io[6]))
-
-    def update_arrays(self, time: float, aircraft: Hashable, radar: str | None, z: np.ndarray, C: np.ndarray,
-                      R: np.ndarray) -> None:
-        """The TrackManager's path (:meth:`Estimator.update_arrays`): the compiled update on the caller's
-        arrays, ν, Λ and the NIS into scratch space."""
-        try:
-            s = self._ac[aircraft]
-            j = -1 if radar is None else self._rad[radar]
-        except KeyError:
-            s, j = self._slot(aircraft), self._radar_index(radar)  # the KeyError naming which
-        t = float(time)
-        code = K.update_packed(self._F, self._I, self._work.flat, s, j, t, z, C, R)
-        if code == K.OK or code in (K.ERR_LAMBDA, K.ERR_S, K.ERR_REBUILD):  # applied, or predicted: as update_many
-            if not t <= self._bias_time:  # NaN at first, like np.fmax
-                self._bias_time = t
-        if code != K.OK:
-            raise self._failure(code, 0, aircraft, radar, t)
-
-    def update_many(self, time: Sequence[float], aircraft: Sequence[Hashable], radar: Sequence[str | None],
-                    z: np.ndarray, C: np.ndarray, R: np.ndarray) -> Innovation:
-        """All updates in one compiled loop (see :meth:`Estimator.update_many`)."""
-        n = len(aircraft)
-        try:
-            slots = np.fromiter(map(self._ac.__getitem__, aircraft), np.int64, n)
-            radars = np.fromiter(map(self._radar_codes.__getitem__, radar), np.int64, len(radar))
-        except KeyError:  # the KeyError naming which
-            slots = np.fromiter((self._slot(a) for a in aircraft), np.int64, n)
-            radars = np.fromiter((-1 if r is None else self._radar_index(r) for r in radar), np.int64, len(radar))
-        times = np.asarray(time, float)
-        Z = np.ascontiguousarray(z, dtype=float)
-        Cs = np.ascontiguousarray(C, dtype=float)
-        Rs = np.ascontiguousarray(R, dtype=float)
-        if n == 0:
-            return Innovation(np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0))
-        out = np.zeros((n, 7))  # ν, Λ, NIS of each plot: one array, one argument
-        code, i, t = K.update_batch(self._F, self._I, self._work.flat, slots, radars, times, Z, Cs, Rs, out)
-        # plots before i are applied; plot i was predicted (Λ) or fully applied (S) — as coupled does; t the
-        # latest time of those (finite: the kernel stops at a non-finite time)
-        if (i or code in (K.ERR_LAMBDA, K.ERR_S, K.ERR_REBUILD)) and not t <= self._bias_time:  # NaN at first
+        if z.shape != (2,) or C.shape != (2, 2) or R.shape != (2, 2):
+            raise ValueError(f"measurement of aircraft {m.aircraft!r} by radar {m.radar!r} at t={m.time}: z must "
+                             f"have shape (2,), C and R (2, 2), not {z.shape}, {C.shape}, {R.shape}")
+        t = float(m.time)
+        code = K.update_packed(self._F, self._I, self._WF, s, j, t, z, C, R)
+        if code in _APPLIED and not t <= self._bias_time:  # NaN at first, like np.fmax
             self._bias_time = t
-        if code != K.OK:
-            raise self._failure(code, i, aircraft[i], radar[i], times[i])
-        return Innovation(out[:, :2], out[:, 2:6].reshape(n, 2, 2), out[:, 6])
-
-    @staticmethod
-    def _failure(code: int, i: int, aircraft: Hashable, radar: str | None, time: float) -> ValueError:
-        """The error of kernel status ``code`` at the batch's measurement ``i`` (its ``index``)."""
-        exc_type = ValueError if code == K.ERR_NONFINITE else SingularInformation
-        when = "after" if code in (K.ERR_S, K.ERR_REBUILD) else "at"
-        exc = exc_type(f"{when} the measurement of aircraft {aircraft!r} by radar {radar!r} at t={time}: {_WHY[code]}")
-        exc.index = i
-        return exc
+        if code != OK:
+            exc_type = ValueError if code == ERR_NONFINITE else SingularInformation
+            when = "after" if code in (ERR_S, ERR_REBUILD) else "at"
+            raise exc_type(f"{when} the measurement of aircraft {m.aircraft!r} by radar {m.radar!r} at t={t}: "
+                           f"{_WHY[code]}")
+        io = self._wk[8]
+        return Innovation(io[0:2].copy(), io[2:6].reshape(2, 2).copy(), float(io[6]))
 
     def _slot(self, key: Hashable) -> int:
         try:
@@ -284,21 +239,17 @@ class CoupledSparseEstimator(Estimator):
 
     def refresh(self, rebuild: bool = True) -> None:
         """Recompute S from the blocks (``rebuild``), then S⁻¹ and ς̂ from S, now."""
-        w = self._work
-        if rebuild and not K.rebuild(self._Yxx, self._Yxb, self._ex, self._nk, self._rk, self._Ybb, self._eb,
-                                     self._S, self._sv, self._ctr, w.f4, w.V, w.G, w.v4, w.idx, w.LSi, w.Kb[0]):
-            raise SingularInformation(_WHY[K.ERR_REBUILD])
-        if not K.refresh(self._S, self._sv, self._Pb, self._bh, self._ctr, w.LS, w.LSi):
-            raise SingularInformation(_WHY[K.ERR_S])
+        if rebuild and not _rebuild(self._st, self._wk):
+            raise SingularInformation(_WHY[ERR_REBUILD])
+        if not refresh(self._S, self._sv, self._Pb, self._bh, self._ctr, self._wk[6], self._wk[7]):
+            raise SingularInformation(_WHY[ERR_S])
 
     # --- reads -------------------------------------------------------------------------------
     def aircraft(self, key: Hashable) -> AircraftEstimate:
         s = self._slot(key)
         x, P = np.zeros(4), np.zeros((4, 4))
-        w = self._work
-        if not K.read_aircraft(self._Yxx, self._Yxb, self._ex, self._nk, self._rk, self._Pb, self._bh, s, x, P,
-                               w.f4, w.V, w.G, w.v4, w.idx):
-            raise SingularInformation(f"aircraft {key!r}: {_WHY[K.ERR_YII]}")
+        if not K.read_aircraft(self._st, self._wk, s, x, P):
+            raise SingularInformation(f"aircraft {key!r}: {_WHY[ERR_YII]}")
         return AircraftEstimate(float(self._tx[s]), x, P)
 
     def bias(self, radar: str) -> BiasState:

@@ -17,7 +17,8 @@ from collections.abc import Hashable
 
 import numpy as np
 
-from radartracker.api import (AircraftEstimate, BiasState, Estimator, Innovation, PlaneMeasurement, correct, validated_prior)
+from radartracker.api import (AircraftEstimate, BiasState, Estimator, Innovation, PlaneMeasurement, StateCheck, correct,
+                              validated_prior)
 
 
 class DecoupledEstimator(Estimator):
@@ -42,6 +43,26 @@ class DecoupledEstimator(Estimator):
 
     def remove_aircraft(self, key: Hashable) -> None:
         del self._x[key]
+
+    def state_dict(self) -> dict:
+        """Each aircraft's [epoch, χ̂, P̂] and each radar's [epoch or None, ς̂, P̂_ς]."""
+        return {"aircraft": {k: [t, x.copy(), P.copy()] for k, (t, x, P) in self._x.items()},
+                "radars": {r: [t, s.copy(), P.copy()] for r, (t, s, P) in self._s.items()}}
+
+    def load_state_dict(self, state: dict) -> None:
+        """Take back a :meth:`state_dict`, checked first: this estimator's radars, finite values, covariances
+        symmetric positive semi-definite."""
+        c = StateCheck("decoupled", state, ("aircraft", "radars"))
+        radars = c.mapping("radars")
+        c.names("radars", self.radars, radars)
+        loaded = {}
+        for what, table, n, none in (("aircraft", c.mapping("aircraft"), 4, False), ("radar", radars, 2, True)):
+            loaded[what] = {}
+            for key, entry in table.items():
+                t, mean, cov = c.sequence(f"{what} {key!r}", entry, length=3)
+                loaded[what][key] = [c.number(f"{what} {key!r} epoch", t, none=none),
+                                     *c.gaussian(f"{what} {key!r}", mean, cov, n)]
+        self._x, self._s = loaded["aircraft"], loaded["radar"]
 
     def update(self, m: PlaneMeasurement) -> Innovation:
         ac = self._x[m.aircraft]

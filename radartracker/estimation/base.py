@@ -93,8 +93,9 @@ class Estimator(abc.ABC):
     """Interface of every bias/motion estimator plugin.
 
     Lifecycle: ``add_radar`` for each radar, ``add_aircraft`` when a track starts (the prior is
-    the caller's), ``update`` for each associated measurement in time order, ``remove_aircraft``
-    when a track ends. Reads never modify the state.
+    the caller's), ``update`` for each associated measurement in time order (or ``update_many`` of a
+    batch of them, the same updates in turn), ``remove_aircraft`` when a track ends. Reads never modify
+    the state.
 
     A plugin with options names an attrs class in ``options_class`` (its fields' defaults are the
     defaults); the instance is ``self.options``, built by the registry from ``KEY=VALUE`` strings.
@@ -120,7 +121,9 @@ class Estimator(abc.ABC):
         return default_state_dict(self)
 
     def load_state_dict(self, state: dict) -> None:
-        """Take back a :meth:`state_dict` into an estimator built with the same config and radars."""
+        """Take back a :meth:`state_dict` into an estimator built with the same config and radars. The state
+        is untrusted input (it comes from a file): everything is checked before anything is changed, and a
+        state that does not fit raises :class:`~radartracker.errors.InputError` naming what is wrong."""
         default_load_state_dict(self, state)
 
     @abc.abstractmethod
@@ -141,11 +144,12 @@ class Estimator(abc.ABC):
 
     def update_many(self, time: Sequence[float], aircraft: Sequence[Hashable], radar: Sequence[str | None],
                     z: np.ndarray, C: np.ndarray, R: np.ndarray) -> Innovation:
-        """``update`` for a time-ordered batch given as columns (the fields of PlaneMeasurement, stacked).
+        """:meth:`update` of each measurement of a time-ordered batch given as columns (the fields of
+        PlaneMeasurement, stacked), in turn: the one way a batch is applied, so a plugin implements the
+        update once, in :meth:`update`, and does not override this.
 
-        Returns an Innovation of stacked arrays (ν n×2, Λ n×2×2, NIS n). This default loops over
-        ``update``; an estimator may override it to run the batch in compiled code. If measurement i
-        fails, those before it have been applied and the exception carries ``index = i``.
+        Returns an Innovation of stacked arrays (ν n×2, Λ n×2×2, NIS n). If measurement i fails, those
+        before it have been applied and the exception carries ``index = i``.
         """
         nu, lam, nis = [], [], []
         for i in range(len(time)):
@@ -158,13 +162,6 @@ class Estimator(abc.ABC):
                 raise
             nu.append(inn.nu), lam.append(inn.S), nis.append(inn.nis)
         return Innovation(np.reshape(nu, (-1, 2)), np.reshape(lam, (-1, 2, 2)), np.asarray(nis, float))
-
-    def update_arrays(self, time: float, aircraft: Hashable, radar: str | None, z: np.ndarray, C: np.ndarray,
-                      R: np.ndarray) -> None:
-        """``update`` of one measurement given as its fields, for a caller that built them itself (float
-        arrays: z (2,), C and R (2, 2)) and does not read the innovation, as the TrackManager: an estimator
-        may skip building the measurement, checking the arrays and returning ν, Λ. Default: ``update``."""
-        self.update(PlaneMeasurement(time, aircraft, radar, z, C, R))
 
     @abc.abstractmethod
     def aircraft(self, key: Hashable) -> AircraftEstimate:

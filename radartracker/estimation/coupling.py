@@ -20,13 +20,15 @@ fixed only by geometry, weakly (DESIGN §5).
 
 from __future__ import annotations
 
-from collections.abc import Hashable, Sequence
+from collections.abc import Callable, Hashable, Sequence
 from itertools import combinations
 from pathlib import Path
 
 import networkx as nx
 import numpy as np
 from numba import njit
+
+from radartracker.errors import InputError
 
 ADSB = "adsb"
 _NODE = "aircraft:{}".format  # _aircraft_node as a callable for map()
@@ -56,6 +58,89 @@ def _count(rows: np.ndarray, cols: np.ndarray, times: np.ndarray, known: np.ndar
             latest[r, c] = times[i]
         source_count[c] += 1
     return k
+
+
+_KINDS = {"aircraft": (), "radar": ("measurements",), "reference": ("measurements",)}  # node kinds, their counts
+_EDGE_KINDS = ("observation", "marginalised")
+
+
+def _checked_graph_state(state: object) -> tuple[list, list]:
+    """(nodes, edges) of a coupling-graph state to add in order: nodes named by strings with a known
+    ``kind``, string labels and non-negative integer counts, the reference node among them; every edge
+    between two nodes, listed from both ends with the same attributes (a known kind, a non-negative
+    ``count``, a ``last_time``), no self-loops; the edges in an order that gives every node its saved
+    order of neighbours. Raises InputError naming what is wrong."""
+    def fail(message: str) -> InputError:
+        return InputError(f"coupling graph state: {message}")
+
+    if not isinstance(state, dict) or set(state) != {"nodes", "adj"}:
+        raise fail("not a map of 'nodes' and 'adj'")
+    nodes = {}
+    for item in _pairs(state["nodes"], fail, "nodes"):
+        name, d = item
+        if not isinstance(name, str) or not isinstance(d, dict) or name in nodes:
+            raise fail(f"node {name!r} is not a new name with a map of attributes")
+        kind = d.get("kind")
+        if kind not in _KINDS or set(d) != {"kind", "label", *_KINDS[kind]} or not isinstance(d["label"], str):
+            raise fail(f"node {name!r} has attributes {sorted(map(str, d))} of kind {kind!r}")
+        for count in _KINDS[kind]:
+            _count_ok(d[count], fail, f"node {name!r} {count}")
+        nodes[name] = dict(d)
+    if nodes.get(ADSB, {}).get("kind") != "reference":
+        raise fail(f"the reference node {ADSB!r} is missing")
+    order = {}
+    for item in _pairs(state["adj"], fail, "adj"):
+        u, nbrs = item
+        if u not in nodes or u in order:
+            raise fail(f"adjacency of {u!r}: not a node, or listed twice")
+        order[u] = [v for v, _ in _pairs(nbrs, fail, f"adjacency of {u!r}")]
+        for v, d in nbrs:
+            _edge_ok(u, v, d, nodes, fail)
+    return list(nodes.items()), _edge_order(state["adj"], order, fail)
+
+
+def _pairs(value: object, fail: Callable[[str], InputError], what: str) -> list:
+    if not isinstance(value, (list, tuple)) or not all(isinstance(p, (list, tuple)) and len(p) == 2 for p in value):
+        raise fail(f"{what} is not a list of pairs")
+    return list(value)
+
+
+def _count_ok(value: object, fail: Callable[[str], InputError], what: str) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise fail(f"{what} = {value!r} is not a non-negative integer")
+
+
+def _edge_ok(u: str, v: object, d: object, nodes: dict, fail: Callable[[str], InputError]) -> None:
+    if v not in nodes or v == u:
+        raise fail(f"edge {u!r} – {v!r}: not a node, or a self-loop")
+    if not isinstance(d, dict) or set(d) != {"kind", "count", "last_time"} or d["kind"] not in _EDGE_KINDS:
+        raise fail(f"edge {u!r} – {v!r}: attributes {d!r}")
+    _count_ok(d["count"], fail, f"edge {u!r} – {v!r} count")
+    if isinstance(d["last_time"], bool) or not isinstance(d["last_time"], (int, float)) or np.isinf(d["last_time"]):
+        raise fail(f"edge {u!r} – {v!r}: last_time {d['last_time']!r} is not a number")
+
+
+def _edge_order(adj: list, order: dict[str, list], fail: Callable[[str], InputError]) -> list:
+    """The edges (u, v, attributes) in an order that appends every node's neighbours in its saved order:
+    a topological order of the edges under "(u, a) before (u, b) when a precedes b in u's list"."""
+    data, after = {}, nx.DiGraph()
+    for u, nbrs in adj:
+        for v, d in nbrs:
+            e = frozenset((u, v))
+            if e in data and data[e] != d:
+                raise fail(f"edge {u!r} – {v!r} has different attributes from its two ends")
+            data[e] = d
+            after.add_node(e)
+        for a, b in zip(order[u], order[u][1:]):
+            after.add_edge(frozenset((u, a)), frozenset((u, b)))
+    for u, vs in order.items():
+        if len(set(vs)) != len(vs) or any(u not in order.get(v, ()) for v in vs):
+            raise fail(f"adjacency of {u!r} repeats a neighbour or is not listed from the other end")
+    try:
+        edges = list(nx.lexicographical_topological_sort(after, key=lambda e: sorted(e)))
+    except nx.NetworkXUnfeasible:
+        raise fail("the neighbour orders contradict one another") from None
+    return [(*sorted(e), dict(data[e])) for e in edges]
 
 
 def _aircraft_node(key: Hashable) -> str:
@@ -249,14 +334,12 @@ class CouplingGraph:
                 "adj": [(u, [(v, dict(d)) for v, d in nbrs.items()]) for u, nbrs in g.adj.items()]}
 
     def load_state_dict(self, state: dict) -> None:
-        """Rebuild the graph of :meth:`state_dict`, with each node's neighbours in their saved order."""
+        """Rebuild the graph of :meth:`state_dict` through networkx's public API, each node's neighbours in
+        their saved order. The state is untrusted: checked first (:func:`_checked_graph_state`)."""
+        nodes, edges = _checked_graph_state(state)
         g = nx.Graph()
-        g.add_nodes_from(state["nodes"])
-        edges: dict[frozenset, dict] = {}
-        for u, nbrs in state["adj"]:
-            for v, d in nbrs:
-                # one attribute dict shared by both directions, as networkx keeps it
-                g._adj[u][v] = edges.setdefault(frozenset((u, v)), dict(d))
+        g.add_nodes_from(nodes)
+        g.add_edges_from(edges)
         self._graph = g
         self._edges = {}
         self._clear_pending()

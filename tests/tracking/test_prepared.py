@@ -1,7 +1,6 @@
-"""A frame's plots of every radar converted in one pass equal RadarFrame's conversion radar by radar; its compiled
-phase recurrence equals the Python loop it replaces."""
-
-import math
+"""A frame's plots of every radar converted in one pass equal RadarFrame's conversion radar by radar (its own
+pyproj topocentric pipeline per radar: an independent computation), within 1 µm for positions (and C_s's
+azimuth column, in metres) and 1e-9 relative for C_s and R; ADS-B rows equal pyproj's plane projection."""
 
 import numpy as np
 import pytest
@@ -37,15 +36,12 @@ def test_one_pass_over_all_radars_equals_radar_frame_per_radar():
         zr, okr = frame.to_plane(rho[k], theta[k], alt[k])
         Cr = frame.bias_jacobian(zr, rho[k], alt[k])
         Rr = Cr @ radar.W @ np.swapaxes(Cr, 1, 2)
-        np.testing.assert_allclose(z[k], zr, rtol=0, atol=1e-9)
-        np.testing.assert_allclose(C[k], Cr, rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(R[k], Rr, rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(z[k], zr, rtol=0, atol=1e-6)
+        np.testing.assert_allclose(C[k], Cr, rtol=1e-9, atol=1e-6)  # azimuth column in metres: 1 µm
+        np.testing.assert_allclose(R[k], Rr, rtol=1e-9, atol=1e-6)
         assert list(ok[k]) == list(okr)
     for r, p in zip(reports, xy):
-        assert tuple(p) == tuple(float(v) for v in plane.to_plane(r.lat, r.lon))
-    # R within rounding of numpy's C W Cᵀ (bit for bit where numpy's BLAS fuses multiply-adds, as OpenBLAS
-    # does here; its own rounding is the next test's)
-    np.testing.assert_allclose(R, C @ conv.W[rows] @ np.swapaxes(C, 1, 2), rtol=1e-14, atol=1e-9)
+        np.testing.assert_allclose(p, [float(v) for v in plane.to_plane(r.lat, r.lon)], rtol=0, atol=1e-6)
     # the frame's rows: plots radar by radar from (radar row, count) runs, then the ADS-B reports
     order = np.argsort(rows, kind="stable")
     radars, counts = np.unique(rows[order], return_counts=True)
@@ -54,8 +50,10 @@ def test_one_pass_over_all_radars_equals_radar_frame_per_radar():
     zf, Cf, Rf, rf, okf = conv.convert_frame(radars, counts, rho[order], theta[order], alt[order], lat, lon, nacp)
     n = len(plots)
     assert list(rf) == list(rows[order]) + [-1] * len(reports) and list(okf) == list(ok[order])
-    assert zf[:n].tobytes() == z[order].tobytes() and Cf[:n].tobytes() == C[order].tobytes()
-    assert Rf[:n].tobytes() == R[order].tobytes() and zf[n:].tobytes() == xy.tobytes()
+    np.testing.assert_allclose(zf[:n], z[order], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(Cf[:n], C[order], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(Rf[:n], R[order], rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(zf[n:], xy, rtol=0, atol=1e-6)
     sd = np.array([nacp_sigma_m(int(a)) for a in nacp])
     assert (Cf[n:] == 0).all() and (Rf[n:] == (sd**2)[:, None, None] * np.eye(2)).all()
     for bad in (0, 12):
@@ -67,22 +65,3 @@ def test_one_pass_over_all_radars_equals_radar_frame_per_radar():
     z0, C0, R0, ok0, xy0 = conv.convert(rows[:0], rho[:0], theta[:0], alt[:0], np.array([reports[0].lat]),
                                         np.array([reports[0].lon]))
     assert z0.shape == (0, 2) and C0.shape == (0, 2, 2) and ok0.shape == (0,) and tuple(xy0[0]) == tuple(xy[0])
-
-
-def test_compiled_products_round_as_fused_multiply_adds_from_zero():
-    """_dot2(a0, a1, b0, b1) = fma(a1, b1, fma(a0, b0, +0)) + 0 (oracle: exact rational arithmetic, rounded
-    once per step), on values of all magnitudes and zeros of either sign; never −0."""
-    from fractions import Fraction
-
-    from radartracker.tracking.prepared import _dot2
-
-    def fma(a: float, b: float, c: float) -> float:  # correctly rounded a·b + c (a zero result: +0 here)
-        return float(Fraction(a) * Fraction(b) + Fraction(c))
-
-    rng = np.random.default_rng(5)
-    values = rng.normal(size=(4000, 4)) * 10.0 ** rng.integers(-160, 150, (4000, 4))
-    values[:200] = rng.choice([0.0, -0.0, 1e-170, -1e-170, 1.0, -3.0], (200, 4))
-    for a0, a1, b0, b1 in values.tolist():
-        got, want = _dot2(a0, a1, b0, b1), fma(a1, b1, fma(a0, b0, 0.0)) + 0.0
-        assert got == want and math.copysign(1, got) == math.copysign(1, want)
-        assert not (got == 0 and math.copysign(1, got) < 0)

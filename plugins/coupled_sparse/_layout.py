@@ -1,0 +1,116 @@
+"""Storage layout of the sparse information-form coupled filter (see the package docstring).
+
+For aircraft slot ``s`` with ``nk[s]`` observing radars ``rk[s, :nk[s]]`` (``nk[s] = −1``: a free slot):
+``Yxx[s]`` = Y_ii (4×4), ``Yxb[s, :, 2c:2c+2]`` = Y_ib for the c-th of those radars, ``ex[s]`` = η_i and
+``tx[s]`` the aircraft's epoch. Global: ``Ybb``, ``eb`` (bias information, including what removed aircraft
+taught), the Schur complement ``S`` = Y_bb − Σ_i Y_bi Y_ii⁻¹ Y_ib and ``sv`` = η_b − Σ_i Y_bi Y_ii⁻¹ η_i kept
+incrementally, and the bias marginal ``Pb`` = S⁻¹, ``bh`` = S⁻¹ sv kept by rank-2 updates and reset from S
+every ``refresh_every`` updates.
+
+Every array is a view into one float buffer ``F`` and one int buffer ``I`` whose first three entries are
+the dimensions (capacity, radar columns, bias entries), so the compiled update takes a few arguments;
+:func:`carve` is the one layout. The kernels' scratch is carved the same way from ``WF``
+(:func:`carve_work`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+OK = 0
+ERR_NONFINITE = 1  # z, C, R or dt not finite
+ERR_R = 2  # R not positive definite (the information form needs R⁻¹)
+ERR_YII = 3  # an aircraft's information block Y_ii not positive definite
+ERR_LAMBDA = 4  # innovation covariance Λ not positive definite
+ERR_S = 5  # bias Schur complement S not positive definite
+ERR_REBUILD = 6  # recomputing S from the blocks met an aircraft whose Y_ii is not positive definite
+
+# ctr: [updates since refresh, refresh_every, updates since rebuild, rebuild_factor, n alive]
+C_SINCE_REFRESH, C_REFRESH_EVERY, C_SINCE_REBUILD, C_REBUILD_FACTOR, C_ALIVE = range(5)
+
+# the estimator's arrays in the order carve() returns them (before its scratch ``idx``)
+STORE = ("Yxx", "Yxb", "ex", "tx", "Ybb", "eb", "S", "sv", "Pb", "bh", "nk", "rk", "ctr")
+
+
+def storage_sizes(cap: int, mm: int, nb: int) -> tuple[int, int]:
+    """Lengths of the float and int buffers for ``cap`` aircraft slots, ``mm`` radar columns, ``nb`` biases."""
+    return cap * (16 + 8 * mm + 4 + 1) + 3 * nb * nb + 3 * nb, 3 + cap * (1 + mm) + 5 + 2 * mm
+
+
+@njit(cache=True)
+def carve(F, I):
+    """(Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr, idx) as views into F and I, whose I[:3] holds
+    (cap, mm, nb); idx is the kernels' scratch of bias positions."""
+    cap, mm, nb = I[0], I[1], I[2]
+    o = 0
+    Yxx = F[o:o + cap * 16].reshape((cap, 4, 4))
+    o += cap * 16
+    Yxb = F[o:o + cap * 8 * mm].reshape((cap, 4, 2 * mm))
+    o += cap * 8 * mm
+    ex = F[o:o + cap * 4].reshape((cap, 4))
+    o += cap * 4
+    tx = F[o:o + cap]
+    o += cap
+    Ybb = F[o:o + nb * nb].reshape((nb, nb))
+    o += nb * nb
+    eb = F[o:o + nb]
+    o += nb
+    S = F[o:o + nb * nb].reshape((nb, nb))
+    o += nb * nb
+    sv = F[o:o + nb]
+    o += nb
+    Pb = F[o:o + nb * nb].reshape((nb, nb))
+    o += nb * nb
+    bh = F[o:o + nb]
+    o = 3
+    nk = I[o:o + cap]
+    o += cap
+    rk = I[o:o + cap * mm].reshape((cap, mm))
+    o += cap * mm
+    ctr = I[o:o + 5]
+    o += 5
+    idx = I[o:o + 2 * mm]
+    return Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr, idx
+
+
+def work_size(nbw: int) -> int:
+    """Length of the scratch buffer for ``nbw`` bias entries (:func:`carve_work`)."""
+    return 13 * 16 + 3 * 4 * nbw + 24 + 2 * nbw + 2 * nbw * nbw + 8
+
+
+@njit(cache=True)
+def carve_work(WF, nbw):
+    """Scratch (f4, V, G, W, v4, Kb, LS, LSi, io) as views into WF; io = [ν (2), Λ (4), NIS, q] of
+    :func:`~._kernels.update_packed`."""
+    f4 = WF[0:208].reshape((13, 4, 4))  # 4×4 scratch: [0:7] predict, [3:13] update_one
+    o = 208
+    V = WF[o:o + 4 * nbw].reshape((4, nbw))
+    o += 4 * nbw
+    G = WF[o:o + 4 * nbw].reshape((4, nbw))
+    o += 4 * nbw
+    W = WF[o:o + 4 * nbw].reshape((4, nbw))
+    o += 4 * nbw
+    v4 = WF[o:o + 24].reshape((6, 4, 1))
+    o += 24
+    Kb = WF[o:o + 2 * nbw].reshape((2, nbw))  # rows: the two columns of K_b, each contiguous
+    o += 2 * nbw
+    LS = WF[o:o + nbw * nbw].reshape((nbw, nbw))
+    o += nbw * nbw
+    LSi = WF[o:o + nbw * nbw].reshape((nbw, nbw))
+    o += nbw * nbw
+    io = WF[o:o + 8]
+    return f4, V, G, W, v4, Kb, LS, LSi, io
+
+
+def allocate(cap: int, m: int, q: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Zeroed buffers (F, I, WF) for ``cap`` aircraft slots and ``m`` radars (every slot free), and the
+    process-noise density ``q`` stored in the scratch's ``io`` for the update."""
+    mm, nb = max(m, 1), 2 * m
+    nf, ni = storage_sizes(cap, mm, nb)
+    F, I = np.zeros(nf), np.zeros(ni, np.int64)
+    I[:3] = cap, mm, nb
+    carve(F, I)[10][:] = -1
+    WF = np.zeros(work_size(2 * mm))
+    carve_work(WF, 2 * mm)[8][7] = q
+    return F, I, WF
