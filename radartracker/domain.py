@@ -11,7 +11,7 @@ from __future__ import annotations
 import collections
 import itertools
 import math
-from collections.abc import Callable, Hashable
+from collections.abc import Callable
 from typing import Any
 
 import attrs
@@ -312,28 +312,3 @@ class BiasState:
         return float(math.sqrt(max(self.cov[1, 1], 0.0)))
 
 
-TRACK_STATUSES = ("tentative", "confirmed", "coasting", "deleted")
-
-
-@attrs.define
-class Track:
-    """An aircraft's estimated state history and status.
-
-    ``times`` and ``states`` (χ = [x, y, vx, vy] in the plane) grow with each update; ``sd`` keeps
-    the position standard deviations (σx, σy) at each of those times.
-    """
-
-    key: Hashable
-    status: str = attrs.field(default="tentative", validator=attrs.validators.in_(TRACK_STATUSES))
-    times: list[float] = attrs.field(factory=list)
-    states: list[np.ndarray] = attrs.field(factory=list)
-    sd: list[tuple[float, float]] = attrs.field(factory=list)
-
-    def record(self, time: float, state: np.ndarray, cov: np.ndarray) -> None:
-        self.times.append(time)
-        self.states.append(np.array(state, dtype=float))
-        self.sd.append((math.sqrt(max(cov[0, 0], 0.0)), math.sqrt(max(cov[1, 1], 0.0))))
-
-    @property
-    def last_time(self) -> float | None:
-        return self.times[-1] if self.times else None

@@ -33,7 +33,7 @@ from radartracker.estimation.screening import ScreeningConfig
 from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, track_metrics
 from radartracker.simulation.scenarios import build_scenario
-from radartracker.tracking.admission import ClockConfig
+from radartracker.clock import ClockConfig
 from radartracker.tracking.manager import ManagerConfig, TrackManager
 
 YEARS_10 = 10 * 365.25 * 86400.0

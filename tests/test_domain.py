@@ -7,7 +7,7 @@ import re
 import numpy as np
 import pytest
 
-from radartracker.domain import AdsbReport, Aircraft, BiasState, Plot, Radar, Track, nacp_sigma_m
+from radartracker.domain import AdsbReport, Aircraft, BiasState, Plot, Radar, nacp_sigma_m
 
 
 def radar(**kw):
@@ -95,14 +95,27 @@ def test_nacp_sigma_is_95_percent_radius():
         nacp_sigma_m(0)
 
 
-def test_bias_state_and_track():
+def test_bias_state():
     b = BiasState("R1", 10.0, [50.0, 0.001], np.diag([4.0, 1e-8]))
     assert (b.range_m, b.sd_range_m, b.sd_azimuth_rad) == (50.0, 2.0, pytest.approx(1e-4))
-    tr = Track("abc")
-    tr.record(1.0, np.arange(4.0), np.diag([9.0, 16.0, 1.0, 1.0]))
-    assert tr.last_time == 1.0 and tr.sd == [(3.0, 4.0)]
+
+
+def test_track_status_identity_and_straight_line_state():
+    """The manager's Track: a known status only; its Aircraft from its Mode S address; its state at a
+    later time extrapolated in a straight line, never backwards (oracle: the arithmetic written here)."""
+    from radartracker.registry import make_filter_factory
+    from radartracker.tracking.track import Track
+
+    f = make_filter_factory("cv")()
+    f.start(10.0, np.array([100.0, 200.0]), 2500.0 * np.eye(2))
+    f.update(14.0, np.array([500.0, 200.0]), 2500.0 * np.eye(2))
+    tr = Track(1, f, "tentative", 10.0, 14.0, mode_s="abc123", mode_3a="1234")
+    t0, x, _ = f.estimate()
+    assert tr.state_at(20.0) == pytest.approx((x[0] + 6.0 * x[2], x[1] + 6.0 * x[3], x[2], x[3]))
+    assert tr.state_at(0.0) == pytest.approx(tuple(x))
+    assert tr.aircraft == Aircraft("abc123", mode_3a="1234") and Track(2, f, "confirmed", 0.0, 0.0).aircraft is None
     with pytest.raises(ValueError):
-        Track("x", status="lost")
+        Track(3, f, "lost", 0.0, 0.0)
 
 
 # --- Plot / AdsbReport made from columns (the reader's path, issue 13) ------------------------------

@@ -36,9 +36,8 @@ that see the aircraft is the innovation test above against the track they feed.
 
 from __future__ import annotations
 
-import itertools
 import math
-from collections.abc import Hashable, Sequence
+from collections.abc import Hashable
 
 import attrs
 import numpy as np
@@ -203,20 +202,6 @@ def speed_consistent(config: ScreeningConfig, dt: float, a: np.ndarray, sd_a: fl
 
 
 _ADDRESSES_KEPT = 20_000  # AdsbPlausibility forgets addresses silent for an hour when it holds more
-_BATCH_FROM = 32  # AdsbPlausibility.check_many checks fewer reports one by one (its fixed cost is ~30 checks)
-
-
-@njit(cache=True)
-def _plainly_consistent(t: np.ndarray, xy: np.ndarray, sd: np.ndarray, idx: np.ndarray, ref: np.ndarray,
-                        v_max: float, sigmas: float, accept: np.ndarray) -> None:
-    """accept[idx[j]] = True where report idx[j] (t, xy, σ) is within its speed limit from the reference
-    ref[j] = (t₀, x₀, y₀, σ₀) by more than 10⁻¹² of the allowance (so that any hypot within a few ulps
-    decides alike)."""
-    for j in range(idx.size):
-        i = idx[j]
-        allowance = v_max * abs(t[i] - ref[j, 0]) + sigmas * math.hypot(ref[j, 3], sd[i])
-        if math.hypot(xy[i, 0] - ref[j, 1], xy[i, 1] - ref[j, 2]) <= allowance * (1.0 - 1e-12) - 1e-200:
-            accept[i] = True
 
 
 class AdsbPlausibility:
@@ -259,61 +244,6 @@ class AdsbPlausibility:
             self._last = {k: v for k, v in self._last.items() if time - v[0] < 3600.0}
             self._fails = {k: v for k, v in self._fails.items() if k in self._last}
         return None
-
-    def check_many(self, icao24: Sequence[str], time: np.ndarray, xy: np.ndarray, sd: np.ndarray,
-                   nacp: np.ndarray) -> list[str | None]:
-        """:meth:`check` of n reports in order (``xy`` (n, 2), the others of length n): the same verdicts and
-        the same state after as n calls.
-
-        An address's first report in the batch sees the state from before the batch, so its speed test
-        is made for all of them in one compiled loop (:func:`_plainly_consistent`): a report that passes
-        by more than 10⁻¹² of its allowance is accepted so; the others — an address seen again in the
-        batch, a test near the limit, failed or NaN — go to :meth:`check`, in order, after the accepted
-        ones are stored (the state of one address never depends on another's, and the tables keep the
-        same order). Small batches, and those that could make the table forget addresses, are checked
-        report by report.
-        """
-        n, codes = len(icao24), list(icao24)
-        t, s = np.asarray(time, float).reshape(n), np.asarray(sd, float).reshape(n)
-        xy, nacp = np.asarray(xy, float).reshape(n, 2), np.asarray(nacp).reshape(n)
-        tl, sl, nl = t.tolist(), s.tolist(), nacp.tolist()
-        if n < _BATCH_FROM or len(self._last) + n > _ADDRESSES_KEPT:
-            return list(map(self.check, codes, tl, xy, sl, nl))
-        min_nacp, v_max, sigmas = self._limits
-        out: list[str | None] = [None] * n
-        usable = ~(nacp < min_nacp)
-        if usable.all() and len(set(codes)) == n:
-            first, lasts = np.arange(n), list(map(self._last.get, codes))
-        else:  # each address's first usable report; low NACp is a verdict of its own
-            seen: dict[str, int] = {}
-            for i, (code, ok) in enumerate(zip(codes, usable.tolist())):
-                if not ok:
-                    out[i] = "adsb_low_nacp"
-                elif code not in seen:
-                    seen[code] = i
-            first, lasts = np.array(list(seen.values()), np.int64), list(map(self._last.get, seen))
-        accept = np.zeros(n, bool)
-        if None in lasts:  # a new address: accepted
-            seen_before = np.array([e is not None for e in lasts], bool)
-            accept[first[~seen_before]] = True
-            first, lasts = first[seen_before], [e for e in lasts if e is not None]
-        ref = np.fromiter(itertools.chain.from_iterable(lasts), float, 4 * len(first)).reshape(len(first), 4)
-        _plainly_consistent(t, xy, s, first, ref, v_max, sigmas, accept)
-        if accept.all():
-            stored, (xs, ys) = codes, xy.T.tolist()
-            entries = zip(tl, xs, ys, sl)
-        else:
-            keep = np.flatnonzero(accept)
-            stored, (xs, ys) = list(map(codes.__getitem__, keep.tolist())), xy[keep].T.tolist()
-            entries = zip(t[keep].tolist(), xs, ys, s[keep].tolist())
-        if self._fails:
-            for code in stored:
-                self._fails.pop(code, None)
-        self._last.update(zip(stored, entries))
-        if len(stored) < n:  # the others, once the accepted reports are stored
-            for i in np.flatnonzero(usable & ~accept).tolist():
-                out[i] = self.check(codes[i], tl[i], xy[i], sl[i], nl[i])
-        return out
 
     def state_dict(self) -> dict:
         """The state as plain values (for TrackManager snapshots)."""

@@ -33,7 +33,7 @@ from radartracker.io.atomic import atomic_folder
 from radartracker.io.csvblocks import BLOCK_BYTES, Rows, Skipper, newlines, read_text
 from radartracker.io.tables import (ADSB_COLUMNS, BIAS_COLUMNS, PLOT_COLUMNS, RADAR_COLUMNS, TRUTH_COLUMNS, AdsbTable,
                                     PlotTable, ScenarioData, TruthTable, label_spans)
-from radartracker.tracking.admission import StreamClock
+from radartracker.clock import StreamClock
 
 log = logging.getLogger(__name__)
 _Rows = Rows  # the name other readers import (radartracker.io.asterix)

@@ -25,7 +25,7 @@ from radartracker.estimation.screening import ScreeningConfig
 from radartracker.fusion.center import FusionConfig
 from radartracker.io.tables import ScenarioData
 from radartracker.registry import FilterFactory, load_motion_model, make_filter_factory, option_fields
-from radartracker.tracking.admission import ClockConfig
+from radartracker.clock import ClockConfig
 from radartracker.tracking.config import ManagerConfig
 
 CONFIG_FORMAT = "radartracker-run-config"

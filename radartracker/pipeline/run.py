@@ -51,7 +51,7 @@ from radartracker.pipeline.result import RunResult
 from radartracker.pipeline.stream import NotTimeOrdered, iter_files, iter_scenario
 from radartracker.pipeline.writer import OutputStream, write_outputs
 from radartracker.registry import FilterFactory, default_estimator, make_estimator, make_manager
-from radartracker.tracking.admission import StreamClock
+from radartracker.clock import StreamClock
 
 log = logging.getLogger(__name__)
 GC_YOUNG_THRESHOLD = 50_000  # chosen by measurement: docs/performance.md, "Garbage collection"

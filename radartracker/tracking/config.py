@@ -7,7 +7,7 @@ import attrs
 from radartracker.estimation.base import EstimatorConfig
 from radartracker.estimation.motion import MotionModel
 from radartracker.estimation.screening import ScreeningConfig
-from radartracker.tracking.admission import ClockConfig
+from radartracker.clock import ClockConfig
 from radartracker.tracking.filters import MotionConfig
 
 @attrs.frozen

@@ -10,17 +10,14 @@ Layout (all integers big-endian; documented in docs/reliability.md, "Snapshots")
     52      n     payload: a msgpack array [meta, state], state itself msgpack bytes
 
 ``meta`` holds what rebuilds the manager (radars, reference point, configuration); ``state`` the
-attributes that change while it runs (tracks with their filters' state dicts, the estimator's and
-the coupling graph's state dicts, queues, counters). Values are msgpack natives (nil, bool, int,
+document of what changes while it runs (:mod:`radartracker.tracking.schema` lists it field by field).
+Values are msgpack natives (nil, bool, int,
 float, str, bin, array) or a map ``{"t": tag, "v": value}`` — a msgpack map is never anything
 else — with the tags: ``tuple``, ``set``, ``frozenset``, ``dict`` and ``counter`` (v: [key, value]
 pairs, in order), ``deque`` ([maxlen, items]), ``complex`` ([re, im]), ``nd`` ([dtype, shape,
 order, bytes]; numeric dtypes only), ``np`` ([dtype, bytes]: a NumPy scalar), ``count``
-([next, step]: an ``itertools.count``), ``attrs`` ([module, class, [[field, value]…]]: an attrs
-class of radartracker or its plugins, already imported), ``filter`` ([class, config, state dict]: a
-track filter made by the manager's filter factory, which must make that class) and ``state`` (a
-state dict loaded into the object the restored manager builds: estimator, coupling graph, clock).
-``meta`` also names the estimator's class, which the restored manager must have.
+([next, step]: an ``itertools.count``) and ``attrs`` ([module, class, [[field, value]…]]: an attrs
+class of radartracker or its plugins, already imported, built through its validating constructor).
 
 Reading never executes anything from the file: no pickle, no import; it only builds the listed
 types, and attrs classes that are already loaded, through their validating constructors. A file
@@ -103,24 +100,18 @@ def _enc(obj: Any, where: str) -> Any:
 # --- decoding --------------------------------------------------------------------------------------
 
 def _record_class(module: str, qualname: str) -> type:
-    """An attrs class or named tuple of radartracker or its plugins that is already imported (nothing is
-    imported). A named tuple is read where an earlier release saved an attrs class of that name
-    (TrackEvent, in snapshots written before it became one)."""
+    """An attrs class of radartracker or its plugins that is already imported (nothing is imported)."""
     mod = sys.modules.get(module) if isinstance(module, str) and module.startswith(_PACKAGES) else None
     obj: Any = mod
     for part in qualname.split(".") if isinstance(qualname, str) and mod is not None else ():
         obj = getattr(obj, part, None) if part.isidentifier() else None
-    if not (isinstance(obj, type) and (attrs.has(obj) or (issubclass(obj, tuple) and hasattr(obj, "_fields")))):
+    if not (isinstance(obj, type) and attrs.has(obj)):
         raise ValueError(f"class {module}.{qualname} is not a loaded radartracker attrs class")
     return obj
 
 
 def _build(cls: type, fields: list) -> Any:
     values = dict(fields)
-    if not attrs.has(cls):  # a named tuple: every field, by name
-        if set(values) != set(cls._fields):
-            raise ValueError(f"{cls.__qualname__}: fields {sorted(map(str, values))}, expected {sorted(cls._fields)}")
-        return cls(**values)
     known = {f.name: f for f in attrs.fields(cls)}
     if set(values) - set(known):
         raise ValueError(f"{cls.__qualname__}: unknown field(s) {sorted(set(values) - set(known))}")

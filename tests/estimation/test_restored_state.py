@@ -284,12 +284,12 @@ SNAPSHOT_CASES = ("slot_out_of_range", "nk_huge", "rk_out_of_range", "tx_wrong_l
 _SNAPSHOT_CHILD = textwrap.dedent("""
     import pickle, sys
     from radartracker.errors import SnapshotError
-    from radartracker.tracking.manager import TrackManager
+    from radartracker.registry import restore_manager
     paths, items = pickle.loads(sys.stdin.buffer.read())
     for path in paths:
         print(path, flush=True)
         try:
-            mgr = TrackManager.restore(path)
+            mgr = restore_manager(path)
         except SnapshotError as exc:
             print("refused", str(exc), flush=True)
             continue
@@ -303,11 +303,12 @@ def test_crafted_snapshots_are_refused_and_never_kill_the_process(tmp_path):
     """Six snapshots with a valid checksum whose coupled-sparse state has an out-of-range slot, a huge radar
     count, an out-of-range radar index, a short array, a free slot beyond the storage and a huge aircraft
     count: restoring each in a subprocess gives a SnapshotError naming the file and the field, no signal."""
-    from radartracker.tracking.manager import ManagerConfig, TrackManager
+    from radartracker.registry import make_manager
+    from radartracker.tracking.config import ManagerConfig
     from tests.tracking.test_snapshot import items_and_data
 
     items, data = items_and_data.__wrapped__()
-    mgr = TrackManager(data.radars, data.reference, ManagerConfig(estimator="coupled-sparse"))
+    mgr = make_manager(data.radars, data.reference, ManagerConfig(estimator="coupled-sparse"))
     half = len(items) // 2
     mgr.process_many(items[:half])
     good = mgr.estimator.state_dict()

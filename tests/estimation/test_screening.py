@@ -347,58 +347,6 @@ def _adsb_batches(rng, cfg, reference, n_batches, codes, step_s):
         yield batch
 
 
-@pytest.mark.parametrize("kept", [20_000, 25])
-def test_adsb_check_many_equals_the_checks_one_by_one(monkeypatch, kept):
-    """check_many gives the verdicts of check called report by report and leaves the same state (values,
-    bits and the order of the addresses), near the speed limit too; with a small address table the
-    batches that could make it forget addresses (one by one there) are exercised."""
-    monkeypatch.setattr(screening, "_ADDRESSES_KEPT", kept)
-    monkeypatch.setattr(screening, "_BATCH_FROM", 2)  # small batches too
-    cfg = ScreeningConfig()
-    rng = np.random.default_rng(11)
-    one, many = AdsbPlausibility(cfg), AdsbPlausibility(cfg)
-    codes = [f"{0xa00000 + k:06x}" for k in range(60)]
-    seen = []
-    for batch in _adsb_batches(rng, cfg, one, 150, codes, 0.05 if kept > 100 else 40.0):
-        want = [one.check(*r) for r in batch]
-        cols = list(zip(*batch)) or [[]] * 5
-        got = many.check_many(list(cols[0]), np.array(cols[1], float), np.array(cols[2], float).reshape(-1, 2),
-                              np.array(cols[3], float), np.array(cols[4], int))
-        assert got == want
-        assert repr(many.state_dict()) == repr(one.state_dict())
-        seen += want
-    assert {None, "adsb_low_nacp", "adsb_implausible_speed"} <= set(seen)
-    if kept < 100:
-        assert len(one.state_dict()["last"]) < len(codes)  # addresses were forgotten
-
-
-def test_adsb_check_many_where_numpy_and_the_scalar_test_disagree(monkeypatch):
-    """Reports exactly at the larger of the two allowances k·hypot(σ₀, σ) (math's and numpy's, which
-    differ in the last bit for these σ) and an ulp either side: check_many decides as check."""
-    monkeypatch.setattr(screening, "_BATCH_FROM", 2)
-    rng = np.random.default_rng(12)
-    cfg = ScreeningConfig()
-    sd0, sd = rng.uniform(5.0, 60.0, (2, 100_000))
-    differ = np.flatnonzero(np.hypot(sd0, sd) != [math.hypot(a, b) for a, b in zip(sd0.tolist(), sd.tolist())])
-    pairs = [(a, b) for a, b in zip(sd0[differ].tolist(), sd[differ].tolist())
-             if cfg.speed_sigmas * math.hypot(a, b) != cfg.speed_sigmas * float(np.hypot(a, b))][:60]
-    assert len(pairs) >= 20
-    one, many = AdsbPlausibility(cfg), AdsbPlausibility(cfg)
-    batch = []
-    for k, (a, b) in enumerate(pairs):
-        code = f"{0xb00000 + k:06x}"
-        for chk in (one, many):
-            assert chk.check(code, 100.0, np.zeros(2), a, 8) is None
-        limit = max(cfg.speed_sigmas * math.hypot(a, b), cfg.speed_sigmas * float(np.hypot(a, b)))
-        d = [limit, float(np.nextafter(limit, 0.0)), float(np.nextafter(limit, np.inf))][k % 3]
-        batch.append((code, 100.0, np.array([d, 0.0]), b, 8))
-    want = [one.check(*r) for r in batch]
-    got = many.check_many([r[0] for r in batch], np.array([r[1] for r in batch]), np.array([r[2] for r in batch]),
-                          np.array([r[3] for r in batch]), np.array([r[4] for r in batch]))
-    assert got == want and None in want and "adsb_implausible_speed" in want
-    assert repr(many.state_dict()) == repr(one.state_dict())
-
-
 def test_snapshot_mid_rejection_run_continues_exactly(demo, tmp_path):
     """A snapshot taken while a track holds a run of rejected measurements (and the ADS-B check its
     references) restores them: the continued run equals the uninterrupted one."""

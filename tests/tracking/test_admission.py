@@ -8,7 +8,7 @@ import pytest
 
 from radartracker.registry import make_manager
 from radartracker.domain import Plot
-from radartracker.tracking.admission import ClockConfig, StreamClock
+from radartracker.clock import ClockConfig, StreamClock
 from radartracker.tracking.manager import TrackManager
 
 YEARS_10 = 10 * 365.25 * 86400.0
