@@ -24,15 +24,15 @@ def add_run_options(p: argparse.ArgumentParser, *, estimator_options: bool = Tru
                    help=f"aircraft process noise density q (m²/s³) for the estimator and the track filter's q "
                         f"setting (default {DEFAULT_Q:g}; 0 is the seed's noiseless model)")
     p.add_argument("--association", choices=ASSOCIATIONS, default=None,
-                   help="labels: by truth label / Mode S address (evaluation); manager: the TrackManager; "
-                        "auto (default): labels when every plot carries one")
+                   help="labels: the TrackManager associating by truth label / Mode S address (evaluation); "
+                        "manager: the TrackManager with --associator (default gnn); auto (default): labels "
+                        "when every plot carries one")
     p.add_argument("--manager", action="store_true", help="same as --association manager")
     p.add_argument("--architecture", choices=ARCHITECTURES, default=None,
                    help="central (default): every plot to one tracker and estimator; distributed: one tracker "
                         "per radar and a fusion centre over their tracks (seed 004, docs/fusion.md)")
     p.add_argument("--motion-model", default=None,
-                   help="track filter plugin for --association manager (cv, imm, adaptive, fading; "
-                        "default: ManagerConfig's); refused on the labelled path, which has no track filters")
+                   help="track filter plugin (cv, imm, adaptive, fading; default: ManagerConfig's)")
     p.add_argument("--associator", default=None,
                    help="association plugin of the TrackManager (gnn, labels, or an installed third party's; "
                         "default gnn)")
@@ -81,14 +81,8 @@ def run_config(args: argparse.Namespace, base: RunConfig | None = None) -> RunCo
         changes["estimator"] = args.estimator
     if args.skip_bad:
         changes["skip_bad"] = True
-    if changes.get("association", base.association) != base.association:  # drop the other path's settings
-        if changes["association"] == "manager":
-            changes["labels"] = None
-        else:
-            changes.update(manager={})
-            changes.setdefault("motion_model", None)
-            changes.setdefault("motion_options", {})
-            changes.setdefault("associator", None)
+    if changes.get("association", base.association) == "labels" and "associator" not in changes:
+        changes["associator"] = None  # the labelled association names its own
     return attrs.evolve(base, **changes)
 
 

@@ -29,7 +29,7 @@ from radartracker.clock import ClockConfig
 from radartracker.tracking.config import ManagerConfig
 
 CONFIG_FORMAT = "radartracker-run-config"
-CONFIG_VERSION = 1
+CONFIG_VERSION = 2
 DEFAULT_Q = 5.0  # m²/s³: real aircraft turn; with the seed's q = 0 a manoeuvre is explained away as bias
 ASSOCIATIONS = ("auto", "labels", "manager")
 ARCHITECTURES = ("central", "distributed")
@@ -136,32 +136,12 @@ CLOCK_SETTINGS = _values(ClockConfig())
 
 
 @attrs.frozen
-class LabelsConfig:
-    """Track life cycle of the association by truth label / Mode S address (evaluation path).
-
-    A track starts at its first measurement z with the prior N([z, 0, 0], diag(σ_p², σ_p², σ_v², σ_v²))
-    and ends (is marginalised) after ``drop_after_s`` without measurements (``None``: three times the
-    longest antenna period plus 30 s).
-    """
-
-    prior_sd_position_m: float = attrs.field(default=10_000.0, validator=_optional_positive("prior_sd_position_m"))
-    prior_sd_velocity_mps: float = attrs.field(default=300.0, validator=_optional_positive("prior_sd_velocity_mps"))
-    drop_after_s: float | None = attrs.field(default=None, validator=_optional_positive("drop_after_s"))
-
-
-def _labels(value: LabelsConfig | Mapping[str, Any] | None) -> LabelsConfig | None:
-    try:
-        return LabelsConfig(**value) if isinstance(value, Mapping) else value
-    except TypeError as exc:
-        raise ConfigurationError(f"labels: {exc}") from None
-
-
-@attrs.frozen
 class RunConfig:
     """Every setting of one run (``None``: the default, filled in by :func:`resolve`).
 
-    ``association``: ``labels`` (truth labels, else Mode S addresses — for evaluation), ``manager``
-    (the TrackManager) or ``auto`` (labels when every plot carries one). ``estimator`` /
+    ``association``: ``manager`` (the TrackManager with the associator ``associator``, default ``gnn``),
+    ``labels`` (the same TrackManager with the ``labels`` associator: plots by truth label, for evaluation)
+    or ``auto`` (labels when every plot carries one). ``estimator`` /
     ``motion_model``: plugin names with their ``KEY=VALUE`` options; ``associator``: the TrackManager's
     associator plugin (default ``gnn``). ``q`` (m²/s³): the aircraft
     white-acceleration density, for the estimator and the track filters alike. ``default_altitude_m``:
@@ -169,7 +149,7 @@ class RunConfig:
     least time between two rows of one radar in ``biases.csv``. ``estimator_config`` / ``manager``:
     overrides of :class:`EstimatorConfig` / :class:`ManagerConfig` numbers; ``screening`` / ``clock``:
     of :class:`ScreeningConfig` (innovation gates) and :class:`ClockConfig` (robust stream clock), on
-    both paths; ``labels`` the labelled path's track life cycle. Settings of a path not taken are
+    both associations. Settings of a path not taken are
     refused, never silently ignored.
     """
 
@@ -187,7 +167,6 @@ class RunConfig:
     manager: dict[str, Any] = attrs.field(factory=dict)
     screening: dict[str, Any] = attrs.field(factory=dict)
     clock: dict[str, Any] = attrs.field(factory=dict)
-    labels: LabelsConfig | None = attrs.field(default=None, converter=lambda v: _labels(v))
     architecture: str = attrs.field(default="central", validator=_architecture)
     fusion: dict[str, float] = attrs.field(factory=dict)
 
@@ -251,8 +230,8 @@ def default_altitude() -> float:
 def resolve(config: RunConfig, data: ScenarioData, estimator_name: str) -> RunConfig:
     """The effective configuration for ``data``: every choice named, every default written out.
 
-    Settings of the path not taken raise :class:`ConfigurationError` (``--motion-model`` on the
-    labelled path: there the estimator itself carries the aircraft motion, a CV model of density q).
+    Settings of the path not taken raise :class:`ConfigurationError` (an ``--associator`` with the labelled
+    association, fusion settings without the distributed architecture).
     """
     association = config.association
     if config.architecture == "distributed":  # one TrackManager per radar: never by labels
@@ -265,29 +244,16 @@ def resolve(config: RunConfig, data: ScenarioData, estimator_name: str) -> RunCo
     if association == "auto":
         association = "labels" if data.plots.has_truth_labels else "manager"
     if association == "labels":
-        if config.motion_model is not None or config.motion_options:
-            raise ConfigurationError(
-                "--motion-model/--motion-option: the labelled replay has no track filters (the estimator "
-                "carries the aircraft motion, constant velocity with --q); use --association manager")
-        if config.manager:
-            raise ConfigurationError(f"manager settings {sorted(config.manager)} need --association manager")
-        if config.associator is not None:
-            raise ConfigurationError("--associator chooses the TrackManager's association; use --association manager")
-        labels = config.labels or LabelsConfig()
-        if labels.drop_after_s is None:
-            labels = attrs.evolve(labels, drop_after_s=3.0 * max(r.period_s for r in data.radars) + 30.0)
-        manager: dict[str, Any] = {}
-        motion = None
+        if config.associator not in (None, "labels"):
+            raise ConfigurationError(f"--associator {config.associator}: --association labels associates by "
+                                     "truth label; use --association manager")
+        associator = "labels"
     else:
-        if config.labels is not None:
-            raise ConfigurationError("labels settings (track prior, drop_after_s) need --association labels")
-        labels = None
-        manager = _merged(MANAGER_SETTINGS, _typed_overrides("manager", MANAGER_SETTINGS, config.manager))
-        motion = config.motion_model or ManagerConfig().motion_model
-    associator = None if association == "labels" else config.associator or ManagerConfig().associator
+        associator = config.associator or ManagerConfig().associator
+    manager = _merged(MANAGER_SETTINGS, _typed_overrides("manager", MANAGER_SETTINGS, config.manager))
+    motion = config.motion_model or ManagerConfig().motion_model
     return attrs.evolve(
-        config, association=association, estimator=estimator_name, motion_model=motion, labels=labels,
-        associator=associator,
+        config, association=association, estimator=estimator_name, motion_model=motion, associator=associator,
         manager=manager, default_altitude_m=default_altitude() if config.default_altitude_m is None
         else float(config.default_altitude_m),
         estimator_config=_merged(ESTIMATOR_SETTINGS, _typed_overrides("estimator_config", ESTIMATOR_SETTINGS,

@@ -58,7 +58,8 @@ PluginFailure = Callable[[str, "int | None", float, Exception], PluginError]
 class EstimatorFeed:
     """Queues a frame's :data:`Operation` s and applies them to ``estimator`` and ``coupling`` (module
     docstring); measurements used are counted in ``counts``. ``failed(plugin, track, time, exc)`` makes
-    the error a plugin's exception ends the run with."""
+    the error a plugin's exception ends the run with; ``on_nis``, when set, is given the estimator's
+    normalised innovations νᵀΛ⁻¹ν of each batch (for the χ² consistency of a run)."""
 
     def __init__(self, estimator: Estimator, coupling: CouplingGraph, counts: Counter, failed: PluginFailure) -> None:
         self.estimator = estimator
@@ -66,6 +67,7 @@ class EstimatorFeed:
         self.counts = counts
         self.failed = failed
         self.pending: list[Operation] = []
+        self.on_nis: Callable[[np.ndarray], None] | None = None  # given each update_many's NIS values
         self._biases: dict[str, tuple[np.ndarray, np.ndarray]] = {}
 
     def bias(self, radar: str | None) -> tuple[np.ndarray, np.ndarray]:
@@ -110,14 +112,16 @@ class EstimatorFeed:
             time, aircraft, radar, z, C, R, kind = zip(*run)
             done = n = len(run)
             try:
-                self.estimator.update_many(time, aircraft, radar, np.array(z, float), np.array(C, float),
-                                           np.array(R, float))
+                innovation = self.estimator.update_many(time, aircraft, radar, np.array(z, float),
+                                                        np.array(C, float), np.array(R, float))
             except SingularInnovation as exc:
                 done = getattr(exc, "index", 0)
                 log.warning("estimator refused a measurement of track %s: %s", aircraft[done], exc)
             except Exception as exc:
                 i = getattr(exc, "index", 0)
                 raise self.failed(f"estimator {self.estimator.name!r}", aircraft[i], time[i], exc) from exc
+            if done == n and self.on_nis is not None and innovation is not None:
+                self.on_nis(np.asarray(innovation.nis, float))
             self.coupling.observe_many(aircraft[:done], radar[:done], time[:done])
             self.counts.update(f"{k}_used" for k in kind[:done])
             if done < n:

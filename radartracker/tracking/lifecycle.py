@@ -69,13 +69,20 @@ class TrackLifecycle:
         self.failed = failed
         self.tracks: dict[int, Track] = {}
         self.by_mode_s: dict[str, int] = {}  # Mode S address → id of its live track
+        self.by_target: dict[object, int] = {}  # truth label → id of its live track (with labels)
         self.next_id = 1
         self.adsb_check = AdsbPlausibility(config.screening)
         self.labels = False  # tracks carry their first plot's truth label (set by a label associator)
 
     def with_code(self, code: str | None) -> Track | None:
-        """The live track with Mode S address ``code`` (at most one)."""
-        return None if code is None else self.tracks.get(self.by_mode_s.get(code, -1))
+        """The live track with Mode S address ``code`` (at most one); with truth labels, else the track of
+        that label (a simulated aircraft's label is its address)."""
+        if code is None:
+            return None
+        tid = self.by_mode_s.get(code)
+        if tid is None and self.labels:
+            tid = self.by_target.get(code)
+        return self.tracks.get(tid if tid is not None else -1)
 
     # --- one measurement ---------------------------------------------------------------------------
     def apply(self, u: Update, meas: FrameMeasurements) -> None:
@@ -150,13 +157,15 @@ class TrackLifecycle:
             filt.start(src.time, zc, Rc)
         except Exception as exc:
             raise self.failed(f"motion model {self.new_filter.name!r}", None, src.time, exc) from exc
-        target = getattr(src, "target", None) if self.labels else None
+        target = (getattr(src, "target", None) or code) if self.labels else None
         tr = Track(self.next_id, filt, "tentative", src.time, src.time, mode_s=code, target=target,
                    detections=deque(maxlen=self.config.confirm_n))
         self.next_id += 1
         self.tracks[tr.id] = tr
         if code is not None:
             self.by_mode_s[code] = tr.id
+        if target is not None:
+            self.by_target[target] = tr.id
         self.emit(src.time, tr, "created")
         return tr
 
@@ -215,6 +224,8 @@ class TrackLifecycle:
         del self.tracks[tr.id]
         if tr.mode_s is not None and self.by_mode_s.get(tr.mode_s) == tr.id:
             del self.by_mode_s[tr.mode_s]
+        if tr.target is not None and self.by_target.get(tr.target) == tr.id:
+            del self.by_target[tr.target]
         if tr.status == "tentative":
             for p in tr.pending:
                 self.counts[f"{p.kind}_in_dropped_tentative_tracks"] += 1

@@ -207,6 +207,7 @@ def load_document(mgr: Any, doc: Any) -> None:
     mgr.frame, mgr.gathered = frame, gathered
     mgr.life.tracks = {t.id: t for t in tracks}
     mgr.life.by_mode_s = {t.mode_s: t.id for t in tracks if t.mode_s is not None}
+    mgr.life.by_target = {t.target: t.id for t in tracks if t.target is not None}
     mgr.life.next_id = next_track
 
 

@@ -91,13 +91,15 @@ def test_both_paths_give_the_same_summary_keys(tmp_path, folders):
     assert keys[0] == keys[1]
 
 
-def test_motion_model_on_the_labelled_path_is_refused(tmp_path, folders, capsys):
-    rc = main(["replay", str(folders["labels"]), "--out", str(tmp_path / "o"), "--motion-model", "imm"])
-    assert rc == 2 and "--motion-model" in capsys.readouterr().err
-    assert main(["--quiet", "replay", str(folders["labels"]), "--out", str(tmp_path / "m"), "--manager",
+@pytest.mark.parametrize("association", ["--manager", "--association=labels"])
+def test_motion_model_reaches_the_filters_on_both_associations(tmp_path, folders, association):
+    """One tracker: the labelled association is the TrackManager with the labels associator, so a motion
+    model and its options apply to it as to the manager's own association."""
+    assert main(["--quiet", "replay", str(folders["labels"]), "--out", str(tmp_path / "m"), association,
                  "--motion-model", "imm", "--motion-option", "q_turn=20"]) == 0
     cfg = json.loads((tmp_path / "m" / "config.json").read_text())
     assert cfg["settings"]["motion_options"] == {"q_turn": "20"} and cfg["plugins"]["motion_model"]["q_turn"] == 20.0
+    assert cfg["settings"]["associator"] == ("labels" if "labels" in association else "gnn")
 
 
 @pytest.mark.parametrize("argv, option", [
@@ -107,7 +109,6 @@ def test_motion_model_on_the_labelled_path_is_refused(tmp_path, folders, capsys)
 ])
 def test_bad_options_name_themselves_before_any_work(tmp_path, folders, capsys, monkeypatch, argv, option):
     monkeypatch.setattr("radartracker.pipeline.run._by_manager", None)  # must fail before any computation
-    monkeypatch.setattr("radartracker.pipeline.run._by_labels", None)
     assert main(["replay", str(folders["manager"]), "--out", str(tmp_path / "o"), *argv]) == 2
     err = capsys.readouterr().err
     assert option in err and "Traceback" not in err
@@ -148,8 +149,7 @@ def test_compare_help_states_the_real_default_q(capsys):
     (dict(association="manager", manager={"screening": {}}), "unknown setting 'screening'"),
     (dict(association="manager", manager={"nosuch": 1}), "nosuch"),
     (dict(association="manager", manager={"confirm_m": 2.5}), "confirm_m"),
-    (dict(association="labels", manager={"gate": 9.0}), "association manager"),
-    (dict(association="labels", motion_model="imm"), "--motion-model"),
+    (dict(association="labels", associator="gnn"), "--associator"),
     (dict(q=float("nan")), "--q"),
     (dict(association="sideways"), "association"),
 ])
@@ -171,7 +171,7 @@ def test_a_failing_estimator_is_named_with_aircraft_and_time(labelled, monkeypat
         return type(est).update(est, m)
 
     monkeypatch.setattr(est, "update", update)
-    with pytest.raises(PluginError, match=r"estimator 'decoupled' failed on aircraft \S+ \(track \d+\) at t=[\d.]+ s: "
+    with pytest.raises(PluginError, match=r"estimator 'decoupled' failed on track \d+ (\(Mode S \w+\) )?at t=[\d.]+ s: "
                                           r"ValueError: boom"):
         run(labelled, RunConfig(), estimator=est, progress=False)
 
