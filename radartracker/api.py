@@ -14,6 +14,7 @@ from radartracker.estimation.base import (AircraftEstimate, Estimator, Estimator
 from radartracker.estimation.kalman import SingularInnovation, correct, gain, nis, symmetrize
 from radartracker.estimation.measurement import convert_plots, fill_altitudes, plot_keys
 from radartracker.estimation.motion import MotionModel
+from radartracker.estimation.screening import bias_correct_into, position_d2
 from radartracker.geometry.kinematics import propagate
 from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.io.atomic import atomic_open, atomic_path, prepare_output_folder, replace_outputs, write_text
@@ -23,7 +24,6 @@ from radartracker.io.scenario import read_radars, read_scenario
 from radartracker.io.tables import ScenarioData
 from radartracker.simulation.simulator import KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator
 from radartracker.tracking.filters import MotionConfig, TrackFilter
-from radartracker.tracking import kernels  # compiled CV/CT predictions and position update (numba)
 
 __all__ = [
     "AdsbReport", "Aircraft", "AircraftEstimate", "BiasState", "ConfigurationError", "Estimator", "EstimatorConfig",
@@ -31,7 +31,8 @@ __all__ = [
     "PlaneMeasurement", "Plot", "PluginError", "Radar", "RadarFrame", "RadarTrackerError", "ScenarioData",
     "SimAircraft", "SimRadar", "Simulator", "SingularInnovation", "SystemPlane", "TrackFilter", "TrackPoints",
     "convert_plots", "correct", "fill_altitudes", "gain", "nacp_sigma_m", "nis", "plot_keys", "propagate",
-    "read_new4", "read_radars", "read_scenario", "symmetrize", "validated_prior", "write_plt", "kernels",
+    "read_new4", "read_radars", "read_scenario", "symmetrize", "validated_prior", "write_plt",
+    "bias_correct_into", "position_d2",
     "atomic_open", "atomic_path", "prepare_output_folder", "write_text", "replace_outputs", "read_text",
     "KinematicTrajectory", "Leg",
 ]

@@ -19,8 +19,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from radartracker.api import kernels
-
 OK = 0
 ERR_NONFINITE = 1  # z, C, R or dt not finite
 ERR_R = 2  # R not positive definite (the information form needs R⁻¹)
@@ -29,18 +27,11 @@ ERR_LAMBDA = 4  # innovation covariance Λ not positive definite
 ERR_S = 5  # bias Schur complement S not positive definite
 ERR_REBUILD = 6  # recomputing S from the blocks met an aircraft whose Y_ii is not positive definite
 
-# The arithmetic kernels below only read and write arrays their caller owns (and views into them); they
-# allocate nothing and return no array, so they are compiled without numba's runtime and its reference counts
-# (``kernels.kernel``: ``_nrt=False`` where numba has it): with it, every array argument of every call and
-# every view costs an atomic increment and decrement (14 % of the kernel's perf samples; update_batch 23 %
-# faster without). carve and carve_work, which return views to Python, keep it.
-kernel = kernels.kernel
-
 # ctr: [updates since refresh, refresh_every, updates since rebuild, rebuild_factor, n alive]
 C_SINCE_REFRESH, C_REFRESH_EVERY, C_SINCE_REBUILD, C_REBUILD_FACTOR, C_ALIVE = range(5)
 
 
-@kernel
+@njit(cache=True)
 def chol(A, L, n):
     """L[:n, :n] = lower Cholesky factor of A[:n, :n]; False (L undefined) unless positive definite."""
     for i in range(n):
@@ -59,7 +50,7 @@ def chol(A, L, n):
     return True
 
 
-@kernel
+@njit(cache=True)
 def _lsolve(L, B, X, n, nc):
     """X[:n, :nc] = L⁻¹ B[:n, :nc] (forward substitution)."""
     for c in range(nc):
@@ -70,7 +61,7 @@ def _lsolve(L, B, X, n, nc):
             X[i, c] = s / L[i, i]
 
 
-@kernel
+@njit(cache=True)
 def _ltsolve(L, B, X, n, nc):
     """X[:n, :nc] = L⁻ᵀ B[:n, :nc] (back substitution)."""
     for c in range(nc):
@@ -81,14 +72,14 @@ def _ltsolve(L, B, X, n, nc):
             X[i, c] = s / L[i, i]
 
 
-@kernel
+@njit(cache=True)
 def _identity(T):
     for i in range(T.shape[0]):
         for j in range(T.shape[1]):
             T[i, j] = 1.0 if i == j else 0.0
 
 
-@kernel
+@njit(cache=True)
 def _gram(X, out):
     """out = Xᵀ X for 4×4 X (exactly symmetric)."""
     for i in range(4):
@@ -100,7 +91,7 @@ def _gram(X, out):
             out[j, i] = acc
 
 
-@kernel
+@njit(cache=True)
 def bias_index(rk, s, nk, idx):
     """idx[:2k] = positions in the bias vector of aircraft s's radars, in their storage order."""
     for c in range(nk):
@@ -108,7 +99,7 @@ def bias_index(rk, s, nk, idx):
         idx[2 * c + 1] = 2 * rk[s, c] + 1
 
 
-@kernel
+@njit(cache=True)
 def conditional(Yxx, Yxb, ex, s, nK, L, V, u, G, mx):
     """Factor Y_ii = L Lᵀ and form V = L⁻¹Y_ib, u = L⁻¹η_i, G = L⁻ᵀV, m = L⁻ᵀu; False if Y_ii ⋡ 0."""
     if not chol(Yxx[s], L, 4):
@@ -120,7 +111,7 @@ def conditional(Yxx, Yxb, ex, s, nK, L, V, u, G, mx):
     return True
 
 
-@kernel
+@njit(cache=True)
 def add_contribution(M, vec, idx, V, u, nK, sign):
     """M[idx, idx] += sign·VᵀV and vec[idx] += sign·Vᵀu (aircraft i's Schur term)."""
     for a in range(nK):
@@ -137,7 +128,7 @@ def add_contribution(M, vec, idx, V, u, nK, sign):
                 M[idx[b], idx[a]] += sign * acc
 
 
-@kernel
+@njit(cache=True)
 def _transition(dt, q, A, Q):
     """Constant-velocity A(dt), Q(dt) exactly as radartracker.motion.MotionModel.transition."""
     for i in range(4):
@@ -242,7 +233,7 @@ class Work:
         self.io[7] = q
 
 
-@kernel
+@njit(cache=True)
 def predict(Yxx, Yxb, ex, Ybb, eb, s, nK, idx, dt, q, f4, V, G, W, v4):
     """Predict aircraft s by dt in information form, keeping the arrowhead (package docstring)."""
     L, A, Q, Sg, T, Yn, Ln = f4[0], f4[1], f4[2], f4[3], f4[4], f4[5], f4[6]
@@ -349,7 +340,7 @@ def predict(Yxx, Yxb, ex, Ybb, eb, s, nK, idx, dt, q, f4, V, G, W, v4):
     return OK
 
 
-@kernel
+@njit(cache=True)
 def update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
                s, j, t, z, C, R, q, out_nu, out_lam, f4, V, G, W, v4, idx, Kb, LS, LSi):
     """Predict aircraft s to t and correct it with plot z of radar j (−1: unbiased). Returns (code, nis)."""
@@ -540,7 +531,7 @@ def update_one(Yxx, Yxb, ex, tx, nk, rk, Ybb, eb, S, sv, Pb, bh, ctr,
     return OK, nis
 
 
-@kernel
+@njit(cache=True)
 def rebuild(Yxx, Yxb, ex, nk, rk, Ybb, eb, S, sv, ctr, f4, V, G, v4, idx, S_new, sv_new):
     """S = Y_bb − Σ_i Y_bi Y_ii⁻¹ Y_ib and sv from the blocks, from scratch; S, sv untouched on failure."""
     nb = Ybb.shape[0]
@@ -564,7 +555,7 @@ def rebuild(Yxx, Yxb, ex, nk, rk, Ybb, eb, S, sv, ctr, f4, V, G, v4, idx, S_new,
     return True
 
 
-@kernel
+@njit(cache=True)
 def refresh(S, sv, Pb, bh, ctr, LS, LSi):
     """Pb = S⁻¹ and ς̂ = S⁻¹ sv through the Cholesky factor S = L Lᵀ; False if S is not positive definite.
 
@@ -617,7 +608,7 @@ def refresh(S, sv, Pb, bh, ctr, LS, LSi):
     return True
 
 
-@kernel
+@njit(cache=True)
 def update_batch(F, I, WF, slots, radars, times, Z, Cs, Rs, out):
     """update_one over a batch in order on the packed storage, ν, Λ and the NIS of plot i into ``out[i]``
     (2 + 4 + 1 values); returns (code, index of the failing plot or len, the latest time of the plots applied
@@ -640,7 +631,7 @@ def update_batch(F, I, WF, slots, radars, times, Z, Cs, Rs, out):
     return OK, slots.shape[0], latest
 
 
-@kernel
+@njit(cache=True)
 def update_packed(F, I, WF, s, j, t, z, C, R):
     """update_one on the packed storage (:func:`carve`, :func:`carve_work`): one call, few arguments.
     Returns the status code; ν, Λ, NIS in the scratch ``io``."""
@@ -653,7 +644,7 @@ def update_packed(F, I, WF, s, j, t, z, C, R):
     return code
 
 
-@kernel
+@njit(cache=True)
 def read_aircraft(Yxx, Yxb, ex, nk, rk, Pb, bh, s, out_x, out_P, f4, V, G, v4, idx):
     """χ̂_i = m − G ς̂_K and P_i = Y_ii⁻¹ + G Pb[K, K] Gᵀ (no dense matrix formed)."""
     k = max(nk[s], 0)

@@ -36,7 +36,6 @@ from pyproj.enums import TransformDirection
 
 from radartracker.domain import Radar, nacp_sigma_m
 from radartracker.geometry.plane import _EARTH_RADIUS_M, RadarFrame, SystemPlane
-from radartracker.tracking.kernels import kernel
 
 _CART = ("+proj=pipeline +step +proj=unitconvert +xy_in=deg +xy_out=rad +step +proj=cart +ellps=WGS84")
 
@@ -136,7 +135,7 @@ def _clip1(x: float) -> float:
     return -1.0 if x < -1.0 else (1.0 if x > 1.0 else x)
 
 
-@kernel
+@njit(cache=True)
 def _newton_start(radars, counts, rho, theta, alt, site, work, rows, valid, x, y, z) -> None:
     """Each plot's radar row (``rows``, −1 for the reports after them), its ``work`` column (ρ, h, sin θ,
     cos θ, ε), Newton's start (spherical law of cosines: sin ε = (b² − a² − ρ²)/(2aρ)) and its point in
@@ -164,7 +163,7 @@ def _newton_start(radars, counts, rho, theta, alt, site, work, rows, valid, x, y
     _ecef(rows, site, work, x, y, z)
 
 
-@kernel
+@njit(cache=True)
 def _ecef(rows, site, work, x, y, z) -> None:
     """ECEF of the polar points (ρ, θ, ε) of ``work``: east-north-up of the radar, then PROJ topocentric's
     inverse."""
@@ -179,7 +178,7 @@ def _ecef(rows, site, work, x, y, z) -> None:
         z[i] = site[r, _Z0] + n * cp + u * sp
 
 
-@kernel
+@njit(cache=True)
 def _newton_step(rows, site, work, x, y, z) -> None:
     """ε ← ε − (h − h_target)/max(ρ cos ε, 1) with h the height that pyproj wrote over ``z``, and the new
     point in ECEF (x, y, z)."""
@@ -189,7 +188,7 @@ def _newton_step(rows, site, work, x, y, z) -> None:
     _ecef(rows, site, work, x, y, z)
 
 
-@kernel
+@njit(cache=True)
 def _gather(plon, plat, lon, lat, X, Y) -> None:
     """The plots' (lon, lat), then the reports', into the plane call's buffers ``X``, ``Y``."""
     n = plon.shape[0]
@@ -214,7 +213,7 @@ def _dot2(a0, a1, b0, b1):
     return _fma(a1, b1, _fma(a0, b0, 0.0)) + 0.0
 
 
-@kernel
+@njit(cache=True)
 def _finish(rows, site, work, px, py, h, nacp, nacp_sd, valid, z, C, R) -> None:
     """The frame's rows: a plot's validity (its height within 1 cm of its altitude), plane position, C_s
     (:func:`radartracker.geometry.plane.bias_jacobian`, plot by plot) and R = (C_s W) C_sᵀ
