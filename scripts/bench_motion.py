@@ -106,8 +106,8 @@ def bench_filter(model: str) -> dict:
             "ratio": round(us / fp, 3), "ratio_with_screening": round(us_screened / fp, 3)}
 
 
-PROFILED = ("_predicted", "switching", "_combine", "moment_match", "estimate", "normalised_innovation",
-            "update", "predict", "_screen", "_apply", "_run_frame")
+PROFILED = ("_predicted", "switching", "estimate", "normalised_innovation", "update", "predict", "screen",
+            "screen_many", "_screen", "_apply", "_run_frame")
 
 
 def bench_replay(scenario: Path, motion: str | None, profile: bool) -> dict:
@@ -135,7 +135,7 @@ def bench_replay(scenario: Path, motion: str | None, profile: bool) -> dict:
             stats = pstats.Stats(str(Path(tmp) / "prof")).stats
             cum: dict[str, list[float]] = {}
             for (file, line, name), (_, ncalls, _, ct, _) in stats.items():
-                if name in PROFILED and ("motion" in file or "screening" in file or "manager" in file):
+                if name in PROFILED and any(k in file for k in ("motion", "screening", "manager", "filters")):
                     key = f"{Path(file).stem}:{line}:{name}"
                     cum.setdefault(key, [0, 0.0])
                     cum[key][0] += ncalls

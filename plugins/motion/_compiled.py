@@ -131,13 +131,29 @@ def _ct_mean_and_jacobian(x: np.ndarray, T: float, xp: np.ndarray, F: np.ndarray
 
 
 @njit(cache=True)
+def _congruence_into(F: np.ndarray, P: np.ndarray, out: np.ndarray) -> None:
+    """out[:5, :5] = F P Fᵀ for the 5×5 Jacobian F: Σ_k F_ik (Σ_l P_kl F_jl), F's zeros skipped."""
+    for i in range(5):
+        for j in range(5):
+            out[i, j] = 0.0
+    for k in range(5):
+        for j in range(5):
+            pf = 0.0  # (P Fᵀ)_kj
+            for l in range(5):
+                pf += P[k, l] * F[j, l]
+            for i in range(5):
+                if F[i, k] != 0.0:
+                    out[i, j] += F[i, k] * pf
+
+
+@njit(cache=True)
 def ct_predict_into(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_sd: float, xp: np.ndarray,
                     Pp: np.ndarray) -> None:
     """:func:`ct_predict` of (x[:5], P[:5, :5]) into (xp, Pp): f(ξ), sym(F P Fᵀ + Q) with
     Q = the white-acceleration block of density q and σ_ω² |T| on ω."""
     F = np.empty((5, 5))
     _ct_mean_and_jacobian(x, T, xp, F)
-    Pp[:, :] = F @ np.ascontiguousarray(P[:5, :5]) @ F.T
+    _congruence_into(F, P, Pp)
     _add_white_acceleration(Pp, T, q)
     Pp[4, 4] += turn_rate_sd**2 * abs(T)
     symmetrize_into(Pp, 5)

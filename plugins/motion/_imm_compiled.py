@@ -140,10 +140,10 @@ def predict_modes_into(modes: np.ndarray, X0: np.ndarray, P0: np.ndarray, dt: fl
     n, D = X0.shape
     for j in range(n):
         if modes[j, 0] == CV:
-            Xp[j, :] = 0.0
-            PPp[j, :, :] = 0.0
-            Xp[j, :4] = X0[j, :4]
-            PPp[j, :4, :4] = P0[j, :4, :4]
+            for a in range(D):
+                Xp[j, a] = X0[j, a] if a < 4 else 0.0
+                for b in range(D):
+                    PPp[j, a, b] = P0[j, a, b] if a < 4 and b < 4 else 0.0
             cv_predict_into(Xp[j], PPp[j], dt, modes[j, 1])
         else:
             ct_predict_into(X0[j], P0[j], dt, modes[j, 1], modes[j, 2], Xp[j], PPp[j])
@@ -208,16 +208,19 @@ def correct(settings: np.ndarray, state: np.ndarray, pred: np.ndarray, z: np.nda
 
 
 @njit(cache=True)
-def screen(settings: np.ndarray, state: np.ndarray, pred: np.ndarray, z: np.ndarray, C: np.ndarray, R: np.ndarray,
-           bias: np.ndarray, bias_cov: np.ndarray, gate: float, zc: np.ndarray, Rc: np.ndarray
+def screen(settings: np.ndarray, state: np.ndarray, pred: np.ndarray, dt: float, z: np.ndarray, C: np.ndarray,
+           R: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray, gate: float, zc: np.ndarray, Rc: np.ndarray
            ) -> tuple[float, float, int]:
-    """Innovation screening of a radar measurement against the prediction block and the correction when
-    it passes: zc = z − C ς̂, Rc = R + C P_ς Cᵀ (written into ``zc``, ``Rc``),
+    """Innovation screening of a radar measurement and the correction when it passes: zc = z − C ς̂,
+    Rc = R + C P_ς Cᵀ (written into ``zc``, ``Rc``), the prediction by ``dt`` into the prediction block
+    (:func:`advance`; a nan ``dt``: the block already holds the prediction),
     d² = (zc − p̄)ᵀ(P̄_pp + Rc)⁻¹(zc − p̄) against the predicted mixture (the core's screening equations)
     and, if d² ≤ ``gate``, :func:`correct` by (zc, Rc). Returns (d², NIS, code): code −4 when d² is
     outside the gate, −3 when (zc, Rc) is not a valid measurement (the state untouched in both), else
     :func:`correct`'s."""
     bias_correct_into(z, C, R, bias, bias_cov, zc, Rc)
+    if not math.isnan(dt):
+        advance(settings, state, pred, dt)
     _, _, _, x_bar, P_bar = block_views(pred, int(settings[0]), int(settings[1]))
     d2 = position_d2(zc, Rc, x_bar, P_bar)
     if not d2 <= gate:

@@ -214,17 +214,22 @@ class IMMFilter(TrackFilter):
 
     def screen(self, time: float, z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray,
                bias_cov: np.ndarray, gate: float | None = None) -> tuple[float, np.ndarray, np.ndarray, bool]:
-        """:meth:`TrackFilter.screen` on the prediction to ``time`` (kept for a later update there), then one
-        compiled call (:func:`_imm_compiled.screen`: bias correction, d² and the correction when it
-        passes ``gate``)."""
+        """:meth:`TrackFilter.screen` in one compiled call (:func:`_imm_compiled.screen`: bias correction,
+        the prediction to ``time`` unless kept, d² and the correction when it passes ``gate``); a
+        prediction not used is kept for the update at ``time``. Modes called in Python predict first."""
         time = self._checked_time(time)
-        self._predicted(time)
+        if self._compiled and self._pred_time != time:
+            dt = time - self.time
+        else:  # the kept prediction, or the modes' own
+            dt = math.nan
+            self._predicted(time)
         zc, Rc = np.empty(2), np.empty((2, 2))
-        d2, nis, code = compiled.screen(self._settings, self._state, self._pred_block, z, C, R, bias, bias_cov,
+        d2, nis, code = compiled.screen(self._settings, self._state, self._pred_block, dt, z, C, R, bias, bias_cov,
                                         -1.0 if gate is None else gate, zc, Rc)
         if code == -2:
             self.time, self._pred_time = time, math.nan
             return d2, zc, Rc, True
+        self._pred_time = time
         if code == -4:
             return d2, zc, Rc, False
         if code == -3:  # a measurement the compiled checks refused: the update raises with the messages
