@@ -14,6 +14,7 @@ from radartracker.estimation.base import (AircraftEstimate, Estimator, Estimator
 from radartracker.estimation.kalman import SingularInnovation, correct, gain, nis, symmetrize
 from radartracker.estimation.measurement import convert_plots, fill_altitudes, plot_keys
 from radartracker.estimation.motion import MotionModel
+from radartracker.estimation.screening import bias_correct_into, position_d2
 from radartracker.estimation.state import StateCheck
 from radartracker.geometry.kinematics import propagate
 from radartracker.geometry.plane import RadarFrame, SystemPlane
@@ -30,7 +31,6 @@ from radartracker.tracking.associators import (NEW_TRACK, REFUSED, Association, 
 from radartracker.tracking.filters import MotionConfig, TrackFilter
 from radartracker.tracking.frame import Prediction
 from radartracker.tracking.track import Track
-from radartracker.tracking import kernels  # compiled CV/CT predictions and position update (numba)
 
 __all__ = [
     "AdsbReport", "Aircraft", "AircraftEstimate", "BiasState", "ConfigurationError", "Estimator", "EstimatorConfig",
@@ -38,7 +38,8 @@ __all__ = [
     "PlaneMeasurement", "Plot", "PluginError", "Radar", "RadarFrame", "RadarTrackerError", "ScenarioData",
     "SimAircraft", "SimRadar", "Simulator", "SingularInnovation", "SystemPlane", "TrackFilter", "TrackPoints",
     "convert_plots", "correct", "fill_altitudes", "gain", "nacp_sigma_m", "nis", "plot_keys", "propagate",
-    "read_new4", "read_radars", "read_scenario", "symmetrize", "validated_prior", "write_plt", "kernels",
+    "read_new4", "read_radars", "read_scenario", "symmetrize", "validated_prior", "write_plt",
+    "bias_correct_into", "position_d2",
     "atomic_open", "atomic_path", "prepare_output_folder", "write_text", "replace_outputs", "read_text",
     "KinematicTrajectory", "Leg",
     "ALTITUDE_GATE", "AltitudeTrack", "Association", "AssociationSettings", "Associator", "NEW_TRACK", "Prediction",

@@ -3,9 +3,10 @@
 Two measurements, each printed as one JSON line:
 
 * ``filter`` — one track's input as the TrackManager handles it (``predict`` at the measurement
-  time for innovation screening, ``update`` with the position, ``estimate``; and the same with
-  screening's d², ``normalised_innovation``), on a track that turns and goes straight with plots
-  1–12 s apart, for ``--model`` (default ``imm``); beside it,
+  time for innovation screening, ``update`` with the position, ``estimate``; the same with
+  screening's d², ``normalised_innovation``; and ``screen``, the filter's own screening that updates
+  it when the measurement is in the gate, followed by ``estimate``), on a track that turns and goes
+  straight with plots 1–12 s apart, for ``--model`` (default ``imm``); beside it,
   in the same process, one FilterPy ``KalmanFilter`` predict + update cycle (4-state CV), so the
   ratio carries over to another machine.
 * ``replay`` (with ``--scenario DIR``) — ``radartracker replay DIR --manager --quiet`` in a child
@@ -75,10 +76,19 @@ def bench_filter(model: str) -> dict:
             f.update(t, z, R)
             f.estimate()
 
+    def screened_track() -> None:
+        f = factory()
+        f.start(inputs[0][0], inputs[0][1], inputs[0][2])
+        for t, z, R in inputs[1:]:
+            f.screen(t, z, zero22, R, zero2, zero22, 600.0)  # d² and the update in the gate
+            f.estimate()
+
     zero2, zero22 = np.zeros(2), np.zeros((2, 2))
     one_track(True)  # compile / load the kernels
+    screened_track()
     per_track = cpu_per_call(lambda: one_track(False), 20)
     with_screening = cpu_per_call(lambda: one_track(True), 20)
+    screen = cpu_per_call(screened_track, 20)
     kf = KalmanFilter(dim_x=4, dim_z=2)
     kf.F, kf.Q = MotionModel(5.0).transition(4.0)
     kf.H, kf.R, kf.P = np.eye(2, 4), 80.0**2 * np.eye(2), np.eye(4) * 1e4
@@ -91,12 +101,13 @@ def bench_filter(model: str) -> dict:
     fp = cpu_per_call(cycle, 2000)
     us, us_screened = per_track / (len(inputs) - 1), with_screening / (len(inputs) - 1)
     return {"bench": "filter", "model": model, "us_per_input": round(us, 2),
-            "us_per_input_with_screening": round(us_screened, 2), "filterpy_cycle_us": round(fp, 2),
+            "us_per_input_with_screening": round(us_screened, 2),
+            "us_per_input_screen": round(screen / (len(inputs) - 1), 2), "filterpy_cycle_us": round(fp, 2),
             "ratio": round(us / fp, 3), "ratio_with_screening": round(us_screened / fp, 3)}
 
 
-PROFILED = ("_predicted", "switching", "_combine", "moment_match", "estimate", "normalised_innovation",
-            "update", "predict", "_screen", "_apply", "_run_frame")
+PROFILED = ("_predicted", "switching", "estimate", "normalised_innovation", "update", "predict", "screen",
+            "screen_many", "_screen", "_apply", "_run_frame")
 
 
 def bench_replay(scenario: Path, motion: str | None, profile: bool) -> dict:
@@ -124,7 +135,7 @@ def bench_replay(scenario: Path, motion: str | None, profile: bool) -> dict:
             stats = pstats.Stats(str(Path(tmp) / "prof")).stats
             cum: dict[str, list[float]] = {}
             for (file, line, name), (_, ncalls, _, ct, _) in stats.items():
-                if name in PROFILED and ("motion" in file or "screening" in file or "manager" in file):
+                if name in PROFILED and any(k in file for k in ("motion", "screening", "manager", "filters")):
                     key = f"{Path(file).stem}:{line}:{name}"
                     cum.setdefault(key, [0, 0.0])
                     cum[key][0] += ncalls

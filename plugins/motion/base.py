@@ -11,7 +11,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from radartracker.api import SingularInnovation, kernels
+from radartracker.api import SingularInnovation
+from radartracker_plugins.motion import _compiled
 
 
 class Step(NamedTuple):
@@ -30,7 +31,7 @@ def check_measurement(time: float, z: np.ndarray, R: np.ndarray) -> tuple[float,
     time = float(time)
     z = np.asarray(z, float)
     R = np.asarray(R, float)
-    if z.ndim == 1 and R.ndim == 2 and kernels.measurement_ok(time, z, R) == 0:  # compiled checks, else the messages
+    if z.ndim == 1 and R.ndim == 2 and _compiled.measurement_ok(time, z, R) == 0:  # compiled checks, else the messages
         return time, z, R
     if not math.isfinite(time):
         raise ValueError(f"time: not finite ({time})")
@@ -69,8 +70,8 @@ def check_time(time: float, current: float | None, max_gap: float) -> float:
 
 def position_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray) -> Step:
     """Kalman correction of (x, P) by position z; the first two state components are x, y
-    (:func:`radartracker.tracking.kernels.position_update`, compiled)."""
-    x_new, P_new, nu, S, nis, loglik, ok = kernels.position_update(x, P, z, R)
+    (:func:`radartracker_plugins.motion._compiled.position_update`)."""
+    x_new, P_new, nu, S, nis, loglik, ok = _compiled.position_update(x, P, z, R)
     if not ok:
         raise SingularInnovation(f"innovation covariance not positive definite: {S.tolist()}")
     return Step(x_new, P_new, nu, S, float(nis), float(loglik))

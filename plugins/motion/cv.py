@@ -1,7 +1,7 @@
 """Constant-velocity track filter (plugin ``cv``).
 
 χ̄ = A(Δt) χ̂,  P̄ = A P̂ Aᵀ + Q(Δt)  with A, Q of :class:`radartracker.api.MotionModel`
-(computed by the compiled :func:`radartracker.api.kernels.cv_predict`)
+(computed by the compiled :func:`radartracker_plugins.motion._compiled.cv_predict`)
 (white acceleration of density q: Q = q [[Δt³/3 I, Δt²/2 I], [Δt²/2 I, Δt I]]), then the position
 correction of :func:`radartracker_plugins.motion.base.position_update`. The prediction is kept until
 the state changes: the update at the time innovation screening predicted to reuses it.
@@ -12,7 +12,8 @@ from __future__ import annotations
 import attrs
 import numpy as np
 
-from radartracker.api import MotionConfig, TrackFilter, kernels
+from radartracker.api import MotionConfig, TrackFilter
+from radartracker_plugins.motion._compiled import cv_predict
 from radartracker_plugins.motion.base import check_measurement, check_time, position_update, require_started, start_state
 
 
@@ -38,7 +39,7 @@ class CVFilter(TrackFilter):
 
     def _predicted(self, time: float) -> tuple[np.ndarray, np.ndarray]:
         if self._pred is None or self._pred[0] != time:
-            self._pred = (time, *kernels.cv_predict(self.x, self.P, time - self.time, self.config.q))
+            self._pred = (time, *cv_predict(self.x, self.P, time - self.time, self.config.q))
         return self._pred[1:]
 
     def start(self, time: float, z: np.ndarray, R: np.ndarray) -> None:

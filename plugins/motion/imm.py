@@ -32,18 +32,17 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Sequence
-from operator import attrgetter
 from typing import Any
 
 import attrs
 import numpy as np
 
-from radartracker.api import ConfigurationError, InputError, MotionConfig, SingularInnovation, TrackFilter, kernels
+from radartracker.api import ConfigurationError, InputError, MotionConfig, SingularInnovation, TrackFilter
+from radartracker_plugins.motion import _imm_compiled as compiled
+from radartracker_plugins.motion._compiled import ct_predict, cv_predict, mixture_into, moment_match
 from radartracker_plugins.motion.base import check_measurement, check_time, require_started, start_state
 
 _v = attrs.validators
-_ADDRESS = attrgetter("_address")
-_EPOCH, _PREDICTED = kernels.IMM_EPOCH, kernels.IMM_PREDICTED
 
 
 def _floats(v: Any) -> tuple[float, ...] | None:
@@ -62,7 +61,7 @@ class CVMode:
     dim = 4
 
     def predict(self, x: np.ndarray, P: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        return kernels.cv_predict(x, P, float(dt), self.q)
+        return cv_predict(x, P, float(dt), self.q)
 
 
 @attrs.frozen
@@ -75,7 +74,7 @@ class CTMode:
     dim = 5
 
     def predict(self, x: np.ndarray, P: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        return kernels.ct_predict(x, P, float(dt), self.q, self.turn_rate_sd)
+        return ct_predict(x, P, float(dt), self.q, self.turn_rate_sd)
 
 
 @attrs.frozen
@@ -130,11 +129,12 @@ class IMMFilter(TrackFilter):
     """IMM of mode filters (default constant velocity and coordinated turn), output moment matched.
 
     Mode states are held padded to the largest mode's size (``X`` n×D, ``PP`` n×D×D; a 4-state mode
-    carries ω = 0 ± σ_e in the fifth place). The default modes (:class:`CVMode`, :class:`CTMode`) run
-    the whole cycle in compiled kernels (:func:`radartracker.api.kernels.imm_predict`,
-    ``imm_correct``, ``imm_cycle``); other mode filters are called through their ``predict``. A
-    prediction is kept until the state changes, so the update at the time innovation screening just
-    predicted to reuses it, and the output (χ̂, P̂) is combined once per update.
+    carries ω = 0 ± σ_e in the fifth place), in the state block of
+    :mod:`radartracker_plugins.motion._imm_compiled` (``mu``, ``X``, ``PP`` and the output ``x``, ``P``
+    are views of it). The default modes (:class:`CVMode`, :class:`CTMode`) are predicted in the
+    compiled ``advance``; other mode filters are called through their ``predict``. A prediction is
+    kept until the state changes, so the update at the time innovation screening just predicted to
+    reuses it, and the output (χ̂, P̂) is combined once per update.
     """
 
     name = "imm"
@@ -153,54 +153,21 @@ class IMMFilter(TrackFilter):
             settings = _settings(self.config)
         except TypeError:  # a setting that cannot be hashed (a user's mode filter): made for this filter
             settings = _settings.__wrapped__(self.config)
-        modes, self.dims, self.entry_var, self.kernel_modes, self.chain, self.mu0, template = settings
+        modes, self.dims, self.entry_var, self._settings, self.mu0, self._compiled = settings
         self.modes = list(modes)
-        self.dim = int(max(self.dims))
-        self.mu = self.mu0.copy()
-        self.X = np.zeros((len(modes), self.dim))  # mode states, padded (class docstring)
-        self.PP = np.zeros((len(modes), self.dim, self.dim))
-        self.x, self.P = np.zeros(4), np.zeros((4, 4))  # output (χ̂, P̂) of the current state
-        self._scratch(template)
-
-    def _scratch(self, template: np.ndarray | None = None) -> None:
-        """The state (μ, X, PP, χ̂, P̂) moved into one buffer with the settings the packed kernels take
-        (a copy of ``template``, a buffer of the same settings, if given), not started, the prediction from
-        it to time ``_pred_time`` (none yet), ``_pred`` = (c̄, X̄, P̄ of the modes, χ̄, P̄), and their scratch
-        (:func:`radartracker.api.kernels.imm_buffer`)."""
-        self._compiled = self.kernel_modes is not None  # else the modes' rows in the buffer are unused
-        self._buf = template.copy() if template is not None else _buffer(
-            self.kernel_modes, self.dims, self.entry_var, self.chain, self.config.max_gap_s)
-        state, self._pred = kernels.imm_views(self._buf)
-        for view, value in zip(state, (self.mu, self.X, self.PP, self.x, self.P)):
-            view[...] = value
-        self.mu, self.X, self.PP, self.x, self.P = state
-        self._max_gap = self.config.max_gap_s
-        self._address = self._buf.ctypes.data  # the buffer's memory, for screen_many's compiled loop
-
-    # --- the epoch and the kept prediction's time, held in the buffer (screen_many's compiled loop moves them)
-    @property
-    def time(self) -> float | None:
-        """Time (s) of the current estimate; None before :meth:`start`."""
-        t = self._buf[_EPOCH]
-        return None if t != t else float(t)
-
-    @time.setter
-    def time(self, value: float | None) -> None:
-        self._buf[_EPOCH] = math.nan if value is None else value
-
-    @property
-    def _pred_time(self) -> float:
-        """The time ``_pred`` is the prediction for (nan: none)."""
-        return float(self._buf[_PREDICTED])
-
-    @_pred_time.setter
-    def _pred_time(self, value: float) -> None:
-        self._buf[_PREDICTED] = value
+        n, self.dim = len(modes), int(max(self.dims))
+        self._state = np.zeros(compiled.block_size(n, self.dim))  # (μ, X, PP, χ̂, P̂)
+        self._pred_block = np.zeros(compiled.block_size(n, self.dim))  # (c̄, X̄, P̄, χ̄, P̄) at _pred_time
+        self.mu, self.X, self.PP, self.x, self.P = compiled.block_views(self._state, n, self.dim)
+        self._pred = compiled.block_views(self._pred_block, n, self.dim)
+        self.mu[:] = self.mu0
+        self.time: float | None = None
+        self._pred_time = math.nan  # the time _pred is the prediction for (nan: none)
 
     # --- IMM cycle -----------------------------------------------------------------------------
     def switching(self, dt: float) -> np.ndarray:
         """Π(Δt): the fixed matrix, or exp(G |Δt|)."""
-        return kernels.markov_switching(*self.chain, float(dt))
+        return compiled.markov_switching(self._settings, float(dt))
 
     def _predicted(self, time: float) -> tuple[np.ndarray, ...]:
         """(c̄, X̄, P̄, χ̄, P̄): each mode's prediction from its mixed initial condition, and the
@@ -208,16 +175,20 @@ class IMMFilter(TrackFilter):
         if self._pred_time != time:
             dt = time - self.time
             if self._compiled:
-                kernels.imm_advance(self._buf, dt)
+                compiled.advance(self._settings, self._state, self._pred_block, dt)
             else:
-                cbar, Xp, PPp, x_bar, P_bar = self._pred
-                cbar[:], X0, P0 = kernels.imm_mix(self.mu, self.X, self.PP, self.switching(dt))
-                Xp[:], PPp[:] = 0.0, 0.0
-                for j, (mode, d) in enumerate(zip(self.modes, self.dims)):
-                    Xp[j, :d], PPp[j, :d, :d] = mode.predict(X0[j, :d].copy(), P0[j, :d, :d].copy(), dt)
-                x_bar[:], P_bar[:] = kernels.imm_combine(cbar, Xp, PPp)
+                self._predict_modes_in_python(dt)
             self._pred_time = time
         return self._pred
+
+    def _predict_modes_in_python(self, dt: float) -> None:
+        """The prediction of :func:`compiled.advance` with each mode's own ``predict``."""
+        cbar, Xp, PPp, x_bar, P_bar = self._pred
+        cbar[:], X0, P0 = compiled.mix(self._settings, self._state, dt)
+        Xp[:], PPp[:] = 0.0, 0.0
+        for j, (mode, d) in enumerate(zip(self.modes, self.dims)):
+            Xp[j, :d], PPp[j, :d, :d] = mode.predict(X0[j, :d].copy(), P0[j, :d, :d].copy(), dt)
+        mixture_into(cbar, Xp, PPp, 4, x_bar, P_bar)
 
     # --- TrackFilter -----------------------------------------------------------------------------
     def start(self, time: float, z: np.ndarray, R: np.ndarray) -> None:
@@ -228,17 +199,14 @@ class IMMFilter(TrackFilter):
         if self.dim == 5:  # the turn rate is unknown: ω = 0 ± σ_e in every mode
             self.PP[:, 4, 4] = self.entry_var
         self.mu[:] = self.mu0
-        self.x[:], self.P[:] = kernels.imm_combine(self.mu, self.X, self.PP)
+        mixture_into(self.mu, self.X, self.PP, 4, self.x, self.P)
         self.time, self._pred_time = time, math.nan
 
-    def _within_gap(self, time: float) -> bool:
-        """Whether the filter has started and ``time`` is within ``max_gap_s`` of its epoch (False for a
-        nan or infinite time): the common case of :func:`check_time`, tested before calling it."""
-        return self.time is not None and abs(time - self.time) <= self._max_gap
-
     def _checked_time(self, time: float) -> float:
-        """``time`` as :func:`check_time` accepts it."""
-        return float(time) if self._within_gap(time) else check_time(time, self.time, self._max_gap)
+        """``time`` as :func:`check_time` accepts it (within ``max_gap_s`` of the started filter's epoch)."""
+        if self.time is not None and abs(time - self.time) <= self.config.max_gap_s:
+            return float(time)
+        return check_time(time, self.time, self.config.max_gap_s)
 
     def predict(self, time: float) -> tuple[np.ndarray, np.ndarray]:
         x_bar, P_bar = self._predicted(self._checked_time(time))[3:]
@@ -246,76 +214,48 @@ class IMMFilter(TrackFilter):
 
     def screen(self, time: float, z: np.ndarray, C: np.ndarray, R: np.ndarray, bias: np.ndarray,
                bias_cov: np.ndarray, gate: float | None = None) -> tuple[float, np.ndarray, np.ndarray, bool]:
-        """:meth:`TrackFilter.screen` in one compiled call (bias correction, prediction, d² and the update
-        when it passes ``gate``); a prediction not used is kept for the update at ``time``."""
-        t0 = self.time
-        if t0 is None or not self._compiled:
-            return super().screen(time, z, C, R, bias, bias_cov, gate)
-        time = float(time)  # as check_time; the kernel checks the step against max_gap_s (_within_gap's rule)
+        """:meth:`TrackFilter.screen` in one compiled call (:func:`_imm_compiled.screen`: bias correction,
+        the prediction to ``time`` unless kept, d² and the correction when it passes ``gate``); a
+        prediction not used is kept for the update at ``time``. Modes called in Python predict first."""
+        time = self._checked_time(time)
+        if self._compiled and self._pred_time != time:
+            dt = time - self.time
+        else:  # the kept prediction, or the modes' own
+            dt = math.nan
+            self._predicted(time)
         zc, Rc = np.empty(2), np.empty((2, 2))
-        d2, nis, bad = kernels.imm_screen(self._buf, time - t0, self._pred_time == time, z, C, R, bias, bias_cov,
-                                          zc, Rc, -1.0 if gate is None else gate)
-        if bad == -2:  # updated (the common case of _corrected)
+        d2, nis, code = compiled.screen(self._settings, self._state, self._pred_block, dt, z, C, R, bias, bias_cov,
+                                        -1.0 if gate is None else gate, zc, Rc)
+        if code == -2:
             self.time, self._pred_time = time, math.nan
             return d2, zc, Rc, True
-        if bad == -5:  # a step the kernel refused: the default raises with check_time's message
-            return super().screen(time, z, C, R, bias, bias_cov, gate)
         self._pred_time = time
-        if bad == -4:
+        if code == -4:
             return d2, zc, Rc, False
-        if bad == -3:  # a measurement the kernel's checks refused: the update with its messages
+        if code == -3:  # a measurement the compiled checks refused: the update raises with the messages
             self.update(time, zc, Rc)
-        else:
-            self._corrected(time, nis, bad, Rc)
-        return d2, zc, Rc, True
-
-    @classmethod
-    def screen_many(cls, filters: Sequence[IMMFilter], times: np.ndarray, z: np.ndarray, C: np.ndarray,
-                    R: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray, gate: np.ndarray) -> tuple:
-        """:meth:`TrackFilter.screen_many` in one compiled call (:func:`radartracker.api.kernels.imm_screen_many`
-        over the filters' packed buffers); filters of other modes or not started are left to ``screen``."""
-        if cls.screen is not IMMFilter.screen:  # a subclass screening its own way
-            return super().screen_many(filters, times, z, C, R, bias, bias_cov, gate)
-        n = len(filters)
-        d2, zc, Rc = np.full(n, math.nan), np.zeros((n, 2)), np.zeros((n, 2, 2))
-        x, P, done = np.zeros((n, 4)), np.zeros((n, 4, 4)), np.zeros(n, bool)
-        if n:  # the epochs, kept predictions and whether compiled are read (and moved) in the buffers
-            kernels.imm_screen_many(np.fromiter(map(_ADDRESS, filters), np.int64, n),
-                                    np.ascontiguousarray(times, float), z, C, R, bias, bias_cov,
-                                    np.ascontiguousarray(gate, float), d2, zc, Rc, x, P, done)
-        return d2, zc, Rc, done, x, P
+        self._raise_singular(code, Rc)
 
     def update(self, time: float, z: np.ndarray, R: np.ndarray) -> float:
-        t0, bad = self.time, -3
-        if (self._compiled and self._within_gap(time) and type(z) is np.ndarray
-                and type(R) is np.ndarray and z.ndim == 1 and R.ndim == 2):  # the checks in the kernel
-            time = float(time)
-            nis, bad = kernels.imm_update(self._buf, time - t0, self._pred_time == time, np.asarray(z, float),
-                                          np.asarray(R, float))
-        if bad == -3:  # any other input, or one the kernel refused: the checks with their messages
-            time, z, R = check_measurement(time, z, R)
-            check_time(time, t0, self._max_gap)
-            if self._compiled and self._pred_time != time:
-                nis, bad = kernels.imm_cycle(self.mu, self.X, self.PP, *self.chain, self.kernel_modes, self.dims,
-                                             self.entry_var, time - t0, z, R, self.x, self.P, *self._pred)
-            else:  # from the prediction innovation screening asked for at this time
-                nis, bad = kernels.imm_correct(*self._predicted(time), self.dims, self.entry_var, z, R,
-                                               self.mu, self.X, self.PP, self.x, self.P)
-        return self._corrected(time, nis, bad, R)
-
-    def _corrected(self, time: float, nis: float, bad: int, R: np.ndarray) -> float:
-        """After a correction at ``time`` (code ``bad`` of :func:`~radartracker.api.kernels.imm_correct`):
-        the new epoch and the NIS, or SingularInnovation with the state unchanged."""
-        if bad != -2:  # the state is unchanged; the prediction in _pred is the one that failed
-            P_bad = self._pred[4] if bad == -1 else self._pred[2][bad, :2, :2]
-            self._pred_time = time
-            raise SingularInnovation(f"innovation covariance not positive definite: {(P_bad[:2, :2] + R).tolist()}")
+        """Predict to ``time`` (or take the kept prediction), correct with z; SingularInnovation, the
+        state unchanged, when an innovation covariance is not positive definite."""
+        time, z, R = check_measurement(time, z, R)
+        time = self._checked_time(time)
+        self._predicted(time)
+        nis, code = compiled.correct(self._settings, self._state, self._pred_block, z, R)
+        if code != -2:
+            self._raise_singular(code, R)
         self.time, self._pred_time = time, math.nan
         return float(nis)
 
+    def _raise_singular(self, code: int, R: np.ndarray) -> None:
+        """SingularInnovation for :func:`_imm_compiled.correct`'s ``code``: the predicted mixture's (−1) or
+        mode ``code``'s innovation covariance, of the prediction kept in ``_pred``."""
+        P_bad = self._pred[4] if code == -1 else self._pred[2][code]
+        raise SingularInnovation(f"innovation covariance not positive definite: {(P_bad[:2, :2] + R).tolist()}")
+
     def estimate(self) -> tuple[float, np.ndarray, np.ndarray]:
-        if self.time is None:
-            require_started(self.time)
+        require_started(self.time)
         return self.time, self.x.copy(), self.P.copy()
 
     @property
@@ -323,15 +263,13 @@ class IMMFilter(TrackFilter):
         """Current mode probabilities μ."""
         return self.mu.copy()
 
-    # --- snapshots and pickles: the state, not the buffers derived from it -------------------------
+    # --- snapshots and pickles: the configuration and the state, not the blocks derived from it -------
     def __getstate__(self) -> dict:
-        skip = ("_buf", "_pred", "_compiled", "_max_gap", "_address")
-        return {**{k: v for k, v in vars(self).items() if k not in skip}, "time": self.time}
+        return {"config": self.config, "state": self.state_dict()}
 
     def __setstate__(self, state: dict) -> None:
-        vars(self).update((k, v) for k, v in state.items() if k != "time")
-        self._scratch()
-        self.time = state.get("time")
+        self.__init__(state["config"])
+        self.load_state_dict(state["state"])
 
     def state_dict(self) -> dict:
         """``time``, ``mu`` and each mode's own ``xs``/``Ps`` (without the padding)."""
@@ -357,40 +295,38 @@ class IMMFilter(TrackFilter):
             except (KeyError, TypeError, ValueError) as exc:
                 raise InputError(f"IMMFilter: state does not fit this configuration: {exc}") from None
         self.time, self.mu[:], self.X[:], self.PP[:] = time, mu, X, PP
-        self.x[:], self.P[:] = kernels.imm_combine(mu, X, PP) if time is not None else (0.0, 0.0)
+        self.x[:], self.P[:] = moment_match(mu, X, PP, 4) if time is not None else (0.0, 0.0)
         self._pred_time = math.nan
 
 
-def _buffer(kernel_modes: np.ndarray | None, dims: np.ndarray, entry_var: float, chain: tuple, max_gap: float) -> np.ndarray:
-    """The packed buffer of these settings with a zero state (:func:`radartracker.api.kernels.imm_buffer`)."""
-    rows = kernel_modes if kernel_modes is not None else np.zeros((len(dims), 3))
-    return kernels.imm_buffer(rows, dims, entry_var, *chain, max_gap, kernel_modes is not None)
+def _chain(c: IMMConfig, modes: tuple[Any, ...]) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
+    """The Markov chain (λ, L, R) of :func:`compiled.switching_into` and the default μ₀: a fixed Π
+    (an empty λ, L = Π) with uniform μ₀, or the sojourn-time chain with μ₀ ∝ τ (its stationary law)."""
+    n = len(modes)
+    if c.transition is not None:
+        return (np.zeros(0), np.asarray(c.transition, float), np.zeros((0, 0))), np.full(n, 1.0 / n)
+    default_tau = [120.0 if m.dim == 4 else 30.0 for m in modes]
+    tau = np.asarray(c.sojourn_s if c.sojourn_s is not None else default_tau, float)
+    # G = D B, D = diag(1/τ), B = (J − n I)/(n − 1) symmetric: exp(G t) through the symmetric
+    # D^½ B D^½ = U Λ Uᵀ, exp(G t) = D^½ U e^{Λt} Uᵀ D^-½ (scipy's expm costs ms per call)
+    B = (np.ones((n, n)) - n * np.eye(n)) / max(n - 1, 1)
+    d = np.sqrt(1.0 / tau)
+    lam, U = np.linalg.eigh(d[:, None] * B * d[None, :])
+    return (np.minimum(lam, 0.0), d[:, None] * U, U.T / d[None, :]), tau / tau.sum()
 
 
 @functools.lru_cache(maxsize=32)
 def _settings(c: IMMConfig) -> tuple:
     """What a filter of ``c`` derives from its settings alone: (mode filters, their dimensions, σ_e², the
-    compiled modes' rows (kind, q, turn-rate σ) or None when some mode is called in Python, the Markov
-    chain (λ, L, R) of :func:`radartracker.api.kernels.markov_switching`, μ₀, a packed buffer with these
-    settings and a zero state). Shared by the filters of one config: nothing writes into these arrays."""
+    settings array of :mod:`radartracker_plugins.motion._imm_compiled`, μ₀, whether every mode is
+    built in (predicted in the compiled step)). Shared by the filters of one config: nothing writes
+    into these arrays."""
     modes = tuple(c.mode_filters())
-    n = len(modes)
     dims = np.array([m.dim for m in modes], np.int64)
     builtin = all(type(m) in (CVMode, CTMode) for m in modes)
-    kernel_modes = (np.array([[0.0 if type(m) is CVMode else 1.0, m.q, getattr(m, "turn_rate_sd", 0.0)]
-                              for m in modes]) if builtin else None)
-    if c.transition is not None:  # kernels.markov_switching: an empty λ means the fixed Π
-        chain = (np.zeros(0), np.asarray(c.transition, float), np.zeros((0, 0)))
-        default_mu = np.full(n, 1.0 / n)
-    else:
-        tau = np.asarray(c.sojourn_s if c.sojourn_s is not None else [120.0 if m.dim == 4 else 30.0 for m in modes], float)
-        # G = D B, D = diag(1/τ), B = (J − n I)/(n − 1) symmetric: exp(G t) through the symmetric
-        # D^½ B D^½ = U Λ Uᵀ, exp(G t) = D^½ U e^{Λt} Uᵀ D^-½ (scipy's expm costs ms per call)
-        B = (np.ones((n, n)) - n * np.eye(n)) / max(n - 1, 1)
-        d = np.sqrt(1.0 / tau)
-        lam, U = np.linalg.eigh(d[:, None] * B * d[None, :])
-        chain = (np.minimum(lam, 0.0), np.ascontiguousarray(d[:, None] * U), np.ascontiguousarray(U.T / d[None, :]))
-        default_mu = tau / tau.sum()
+    rows = (np.array([[compiled.CV if type(m) is CVMode else compiled.CT, m.q, getattr(m, "turn_rate_sd", 0.0)]
+                      for m in modes]) if builtin else np.tile([compiled.PYTHON, 0.0, 0.0], (len(modes), 1)))
+    chain, default_mu = _chain(c, modes)
     mu0 = np.asarray(c.initial_probabilities if c.initial_probabilities is not None else default_mu, float)
     entry_var = c.turn_rate_entry_sd**2
-    return modes, dims, entry_var, kernel_modes, chain, mu0 / mu0.sum(), _buffer(kernel_modes, dims, entry_var, chain, c.max_gap_s)
+    return modes, dims, entry_var, compiled.settings_array(rows, dims, entry_var, *chain), mu0 / mu0.sum(), builtin

@@ -1,6 +1,6 @@
 """IMM and the coordinated-turn model against FilterPy's IMMEstimator, finite differences, the
-closed-form kinematic integration, the plain CV filter, a 3°/s turn, and (in the TrackManager) a
-plain-numpy IMM."""
+closed-form kinematic integration, the plain CV filter, a 3°/s turn, and (in the TrackManager) the
+plain IMM of tests/plugins/imm_oracle.py."""
 
 from __future__ import annotations
 
@@ -26,7 +26,8 @@ from radartracker.simulation.simulator import KinematicTrajectory, Leg
 from radartracker_plugins.motion import CTMode, CVConfig, CVFilter, CVMode, IMMConfig, IMMFilter
 from radartracker_plugins.motion.ct import ct_noise, ct_transition
 from tests.plugins.test_motion import assert_close, cv_track, manoeuvre_track, run
-from tests.tracking.test_kernels import imm_correction, imm_prediction, switching_matrix
+from tests.plugins.imm_oracle import PlainIMM, sojourn_generator
+from tests.plugins.test_motion_imm_oracle import oracle_modes
 
 
 @pytest.mark.parametrize("w", [0.0, 1e-7, -3e-6, math.radians(3.0), -math.radians(6.0), 0.4])
@@ -187,49 +188,45 @@ def test_switching_matrix_equals_scipy_expm():
 
 
 class NumpyIMM(TrackFilter):
-    """The default IMM (CV + CT, sojourn-time chain) in plain numpy: the equations of the module
-    docstring as written in tests/tracking/test_kernels.py, none of the plugin's code."""
+    """The default IMM (CV + CT, sojourn-time chain) as the plain IMM of mode filter objects
+    (tests/plugins/imm_oracle.py), none of the plugin's code."""
 
     name = "numpy-imm"
 
     def __init__(self, config: IMMConfig) -> None:
         self.config_class = type(config)
         super().__init__(config)
-        self.modes = [("cv", config.q), ("ct", config.q_turn, config.turn_rate_sd)]
+        self.specs = [("cv", config.q), ("ct", config.q_turn, config.turn_rate_sd)]
         self.tau = np.array([120.0, 30.0])
-        self.entry_var = config.turn_rate_entry_sd**2
         self.time = None
 
     def start(self, time, z, R):
-        x, P = np.array([z[0], z[1], 0.0, 0.0]), np.zeros((4, 4))
-        P[:2, :2], P[2:, 2:] = R, self.config.prior_sd_velocity_mps**2 * np.eye(2)
-        self.time, self.mu = float(time), self.tau / self.tau.sum()
-        self.xs, self.Ps = [x, np.append(x, 0.0)], [P, np.pad(P, (0, 1))]
-        self.Ps[1][4, 4] = self.entry_var
+        c = self.config
+        modes = oracle_modes(self.specs, np.asarray(z, float), np.asarray(R, float), c.prior_sd_velocity_mps,
+                             c.turn_rate_entry_sd**2)
+        self.imm = PlainIMM(modes, self.tau / self.tau.sum(), c.turn_rate_entry_sd**2, G=sojourn_generator(self.tau))
+        self.time = float(time)
 
-    def _prediction(self, time):
+    def _stepped(self, time):
         if abs(time - self.time) > self.config.max_gap_s:
             raise ValueError("gap")
-        dt = time - self.time
-        return imm_prediction(self.mu, self.xs, self.Ps, switching_matrix(self.tau, dt), self.modes, dt, self.entry_var)
+        imm = copy.deepcopy(self.imm)
+        return imm, imm.predict(time - self.time)
 
     def predict(self, time):
-        return self._prediction(time)[2:]
+        return self._stepped(time)[1]
 
     def update(self, time, z, R):
-        mu, states, _, _, nis = imm_correction(*self._prediction(time), np.asarray(z, float), np.asarray(R, float))
-        self.time, self.mu = float(time), mu
-        self.xs, self.Ps = [s[0] for s in states], [s[1] for s in states]
-        return nis
+        self.imm = self._stepped(time)[0]
+        self.time = float(time)
+        return self.imm.update(np.asarray(z, float), np.asarray(R, float))
 
     def estimate(self):
-        x = sum(m * s[:4] for m, s in zip(self.mu, self.xs))
-        P = sum(m * (C[:4, :4] + np.outer(s[:4] - x, s[:4] - x)) for m, s, C in zip(self.mu, self.xs, self.Ps))
-        return self.time, x, P
+        return (self.time, *self.imm.estimate())
 
 
 def test_manager_events_and_biases_with_imm_equal_a_numpy_imm():
-    """The TrackManager with the compiled IMM (one prediction per input shared by screening and
+    """The TrackManager with the plugin's IMM (one prediction per input shared by screening and
     update) and with :class:`NumpyIMM`: the same events and biases on a scenario with manoeuvres."""
     data = build_scenario("manoeuvres", seed=4, duration=150.0).run()
     config = ManagerConfig(motion_model="imm")
@@ -264,9 +261,9 @@ class PythonCT:
         return f, F @ P @ F.T + ct_noise(dt, self.q, self.turn_rate_sd)
 
 
-def test_prediction_kept_for_the_update_and_python_modes_equal_the_compiled_cycle():
-    """Predicting first (as screening does, and at other times) leaves the update bit for bit what
-    the one-call cycle gives; a mode called in Python gives the compiled cycle's results."""
+def test_prediction_kept_for_the_update_and_python_modes_equal_the_built_in_ones():
+    """Predicting first (as screening does, and at other times) leaves the update bit for bit what an
+    update without a kept prediction gives; a mode called in Python gives the built-in modes' results."""
     t, _, zs, Rs = manoeuvre_track(np.random.default_rng(21))
     plain, screened = IMMFilter(), IMMFilter()
     python = IMMFilter(IMMConfig(modes=(CVMode(), PythonCT())))
@@ -328,13 +325,13 @@ def test_screen_in_one_call_equals_the_default_on_predict_and_update(modes):
             np.testing.assert_array_equal(a, b)
         if k == 40:
             old, fast = fast, copy.deepcopy(fast)
-            assert not np.shares_memory(fast.X, old.X) and np.shares_memory(fast.X, fast._buf)
+            assert not np.shares_memory(fast.X, old.X)
     assert rejected >= 5
 
 
 def test_screen_refuses_a_step_as_the_default_does():
     """A step beyond max_gap_s (either way), a nan or infinite time, or a filter not started: IMMFilter.screen
-    (its compiled call checks the step) raises the ValueError TrackFilter.screen's default raises and leaves
+    raises the ValueError TrackFilter.screen's default raises and leaves
     the filter as it was; a step just within the gap is screened as the default screens it."""
     t, _, zs, Rs = manoeuvre_track(np.random.default_rng(8))
     config = IMMConfig(max_gap_s=20.0)
@@ -364,47 +361,3 @@ def test_screen_refuses_a_step_as_the_default_does():
     assert got[0] == want[0] and got[3] is want[3] is True
     for a, b in zip(fast.estimate(), ref.estimate()):
         np.testing.assert_array_equal(a, b)
-
-
-def test_screen_many_equals_the_default_loop_and_keeps_predictions_right():
-    """IMMFilter.screen_many (one compiled loop over the packed buffers) gives bit for bit what
-    TrackFilter.screen_many's default gives through ``screen`` on copies of the filters: a filter's later
-    measurements after one outside the gate are not done, a filter not started or of modes called in Python
-    is left to ``screen``, and each filter ends with the same epoch, state and predictions, at the time of a
-    prediction kept before the call (which a screening not done has overwritten) and at the times screened."""
-    t, _, zs, Rs = manoeuvre_track(np.random.default_rng(3), n=12)
-    filters = [IMMFilter() for _ in range(3)] + [IMMFilter(), IMMFilter(IMMConfig(modes=(CVMode(), PythonCT())))]
-    for k, f in enumerate(filters[:3] + filters[4:]):
-        f.start(t[k], zs[k], Rs[k])
-        f.update(t[k + 1], zs[k + 1], Rs[k + 1])
-    for f in filters[:3]:
-        f.predict(t[5])  # a prediction kept at another time than the frame's
-    order = [(0, 6), (1, 7), (0, 7), (1, 8), (2, 5), (3, 6), (2, 6), (4, 6), (0, 8)]
-    pick = [filters[i] for i, _ in order]
-    k = np.array([j for _, j in order])
-    C, bias, bias_cov = np.array([[0.8, 2e4], [-0.6, 3e4]]), np.array([30.0, -4e-4]), np.diag([50.0, 2e-8])
-    z = zs[k] + C @ bias
-    z[1, 0] += 5e3  # filter 1's first measurement: a gross error
-    args = (t[k], z, np.repeat(C[None], len(k), 0), Rs[k], np.repeat(bias[None], len(k), 0),
-            np.repeat(bias_cov[None], len(k), 0), np.full(len(k), 30.0))
-    refs = copy.deepcopy(filters)
-    default = {id(f): r for f, r in zip(filters, refs)}
-    got = IMMFilter.screen_many(pick, *args)
-    want = TrackFilter.screen_many([default[id(f)] for f in pick], *args)
-    assert got[3].tolist() == [True, False, True, False, True, False, True, False, True]
-    want[3][[5, 7]] = False  # not started, modes in Python: the default screens them, screen_many leaves them
-    np.testing.assert_array_equal(got[3], want[3])
-    for i in np.flatnonzero(got[3]):
-        np.testing.assert_array_equal(got[4][i], want[4][i])
-        np.testing.assert_array_equal(got[5][i], want[5][i])
-    for a, b in zip(got[:3], want[:3]):
-        np.testing.assert_array_equal(a[:5], b[:5])
-    assert math.isnan(got[0][5]) and math.isnan(got[0][7])
-    for f, r in zip(filters[:3], refs[:3]):
-        assert f.time == r.time
-        for a, b in zip(f.estimate(), r.estimate()):
-            np.testing.assert_array_equal(a, b)
-        for time in (t[5], t[7], t[9]):
-            for a, b in zip(f.predict(time), r.predict(time)):
-                np.testing.assert_array_equal(a, b)
-    assert filters[3].time is None and filters[4].time == t[4]  # left as they were
