@@ -40,10 +40,7 @@ config type, ``predict`` before ``start`` fails), ``errors`` (non-finite or malf
 gap beyond ``max_gap_s`` raise ValueError and leave the filter unchanged), ``reads`` (``predict`` and
 ``estimate`` change nothing; ``update``'s NIS is that of ``predict``'s output), ``screen`` (``screen``'s
 bias correction and d² are screening's equations on ``predict``'s output; outside the gate nothing
-changes, inside it the filter is updated as ``update`` does), ``screen_many`` (a frame's
-interleaved measurements of three filters, one a gross error: each measurement done as ``screen``
-one at a time gives it, with the estimate after it, until a filter's first one outside its gate, which
-and whose later ones are left undone with the filter as before them), ``filterpy`` (for a
+changes, inside it the filter is updated as ``update`` does), ``filterpy`` (for a
 single-Gaussian filter, ``kalman_update=True``: the update is FilterPy's Kalman correction of
 ``predict``'s (χ̄, P̄)), ``hygiene`` (symmetric positive definite finite covariances through a 2 g
 manoeuvre, repeated times and a long gap), ``consistency`` (on straight constant-velocity flight with

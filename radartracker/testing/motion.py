@@ -14,7 +14,7 @@ from radartracker.testing.common import (H, CheckFailed, close, fail, identical,
                                          run_checks)
 from radartracker.tracking.filters import MotionConfig, TrackFilter
 
-MOTION_CHECKS = ("contract", "errors", "reads", "screen", "screen_many", "filterpy", "hygiene", "consistency",
+MOTION_CHECKS = ("contract", "errors", "reads", "screen", "filterpy", "hygiene", "consistency",
                  "snapshot")
 
 
@@ -149,59 +149,6 @@ def _check_motion_screen(cls: type[TrackFilter], config: MotionConfig, owner: st
         raise fail(owner, check, "a measurement in the gate must update the filter as update(time, z_c, R_c) does")
 
 
-def _check_motion_screen_many(cls: type[TrackFilter], config: MotionConfig, owner: str) -> None:
-    check = "screen_many"
-    rng = np.random.default_rng(37)
-    filters, times, zs, Rs = [], [], [], []
-    for k in range(3):  # three tracks, their next measurements interleaved in time
-        t, _, z, R = _track(rng, 10, 1.0, config.prior_sd_velocity_mps)
-        f = cls(config)
-        _run_filter(f, t[:5], z[:5], R[:5])
-        filters += [f] * 5
-        times += list(t[5:])
-        zs += list(z[5:])
-        Rs += list(R[5:])
-    order = np.argsort(times, kind="stable")
-    filters = [filters[i] for i in order]
-    times, zs, Rs = np.array(times)[order], np.array(zs)[order], np.array(Rs)[order]
-    gross = [i for i, f in enumerate(filters) if f is filters[0]][1]
-    zs[gross] += 5e3  # a gross error: it and that track's three later measurements are left undone
-    n = len(times)
-    C, bias_cov = np.tile([[0.8, 2e4], [-0.6, 3e4]], (n, 1, 1)), np.tile(np.diag([50.0, 2e-8]), (n, 1, 1))
-    bias = np.tile([30.0, -4e-4], (n, 1))
-    z = zs + np.einsum("nij,nj->ni", C, bias)
-    gate = np.full(n, 13.82)
-    twins = {id(f): copy.deepcopy(f) for f in filters}
-    before = {id(f): _filter_state(f) for f in filters}
-    d2, zc, Rc, done, x, P = cls.screen_many(filters, times, z, C, Rs, bias, bias_cov, gate)
-    stopped: set[int] = set()
-    for i, f in enumerate(filters):
-        twin = twins[id(f)]
-        if id(f) not in stopped:
-            state = _filter_state(twin)
-            got = twin.screen(times[i], z[i], C[i], Rs[i], bias[i], bias_cov[i], gate[i])
-            if got[3] and got[0] <= gate[i]:
-                _, xe, Pe = twin.estimate()
-                if not (done[i] and close(d2[i], got[0]) and close(zc[i], got[1]) and close(Rc[i], got[2])
-                        and close(x[i], xe) and close(P[i], Pe)):
-                    raise fail(owner, check, f"measurement {i} passed its gate: screen_many must give screen's d², "
-                                             "z_c, R_c and the estimate after the update")
-                before[id(f)] = _filter_state(twin)
-                continue
-            if not identical(_filter_state(twin), state):
-                raise fail(owner, check, "screen outside the gate changed the filter")
-            stopped.add(id(f))
-        if done[i]:
-            raise fail(owner, check, f"measurement {i} is done though it, or an earlier one of its filter, did not "
-                                     "pass its gate")
-    if stopped != {id(filters[0])} or done.sum() != n - 4:
-        raise fail(owner, check, f"expected the {n - 4} measurements but the gross error and the three after it done, "
-                                 f"got {int(done.sum())}")
-    for f in filters:
-        if not all(close(a, b) for a, b in zip(_filter_state(f), before[id(f)])):
-            raise fail(owner, check, "after screen_many a filter must hold its last measurement done, no later one")
-
-
 def _check_motion_filterpy(cls: type[TrackFilter], config: MotionConfig, owner: str) -> None:
     KalmanFilter = kalman_filter_class()
     check = "filterpy"
@@ -281,7 +228,7 @@ def _check_motion_snapshot(cls: type[TrackFilter], config: MotionConfig, owner: 
 
 
 _MOTION_RUNNERS = {"contract": _check_motion_contract, "errors": _check_motion_errors, "reads": _check_motion_reads,
-                   "screen": _check_motion_screen, "screen_many": _check_motion_screen_many,
+                   "screen": _check_motion_screen,
                    "filterpy": _check_motion_filterpy, "hygiene": _check_motion_hygiene,
                    "consistency": _check_motion_consistency, "snapshot": _check_motion_snapshot}
 

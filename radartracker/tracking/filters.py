@@ -7,7 +7,6 @@ in ``config_class``; the registry builds it from ``KEY=VALUE`` options (docs/plu
 from __future__ import annotations
 
 import abc
-from collections.abc import Sequence
 from typing import ClassVar
 
 import attrs
@@ -97,36 +96,3 @@ class TrackFilter(abc.ABC):
             self.update(time, zc, Rc)
             return d2, zc, Rc, True
         return d2, zc, Rc, False
-
-    @classmethod
-    def screen_many(cls, filters: Sequence[TrackFilter], times: np.ndarray, z: np.ndarray, C: np.ndarray,
-                    R: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray, gate: np.ndarray) -> tuple:
-        """:meth:`screen` of measurement i (``times[i]``, ``z[i]`` …, ``gate[i]``) by ``filters[i]``, in order,
-        for as long as each filter's measurements pass their gate and update it (the TrackManager hands a
-        frame's measurements of its confirmed tracks over at once). Returns (d², z_c, R_c, done, χ̂, P̂) by
-        measurement: ``done[i]`` when measurement i updated ``filters[i]``, and χ̂[i], P̂[i] that filter's
-        estimate after it, as :meth:`estimate` gives them (a model may return them stacked, χ̂ n×4 and P̂
-        n×4×4 float arrays, when its state is [x, y, vx, vy]). A filter's first
-        measurement that does not pass (or raises) and all its later ones are not done, the filter left as
-        before it, for the caller to :meth:`screen` one by one. Each time is no earlier than its filter's
-        estimate. This default calls :meth:`screen`; a model may override it with one compiled loop
-        (``imm`` does)."""
-        n = len(filters)
-        d2, zc, Rc, done = np.full(n, np.nan), np.zeros((n, 2)), np.zeros((n, 2, 2)), np.zeros(n, bool)
-        x: list = [None] * n
-        P: list = [None] * n
-        stopped: set[int] = set()  # filters (by id) with a measurement not done
-        for i, f in enumerate(filters):
-            if id(f) in stopped:
-                continue
-            try:
-                d2[i], zc[i], Rc[i], updated = f.screen(float(times[i]), z[i], C[i], R[i], bias[i], bias_cov[i],
-                                                        float(gate[i]))
-            except Exception:  # noqa: BLE001 — the caller's screen meets it again and reports it
-                updated = False
-            if updated and d2[i] <= gate[i]:
-                done[i] = True
-                _, x[i], P[i] = f.estimate()
-            else:
-                stopped.add(id(f))
-        return d2, zc, Rc, done, x, P
