@@ -30,7 +30,8 @@ from radartracker.domain import Aircraft, Radar
 from radartracker.errors import FormatError, InputError
 from radartracker.io import columnar
 from radartracker.io.atomic import atomic_folder
-from radartracker.io.csvblocks import BLOCK_BYTES, Rows, Skipper, newlines, read_text
+from radartracker.io.csvblocks import BLOCK_BYTES, Rows, Skipper, newlines
+from radartracker.io.limits import bound, read_json, regular_file
 from radartracker.io.tables import (ADSB_COLUMNS, BIAS_COLUMNS, PLOT_COLUMNS, RADAR_COLUMNS, TRUTH_COLUMNS, AdsbTable,
                                     PlotTable, ScenarioData, TruthTable, label_spans)
 from radartracker.tracking.admission import StreamClock
@@ -53,8 +54,10 @@ def _nonneg(v: float) -> str | None:
     return None if v >= 0 else "is negative"
 
 
-def _positive(v: float) -> str | None:
-    return None if v > 0 else "must be > 0"
+def _physical(name: str) -> Callable[[float], str | None]:
+    """The check of a physical bound (:data:`radartracker.io.limits.BOUNDS`): beyond it, arithmetic on
+    the value overflows (σ = 1e308 squared) long before it could mean anything."""
+    return lambda v: bound(name, v)
 
 
 def _code(rows: Rows, row: dict, line: int, field: str, digits: str, n: int) -> str | None:
@@ -83,11 +86,11 @@ def read_radars(path: Path) -> list[Radar]:
             id=rid,
             lat=rows.number(row, line, "lat", check=_range(-90, 90)),
             lon=rows.number(row, line, "lon", check=_range(-180, 180)),
-            height_m=rows.number(row, line, "height_m"),
-            sigma_range_m=rows.number(row, line, "sigma_range_m", check=_nonneg),
-            sigma_azimuth_rad=math.radians(rows.number(row, line, "sigma_azimuth_deg", check=_nonneg)),
-            period_s=rows.number(row, line, "period_s", check=_positive),
-            max_range_m=rows.number(row, line, "max_range_m", check=_positive),
+            height_m=rows.number(row, line, "height_m", check=_physical("height_m")),
+            sigma_range_m=rows.number(row, line, "sigma_range_m", check=_physical("sigma_range_m")),
+            sigma_azimuth_rad=math.radians(rows.number(row, line, "sigma_azimuth_deg", check=_physical("sigma_deg"))),
+            period_s=rows.number(row, line, "period_s", check=_physical("period_s")),
+            max_range_m=rows.number(row, line, "max_range_m", check=_physical("max_range_m")),
         ), line)
     if not radars:
         raise FormatError(rows.name, 2, None, "no radars")
@@ -299,10 +302,7 @@ def _json_number(file: str, obj: dict, field: str, lo: float, hi: float) -> floa
 def read_meta(path: Path) -> dict[str, Any]:
     """``scenario.json``: ``name``, ``reference`` (lat, lon) and ``aircraft``, each checked; errors name the field."""
     name = path.name
-    try:
-        meta = json.loads(read_text(path))
-    except json.JSONDecodeError as exc:
-        raise FormatError(name, exc.lineno, None, f"not JSON: {exc.msg} (column {exc.colno})") from None
+    meta = read_json(path)  # bounded: depth, number sizes, file size (radartracker.io.limits)
     if not isinstance(meta, dict):
         raise FormatError(name, None, None, f"expected a JSON object, got {type(meta).__name__}")
     out: dict[str, Any] = {}
@@ -431,7 +431,7 @@ def open_scenario(folder: Path | str, *, skip_bad: bool = False, block_bytes: in
 def _data_lines(path: Path) -> int:
     if not path.exists():
         return 0
-    with path.open("rb") as f:
+    with regular_file(path).open("rb") as f:
         return max(sum(map(newlines, iter(lambda: f.read(BLOCK_BYTES), b""))) - 1, 0)
 
 
