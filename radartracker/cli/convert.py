@@ -5,10 +5,9 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from pathlib import Path
 
-from radartracker.errors import ConfigurationError
+from radartracker.errors import ConfigurationError, InputError
 
 
 def register_convert(sub: argparse._SubParsersAction) -> None:
@@ -55,10 +54,9 @@ def _cmd_convert(args: argparse.Namespace) -> int:
         print(f"  {name}: {f['lines']} lines, {f.get('written', 0)} written, {bad} malformed{first}, "
               f"{f['output_files']} files")
     print(f"accounting: {args.out / 'report.json'}")
-    if not report["selected_aircraft"]:  # nothing useful: say why, and exit non-zero like triangulate
-        print(f"radartracker convert: no aircraft has {opts.AZN_TRACKS_MIN_MEASUR} or more ADS-B reports in "
-              f"{args.recording / 'plots_ads.txt'}; only report.json was written", file=sys.stderr)
-        return 1
+    if not report["selected_aircraft"]:  # refused work: exit 2 with one line saying why
+        raise InputError(f"no aircraft has {opts.AZN_TRACKS_MIN_MEASUR} or more ADS-B reports in "
+                         f"{args.recording / 'plots_ads.txt'}; only report.json was written")
     return 0
 
 
