@@ -25,6 +25,7 @@ from typing import Any
 
 import attrs
 import numpy as np
+from tqdm import tqdm
 
 from radartracker.domain import Aircraft, Radar
 from radartracker.errors import FormatError, InputError
@@ -456,6 +457,11 @@ def _write(path: Path, header: tuple[str, ...], rows: Iterable[Iterable[str]]) -
         w.writerows(rows)
 
 
+def _progress(n: int, name: str) -> Iterable[int]:
+    """range(n) with a progress bar on stderr once writing takes 2 s (off with TQDM_DISABLE / --quiet)."""
+    return tqdm(range(n), desc=f"write {name}", unit="row", delay=2.0, mininterval=1.0, miniters=10_000)
+
+
 def write_scenario(folder: Path | str, data: ScenarioData) -> None:
     """Write ``data`` as a scenario folder (the folder must not exist); it appears complete or not at all."""
     with atomic_folder(folder) as tmp:
@@ -471,16 +477,16 @@ def _write_scenario_files(folder: Path, data: ScenarioData) -> None:
     _write(folder / "plots.csv", PLOT_COLUMNS + (("target",) if labelled else ()), (
         (f"{p.time[i]:.4f}", p.radar[i], f"{p.range_m[i]:.3f}", _azimuth_deg(p.azimuth_rad[i]),
          _fmt(p.altitude_m[i], ".2f"), _fmt(p.mode_s[i], ""), _fmt(p.mode_3a[i], ""))
-        + ((_fmt(p.target[i], ""),) if labelled else ()) for i in range(len(p))))
+        + ((_fmt(p.target[i], ""),) if labelled else ()) for i in _progress(len(p), "plots.csv")))
     a = data.adsb
     _write(folder / "adsb.csv", ADSB_COLUMNS, (
         (f"{a.time[i]:.3f}", a.icao24[i], f"{a.lat[i]:.8f}", f"{a.lon[i]:.8f}", _fmt(a.altitude_m[i], ".2f"),
-         str(int(a.nacp[i]))) for i in range(len(a))))
+         str(int(a.nacp[i]))) for i in _progress(len(a), "adsb.csv")))
     if data.truth is not None:
         tr = data.truth
         _write(folder / "truth.csv", TRUTH_COLUMNS, (
             (f"{tr.time[i]:.3f}", tr.target[i], f"{tr.lat[i]:.8f}", f"{tr.lon[i]:.8f}", f"{tr.altitude_m[i]:.2f}")
-            for i in range(len(tr))))
+            for i in _progress(len(tr), "truth.csv")))
     if data.truth_biases is not None:
         _write(folder / "truth_biases.csv", BIAS_COLUMNS, (
             (rid, f"{b[0]:.4f}", f"{math.degrees(b[1]):.8f}") for rid, b in data.truth_biases.items()))

@@ -12,7 +12,7 @@ def test_simulate_that_makes_no_plot_exits_2_and_writes_nothing(tmp_path, capsys
 
 def test_simulate_refuses_an_absurd_traffic_size(tmp_path, capsys):
     assert main(["simulate", str(tmp_path / "s"), "--scenario", "traffic", "--aircraft", "1000000000"]) == 2
-    assert "aircraft-radar pairs" in capsys.readouterr().err
+    assert "--aircraft: 1000000000 must be <= 10000000" in capsys.readouterr().err
 
 
 def test_triangulate_with_every_target_refused_exits_2_with_one_line(tmp_path, capsys):
