@@ -499,7 +499,7 @@ class _Clock:
 
 def read_sites(path: Path) -> tuple[list[Radar], dict[tuple[int, int], str]]:
     """Radar sites and the SAC/SIC → radar id map of a ``.radars.csv`` sidecar (each SAC/SIC once)."""
-    from radartracker.io.scenario import _Rows, _range, read_radars
+    from radartracker.io.scenario import _Rows, read_radars
 
     radars = read_radars(path)
     rows = _Rows(path, RADAR_COLUMNS + ("sac", "sic"))
