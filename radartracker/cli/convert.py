@@ -95,10 +95,12 @@ def _day_start(text: str) -> float:
 def _cmd_asterix_import(args: argparse.Namespace) -> int:
     from radartracker.io.asterix import read_asterix
     from radartracker.io.scenario import write_scenario
+    from radartracker.io.tables import in_time_order
 
     if args.out.exists():
         raise ConfigurationError(f"{args.out} already exists; choose a new folder")
-    data = read_asterix(args.recording, day_start=args.day_start, skip_bad=args.skip_bad)
+    # arrival order to time order: a scenario folder is time-ordered per radar, as replay reads it
+    data = in_time_order(read_asterix(args.recording, day_start=args.day_start, skip_bad=args.skip_bad))
     write_scenario(args.out, data)
     print(f"wrote {args.out}: {len(data.radars)} radars, {len(data.plots)} plots, "
           f"{len(data.adsb)} ADS-B reports" + "".join(f"; {n} {k}" for k, n in sorted(data.skipped.items())))
