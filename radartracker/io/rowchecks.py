@@ -9,7 +9,6 @@ results and carries these readers' state on.
 from __future__ import annotations
 
 import csv
-import itertools
 import math
 import statistics
 from collections.abc import Callable, Iterable
@@ -17,7 +16,7 @@ from pathlib import Path
 
 from radartracker.errors import FormatError
 from radartracker.io.csvblocks import Rows
-from radartracker.io.limits import bound
+from radartracker.io.limits import bound, regular_file
 from radartracker.io.tables import ADSB_COLUMNS, AdsbTable, PlotTable
 from radartracker.tracking.admission import StreamClock
 
@@ -179,22 +178,23 @@ class PlotReader:
 
 
 def first_times(path: Path, n: int) -> list[float]:
-    """The ``time`` field of the first ``n`` rows of a CSV file that hold a number there (a look ahead for
-    :class:`PlotReader`; the file's checks are the reader's)."""
+    """The ``time`` field of the first ``n`` rows of a CSV file that hold a number there, from its first
+    64 KiB (a look ahead for :class:`PlotReader`; the file's checks are the reader's)."""
     out: list[float] = []
-    with path.open(newline="", encoding="utf-8-sig", errors="replace") as f:
-        reader = csv.reader(itertools.islice(f, 4 * n + 1))
-        header = [h.strip() for h in next(reader, [])]
-        if "time" not in header:
-            return out
-        i = header.index("time")
-        for fields in reader:
-            try:
-                out.append(float(fields[i]))
-            except (ValueError, IndexError):
-                continue
-            if len(out) == n:
-                break
+    with regular_file(path).open("rb") as f:
+        head = f.read(1 << 16).decode("utf-8-sig", errors="replace").splitlines()
+    reader = csv.reader(head[:4 * n + 1])
+    header = [h.strip() for h in next(reader, [])]
+    if "time" not in header:
+        return out
+    i = header.index("time")
+    for fields in reader:
+        try:
+            out.append(float(fields[i]))
+        except (ValueError, IndexError):
+            continue
+        if len(out) == n:
+            break
     return out
 
 

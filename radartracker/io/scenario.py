@@ -189,12 +189,24 @@ def read_meta(path: Path) -> dict[str, Any]:
     return out
 
 
+SCENARIO_FILES = ("scenario.json", "radars.csv", "plots.csv", "adsb.csv", "truth.csv", "truth_biases.csv")
+
+
+def check_regular_files(folder: Path | str) -> None:
+    """Refuse a scenario folder whose files are not regular files (a ``plots.csv`` linked to ``/dev/zero``
+    has no end): an InputError naming the file, before anything reads it."""
+    for name in SCENARIO_FILES:
+        if (Path(folder) / name).exists():
+            regular_file(Path(folder) / name)
+
+
 def _meta(folder: Path) -> tuple[dict[str, Any], list[Radar]]:
     if folder.is_file():  # e.g. `replay plots.csv`: name what a scenario is rather than "does not exist"
         raise InputError(f"{folder} is a file, not a scenario folder (docs/formats.md; an ASTERIX recording "
                          f"ends in .ast, .pcap, .ff or .final)")
     if not folder.is_dir():
         raise FileNotFoundError(f"scenario folder {folder} does not exist")
+    check_regular_files(folder)
     meta = read_meta(folder / "scenario.json") if (folder / "scenario.json").exists() else {}
     return meta, read_radars(folder / "radars.csv")
 
