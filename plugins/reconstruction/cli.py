@@ -3,7 +3,9 @@
 Input: one scenario folder (radar plots grouped per aircraft by truth label or Mode S address) or
 ``.new4`` files (one aircraft track each, isotropic noise ``--sigma``). Output per aircraft in
 ``OUT/<key>/``: ``track.csv``, ``track.plt``, ``segments.csv``, ``hypotheses.csv``, ``figure.png``
-(see :mod:`radartracker_plugins.reconstruction.output`), plus ``OUT/summary.json``.
+(see :mod:`radartracker_plugins.reconstruction.output`), plus ``OUT/summary.json``. Exit codes: 0
+when a flight was reconstructed plausibly, 2 for bad input, a refused option or no such flight (one
+line; ``summary.json`` names each failure).
 """
 
 from __future__ import annotations
@@ -14,7 +16,13 @@ import logging
 import sys
 from pathlib import Path
 
-from radartracker.api import ConfigurationError, atomic_open
+from radartracker.api import ConfigurationError, InputError, atomic_open
+
+MAX_GRID_POINTS = 1_000_000  # geometric-track points per flight: --grid finer than span/10⁶ is a typo
+# option: (low, high) — finite, inclusive; beyond them a value is a typo, not a setting (exit 2, one line)
+OPTION_BOUNDS = {"sigma": (1e-3, 1e6), "max_u": (1e-3, 100.0), "max_w": (1e-3, 100.0), "grid": (1e-3, 3600.0),
+                 "hypotheses": (1, 1000), "batch_plots": (1, 10_000_000), "min_plots": (2, 10_000_000),
+                 "workers": (1, 4096), "jump_sd": (0.0, 100.0)}
 
 
 def register_reconstruct(sub: argparse._SubParsersAction) -> None:
@@ -86,6 +94,23 @@ def _load(inputs: list[Path], sigma: float, min_plots: int, radars_csv: Path | N
     return tracks, planes, {}, dict(skipped), None, ({r.id for r in radars} or None)
 
 
+def _check_options(args: argparse.Namespace) -> None:
+    """Every numeric option finite and within :data:`OPTION_BOUNDS` (a ConfigurationError naming it)."""
+    for name, (lo, hi) in OPTION_BOUNDS.items():
+        value = getattr(args, name)
+        if value is not None and not lo <= value <= hi:  # also refuses NaN and ±inf
+            raise ConfigurationError(f"--{name.replace('_', '-')}: {value!r} outside [{lo:g}, {hi:g}]")
+
+
+def _check_grid(tracks, grid: float) -> None:
+    """Refuse a --grid that would give a flight more than :data:`MAX_GRID_POINTS` geometric-track points."""
+    longest = max(tracks, key=lambda t: t.t[-1] - t.t[0])
+    points = (longest.t[-1] - longest.t[0]) / grid + 1
+    if points > MAX_GRID_POINTS:
+        raise ConfigurationError(f"--grid {grid:g}: flight {longest.key} ({longest.t[-1] - longest.t[0]:g} s) would "
+                                 f"get {points:.3g} track points (at most {MAX_GRID_POINTS:,}); choose a larger grid")
+
+
 def _select(tracks, flights: str | None):
     """The tracks named by ``--flights ID,...`` (all when None); an unknown ID is an error."""
     if not flights:
@@ -108,8 +133,7 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
 
     if args.out.exists() and any(args.out.iterdir()):
         raise ConfigurationError(f"{args.out} exists and is not empty; choose a new folder")
-    if args.sigma <= 0:
-        raise ConfigurationError(f"--sigma: must be > 0, got {args.sigma}")
+    _check_options(args)
     if sum(map(bool, (args.truth_biases, args.biases, args.estimate_biases))) > 1:
         raise ConfigurationError("give at most one of --truth-biases, --biases, --estimate-biases")
     try:
@@ -128,12 +152,14 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
     biases = truth_biases if args.truth_biases else read_biases(args.biases, radar_ids) if args.biases else None
     if not tracks:
         raise ConfigurationError("no aircraft with enough plots to reconstruct")
+    _check_grid(tracks, args.grid)
     engine = "dask" if args.scheduler else args.engine
     args.out.mkdir(parents=True, exist_ok=True)
     summary = {"flights": len(tracks), "skipped_plots": skipped, "reconstructed": [], "failed": {}}
     if biases:
         tracks = [debias(t, biases) for t in tracks]
         summary["biases_removed"] = "truth_biases.csv" if args.truth_biases else str(args.biases)
+    notes: list[str] = []  # failures and warnings, printed unless nothing was reconstructed
     with executor(engine, args.workers, args.scheduler, quiet=args.quiet) as ex:
         if args.estimate_biases:
             from radartracker_plugins.reconstruction.joint import estimate_jointly
@@ -145,14 +171,14 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
         for res in results:
             if isinstance(res, Failure):
                 summary["failed"][res.key] = res.reason
-                print(f"reconstruct: {res.key}: {res.reason}", file=sys.stderr)
+                notes.append(f"reconstruct: {res.key}: {res.reason}")
                 continue
             write_reconstruction(res, planes[res.key], args.out, truth.get(res.key), not args.no_figures, cfg)
             q = assess(res, cfg)
-            for w in q.pop("warnings"):
-                print(f"reconstruct: warning: {w}", file=sys.stderr)
+            warnings = q.pop("warnings")
+            notes += [f"reconstruct: warning: {w}" for w in warnings]
             row = {"key": res.key, "plots": len(res.plots), "segments": len(res.control), "weight": res.best.weight,
-                   "score": res.best.score, "quality": q}
+                   "score": res.best.score, "quality": q, "warnings": warnings}
             if res.key in truth:
                 row["truth_error"] = truth_error(res, truth[res.key])
             summary["reconstructed"].append(row)
@@ -162,7 +188,13 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
     with atomic_open(args.out / "summary.json", "w", encoding="utf-8") as f:  # flushed, then renamed
         f.write(json.dumps(summary, indent=1))
     n_ok = len(summary["reconstructed"]) - len(bad)
+    if not n_ok:  # refused work: exit 2 with one line (summary.json holds every flight's reason)
+        why = (f"{len(summary['failed'])} failed (first: {next(iter(summary['failed'].items()))})"
+               if summary["failed"] else f"{len(bad)} implausible")
+        raise InputError(f"no flight reconstructed plausibly: {why}; see {args.out / 'summary.json'}")
+    for line in notes:
+        print(line, file=sys.stderr)
     print(f"reconstructed {len(summary['reconstructed'])} of {len(tracks)} aircraft into {args.out}"
           + (f"; {len(summary['failed'])} failed" if summary["failed"] else "")
           + (f"; {len(bad)} implausible ({', '.join(bad)}): see summary.json" if bad else ""))
-    return 0 if n_ok else 1
+    return 0

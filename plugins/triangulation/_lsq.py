@@ -18,7 +18,12 @@ The target position at bearing n is linear in the parameters: r_n = Θ q_n, with
    (JᵀWJ)⁻¹ JᵀWKWJ (JᵀWJ)⁻¹, which is never below the ML one (Gauss–Markov).
 
 Geometry is refused (:class:`GeometryError`) when J̃ has no non-singular 3K×3K minor (seed 001
-§3: numerical rank < 3K), or when the GDOP exceeds ``max_gdop``.
+§3: numerical rank < 3K), or when the GDOP exceeds ``max_gdop``. Before any solver runs,
+:func:`precheck` refuses what cannot have such a minor or cannot be computed: fewer than 3K/2
+bearings (2N equations for 3K unknowns), every bearing from one site (sites within
+:data:`SAME_SITE_M` count as one: the lines of sight meet only there), and non-finite sites,
+lines of sight, weights or start residuals (weights are first scaled to a largest entry of 1,
+which changes neither estimate nor covariance: both are invariant to a common factor of W).
 GDOP = √(mean_n tr cov r_n) / (σ_rms ρ_rms): the RMS position error in units of the angular
 noise times the range (≈ 1 for two orthogonal lines of sight, → ∞ as they become parallel).
 """
@@ -41,6 +46,7 @@ from .sensors import Bearing
 log = logging.getLogger("radartracker.triangulation")
 
 RANK_RTOL = 1e-9  # singular values below this fraction of the largest count as zero
+SAME_SITE_M = 1.0  # stations closer than this are one site: their lines of sight cross only at it
 
 
 class GeometryError(api.GeometryError):
@@ -150,6 +156,28 @@ def intersect(bs: BearingSet, Q: np.ndarray, w: np.ndarray) -> np.ndarray:
     return (V @ ((V.T @ b) / lam)).reshape(3, K)
 
 
+def _degenerate(why: str, K: int) -> GeometryError:
+    return GeometryError(f"degenerate geometry: {why}; the bearing Jacobian has no non-singular {3 * K}×{3 * K} "
+                         "minor, GDOP = inf", math.inf)
+
+
+def precheck(bs: BearingSet, Q: np.ndarray, W: np.ndarray) -> None:
+    """Refuse, before any solver runs, what cannot give a fix (module docstring): too few bearings, one
+    site, non-finite sites, lines of sight or weights."""
+    N, K = Q.shape
+    if 2 * N < 3 * K:
+        raise _degenerate(f"{N} bearing(s) give {2 * N} equations for {3 * K} unknowns (at least "
+                          f"{math.ceil(1.5 * K)} bearings needed)", K)
+    if not (np.isfinite(bs.site).all() and np.isfinite(bs.los).all() and np.isfinite(Q).all()):
+        raise _degenerate("a station site, line of sight or time is not finite", K)
+    if not np.isfinite(W).all():
+        raise _degenerate("the weights are not finite (a σ too small or a weight too large for a double)", K)
+    if np.linalg.norm(bs.site - bs.site[0], axis=1).max() < SAME_SITE_M:
+        stations = ", ".join(s for s, _ in bs.groups)
+        raise _degenerate(f"every bearing comes from one site (station(s) {stations} within {SAME_SITE_M:g} m of "
+                          "each other): the lines of sight meet only there (a single station)", K)
+
+
 def solve(bs: BearingSet, Q: np.ndarray, *, warn_gdop: float, max_gdop: float | None,
           weights: np.ndarray | None = None) -> Solution:
     """Start by intersection, refine by weighted LS, and report covariance, GDOP and χ².
@@ -161,6 +189,9 @@ def solve(bs: BearingSet, Q: np.ndarray, *, warn_gdop: float, max_gdop: float | 
     N, K = Q.shape
     ml = bs.ml_weights()
     W = ml if weights is None else np.asarray(weights, float)
+    if weights is not None and np.isfinite(W).all() and np.abs(W).max() > 0:
+        W = W / np.abs(W).max()  # only ratios matter; a common scale of 1e300 would overflow the residuals
+    precheck(bs, Q, W)
     Lt = root(W)
     s2 = np.mean(bs.sigma**2, axis=1)
     theta = intersect(bs, Q, 1.0 / s2)
@@ -169,6 +200,10 @@ def solve(bs: BearingSet, Q: np.ndarray, *, warn_gdop: float, max_gdop: float | 
 
     def fun(x):
         return np.einsum("nij,nj->ni", Lt, bs.residual(Q @ x.reshape(3, K).T)).ravel()
+
+    if not np.isfinite(fun(start.ravel())).all():
+        raise GeometryError("degenerate geometry: the residuals at the start point are not finite (the target "
+                            "at a station, or weights out of the range of a double); GDOP = inf", math.inf)
 
     def jac(x):
         H = Lt @ bs.jacobian(Q @ x.reshape(3, K).T)

@@ -5,7 +5,8 @@ per target (seed 001 eq. 1.1), both with covariances. A target whose geometry is
 too poor is skipped, counted and named on stderr and in ``summary.json``; file formats are in
 ``docs/formats.md`` ("Triangulation files"). The output folder is checked before the computation;
 the files are written beside their final names and renamed into place together, ``summary.json``
-last, so a failure or a kill keeps an earlier run's files (``--overwrite``) intact.
+last, so a failure or a kill keeps an earlier run's files (``--overwrite``) intact. Exit codes: 0
+when a target was located, 2 when none was (one line; ``summary.json`` names each refusal).
 """
 
 from __future__ import annotations
@@ -126,7 +127,9 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
                 done.append((target, tr, times))
         except GeometryError as exc:
             refused[target] = str(exc)
-            print(f"radartracker triangulate: target {target}: refused: {exc}", file=sys.stderr)
+    if done:  # else the one error line below says it
+        for target, why in refused.items():
+            print(f"radartracker triangulate: target {target}: refused: {why}", file=sys.stderr)
     name = "fixes.csv" if args.mode == "static" else "tracks.csv"
     summary = {
         "mode": args.mode, "estimator": args.estimator, "weights": args.weights if weights is not None else None,
@@ -139,7 +142,11 @@ def _cmd_triangulate(args: argparse.Namespace) -> int:
     with replace_outputs(out, OUTPUT_FILES, last="summary.json") as stage:
         (io.write_fixes if args.mode == "static" else io.write_tracks)(stage(name), frame, done)
         write_text(stage("summary.json"), json.dumps(summary, indent=2) + "\n")  # renamed last: a finished run
+    if not done:  # refused work: exit 2 with one line (the summary lists every target's reason)
+        target, why = next(iter(refused.items()))
+        raise GeometryError(f"no target located: {len(refused)} of {len(by_target)} refused (target {target}: "
+                            f"{why}); reasons in {out / 'summary.json'}", math.inf)
     print(f"triangulated {len(done)} of {len(by_target)} targets from {len(bearings)} bearings "
           f"({sum(skipped.values())} rows skipped, {len(refused)} refused, "
           f"{len(summary['poor_geometry'])} in poor geometry); wrote {out / name}")
-    return 0 if done else 1  # nothing solved: nothing useful produced
+    return 0

@@ -28,12 +28,6 @@ def _finite(inst: Any, attr: attrs.Attribute, value: Any) -> None:
         raise ValueError(f"{attr.name}: expected a finite number, got {value!r}")
 
 
-def _positive(inst: Any, attr: attrs.Attribute, value: Any) -> None:
-    _finite(inst, attr, value)
-    if value <= 0:
-        raise ValueError(f"{attr.name}: must be > 0, got {value!r}")
-
-
 def _range(lo: float, hi: float, unit: str, closed_hi: bool = True):
     def check(inst: Any, attr: attrs.Attribute, value: Any) -> None:
         _finite(inst, attr, value)
@@ -42,6 +36,19 @@ def _range(lo: float, hi: float, unit: str, closed_hi: bool = True):
             bracket = "]" if closed_hi else ")"
             raise ValueError(f"{attr.name}: must be in [{lo * scale:g}, {hi * scale:g}{bracket} degrees, "
                              f"got {value * scale!r} deg")
+    return check
+
+
+# physical bounds (as radartracker.io.limits.BOUNDS): beyond them the geometry overflows a double
+HEIGHT_M = (-1_000.0, 100_000.0)  # a site from below the Dead Sea to a stratospheric balloon
+SIGMA_RAD = (1e-9, math.radians(10.0))  # 0.2 milli-arcseconds to 10°: no direction finder lies outside
+
+
+def _bounded(lo: float, hi: float, unit: str):
+    def check(inst: Any, attr: attrs.Attribute, value: Any) -> None:
+        _finite(inst, attr, value)
+        if not lo <= value <= hi:
+            raise ValueError(f"{attr.name}: {value!r} outside the physical bounds [{lo:g}, {hi:g}] {unit}")
     return check
 
 
@@ -73,9 +80,9 @@ class DirectionFinder:
     id: str = attrs.field(validator=_nonempty)
     lat: float = attrs.field(validator=_range(-90.0, 90.0, "deg"))
     lon: float = attrs.field(validator=_range(-180.0, 180.0, "deg"))
-    height_m: float = attrs.field(validator=_finite)
-    sigma_azimuth_rad: float = attrs.field(validator=_positive)
-    sigma_elevation_rad: float = attrs.field(validator=_positive)
+    height_m: float = attrs.field(validator=_bounded(*HEIGHT_M, "m"))
+    sigma_azimuth_rad: float = attrs.field(validator=_bounded(*SIGMA_RAD, "rad"))
+    sigma_elevation_rad: float = attrs.field(validator=_bounded(*SIGMA_RAD, "rad"))
     times: tuple[float, ...] | None = attrs.field(default=None, converter=_time_grid,
                                                   validator=_increasing, eq=False)
 

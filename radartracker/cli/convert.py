@@ -5,10 +5,9 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from pathlib import Path
 
-from radartracker.errors import ConfigurationError
+from radartracker.errors import ConfigurationError, InputError
 
 
 def register_convert(sub: argparse._SubParsersAction) -> None:
@@ -55,10 +54,9 @@ def _cmd_convert(args: argparse.Namespace) -> int:
         print(f"  {name}: {f['lines']} lines, {f.get('written', 0)} written, {bad} malformed{first}, "
               f"{f['output_files']} files")
     print(f"accounting: {args.out / 'report.json'}")
-    if not report["selected_aircraft"]:  # nothing useful: say why, and exit non-zero like triangulate
-        print(f"radartracker convert: no aircraft has {opts.AZN_TRACKS_MIN_MEASUR} or more ADS-B reports in "
-              f"{args.recording / 'plots_ads.txt'}; only report.json was written", file=sys.stderr)
-        return 1
+    if not report["selected_aircraft"]:  # refused work: exit 2 with one line saying why
+        raise InputError(f"no aircraft has {opts.AZN_TRACKS_MIN_MEASUR} or more ADS-B reports in "
+                         f"{args.recording / 'plots_ads.txt'}; only report.json was written")
     return 0
 
 
@@ -97,10 +95,12 @@ def _day_start(text: str) -> float:
 def _cmd_asterix_import(args: argparse.Namespace) -> int:
     from radartracker.io.asterix import read_asterix
     from radartracker.io.scenario import write_scenario
+    from radartracker.io.tables import in_time_order
 
     if args.out.exists():
         raise ConfigurationError(f"{args.out} already exists; choose a new folder")
-    data = read_asterix(args.recording, day_start=args.day_start, skip_bad=args.skip_bad)
+    # arrival order to time order: a scenario folder is time-ordered per radar, as replay reads it
+    data = in_time_order(read_asterix(args.recording, day_start=args.day_start, skip_bad=args.skip_bad))
     write_scenario(args.out, data)
     print(f"wrote {args.out}: {len(data.radars)} radars, {len(data.plots)} plots, "
           f"{len(data.adsb)} ADS-B reports" + "".join(f"; {n} {k}" for k, n in sorted(data.skipped.items())))

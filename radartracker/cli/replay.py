@@ -104,7 +104,11 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     from radartracker.pipeline.run import replay_folder, run
     from radartracker.pipeline.writer import prepare, write_outputs
 
+    from radartracker.io.scenario import check_regular_files
+
     config = run_config(args, read_config(args.config) if args.config is not None else None)
+    if args.scenario.is_dir():  # a device or pipe in the folder has no end: refused before any reading
+        check_regular_files(args.scenario)
     out = prepare(args.out, overwrite=args.overwrite)  # before the computation: fail early, not after it
     local = None
     tracks_in = args.scenario.suffix.lower() in ASTERIX_SUFFIXES and args.scenario.is_file()

@@ -40,6 +40,7 @@ import asterix.generated as gen
 from radartracker.domain import Aircraft, Radar
 from radartracker.errors import FormatError, InputError
 from radartracker.io.atomic import atomic_open
+from radartracker.io.limits import regular_file
 from radartracker.io.tables import RADAR_COLUMNS, AdsbTable, PlotTable, ScenarioData
 
 CAT048, CAT021, CAT062 = gen.Cat_048_1_32, gen.Cat_021_2_6, gen.Cat_062_1_21
@@ -360,7 +361,7 @@ def iter_datablocks(path: Path | str, bad: Counter | None = None) -> Iterator[tu
     """(packet time or None, data block) of a raw, FINAL or pcap ASTERIX file; with ``bad``
     (skip_bad), unreadable framing is counted there instead of raising :class:`InputError`."""
     path = Path(path)
-    buf = path.read_bytes()
+    buf = regular_file(path).read_bytes()  # a device or pipe has no end: refused before reading
     if not buf:
         raise InputError(f"{path}: empty file")
     if buf[:4] == b"\x0a\x0d\x0d\x0a":
@@ -498,7 +499,7 @@ class _Clock:
 
 def read_sites(path: Path) -> tuple[list[Radar], dict[tuple[int, int], str]]:
     """Radar sites and the SAC/SIC → radar id map of a ``.radars.csv`` sidecar (each SAC/SIC once)."""
-    from radartracker.io.scenario import _Rows, _range, read_radars
+    from radartracker.io.scenario import _Rows, read_radars
 
     radars = read_radars(path)
     rows = _Rows(path, RADAR_COLUMNS + ("sac", "sic"))

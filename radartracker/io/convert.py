@@ -36,6 +36,7 @@ import numpy as np
 
 from radartracker.errors import FormatError
 from radartracker.io.atomic import atomic_folder
+from radartracker.io.limits import BOUNDS, MAX_LINE_BYTES, check_lines, regular_file
 from radartracker.io.recording import ADS_FILE, COLUMNS, MULTI_RADAR, PLOTS_FILE, TRACKS_FILE, format_new4, format_plt
 
 KIND_ADS, KIND_MULTI, KIND_MONO, KIND_PLOT = 0, 1, 2, 3
@@ -45,6 +46,7 @@ SPOOL_DTYPE = np.dtype([("global", "<i8"), ("kind", "u1"), ("radar", "<u4"), ("l
 MAX_LISTED_LINES = 10_000  # line numbers of bad lines kept per reason (the count is always exact)
 _FLUSH_RECORDS = 100_000
 _READ_BYTES = 1 << 20
+UNIX_TIME_S = BOUNDS["unix_time_s"][:2]
 
 
 @attrs.frozen
@@ -86,18 +88,22 @@ class _Tally:
 
 
 def _lines(path: Path) -> Iterator[tuple[int, bytes, bool]]:
-    """(line number, line without its LF/CRLF, whether it ended with a newline) of a file."""
-    with open(path, "rb", buffering=_READ_BYTES) as fh:
-        for n, raw in enumerate(fh, 1):
+    """(line number, line without its LF/CRLF, whether it ended with a newline) of a regular file; a line
+    longer than :data:`radartracker.io.limits.MAX_LINE_BYTES` is a FormatError naming it."""
+    with open(regular_file(path), "rb", buffering=_READ_BYTES) as fh:
+        for n, raw in enumerate(iter(lambda: fh.readline(MAX_LINE_BYTES + 1), b""), 1):
             ended = raw.endswith(b"\n")
+            if len(raw) > MAX_LINE_BYTES and not ended:
+                check_lines(path.name, raw, n)
             yield n, raw.rstrip(b"\r\n") if ended else raw.rstrip(b"\r"), ended
 
 
 def _header(path: Path) -> dict[str, int]:
     """Column indices of the required columns; a FormatError for a missing, repeated or bad header."""
     required = COLUMNS[path.name]
-    with open(path, "rb") as fh:
-        first = fh.readline()
+    with open(regular_file(path), "rb") as fh:
+        first = fh.readline(MAX_LINE_BYTES + 1)
+    check_lines(path.name, first)
     if not first.strip():
         raise FormatError(path.name, 1, None, "empty file or blank header; expected the columns "
                           f"{', '.join(required)} separated by tabs")
@@ -143,7 +149,6 @@ def _make_parser(path: Path) -> Callable[[bytes], tuple]:
     ir = -1 if is_ads else ix["radar"]
     isn = -1 if is_ads else ix["sensor"]
     plot = path.name == PLOTS_FILE
-    inf = math.inf
 
     def parse(line: bytes) -> tuple:
         parts = line.split(b"\t")
@@ -156,7 +161,7 @@ def _make_parser(path: Path) -> Callable[[bytes], tuple]:
             gnum: int | None = int(g)
         else:
             gnum = None
-        t = _number(parts, it, "time", -inf, inf)
+        t = _number(parts, it, "time", *UNIX_TIME_S)  # a date (the .plt files write it as one)
         lat = _number(parts, ila, "lat", -90.0, 90.0)
         lon = _number(parts, ilo, "lon", -180.0, 180.0)
         alt = _number(parts, ial, "altitude_m", -2000.0, 100_000.0, optional=True)

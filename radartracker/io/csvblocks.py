@@ -24,14 +24,17 @@ from pathlib import Path
 import numpy as np
 
 from radartracker.errors import FormatError
+from radartracker.io.limits import LineMeter, read_bytes, regular_file
 
 BLOCK_BYTES = 1 << 20
 ROWS_PER_BATCH = 8192  # rows handed on at a time once a file is read by csv.reader
 
 
 def read_text(path: Path) -> str:
-    """A file's text: UTF-8 with or without a byte-order mark; a FormatError names the line of a bad byte."""
-    data = path.read_bytes()
+    """A regular file's text: UTF-8 with or without a byte-order mark; a FormatError names the line of a bad
+    byte or of a line longer than :data:`radartracker.io.limits.MAX_LINE_BYTES`."""
+    path = Path(path)
+    data = read_bytes(path)
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
@@ -47,12 +50,15 @@ def newlines(data: bytes | memoryview) -> int:
 
 def _survey(path: Path, block_bytes: int) -> tuple[int, bool]:
     """Decode ``path`` block by block: its number of newlines and whether its text ends with a line end.
-    A bad byte raises read_text's error (the whole file is read only then)."""
+    A bad byte raises read_text's error (the whole file is read only then); a file that is not regular, or
+    a line too long (:mod:`radartracker.io.limits`), a FormatError naming it, before any row is read."""
     decoder = codecs.getincrementaldecoder("utf-8-sig")()
     count, chars, last = 0, 0, b""
-    with path.open("rb") as f:
+    meter = LineMeter(path.name)
+    with regular_file(path).open("rb") as f:
         try:
             while data := f.read(block_bytes):
+                meter(data)
                 chars += len(decoder.decode(data))
                 count += newlines(data)
                 last = data[-1:]

@@ -32,6 +32,7 @@ from typing import IO, NamedTuple
 import numpy as np
 from radartracker.errors import FormatError, InputError
 from radartracker.io.atomic import atomic_folder, write_text
+from radartracker.io.limits import BOUNDS, bound, read_bytes
 
 ADS_FILE, TRACKS_FILE, PLOTS_FILE = "plots_ads.txt", "tracks.txt", "plots.txt"
 MULTI_RADAR = "240"  # the seed's radar number of the multi-radar (system) track
@@ -271,12 +272,12 @@ def _bad(path: Path, line: int, field: str, text: str) -> FormatError:
     return FormatError(str(path), line, field, text)
 
 
-_NEW4_RANGE = {"lat": (-90.0, 90.0), "lon": (-180.0, 180.0)}
+_NEW4_RANGE = {"time": BOUNDS["unix_time_s"][:2], "lat": (-90.0, 90.0), "lon": (-180.0, 180.0)}
 
 
 def _text_lines(path: Path, errors: str = "strict") -> list[str]:
     """Lines of a UTF-8 file (a byte-order mark is skipped); a FormatError names the line of a bad byte."""
-    data = path.read_bytes()
+    data = read_bytes(path)  # a regular file, no line longer than the limit (radartracker.io.limits)
     try:
         return data.decode("utf-8-sig", errors).splitlines()
     except UnicodeDecodeError as exc:
@@ -331,6 +332,8 @@ def read_plt(path: Path | str) -> TrackPoints:
             raise _bad(path, n, "line", f"bad number in {line.strip()!r}") from None
         if not (-90 <= lat <= 90 and -180 <= lon <= 180):
             raise _bad(path, n, "lat/lon", f"out of range: {lat}, {lon}")
+        if (why := bound("unix_time_s", (days - _UNIX_EPOCH_DAYS) * 86400.0)) is not None:
+            raise _bad(path, n, "days", f"{parts[4]!r}: {why}")
         cols[0].append((days - _UNIX_EPOCH_DAYS) * 86400.0)
         cols[1].append(lat)
         cols[2].append(lon)

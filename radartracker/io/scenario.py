@@ -19,55 +19,31 @@ import csv
 import json
 import logging
 import math
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
 import attrs
 import numpy as np
+from tqdm import tqdm
 
 from radartracker.domain import Aircraft, Radar
 from radartracker.errors import FormatError, InputError
 from radartracker.io import columnar
 from radartracker.io.atomic import atomic_folder
-from radartracker.io.csvblocks import BLOCK_BYTES, Rows, Skipper, newlines, read_text
+from radartracker.io.csvblocks import BLOCK_BYTES, Rows, Skipper, newlines
+from radartracker.io.limits import read_json, regular_file
+from radartracker.io.rowchecks import (PLOT_FIELDS, AdsbReader, PlotReader, _key, _physical, _range,  # noqa: F401
+                                       first_times)
 from radartracker.io.tables import (ADSB_COLUMNS, BIAS_COLUMNS, PLOT_COLUMNS, RADAR_COLUMNS, TRUTH_COLUMNS, AdsbTable,
                                     PlotTable, ScenarioData, TruthTable, label_spans)
-from radartracker.clock import StreamClock
+from radartracker.clock import ClockConfig
 
 log = logging.getLogger(__name__)
 _Rows = Rows  # the name other readers import (radartracker.io.asterix)
 
 
 # --- reading ----------------------------------------------------------------------------------
-
-
-def _range(lo: float, hi: float, *, hi_open: bool = False) -> Callable[[float], str | None]:
-    def check(v: float) -> str | None:
-        ok = lo <= v < hi if hi_open else lo <= v <= hi
-        return None if ok else f"outside [{lo}, {hi}{')' if hi_open else ']'}"
-    return check
-
-
-def _nonneg(v: float) -> str | None:
-    return None if v >= 0 else "is negative"
-
-
-def _positive(v: float) -> str | None:
-    return None if v > 0 else "must be > 0"
-
-
-def _code(rows: Rows, row: dict, line: int, field: str, digits: str, n: int) -> str | None:
-    value = rows.text(row, field)
-    if value is None:
-        return None
-    value = value.lower()
-    if len(value) != n or any(c not in digits for c in value):
-        raise FormatError(rows.name, line, field, f"{value!r} is not {n} characters of {digits!r}")
-    return value
-
-
-_HEX, _OCT = "0123456789abcdef", "01234567"
 
 
 def read_radars(path: Path) -> list[Radar]:
@@ -83,130 +59,15 @@ def read_radars(path: Path) -> list[Radar]:
             id=rid,
             lat=rows.number(row, line, "lat", check=_range(-90, 90)),
             lon=rows.number(row, line, "lon", check=_range(-180, 180)),
-            height_m=rows.number(row, line, "height_m"),
-            sigma_range_m=rows.number(row, line, "sigma_range_m", check=_nonneg),
-            sigma_azimuth_rad=math.radians(rows.number(row, line, "sigma_azimuth_deg", check=_nonneg)),
-            period_s=rows.number(row, line, "period_s", check=_positive),
-            max_range_m=rows.number(row, line, "max_range_m", check=_positive),
+            height_m=rows.number(row, line, "height_m", check=_physical("height_m")),
+            sigma_range_m=rows.number(row, line, "sigma_range_m", check=_physical("sigma_range_m")),
+            sigma_azimuth_rad=math.radians(rows.number(row, line, "sigma_azimuth_deg", check=_physical("sigma_deg"))),
+            period_s=rows.number(row, line, "period_s", check=_physical("period_s")),
+            max_range_m=rows.number(row, line, "max_range_m", check=_physical("max_range_m")),
         ), line)
     if not radars:
         raise FormatError(rows.name, 2, None, "no radars")
     return [r for r, _ in radars.values()]
-
-
-def _key(row: dict) -> str | tuple[str, ...]:
-    """An exact duplicate has the same text in every field. The key is the fields joined by commas
-    (a plain line's own text) when no field holds a comma, else the tuple of fields."""
-    values = tuple(row.values())
-    text = ",".join(values)
-    return text if text.count(",") == len(values) - 1 else values
-
-
-PLOT_FIELDS = ("time", "radar", "range_m", "azimuth_rad", "altitude_m", "mode_s", "mode_3a", "target")
-
-
-class PlotReader:
-    """The rows of ``plots.csv`` validated in file order; the checks' state (each radar's latest time
-    and the rows at that time, the stream clock) carries over from one block to the next."""
-
-    def __init__(self, rows: Rows, radar_ids: set[str]):
-        self.rows, self.radar_ids = rows, radar_ids
-        self.has_target = "target" in rows.optional
-        self.cols: dict[str, list] = {k: [] for k in PLOT_FIELDS}
-        self.last_time: dict[str, tuple[float, int]] = {}
-        self.same_time: dict[str, set] = {}  # rows of a radar at its latest time: duplicates are among them
-        self.clock = StreamClock()
-        self.kept = 0
-
-    def add(self, block: Iterable[tuple[int, dict]]) -> None:
-        """Validate ``block``'s rows one by one (bad rows to the skipper)."""
-        rows, skip, cols = self.rows, self.rows.skip, self.cols
-        last_time, same_time, clock = self.last_time, self.same_time, self.clock
-        for line, row in block:
-            try:
-                t = rows.number(row, line, "time")
-                rid = rows.text(row, "radar")
-                if rid not in self.radar_ids:
-                    raise FormatError(rows.name, line, "radar", f"unknown radar {rid!r} (radars.csv has "
-                                      f"{sorted(self.radar_ids)})", "unknown_radar")
-                if rid in last_time and t == last_time[rid][0] and _key(row) in same_time[rid]:
-                    skip.count(rows.name, "duplicate_row", f"{rows.name} line {line}")
-                    continue
-                if rid in last_time and t < last_time[rid][0]:
-                    raise FormatError(rows.name, line, "time", f"{t} is earlier than {last_time[rid][0]} on line "
-                                      f"{last_time[rid][1]} of the same radar", "time_backwards")
-                if not clock.admit(t):  # one far-off time stamp must not make the good rows after it "backwards"
-                    raise FormatError(rows.name, line, "time", f"{t} is more than {clock.config.max_ahead_s:g} s "
-                                      f"ahead of the stream time {clock.now} (median of the last rows read)",
-                                      "time_jump")
-                rng = rows.number(row, line, "range_m", check=_nonneg)
-                az = rows.number(row, line, "azimuth_deg", check=_range(0, 360, hi_open=True))
-                alt = rows.number(row, line, "altitude_m", optional=True)
-                ms = _code(rows, row, line, "mode_s", _HEX, 6)
-                m3a = _code(rows, row, line, "mode_3a", _OCT, 4)
-            except FormatError as err:
-                rows.reject(err)
-                continue
-            if rid not in last_time or t > last_time[rid][0]:
-                same_time[rid] = set()
-            same_time[rid].add(_key(row))
-            last_time[rid] = (t, line)
-            for k, v in (("time", t), ("radar", rid), ("range_m", rng), ("azimuth_rad", math.radians(az)),
-                         ("altitude_m", alt), ("mode_s", ms), ("mode_3a", m3a),
-                         ("target", rows.text(row, "target") if self.has_target else None)):
-                cols[k].append(v)
-            self.kept += 1
-
-    def take(self) -> PlotTable:
-        """The rows kept since the last call."""
-        cols, self.cols = self.cols, {k: [] for k in PLOT_FIELDS}
-        return PlotTable.from_columns(**cols)
-
-
-class AdsbReader:
-    """The rows of ``adsb.csv`` validated in file order. Exact duplicates are looked for among every
-    row kept so far, or (``latest_only``, for a file whose kept rows are in time order, as the
-    streaming replay requires) among the rows at the latest time kept: a duplicate has the same time."""
-
-    def __init__(self, rows: Rows, *, latest_only: bool = False):
-        self.rows, self.latest_only = rows, latest_only
-        self.cols: dict[str, list] = {k: [] for k in ADSB_COLUMNS}
-        self.seen: set = set()
-        self.seen_time = -math.inf
-        self.kept = 0
-
-    def add(self, block: Iterable[tuple[int, dict]]) -> None:
-        rows, skip, cols = self.rows, self.rows.skip, self.cols
-        for line, row in block:
-            try:
-                rec = {
-                    "time": rows.number(row, line, "time"),
-                    "icao24": _code(rows, row, line, "icao24", _HEX, 6),
-                    "lat": rows.number(row, line, "lat", check=_range(-90, 90)),
-                    "lon": rows.number(row, line, "lon", check=_range(-180, 180)),
-                    "altitude_m": rows.number(row, line, "altitude_m", optional=True),
-                    "nacp": rows.number(row, line, "nacp", check=_range(1, 11)),
-                }
-                if rec["icao24"] is None:
-                    raise FormatError(rows.name, line, "icao24", "empty")
-                if rec["nacp"] != int(rec["nacp"]):
-                    raise FormatError(rows.name, line, "nacp", f"{rec['nacp']!r} is not an integer")
-            except FormatError as err:
-                rows.reject(err)
-                continue
-            if (key := _key(row)) in self.seen:
-                skip.count(rows.name, "duplicate_row", f"{rows.name} line {line}")
-                continue
-            if self.latest_only and rec["time"] != self.seen_time:
-                self.seen, self.seen_time = set(), rec["time"]
-            self.seen.add(key)
-            for k, v in rec.items():
-                cols[k].append(v)
-            self.kept += 1
-
-    def take(self) -> AdsbTable:
-        cols, self.cols = self.cols, {k: [] for k in ADSB_COLUMNS}
-        return AdsbTable.from_columns(**cols)
 
 
 def plot_blocks(path: Path, radar_ids: set[str], skip: Skipper, *, block_bytes: int = BLOCK_BYTES,
@@ -214,8 +75,9 @@ def plot_blocks(path: Path, radar_ids: set[str], skip: Skipper, *, block_bytes: 
     """``plots.csv`` as tables of the rows kept, block by block, in file order (``fast``: plain blocks
     column by column). A file without a usable row is an error (nothing to track)."""
     rows = Rows(path, PLOT_COLUMNS, skip, block_bytes=block_bytes)
-    reader = PlotReader(rows, radar_ids)
+    reader = PlotReader(rows, radar_ids, first_times(path, ClockConfig().window))
     yield from _tables(rows, reader, columnar.plots if fast else None)
+    reader.finish()  # rows still held at the end of the file never stepped the clock: refused
     if not reader.kept:
         bad = sum(n for k, n in skip.counts.items() if k.startswith(f"{rows.name}:"))
         raise FormatError(rows.name, None, None, "no usable plot rows" + (f" ({bad} skipped)" if bad else
@@ -299,10 +161,7 @@ def _json_number(file: str, obj: dict, field: str, lo: float, hi: float) -> floa
 def read_meta(path: Path) -> dict[str, Any]:
     """``scenario.json``: ``name``, ``reference`` (lat, lon) and ``aircraft``, each checked; errors name the field."""
     name = path.name
-    try:
-        meta = json.loads(read_text(path))
-    except json.JSONDecodeError as exc:
-        raise FormatError(name, exc.lineno, None, f"not JSON: {exc.msg} (column {exc.colno})") from None
+    meta = read_json(path)  # bounded: depth, number sizes, file size (radartracker.io.limits)
     if not isinstance(meta, dict):
         raise FormatError(name, None, None, f"expected a JSON object, got {type(meta).__name__}")
     out: dict[str, Any] = {}
@@ -330,12 +189,24 @@ def read_meta(path: Path) -> dict[str, Any]:
     return out
 
 
+SCENARIO_FILES = ("scenario.json", "radars.csv", "plots.csv", "adsb.csv", "truth.csv", "truth_biases.csv")
+
+
+def check_regular_files(folder: Path | str) -> None:
+    """Refuse a scenario folder whose files are not regular files (a ``plots.csv`` linked to ``/dev/zero``
+    has no end): an InputError naming the file, before anything reads it."""
+    for name in SCENARIO_FILES:
+        if (Path(folder) / name).exists():
+            regular_file(Path(folder) / name)
+
+
 def _meta(folder: Path) -> tuple[dict[str, Any], list[Radar]]:
     if folder.is_file():  # e.g. `replay plots.csv`: name what a scenario is rather than "does not exist"
         raise InputError(f"{folder} is a file, not a scenario folder (docs/formats.md; an ASTERIX recording "
                          f"ends in .ast, .pcap, .ff or .final)")
     if not folder.is_dir():
         raise FileNotFoundError(f"scenario folder {folder} does not exist")
+    check_regular_files(folder)
     meta = read_meta(folder / "scenario.json") if (folder / "scenario.json").exists() else {}
     return meta, read_radars(folder / "radars.csv")
 
@@ -431,7 +302,7 @@ def open_scenario(folder: Path | str, *, skip_bad: bool = False, block_bytes: in
 def _data_lines(path: Path) -> int:
     if not path.exists():
         return 0
-    with path.open("rb") as f:
+    with regular_file(path).open("rb") as f:
         return max(sum(map(newlines, iter(lambda: f.read(BLOCK_BYTES), b""))) - 1, 0)
 
 
@@ -456,6 +327,11 @@ def _write(path: Path, header: tuple[str, ...], rows: Iterable[Iterable[str]]) -
         w.writerows(rows)
 
 
+def _progress(n: int, name: str) -> Iterable[int]:
+    """range(n) with a progress bar on stderr once writing takes 2 s (off with TQDM_DISABLE / --quiet)."""
+    return tqdm(range(n), desc=f"write {name}", unit="row", delay=2.0, mininterval=1.0, miniters=10_000)
+
+
 def write_scenario(folder: Path | str, data: ScenarioData) -> None:
     """Write ``data`` as a scenario folder (the folder must not exist); it appears complete or not at all."""
     with atomic_folder(folder) as tmp:
@@ -471,16 +347,16 @@ def _write_scenario_files(folder: Path, data: ScenarioData) -> None:
     _write(folder / "plots.csv", PLOT_COLUMNS + (("target",) if labelled else ()), (
         (f"{p.time[i]:.4f}", p.radar[i], f"{p.range_m[i]:.3f}", _azimuth_deg(p.azimuth_rad[i]),
          _fmt(p.altitude_m[i], ".2f"), _fmt(p.mode_s[i], ""), _fmt(p.mode_3a[i], ""))
-        + ((_fmt(p.target[i], ""),) if labelled else ()) for i in range(len(p))))
+        + ((_fmt(p.target[i], ""),) if labelled else ()) for i in _progress(len(p), "plots.csv")))
     a = data.adsb
     _write(folder / "adsb.csv", ADSB_COLUMNS, (
         (f"{a.time[i]:.3f}", a.icao24[i], f"{a.lat[i]:.8f}", f"{a.lon[i]:.8f}", _fmt(a.altitude_m[i], ".2f"),
-         str(int(a.nacp[i]))) for i in range(len(a))))
+         str(int(a.nacp[i]))) for i in _progress(len(a), "adsb.csv")))
     if data.truth is not None:
         tr = data.truth
         _write(folder / "truth.csv", TRUTH_COLUMNS, (
             (f"{tr.time[i]:.3f}", tr.target[i], f"{tr.lat[i]:.8f}", f"{tr.lon[i]:.8f}", f"{tr.altitude_m[i]:.2f}")
-            for i in range(len(tr))))
+            for i in _progress(len(tr), "truth.csv")))
     if data.truth_biases is not None:
         _write(folder / "truth_biases.csv", BIAS_COLUMNS, (
             (rid, f"{b[0]:.4f}", f"{math.degrees(b[1]):.8f}") for rid, b in data.truth_biases.items()))

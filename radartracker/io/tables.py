@@ -132,3 +132,13 @@ def label_spans(time: np.ndarray, target: np.ndarray, spans: dict | None = None)
             lo, hi = spans.get(str(tg), (t, t))
             spans[str(tg)] = (min(lo, t), max(hi, t))
     return dict(sorted(spans.items()))
+
+
+def in_time_order(data: ScenarioData) -> ScenarioData:
+    """``data`` with its plots and ADS-B reports in time order (a stable sort: equal times keep their order).
+    A recording holds them in arrival order — radars' blocks interleaved as the network delivered them —
+    while a scenario folder must be time-ordered per radar (and ADS-B in time order for streaming)."""
+    p, a = data.plots, data.adsb
+    op, oa = np.argsort(p.time, kind="stable"), np.argsort(a.time, kind="stable")
+    adsb = AdsbTable(*(getattr(a, f.name)[oa] for f in attrs.fields(AdsbTable)))
+    return attrs.evolve(data, plots=p.take(op), adsb=adsb)

@@ -40,7 +40,7 @@ def check_number(option: str, value: Any, *, lo: float | None = None, lo_open: b
     """``value`` as a finite number within bounds, or a ConfigurationError naming ``option``."""
     try:
         number = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ConfigurationError(f"{option}: {value!r} is not a number") from None
     if not math.isfinite(number):
         raise ConfigurationError(f"{option}: {value!r} is not finite")
@@ -265,13 +265,10 @@ def resolve(config: RunConfig, data: ScenarioData, estimator_name: str) -> RunCo
 
 def read_config(path: Path | str) -> RunConfig:
     """A :class:`RunConfig` from a ``config.json`` written by an earlier run."""
+    from radartracker.io.limits import read_json
+
     path = Path(path)
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8-sig"))
-    except json.JSONDecodeError as exc:
-        raise ConfigurationError(f"{path}: not JSON ({exc.msg}, line {exc.lineno})") from None
-    except UnicodeDecodeError as exc:
-        raise ConfigurationError(f"{path}: not a UTF-8 text file (byte {exc.start})") from None
+    doc = read_json(path)  # bounded: depth, number sizes, file size; errors name the file and line
     if not isinstance(doc, dict) or doc.get("format") != CONFIG_FORMAT:
         raise ConfigurationError(f"{path}: not a radartracker run configuration (no \"format\": \"{CONFIG_FORMAT}\")")
     if doc.get("version") != CONFIG_VERSION:

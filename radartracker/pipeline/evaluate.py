@@ -7,11 +7,13 @@ velocities are the finite-difference slopes of that interpolation. NEES is
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 
 import attrs
 import numpy as np
 
+from radartracker.errors import InputError
 from radartracker.io.tables import TruthTable
 from radartracker.geometry.plane import SystemPlane
 
@@ -89,13 +91,45 @@ class TrackHistory:
         return pos, (t >= self.start) & (t <= self.end)
 
 
+MAX_GRID_CELLS = 100_000_000  # (targets + tracks) × grid times: ~2.4 GB of positions and masks
+
+
+@attrs.frozen
+class GridSpec:
+    """The evaluation grid ``np.arange(start, stop, step)`` described, not made: :func:`track_metrics` makes
+    only its times where an aircraft is observed or a track lives (a truth time of 1e9 s made the whole
+    grid, 5·10⁸ times, and the positions on it, tens of GiB)."""
+
+    start: float
+    stop: float
+    step: float
+
+    def times(self, spans: Iterable[tuple[float, float]]) -> tuple[np.ndarray, np.ndarray, int]:
+        """The grid times within any of ``spans`` (inclusive; one more on each side against rounding), their
+        indices k (time = start + k·step, as np.arange makes them) and the number of grid times in all."""
+        n = max(int(math.ceil((self.stop - self.start) / self.step)), 0)
+        cuts = sorted((max(int(math.ceil((lo - self.start) / self.step)) - 1, 0),
+                       min(int(math.floor((hi - self.start) / self.step)) + 2, n))
+                      for lo, hi in spans if hi >= lo and math.isfinite(lo) and math.isfinite(hi))
+        merged: list[list[int]] = []
+        for a, b in cuts:
+            if b <= a:
+                continue
+            if merged and a <= merged[-1][1]:
+                merged[-1][1] = max(merged[-1][1], b)
+            else:
+                merged.append([a, b])
+        k = np.concatenate([np.arange(a, b) for a, b in merged]) if merged else np.zeros(0, int)
+        return self.start + k * self.step, k, n
+
+
 def gospa(d2: np.ndarray, n_missed: int, n_false: int, c: float) -> float:
     """GOSPA (p = 2, α = 2) given squared distances of assigned pairs (each < c)."""
     return float(np.sqrt(np.sum(d2) + c * c / 2 * (n_missed + n_false)))
 
 
 def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: dict[str, tuple[float, float]],
-                  grid: np.ndarray, c: float = 2000.0, sensed: Iterable[str] | None = None) -> dict:
+                  grid: np.ndarray | GridSpec, c: float = 2000.0, sensed: Iterable[str] | None = None) -> dict:
     """Track-to-truth assignment on a time grid and the metrics derived from it.
 
     At each grid time the alive tracks are assigned to the observed truths as in CLEAR MOT
@@ -111,12 +145,22 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
     period, on an aircraft seen only by ADS-B, or a second track on an aircraft follows it. A *false
     track* follows no aircraft for at least half of its life up to its last estimate (what measurements
     support: a track coasts ``delete_after_s`` after its last plot, also when its aircraft has
-    vanished, as simulated flights do at their end).
+    vanished, as simulated flights do at their end). A :class:`GridSpec` is evaluated at its times where
+    something lives (the others add nothing but zeros to the GOSPA mean, counted in it), with the same
+    results as the whole grid; the times evaluated may be at most :data:`MAX_GRID_CELLS` / (targets +
+    tracks), else an InputError.
     """
     from scipy.optimize import linear_sum_assignment
 
     targets = sorted(observed)
     tids = sorted(tracks)
+    if isinstance(grid, GridSpec):
+        grid, index, n_all = grid.times([*observed.values(), *((h.start, h.end) for h in tracks.values())])
+    else:
+        index, n_all = np.arange(len(grid)), len(grid)
+    if len(grid) * (len(targets) + len(tids)) > MAX_GRID_CELLS:
+        raise InputError(f"evaluation: {len(grid):,} grid times × {len(targets) + len(tids):,} targets and tracks "
+                         f"exceed {MAX_GRID_CELLS:,} (plot or track times spanning {grid[-1] - grid[0]:.3g} s?)")
     n_g, c2 = len(grid), c * c
     # truths (targets × grid) and tracks (tracks × grid): positions and where they count
     tru_pos = np.zeros((len(targets), n_g, 2))
@@ -137,7 +181,7 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
         if not len(live_t) and not len(live_k):
             continue
         # a target keeps the track it had at the previous time while it stays within c
-        prev = assigned[live_t, k - 1] if k else np.full(len(live_t), -1)
+        prev = assigned[live_t, k - 1] if k and index[k] == index[k - 1] + 1 else np.full(len(live_t), -1)
         keep = prev >= 0
         keep[keep] &= trk_live[prev[keep], k]
         d_keep = np.sum((tru_pos[live_t[keep], k] - trk_pos[prev[keep], k]) ** 2, axis=-1)
@@ -187,7 +231,7 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
         "false_tracks": int(np.sum((t_alive > 0) & (t_follows < 0.5 * t_alive))),
         "confirmed_tracks": len(tids),
         "position_rmse_m": float(np.sqrt(np.mean(sq))) if sq else float("nan"),
-        "gospa_mean_m": float(np.mean(g)),
+        "gospa_mean_m": float(np.sum(g) / n_all) if n_all else float("nan"),
         "gospa": g,
     }
 

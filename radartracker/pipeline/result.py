@@ -27,7 +27,7 @@ from radartracker.estimation.coupling import CouplingGraph
 from radartracker.geometry.plane import SystemPlane
 from radartracker.io.tables import ScenarioData, label_spans
 from radartracker.pipeline.config import RunConfig
-from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, nees, state_errors, track_metrics
+from radartracker.pipeline.evaluate import GridSpec, TrackHistory, TruthPaths, nees, state_errors, track_metrics
 from radartracker.pipeline.recorder import BiasLog, Events
 
 log = logging.getLogger(__name__)
@@ -119,7 +119,7 @@ class RunResult:
         if not spans:
             spans = {tg: (float(p[0].min()), float(p[0].max())) for tg, p in paths.paths.items()}
         observed = {tg: (lo + GRACE_S, hi) for tg, (lo, hi) in spans.items() if hi - lo > GRACE_S}
-        grid = np.arange(d.truth.time.min(), d.truth.time.max(), 2.0)
+        grid = GridSpec(float(d.truth.time.min()), float(d.truth.time.max()), 2.0)  # its live times only
         tracking = track_metrics(self.histories(), paths, observed, grid)
         tracking.pop("gospa")
         # the target of each estimate: its truth label, else the target its track was assigned to

@@ -23,11 +23,13 @@ import math
 
 import attrs
 import numpy as np
+from tqdm import tqdm
 
 from radartracker.domain import Aircraft, Radar, nacp_sigma_m
 from radartracker.errors import ConfigurationError
 from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.io.tables import AdsbTable, PlotTable, ScenarioData, TruthTable
+from radartracker.simulation.memory import check_fits, traffic_bytes
 from radartracker.simulation.simulator import (_CONE_OF_SILENCE_RAD, _EARTH_RADIUS_M, _MODE_C_STEP_M,
                                                KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator,
                                                time_ordered)
@@ -127,6 +129,8 @@ class TrafficSimulator:
 
     def __init__(self, config: TrafficConfig) -> None:
         self.config = c = config
+        check_fits(f"--scenario traffic with {c.aircraft:,} aircraft over {c.duration_s:g} s",
+                   traffic_bytes(c.aircraft, c.duration_s))
         self.plane = SystemPlane(*c.reference)
         self.t0, self.t1 = 0.0, float(c.duration_s)
         rng = np.random.default_rng([c.seed, 10])
@@ -195,8 +199,9 @@ class TrafficSimulator:
 
     # --- simulation -------------------------------------------------------------------------------
     def run(self) -> ScenarioData:
+        """The scenario, radar by radar (a progress bar on stderr after 2 s, off with TQDM_DISABLE / --quiet)."""
         parts, truth_biases = [], {}
-        for j, sr in enumerate(self.radars):
+        for j, sr in enumerate(tqdm(self.radars, desc="simulate", unit="radar", delay=2.0, mininterval=1.0)):
             cols, truth_biases[sr.radar.id] = self._radar_plots(j, sr)
             parts.append(cols)
         plots = PlotTable(**time_ordered(parts))

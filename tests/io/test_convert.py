@@ -303,14 +303,14 @@ def test_cli_bad_recordings_give_one_line_naming_the_file(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rec"]
 
 
-def test_cli_names_the_first_malformed_line_and_exits_1_when_nothing_is_selected(tmp_path, capsys):
+def test_cli_names_the_first_malformed_line_and_exits_2_when_nothing_is_selected(tmp_path, capsys):
     recs = [r for r in _records(9) if not isinstance(r, AdsRecord)]  # no ADS-B: no aircraft can be selected
     write_recording(tmp_path / "rec", recs)
     lines = (tmp_path / "rec" / "plots.txt").read_text().splitlines(keepends=True)
     cols = lines[2].split("\t")
     lines[2] = "\t".join(cols[:5] + ["north"] + cols[6:])  # line 3: lat
     (tmp_path / "rec" / "plots.txt").write_text("".join(lines))
-    assert main(["convert", str(tmp_path / "rec"), "--out", str(tmp_path / "new")]) == 1
+    assert main(["convert", str(tmp_path / "rec"), "--out", str(tmp_path / "new")]) == 2
     out, err = capsys.readouterr()
     assert "1 malformed (first: plots.txt: line 3: field lat: not a number: 'north')" in out
     assert len(err.splitlines()) == 1 and "no aircraft has 20 or more ADS-B reports" in err

@@ -85,7 +85,16 @@ def test_short_row_and_missing_column_and_empty_file(folder):
 
 def test_bad_radar_file(folder):
     _set_field(folder / "radars.csv", 2, "sigma_range_m", "-3")
-    with pytest.raises(FormatError, match="radars.csv line 2, field 'sigma_range_m': -3.0 is negative"):
+    with pytest.raises(FormatError, match=r"radars.csv line 2, field 'sigma_range_m': -3.0 outside the physical "
+                                          r"bounds \[0, 10000\] m"):
+        read_scenario(folder)
+
+
+@pytest.mark.parametrize("field,value", [("sigma_range_m", "1e308"), ("height_m", "1e308"), ("period_s", "0"),
+                                         ("sigma_azimuth_deg", "90"), ("max_range_m", "1e300")])
+def test_radar_values_beyond_physical_bounds(folder, field, value):
+    _set_field(folder / "radars.csv", 3, field, value)
+    with pytest.raises(FormatError, match=rf"radars.csv line 3, field '{field}': .* outside the physical bounds"):
         read_scenario(folder)
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, gospa, state_errors, track_metrics
+from radartracker.pipeline.evaluate import GridSpec, TrackHistory, TruthPaths, gospa, state_errors, track_metrics
 
 
 def naive_track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: dict[str, tuple[float, float]],
@@ -130,3 +130,22 @@ def test_state_errors_per_key():
         np.testing.assert_array_equal(err[i], states[i] - truth[0])
         assert ok[i] == inside[0]
     assert (~ok[np.isin(keys, ["t010", "t011"])]).all()
+
+
+@pytest.mark.parametrize("seed", [0, 2])
+def test_a_grid_spec_gives_the_whole_grids_metrics(seed):
+    """Evaluated at its live times only, a GridSpec gives what the whole np.arange grid gives (the oracle: the
+    straightforward loop over the whole grid), also with a far truth time that widens the grid."""
+    paths, tracks, observed = scene(seed, 20, 40)
+    grid = np.arange(-200.0, 900.0, 2.0)
+    slow = naive_track_metrics(tracks, paths, observed, grid)
+    fast = track_metrics(tracks, paths, observed, GridSpec(-200.0, 900.0, 2.0))
+    slow.pop("gospa"), fast.pop("gospa")
+    assert fast.pop("per_target") == slow.pop("per_target")
+    assert fast == pytest.approx(slow, rel=1e-12, nan_ok=True)
+    far = track_metrics(tracks, paths, observed, GridSpec(-200.0, 1e9, 2.0))  # 5·10⁸ grid times: not made
+    far.pop("gospa")
+    assert far.pop("per_target") == naive_track_metrics(tracks, paths, observed, grid)["per_target"]
+    assert far["gospa_mean_m"] == pytest.approx(slow["gospa_mean_m"] * len(grid) / 500_000_100, rel=1e-9)
+    far["gospa_mean_m"] = slow["gospa_mean_m"]
+    assert far == pytest.approx(slow, rel=1e-12, nan_ok=True)
