@@ -47,6 +47,7 @@ class StreamClock:
         self._recent: deque[float] = deque(maxlen=self.config.window)
         self._run: list[float] = []
         self._low = -math.inf  # at most the least time of the window, so at most T (−∞: not known)
+        self.steps = 0  # clock steps so far
 
     @property
     def now(self) -> float:
@@ -81,7 +82,14 @@ class StreamClock:
         self._recent.extend(self._run)
         self._low = min(self._run)
         self._run = []
+        self.steps += 1
         return True
+
+    @property
+    def run_length(self) -> int:
+        """How many consecutive consistent inputs ahead of the stream time have been seen (a clock step
+        needs ``step_after``)."""
+        return len(self._run)
 
     def state_dict(self) -> dict:
         """The clock's state as plain values (for TrackManager snapshots)."""

@@ -111,16 +111,12 @@ class RadarFrame:
         that slant range can have that altitude (ρ shorter than the height difference).
         """
         rho, theta, alt = np.broadcast_arrays(*(np.asarray(a, float) for a in (rho, theta, alt)))
-        a = _EARTH_RADIUS_M + self.height_m
-        b = _EARTH_RADIUS_M + alt
-        sin_e = (b * b - a * a - rho * rho) / (2 * a * np.maximum(rho, 1e-9))
-        valid = np.abs(sin_e) < 1.0
-        elev = np.arcsin(np.clip(sin_e, -1.0, 1.0))
-        for _ in range(iterations):
-            _, _, h = self.geodetic(self._enu_from_polar(rho, theta, elev))
-            elev = elev - (h - alt) / np.maximum(rho * np.cos(elev), 1.0)
-        lat, lon, h = self.geodetic(self._enu_from_polar(rho, theta, elev))
-        valid &= np.abs(h - alt) < 0.01
+
+        def geodetic(elev: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            lat, lon, h = self.geodetic(self._enu_from_polar(rho, theta, elev))
+            return lon, lat, h
+
+        lon, lat, valid = locate_polar(rho, alt, self.height_m, geodetic, iterations)
         return lat, lon, valid
 
     @staticmethod
@@ -145,6 +141,26 @@ class RadarFrame:
         """
         return bias_jacobian(self.xy, self.height_m, np.asarray(p, float), np.asarray(rho, float),
                              np.asarray(alt, float))
+
+
+def locate_polar(rho: np.ndarray, alt: np.ndarray, site_height_m, geodetic, iterations: int = 4
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(lon, lat, valid) of polar plots (ρ, θ) at altitudes ``alt`` seen from sites at ``site_height_m``
+    (one, or one per plot): the elevation ε that puts each at its altitude, by Newton's method on the exact
+    ellipsoidal height, ε ← ε − (h(ε) − h)/max(ρ cos ε, 1), from the spherical law of cosines
+    sin ε = (b² − a² − ρ²)/(2aρ) (a, b the geocentric radii of site and aircraft). ``geodetic(ε)`` gives
+    the WGS84 (lon, lat, h) of the plots at elevations ε. Invalid where no point at that slant range can
+    have that altitude, or where Newton's steps end more than 1 cm from it."""
+    a = _EARTH_RADIUS_M + site_height_m
+    b = _EARTH_RADIUS_M + alt
+    sin_e = (b * b - a * a - rho * rho) / (2 * a * np.maximum(rho, 1e-9))
+    valid = np.abs(sin_e) < 1.0
+    elev = np.arcsin(np.clip(sin_e, -1.0, 1.0))
+    for _ in range(iterations):
+        _, _, h = geodetic(elev)
+        elev = elev - (h - alt) / np.maximum(rho * np.cos(elev), 1.0)
+    lon, lat, h = geodetic(elev)
+    return lon, lat, valid & (np.abs(h - alt) < 0.01)
 
 
 def bias_jacobian(radar_xy: np.ndarray, radar_height_m, p: np.ndarray, rho: np.ndarray, alt: np.ndarray) -> np.ndarray:

@@ -72,6 +72,12 @@ def atomic_path(path: Path | str) -> Iterator[Path]:
         raise
 
 
+def staging_path(folder: Path | str, name: str) -> Path:
+    """A new empty temporary file in ``folder`` for ``name``'s content, to be put in place by
+    :func:`replace_outputs` (``stage(name, path)``) or removed."""
+    return _mkstemp(Path(folder), name)
+
+
 @contextmanager
 def atomic_open(path: Path | str, mode: str = "w", **kwargs: Any) -> Iterator[IO]:
     """``open(path, mode)`` whose content appears at ``path`` only once complete (see module docstring)."""
@@ -164,7 +170,8 @@ def write_text(path: Path | str, text: str) -> None:
 def replace_outputs(out: Path | str, outputs: Iterable[str], *, last: str) -> Iterator[Callable[[str], Path]]:
     """Write one run's files into ``out`` (prepared with ``keep_earlier``) so that a failure keeps the earlier run.
 
-    The block gets ``stage(name)``: a temporary path beside ``out/name`` to write that file to. When
+    The block gets ``stage(name)``: a temporary path beside ``out/name`` to write that file to
+    (``stage(name, written)`` adopts a temporary file already written in ``out``, from :func:`staging_path`). When
     it ends without an exception, the staged files are flushed to disk; then ``last`` (the file that
     marks a finished run) is removed, the others are renamed into place, the earlier run's files
     (``outputs`` patterns) that this run did not write are removed, and ``last`` is renamed last:
@@ -174,10 +181,10 @@ def replace_outputs(out: Path | str, outputs: Iterable[str], *, last: str) -> It
     out = Path(out)
     staged: dict[str, Path] = {}
 
-    def stage(name: str) -> Path:
+    def stage(name: str, written: Path | None = None) -> Path:
         if name in staged:
             raise ValueError(f"{name} staged twice")
-        staged[name] = _mkstemp(out, name)
+        staged[name] = _mkstemp(out, name) if written is None else Path(written)
         return staged[name]
 
     try:

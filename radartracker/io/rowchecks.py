@@ -18,7 +18,7 @@ from radartracker.errors import FormatError
 from radartracker.io.csvblocks import Rows
 from radartracker.io.limits import bound, regular_file
 from radartracker.io.tables import ADSB_COLUMNS, AdsbTable, PlotTable
-from radartracker.tracking.admission import StreamClock
+from radartracker.clock import StreamClock
 
 
 def _range(lo: float, hi: float, *, hi_open: bool = False) -> Callable[[float], str | None]:

@@ -186,8 +186,7 @@ def replay_folder(folder: Path | str, config: RunConfig, out: Path | str, *, pro
             sink.abort(exc)
             raise
         else:
-            sink.close()
-            write_outputs(result, out, summary=summary)
+            write_outputs(result, out, summary=summary, streamed=sink)
             return result
     from radartracker.io.sources import read_source
 

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import json
 import logging
-from contextlib import ExitStack
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +22,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
-from radartracker.io.atomic import atomic_open, atomic_path, prepare_output_folder, write_text
+from radartracker.io.atomic import prepare_output_folder, replace_outputs, staging_path, write_text
 from radartracker.pipeline.recorder import BiasLog, Events
 from radartracker.pipeline.result import RunResult
 
@@ -44,16 +43,8 @@ log = logging.getLogger(__name__)
 
 def prepare(out: Path | str, *, overwrite: bool = False) -> Path:
     """The output folder, created and writable; earlier results are refused, or with ``overwrite`` kept
-    until this run's files replace them (:func:`retire_earlier`): a run that fails leaves them intact."""
+    until this run's files replace them (:func:`write_outputs`): a run that fails leaves them intact."""
     return prepare_output_folder(out, OUTPUT_FILES, overwrite=overwrite, keep_earlier=True)
-
-
-def retire_earlier(out: Path) -> None:
-    """Mark the folder as not holding a finished run before this run's first file replaces an earlier
-    one: ``config.json``, written last, goes first (a kill while files are replaced leaves no folder
-    that looks complete)."""
-    (out / "config.json").unlink(missing_ok=True)
-
 
 
 def _numbers(x, column: str, *, optional: bool = False) -> pa.Array:
@@ -111,78 +102,93 @@ def _write_rows(f, table: pa.Table) -> None:
 
 
 class OutputStream:
-    """``tracks.csv``, ``events.csv`` and ``biases.csv`` written as a run goes: each to a temporary file in
-    the output folder, renamed over its name by :meth:`close` once complete (as every output file is,
-    :mod:`radartracker.io.atomic`); :meth:`abort` removes them. Rows as :func:`write_outputs` writes them."""
+    """``tracks.csv``, ``events.csv`` and ``biases.csv`` written as a run goes, each to a temporary file in the
+    output folder; :func:`write_outputs` puts them in place with the run's other files once all are complete
+    (:meth:`finish`), :meth:`abort` removes them. Rows as :func:`write_outputs` writes them."""
 
     def __init__(self, out: Path | str, plane) -> None:
         self.out, self.plane = Path(out), plane
-        out = self.out
-        out.mkdir(parents=True, exist_ok=True)
-        self._stack = ExitStack()
-        self._tracks, self._events, self._biases = (
-            self._stack.enter_context(atomic_open(out / name, "wb"))
-            for name in ("tracks.csv", "events.csv", "biases.csv"))
-        for f, cols in ((self._tracks, TRACK_COLUMNS), (self._events, EVENT_COLUMNS), (self._biases, BIAS_COLUMNS)):
-            f.write(_header(cols))
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.paths = {name: staging_path(self.out, name) for name in ("tracks.csv", "events.csv", "biases.csv")}
+        self._files = {name: open(path, "wb") for name, path in self.paths.items()}  # noqa: SIM115 (closed in finish)
+        for name, cols in (("tracks.csv", TRACK_COLUMNS), ("events.csv", EVENT_COLUMNS), ("biases.csv", BIAS_COLUMNS)):
+            self._files[name].write(_header(cols))
 
     def events(self, ev: Events) -> None:
         events, tracks = _rows(ev, self.plane)
-        _write_rows(self._events, events)
-        _write_rows(self._tracks, tracks)
+        _write_rows(self._files["events.csv"], events)
+        _write_rows(self._files["tracks.csv"], tracks)
 
     def biases(self, b: BiasLog) -> None:
-        _write_rows(self._biases, _bias_rows(b))
+        _write_rows(self._files["biases.csv"], _bias_rows(b))
 
-    def close(self) -> None:
-        retire_earlier(self.out)
-        self._stack.close()
+    def finish(self) -> dict[str, Path]:
+        """The three files, complete and closed: name → temporary path."""
+        for f in self._files.values():
+            f.close()
+        return dict(self.paths)
 
-    def abort(self, exc: BaseException) -> None:
-        self._stack.__exit__(type(exc), exc, exc.__traceback__)
+    def abort(self, exc: BaseException | None = None) -> None:
+        for f in self._files.values():
+            f.close()
+        for path in self.paths.values():
+            path.unlink(missing_ok=True)
 
 
 def _header(columns: tuple[str, ...]) -> bytes:
     return (",".join(columns) + "\n").encode("utf-8")
 
 
-def write_outputs(result: RunResult, out: Path | str, *, figures: bool = False, summary: dict | None = None) -> None:
-    """Write the run's files into ``out`` (prepared by :func:`prepare`; created if missing), each replacing
-    the earlier run's atomically, ``config.json`` last; the three tables only if the run did not write
-    them as it went (``result.streamed``). ``summary``: ``result.summary()``, when the caller made it
-    already (a streamed run, before its tables replaced the earlier run's)."""
+def write_outputs(result: RunResult, out: Path | str, *, figures: bool = False, summary: dict | None = None,
+                  streamed: OutputStream | None = None) -> None:
+    """Write the run's files into ``out`` (prepared by :func:`prepare`; created if missing). They replace the
+    earlier run's together once all are written (:func:`radartracker.io.atomic.replace_outputs`,
+    ``config.json`` last): a failure, a full disk included, leaves the earlier run as it was. The three tables
+    come from ``streamed`` when the run wrote them as it went. ``summary``: ``result.summary()``, when the
+    caller made it already (a streamed run, before its tables replaced the earlier run's)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     if summary is None:  # the evaluation and the rows, before any earlier file is replaced
         summary = result.summary()
-    rows = None if result.streamed else table_rows(result.events, result.biases, result.plane)
-    retire_earlier(out)
-    if rows is not None:
-        events, tracks, biases = rows
-        for name, cols, table in (("tracks.csv", TRACK_COLUMNS, tracks), ("events.csv", EVENT_COLUMNS, events),
-                                  ("biases.csv", BIAS_COLUMNS, biases)):
-            with atomic_open(out / name, "wb") as f:
-                f.write(_header(cols))
-                _write_rows(f, table)
-    with atomic_path(out / "coupling.graphml") as tmp:
-        result.coupling.write_graphml(tmp)
-    if figures:
-        from radartracker.pipeline.figures import plot_biases, plot_tracks_over_truth
+    try:
+        with replace_outputs(out, OUTPUT_FILES, last="config.json") as stage:
+            if streamed is not None:
+                for name, path in streamed.finish().items():
+                    stage(name, path)
+            else:
+                _write_tables(result, stage)
+            result.coupling.write_graphml(stage("coupling.graphml"))
+            if figures:
+                from radartracker.pipeline.figures import plot_biases, plot_tracks_over_truth
 
-        plot_biases(result, out / "biases.png")
-        plot_tracks_over_truth(result, out / "tracks.png")
-    else:  # an earlier run's figures would pass for this run's
-        for name in ("biases.png", "tracks.png"):
-            (out / name).unlink(missing_ok=True)
-    for w in summary["consistency"]["warnings"]:
-        log.warning("%s: %s", result.data.name or "run", w)
-    write_text(out / "summary.json", json.dumps(summary, indent=1, allow_nan=False) + "\n")
-    write_config(result, out / "config.json")
+                plot_biases(result, stage("biases.png"))
+                plot_tracks_over_truth(result, stage("tracks.png"))
+            for w in summary["consistency"]["warnings"]:
+                log.warning("%s: %s", result.data.name or "run", w)
+            stage("summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n", encoding="utf-8")
+            stage("config.json").write_text(_config_text(result), encoding="utf-8")
+    finally:
+        if streamed is not None:
+            streamed.abort()  # nothing left of it once adopted; its files if the block failed
 
 
-def write_config(result: RunResult, path: Path | str) -> None:
+def _write_tables(result: RunResult, stage) -> None:
+    events, tracks, biases = table_rows(result.events, result.biases, result.plane)
+    for name, cols, table in (("tracks.csv", TRACK_COLUMNS, tracks), ("events.csv", EVENT_COLUMNS, events),
+                              ("biases.csv", BIAS_COLUMNS, biases)):
+        with open(stage(name), "wb") as f:
+            f.write(_header(cols))
+            _write_rows(f, table)
+
+
+def _config_text(result: RunResult) -> str:
     """``config.json``: the effective settings (read back by ``replay --config``) and, for the record,
     the plugins' effective typed settings."""
     doc = json.loads(result.config.to_json())
     doc["plugins"] = result.plugins
-    write_text(path, json.dumps(doc, indent=1, allow_nan=False, default=str) + "\n")
+    return json.dumps(doc, indent=1, allow_nan=False, default=str) + "\n"
+
+
+def write_config(result: RunResult, path: Path | str) -> None:
+    """``config.json`` of ``result`` at ``path``, atomically."""
+    write_text(path, _config_text(result))

@@ -32,52 +32,77 @@ class Admission:
     """Which inputs enter the TrackManager; every other one is counted under its reason.
 
     Rejected: an input that is not a :class:`Plot`, an :class:`AdsbReport` or a usable unbiased
-    :class:`PlaneMeasurement` (``invalid_input``); a plot of an unknown radar; an input more than
-    ``max_time_jump_s`` after the newest admitted one or ahead of the :class:`StreamClock`
-    (``*_time_jump``); one at or before the reordering horizon (``*_late``); one equal in source, time
-    and position to an admitted one after the horizon (``*_duplicate``).
+    :class:`PlaneMeasurement` (``invalid_input``); a plot of an unknown radar; one at or before the reordering
+    horizon (``*_late``); one equal in source, time and position to an admitted one after the horizon
+    (``*_duplicate``); one ahead of the robust :class:`StreamClock` (``*_time_jump``). An input ahead of the
+    clock that may start a genuine jump of the stream (a recording resuming after a pause) is *held*: when
+    ``step_after`` consecutive consistent inputs step the clock, all of them are admitted; when the run
+    breaks, the held ones are counted ``*_time_jump``. So a pause of any length costs no input, and one
+    spoofed time stamp costs only itself.
     """
 
-    def __init__(self, radars: Iterable[str], max_time_jump_s: float, clock: ClockConfig, counts: Counter) -> None:
+    def __init__(self, radars: Iterable[str], clock: ClockConfig, counts: Counter) -> None:
         self.radars = frozenset(radars)
-        self.max_time_jump_s = max_time_jump_s
         self.clock = StreamClock(clock)
         self.counts = counts
         self.keys: dict[tuple, float] = {}  # (kind, source, time, position) of admitted inputs → time
         self.keys_limit = 10_000  # the size at which the keys at or before the horizon are forgotten
+        self.held: list[tuple[tuple, object]] = []  # (key, input) of a run that may step the clock
 
-    def admit(self, item: object, newest: float | None, horizon: float) -> float | None:
-        """``item``'s time if it is admitted (its key kept for duplicates), else None (counted)."""
+    def admit(self, item: object, horizon: float) -> list[tuple[float, object]]:
+        """The inputs admitted by ``item``'s arrival, with their times: itself, or none (held or counted), or
+        the inputs held with it when it completes a clock step."""
         key = self._key(item)
         if key is None:
-            return None
+            return []
         t, kind = key[2], INPUT_KINDS[key[0]]
-        if newest is not None and t > newest + self.max_time_jump_s:
-            return self.reject(f"{kind}_time_jump", item)
         if t <= horizon:
             return self.reject(f"{kind}_late", item)
-        if key in self.keys:
+        if key in self.keys or any(key == k for k, _ in self.held):
             return self.reject(f"{kind}_duplicate", item)
-        if not self.clock.admit(t):
-            return self.reject(f"{kind}_time_jump", item)
-        self.keys[key] = t
-        return t
+        run, steps = self.clock.run_length, self.clock.steps
+        if self.clock.admit(t):
+            if self.clock.steps > steps:  # a clock step: the run held so far is admitted with this input
+                admitted, self.held = [*self.held, (key, item)], []
+            else:
+                self.drop_held()
+                admitted = [(key, item)]
+            for k, _ in admitted:
+                self.keys[k] = k[2]
+            return [(k[2], it) for k, it in admitted]
+        if self.clock.run_length == run + 1:  # it joined the run of inputs ahead of the clock
+            self.held.append((key, item))
+        elif self.clock.run_length == 1 and math.isfinite(t):  # it started a new run: the old one broke
+            self.drop_held()
+            self.held.append((key, item))
+        else:
+            self.reject(f"{kind}_time_jump", item)
+        return []
+
+    def drop_held(self) -> None:
+        """Count the held inputs ``*_time_jump`` (their run broke, or the stream ended)."""
+        for key, item in self.held:
+            self.reject(f"{INPUT_KINDS[key[0]]}_time_jump", item)
+        self.held = []
 
     def _key(self, item: object) -> tuple | None:
         if isinstance(item, Plot):
             if item.radar not in self.radars:
-                return self.reject("plots_unknown_radar", item)
+                self.reject("plots_unknown_radar", item)
+                return None
             return ("p", item.radar, item.time, item.range_m, item.azimuth_rad)
         if isinstance(item, AdsbReport):
             return ("a", item.icao24, item.time, item.lat, item.lon)
         if isinstance(item, PlaneMeasurement) and item.radar is None and finite_position(item):
             return ("m", item.aircraft, item.time, float(item.z[0]), float(item.z[1]))
-        return self.reject("invalid_input", item)
+        self.reject("invalid_input", item)
+        return None
 
-    def reject(self, reason: str, item: object) -> None:
+    def reject(self, reason: str, item: object) -> list:
         if self.counts[reason] < 5:
             log.warning("rejected (%s): %r", reason, item)
         self.counts[reason] += 1
+        return []
 
     def forget(self, horizon: float) -> None:
         """Forget the keys at or before ``horizon`` (such an input is late anyway) once they pass the limit,

@@ -3,7 +3,8 @@
 A manager is a short recipe of stages, each a class of its own module with one job:
 
 1. **Admission** (:class:`~radartracker.tracking.admission.Admission`): unknown radars, invalid inputs,
-   time jumps, duplicates and inputs behind the reordering horizon are rejected and counted.
+   time stamps far ahead of the stream's robust clock, duplicates and inputs behind the reordering
+   horizon are rejected and counted; the inputs of a genuine jump of the stream are held, then admitted.
 2. **Reordering** (:class:`~radartracker.tracking.admission.ReorderWindow`): admitted inputs wait until
    the newest time is ``reorder_window_s`` ahead of them, then leave in time order, into frames of
    ``frame_s`` seconds.
@@ -72,7 +73,7 @@ class TrackManager:
         self.estimator, self.new_filter, self.associator = estimator, new_filter, associator
         self.coupling = CouplingGraph(list(self.radars))
         self.events = EventSink()
-        self.admission = Admission(self.radars, config.max_time_jump_s, config.clock, self.counts)
+        self.admission = Admission(self.radars, config.clock, self.counts)
         self.window = ReorderWindow(config.reorder_window_s)
         self.frames = FrameBuilder(PlaneConverter(radars, frames, self.plane), config.primary_altitude_m,
                                    config.primary_altitude_sd_m)
@@ -88,9 +89,8 @@ class TrackManager:
     # --- public API ------------------------------------------------------------------------------
     def process(self, item: Input) -> list[TrackEvent]:
         """Admit one plot, ADS-B report or unbiased position; return the events it caused (possibly none yet)."""
-        t = self.admission.admit(item, self.window.newest, self.window.horizon)
-        if t is not None:
-            self._release(self.window.push(item, t))
+        for t, admitted in self.admission.admit(item, self.window.horizon):
+            self._release(self.window.push(admitted, t))
         return self.events.take()
 
     def process_many(self, items: Iterable[Input]) -> list[TrackEvent]:
@@ -113,7 +113,9 @@ class TrackManager:
         return self.events.take()
 
     def flush(self) -> list[TrackEvent]:
-        """Release and process everything still waiting (end of a recording)."""
+        """Release and process everything still waiting (end of a recording); inputs held ahead of the
+        stream's clock, never confirmed by a clock step, are counted ``*_time_jump``."""
+        self.admission.drop_held()
         self._release(math.inf)
         if self.frame is not None and self.gathered:
             self._run_frame(self.frame)
@@ -139,7 +141,7 @@ class TrackManager:
         for tr in self.tracks.values():
             for p in tr.pending:
                 out[f"{p.kind}_in_tentative_tracks"] += 1
-        out["waiting_in_reorder_window"] = len(self.window) + len(self.gathered)
+        out["waiting_in_reorder_window"] = len(self.window) + len(self.gathered) + len(self.admission.held)
         return {k: v for k, v in out.items() if v}
 
     def snapshot(self, path: Path | str) -> None:

@@ -20,7 +20,7 @@ from pyproj import Transformer
 from pyproj.enums import TransformDirection
 
 from radartracker.domain import Radar, nacp_sigma_m
-from radartracker.geometry.plane import _EARTH_RADIUS_M, RadarFrame, SystemPlane, bias_jacobian
+from radartracker.geometry.plane import RadarFrame, SystemPlane, bias_jacobian, locate_polar
 
 _CART = ("+proj=pipeline +step +proj=unitconvert +xy_in=deg +xy_out=rad +step +proj=cart +ellps=WGS84")
 _NACP_SD = np.array([np.nan] + [nacp_sigma_m(k) for k in range(1, 12)])  # an ADS-B position's σ by its NACp
@@ -84,16 +84,8 @@ class PlaneConverter:
                 iterations: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(lon, lat, valid) of plots (ρ, θ) at altitudes ``alt`` of the radars in ``rows``
         (:meth:`RadarFrame.locate` for every radar at once)."""
-        a = _EARTH_RADIUS_M + self.height[rows]
-        b = _EARTH_RADIUS_M + alt
-        sin_e = (b * b - a * a - rho * rho) / (2 * a * np.maximum(rho, 1e-9))
-        valid = np.abs(sin_e) < 1.0
-        elev = np.arcsin(np.clip(sin_e, -1.0, 1.0))
-        for _ in range(iterations):
-            _, _, h = self._geodetic(rows, rho, theta, elev)
-            elev = elev - (h - alt) / np.maximum(rho * np.cos(elev), 1.0)
-        lon, lat, h = self._geodetic(rows, rho, theta, elev)
-        return lon, lat, valid & (np.abs(h - alt) < 0.01)
+        return locate_polar(rho, alt, self.height[rows], lambda elev: self._geodetic(rows, rho, theta, elev),
+                            iterations)
 
     def _geodetic(self, rows: np.ndarray, rho: np.ndarray, theta: np.ndarray,
                   elev: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -6,7 +6,8 @@ rebuilds the manager: ``{"kind": "TrackManager", "schema": SCHEMA, "radars", "re
 attributes::
 
     counts      {reason: count}
-    admission   {"keys": [[tag, source, time, a, b]], "keys_limit", "clock": StreamClock state}
+    admission   {"keys": [[tag, source, time, a, b]], "keys_limit", "clock": StreamClock state,
+                 "held": [input] (the inputs of a run that may step the clock)}
     window      {"queue": [input], "heap": [[time, arrival, input]], "arrivals", "newest", "horizon"}
     frame       the frame being gathered (null before the first input), "gathered": [input]
     antennas    AntennaSweep state;  adsb_check: AdsbPlausibility state
@@ -166,7 +167,7 @@ def state_document(mgr: Any) -> dict:
     adm, win = mgr.admission, mgr.window
     return {"counts": dict(mgr.counts),
             "admission": {"keys": [list(k) for k in adm.keys], "keys_limit": adm.keys_limit,
-                          "clock": adm.clock.state_dict()},
+                          "clock": adm.clock.state_dict(), "held": [input_doc(i) for _, i in adm.held]},
             "window": {"queue": [input_doc(i) for i in win.queue],
                        "heap": [[t, a, input_doc(i)] for t, a, i in win.heap],
                        "arrivals": win.arrivals, "newest": win.newest, "horizon": win.horizon},
@@ -195,7 +196,7 @@ def load_document(mgr: Any, doc: Any) -> None:
     _need(frame is None or type(frame) is int, "frame: an integer or null")
     gathered = [input_of(x, radars, f"gathered[{i}]") for i, x in enumerate(_list(doc["gathered"], "gathered"))]
     _load_window(mgr.window, doc["window"], radars)
-    _load_admission(mgr.admission, doc["admission"])
+    _load_admission(mgr.admission, doc["admission"], radars)
     mgr.antennas.load_state_dict(_dict(doc["antennas"], "antennas"))
     mgr.life.adsb_check.load_state_dict(_dict(doc["adsb_check"], "adsb_check"))
     _need(isinstance(doc["estimator"], bytes) and isinstance(doc["coupling"], bytes), "estimator, coupling: bytes")
@@ -241,8 +242,9 @@ def _load_window(win: Any, doc: Any, radars: frozenset) -> None:
     win.newest, win.horizon = newest, horizon
 
 
-def _load_admission(adm: Any, doc: Any) -> None:
-    _need(isinstance(doc, dict) and set(doc) == {"keys", "keys_limit", "clock"}, "admission: fields")
+def _load_admission(adm: Any, doc: Any, radars: frozenset) -> None:
+    _need(isinstance(doc, dict) and set(doc) == {"keys", "keys_limit", "clock", "held"}, "admission: fields")
+    held = [input_of(x, radars, f"admission held[{i}]") for i, x in enumerate(_list(doc["held"], "admission held"))]
     keys = {}
     for i, k in enumerate(_list(doc["keys"], "admission keys")):
         _need(isinstance(k, list) and len(k) == 5 and k[0] in ("p", "a", "m"), f"admission keys[{i}]: 5 fields")
@@ -253,7 +255,10 @@ def _load_admission(adm: Any, doc: Any) -> None:
     for k in ("recent", "run"):
         for t in clock[k]:
             _number(t, f"admission clock {k}")
+    _need(len(held) == len(clock["run"]) and len(held) < adm.clock.config.step_after,
+          "admission held: the inputs of the clock's run expected")
     adm.clock.load_state_dict(clock)
+    adm.held = [(adm._key(i), i) for i in held]
 
 
 # --- files -----------------------------------------------------------------------------------------

@@ -89,3 +89,38 @@ def test_a_file_written_by_name_is_on_disk_before_it_is_renamed(tmp_path, monkey
         tmp.write_text("<graphml/>")
     assert [c[0] for c in calls] == ["fsync", "replace"] and calls[0][1] == calls[1][1]
     assert (tmp_path / "out.graphml").read_text() == "<graphml/>"
+
+
+@pytest.mark.parametrize("streamed", [True, False])
+def test_a_disk_that_fills_during_replay_overwrite_keeps_the_earlier_run(tmp_path, monkeypatch, capsys, streamed):
+    """ENOSPC while the new run's files are written (here: its summary, after its tables): every file of the
+    earlier run is still there, config.json included, and no temporary file is left; the command ends with
+    one line naming the cause."""
+    import errno
+    import pathlib
+
+    import numpy as np
+
+    from radartracker.simulation.scenarios import build_scenario as scenario
+
+    data = scenario("seed", seed=1, duration=60.0).run()
+    if streamed:  # no labels: the replay streams the folder
+        data.plots.target = np.full(len(data.plots), None, dtype=object)
+    write_scenario(tmp_path / "scen", data)
+    out = tmp_path / "out"
+    assert main(["--quiet", "replay", str(tmp_path / "scen"), "--out", str(out), "--estimator", "decoupled"]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert "config.json" in before
+    real = pathlib.Path.write_text
+
+    def full(self, text, *a, **k):
+        if self.name.startswith(".summary.json"):
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(self, text, *a, **k)
+
+    monkeypatch.setattr(pathlib.Path, "write_text", full)
+    capsys.readouterr()
+    assert main(["--quiet", "replay", str(tmp_path / "scen"), "--out", str(out), "--estimator", "decoupled",
+                 "--overwrite", "--q", "9"]) != 0
+    assert "No space left on device" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before

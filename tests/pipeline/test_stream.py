@@ -99,8 +99,7 @@ def test_streamed_run_writes_the_same_bytes(unlabelled, whole, tmp_path, monkeyp
     files = open_scenario(unlabelled, block_bytes=block_bytes)
     sink = OutputStream(out, SystemPlane(*files.data.reference))
     result = run(files.data, MANAGER, progress=False, inputs=iter_files(files), sink=sink, total=files.rows)
-    sink.close()
-    write_outputs(result, out)
+    write_outputs(result, out, streamed=sink)
     assert result.streamed and len(result.events) == 0  # nothing kept: no truth to evaluate against
     _same(out, whole)
 

@@ -78,7 +78,8 @@ def written(tmp_path_factory):
         sink.events(ev.take(np.arange(len(ev))[part]))
         sink.biases(BiasLog(b.time[part], b.radar[part], b.value[part], b.cov[part]))
     sink.events(ev.take(np.zeros(len(ev), bool)))  # an empty flush writes nothing
-    sink.close()
+    for name, path in sink.finish().items():
+        path.replace(out / name)
     return ev, b, out
 
 
@@ -127,7 +128,7 @@ def test_values_not_finite_or_huge_in_a_column_that_needs_a_value_read_back_as_t
     ev.state[:5, 2] = math.nan, math.inf, -math.inf, 1e305, -1e300  # x·10^3 overflows at 1e305
     sink = OutputStream(tmp_path, PLANE)
     sink.events(ev)
-    sink.close()
+    sink.finish()["events.csv"].replace(tmp_path / "events.csv")
     _, rows = _read(tmp_path / "events.csv")
     assert [r[8] for r in rows[:3]] == ["nan", "inf", "-inf"]
     assert [float(r[8]) for r in rows[3:5]] == [1e305, -1e300]

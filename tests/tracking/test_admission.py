@@ -8,8 +8,8 @@ import pytest
 
 from radartracker.registry import make_manager
 from radartracker.domain import Plot
+from radartracker.pipeline.stream import scenario_stream
 from radartracker.clock import ClockConfig, StreamClock
-from radartracker.tracking.manager import TrackManager
 
 YEARS_10 = 10 * 365.25 * 86400.0
 
@@ -261,3 +261,43 @@ def test_manager_time_jump_is_not_remembered_as_a_duplicate(demo_data):
     mgr.process_many(stream[:k] + [ahead] + stream[k:k + 20] + [ahead, stream[k + 20]] + stream[k + 20:])
     assert mgr.counts["plots_time_jump"] == 2
     assert mgr.counts["plots_duplicate"] == 1
+
+
+@pytest.mark.parametrize("pause_s", [400.0, 7200.0, 30 * 86400.0])
+def test_a_pause_of_any_length_costs_no_input(demo_data, pause_s):
+    """A recording that resumes after a pause (400 s, 2 h, a month): the inputs after it step the stream
+    clock and are all admitted, the first ones held until then; nothing is counted as a time jump and the
+    tracks after the pause are those of the same stream without the pause (oracle: that run, shifted)."""
+    import attrs
+
+    from radartracker.registry import make_manager
+
+    items = scenario_stream(demo_data)
+    half = len(items) // 2
+    cut = items[half].time
+    paused = items[:half] + [attrs.evolve(i, time=i.time + pause_s) for i in items[half:]]
+    mgr = make_manager(demo_data.radars, demo_data.reference)
+    events = mgr.process_many(paused)
+    counts = mgr.accounting()
+    assert not any(k.endswith("time_jump") for k in counts), counts
+    assert sum(counts.values()) == len(items)
+    after = [e for e in events if e.time > cut + pause_s and e.kind == "updated"]
+    assert len(after) > 100 and len({e.track for e in after}) >= 6
+
+
+def test_one_spoofed_time_stamp_is_held_then_counted_and_moves_nothing(demo_data):
+    """One plot 20 minutes ahead among good ones (beyond the clock's 300 s): held while it could start a
+    jump, counted as a time jump once the next good input shows it was alone; the events are those of the
+    stream without it."""
+    import attrs
+
+    from radartracker.registry import make_manager
+
+    items = scenario_stream(demo_data)[:3000]
+    k = next(i for i, it in enumerate(items) if isinstance(it, Plot) and i > 1500)
+    spoofed = items[:k] + [attrs.evolve(items[k], time=items[k].time + 1200.0)] + items[k + 1:]
+    clean = items[:k] + items[k + 1:]
+    a, b = make_manager(demo_data.radars, demo_data.reference), make_manager(demo_data.radars, demo_data.reference)
+    assert a.process_many(spoofed) == b.process_many(clean)
+    counts = a.accounting()
+    assert counts.pop("plots_time_jump") == 1 and counts == b.accounting()
