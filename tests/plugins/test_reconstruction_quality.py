@@ -47,7 +47,7 @@ def test_seed_bounds_on_manoeuvres_warn_name_the_flight_and_fail(manoeuvres, tmp
     folder, data = manoeuvres
     key = sorted(set(data.truth.target))[0]
     assert _true_lateral_acceleration(data, key) > 6.0  # the truth needs more than the seed's 4 m/s²
-    assert _run(folder, tmp_path / "o", [key]) == 1  # every aircraft implausible: non-zero exit
+    assert _run(folder, tmp_path / "o", [key]) == 2  # every aircraft implausible: refused work, exit 2
     err = capsys.readouterr().err
     assert f"{key}: lateral control u pinned at its bound 4 m/s²" in err and "--max-u" in err
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
