@@ -49,9 +49,11 @@ def test_seed_bounds_on_manoeuvres_warn_name_the_flight_and_fail(manoeuvres, tmp
     assert _true_lateral_acceleration(data, key) > 6.0  # the truth needs more than the seed's 4 m/s²
     assert _run(folder, tmp_path / "o", [key]) == 2  # every aircraft implausible: refused work, exit 2
     err = capsys.readouterr().err
-    assert f"{key}: lateral control u pinned at its bound 4 m/s²" in err and "--max-u" in err
+    assert "no flight reconstructed plausibly" in err and "summary.json" in err and len(err.splitlines()) == 1
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     (row,) = s["reconstructed"]
+    assert {"control": "u", "bound_mps2": 4.0} == {k: row["quality"]["pinned"][0][k] for k in ("control", "bound_mps2")}
+    assert "--max-u" in row["quality"]["verdict"]
     assert s["implausible"] == [key] and row["quality"]["plausible"] is False
     assert row["quality"]["verdict"].startswith("implausible") and row["quality"]["chi2"] > 4
     assert any(p["control"] == "u" and p["bound_mps2"] == 4.0 for p in row["quality"]["pinned"])
