@@ -24,7 +24,7 @@ class Pending(NamedTuple):
     kind: str  # "plots", "adsb" or "positions"
 
 
-@attrs.define(eq=False)
+@attrs.define(eq=False, on_setattr=attrs.setters.NO_OP)  # checked when made; set on every measurement after
 class Track:
     """One track of the TrackManager.
 
