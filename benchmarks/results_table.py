@@ -42,7 +42,7 @@ def metrics(summary: dict) -> dict:
 
 def replay(exe: str, scenario: Path, out: Path, association: str) -> dict:
     subprocess.run([exe, "replay", str(scenario), "--out", str(out), "--quiet", *ASSOCIATIONS[association]],
-                   check=True, stdout=subprocess.DEVNULL)
+                   check=True, stdout=subprocess.DEVNULL, cwd=out.parent)
     return metrics(json.loads((out / "summary.json").read_text()))
 
 
@@ -61,7 +61,8 @@ def main() -> None:
           f"{'rmse m':>8} {'bias r m':>9} {'bias az °':>10}  change vs {trees[0][0]}")
     for name, sim in chosen:
         scen = work / name
-        subprocess.run([trees[0][1], "simulate", str(scen), "--seed", "1", *sim], check=True, stdout=subprocess.DEVNULL)
+        subprocess.run([trees[0][1], "simulate", str(scen), "--seed", "1", *sim], check=True, stdout=subprocess.DEVNULL,
+                       cwd=work)
         for assoc in ASSOCIATIONS:
             first = None
             for tree, exe in trees:

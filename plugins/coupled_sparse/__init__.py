@@ -54,7 +54,7 @@ exact filter cannot stay sparse. A config with ``bias_drifts`` raises ValueError
 
 from __future__ import annotations
 
-from collections.abc import Hashable
+from collections.abc import Hashable, Sequence
 
 import attrs
 import numpy as np
@@ -83,7 +83,6 @@ _WHY = {
     ERR_S: "bias Schur complement S is not positive definite",
     ERR_REBUILD: "recomputing S from the blocks met an aircraft block Y_ii that is not positive definite",
 }
-_APPLIED = (OK, ERR_LAMBDA, ERR_S, ERR_REBUILD)  # codes after which the plot was applied or its aircraft predicted
 
 
 @attrs.frozen
@@ -137,7 +136,7 @@ class CoupledSparseEstimator(Estimator):
             setattr(self, "_" + name, dst)
         self._F, self._I, self._WF = F, I, WF
         self._st, self._wk = st, carve_work(WF, 2 * max(m, 1))
-        # bias_arrays(): read-only views of each radar's block of ς̂ and P_ς, by radar index
+        # read-only views of each radar's block of ς̂ and P_ς, by radar index (bias_views)
         self._bias_views = [(self._bh[2 * j:2 * j + 2], self._Pb[2 * j:2 * j + 2, 2 * j:2 * j + 2]) for j in range(m)]
         for v in self._bias_views:
             v[0].flags.writeable = v[1].flags.writeable = False
@@ -204,26 +203,50 @@ class CoupledSparseEstimator(Estimator):
 
     # --- filter ------------------------------------------------------------------------------
     def update(self, m: PlaneMeasurement) -> Innovation:
-        """One measurement through the compiled update (``_kernels.update_one``); ν, Λ copied out of its scratch."""
-        s = self._slot(m.aircraft)
-        j = self._radar_codes[m.radar] if m.radar in self._radar_codes else self._radar_index(m.radar)
-        z = np.ascontiguousarray(m.z, dtype=float)
-        C = np.ascontiguousarray(m.C, dtype=float)
-        R = np.ascontiguousarray(m.R, dtype=float)
-        if z.shape != (2,) or C.shape != (2, 2) or R.shape != (2, 2):
-            raise ValueError(f"measurement of aircraft {m.aircraft!r} by radar {m.radar!r} at t={m.time}: z must "
-                             f"have shape (2,), C and R (2, 2), not {z.shape}, {C.shape}, {R.shape}")
-        t = float(m.time)
-        code = K.update_packed(self._F, self._I, self._WF, s, j, t, z, C, R)
-        if code in _APPLIED and not t <= self._bias_time:  # NaN at first, like np.fmax
-            self._bias_time = t
+        """One measurement: :meth:`update_many` of one row."""
+        inn = self.update_many([m.time], [m.aircraft], [m.radar], np.asarray(m.z, float)[None],
+                               np.asarray(m.C, float)[None], np.asarray(m.R, float)[None])
+        return Innovation(inn.nu[0], inn.S[0], float(inn.nis[0]))
+
+    def update_many(self, time: Sequence[float], aircraft: Sequence[Hashable], radar: Sequence[str | None],
+                    z: np.ndarray, C: np.ndarray, R: np.ndarray) -> Innovation:
+        """A time-ordered batch through the compiled update (``_kernels.update_rows``), row by row; if row i
+        fails, the rows before it have been applied and the exception carries ``index = i``."""
+        n = len(time)
+        z, C, R = (np.ascontiguousarray(a, dtype=float) for a in (z, C, R))
+        if z.shape != (n, 2) or C.shape != (n, 2, 2) or R.shape != (n, 2, 2) or len(aircraft) != n or len(radar) != n:
+            exc = ValueError(f"a batch of {n} measurements: z must have shape (n, 2), C and R (n, 2, 2), not "
+                             f"{z.shape}, {C.shape}, {R.shape}")
+            exc.index = 0
+            raise exc
+        slots, radars = np.empty(n, np.int64), np.empty(n, np.int64)
+        for k in range(n):
+            try:
+                slots[k] = self._slot(aircraft[k])
+                radars[k] = self._radar_codes[radar[k]] if radar[k] in self._radar_codes else self._radar_index(radar[k])
+            except KeyError as exc:
+                return self._applied(time, aircraft, radar, z, C, R, k, exc)
+        out = np.zeros((n, 7))
+        code, k, latest = K.update_rows(self._F, self._I, self._WF, slots, radars, np.asarray(time, float), z, C, R,
+                                        out)
+        if latest == latest and not latest <= self._bias_time:  # a row applied; the epoch NaN at first
+            self._bias_time = float(latest)
         if code != OK:
             exc_type = ValueError if code == ERR_NONFINITE else SingularInformation
             when = "after" if code in (ERR_S, ERR_REBUILD) else "at"
-            raise exc_type(f"{when} the measurement of aircraft {m.aircraft!r} by radar {m.radar!r} at t={t}: "
+            exc = exc_type(f"{when} the measurement of aircraft {aircraft[k]!r} by radar {radar[k]!r} at t={time[k]}: "
                            f"{_WHY[code]}")
-        io = self._wk[8]
-        return Innovation(io[0:2].copy(), io[2:6].reshape(2, 2).copy(), float(io[6]))
+            exc.index = k
+            raise exc
+        return Innovation(out[:, 0:2].copy(), out[:, 2:6].reshape(n, 2, 2).copy(), out[:, 6].copy())
+
+    def _applied(self, time, aircraft, radar, z, C, R, k: int, exc: Exception) -> Innovation:
+        """Row ``k`` names an unknown aircraft or radar: the rows before it applied, then ``exc`` raised with
+        ``index = k``."""
+        if k:
+            self.update_many(time[:k], aircraft[:k], radar[:k], z[:k], C[:k], R[:k])
+        exc.index = k
+        raise exc
 
     def _slot(self, key: Hashable) -> int:
         try:
@@ -253,12 +276,12 @@ class CoupledSparseEstimator(Estimator):
         return AircraftEstimate(float(self._tx[s]), x, P)
 
     def bias(self, radar: str) -> BiasState:
-        """``radar``'s ς̂ and P_ς (copies of :meth:`bias_arrays`' views) at the latest update time."""
-        b, P = self.bias_arrays(radar)
+        """``radar``'s ς̂ and P_ς (copies of :meth:`bias_views`) at the latest update time."""
+        b, P = self.bias_views(radar)
         return BiasState(radar, self._bias_time, b.copy(), P.copy())
 
-    def bias_arrays(self, radar: str) -> tuple[np.ndarray, np.ndarray]:
-        """Read-only views of ``radar``'s ς̂ and P_ς in the estimator's storage (:meth:`Estimator.bias_arrays`)."""
+    def bias_views(self, radar: str) -> tuple[np.ndarray, np.ndarray]:
+        """Read-only views of ``radar``'s ς̂ and P_ς in the estimator's storage."""
         return self._bias_views[self._rad[radar] if radar in self._rad else self._radar_index(radar)]
 
     def joint(self, keys: list[Hashable] | None = None) -> tuple[np.ndarray, np.ndarray]:

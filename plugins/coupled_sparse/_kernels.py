@@ -20,11 +20,23 @@ from ._refresh import rebuild, refresh
 
 
 @njit(cache=True)
-def update_packed(F, I, WF, s, j, t, z, C, R):
-    """:func:`update_one` on the packed storage (:func:`~._layout.carve`): ν, Λ and the NIS in the scratch
-    ``io``; returns the status code."""
+def update_rows(F, I, WF, slots, radars, times, z, C, R, out):
+    """:func:`update_one` of rows 0, 1, … in order (aircraft slot, radar index −1 for unbiased, time, z, C_s,
+    R), each row's ν, Λ and NIS into ``out[k]`` ([0:2], [2:6], [6]); returns (status code, the row it
+    stopped at: the number of rows when every one was applied, the latest time applied or NaN)."""
     mm = I[1]
-    return update_one(carve(F, I), carve_work(WF, 2 * mm), s, j, t, z, C, R)
+    st, wk = carve(F, I), carve_work(WF, 2 * mm)
+    io = wk[8]
+    latest = np.nan
+    for k in range(len(slots)):
+        code = update_one(st, wk, slots[k], radars[k], times[k], z[k], C[k], R[k])
+        if code == OK or code == ERR_LAMBDA or code == ERR_S or code == ERR_REBUILD:  # applied or predicted
+            if not times[k] <= latest:
+                latest = times[k]
+        if code != OK:
+            return code, k, latest
+        out[k, :7] = io[:7]
+    return OK, len(slots), latest
 
 
 @njit(cache=True)

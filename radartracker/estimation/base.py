@@ -145,8 +145,9 @@ class Estimator(abc.ABC):
     def update_many(self, time: Sequence[float], aircraft: Sequence[Hashable], radar: Sequence[str | None],
                     z: np.ndarray, C: np.ndarray, R: np.ndarray) -> Innovation:
         """:meth:`update` of each measurement of a time-ordered batch given as columns (the fields of
-        PlaneMeasurement, stacked), in turn: the one way a batch is applied, so a plugin implements the
-        update once, in :meth:`update`, and does not override this.
+        PlaneMeasurement, stacked), in turn. A plugin writes its update once: in :meth:`update` (this default
+        applies a batch), or here, for a compiled batch, with :meth:`update` a batch of one
+        (``coupled-sparse`` does).
 
         Returns an Innovation of stacked arrays (ν n×2, Λ n×2×2, NIS n). If measurement i fails, those
         before it have been applied and the exception carries ``index = i``.
@@ -170,13 +171,6 @@ class Estimator(abc.ABC):
     @abc.abstractmethod
     def bias(self, radar: str) -> BiasState:
         """The current bias estimate of ``radar``."""
-
-    def bias_arrays(self, radar: str) -> tuple[np.ndarray, np.ndarray]:
-        """(ς̂, P_ς) of ``radar`` for reading at once (bias correction of one measurement, gating): arrays
-        that may be the estimator's own, read-only, changing with the next update — copy them to keep them.
-        Default: the fields of :meth:`bias`."""
-        b = self.bias(radar)
-        return b.bias, b.cov
 
     @property
     @abc.abstractmethod

@@ -25,8 +25,7 @@ Estimator checks (``ESTIMATOR_CHECKS``):
   (an untouched deep copy continues identically) and return copies;
 * ``lifecycle`` — aircraft are added and removed mid-stream, a removed key can be added again and
   starts from its new prior, the others carry on;
-* ``update_many`` — the batch call equals one ``update`` after another (1e-9), and ``bias_arrays`` equals
-  ``bias``'s fields;
+* ``update_many`` — the batch call equals one ``update`` after another (1e-9);
 * ``snapshot`` — a ``copy.deepcopy`` and, where the estimator has ``state_dict``, a new instance
   given ``load_state_dict(state_dict())`` continue bit for bit;
 * ``joint_consistency`` (in ``EXACT_CHECKS``, for an exact joint filter that keeps every

@@ -141,7 +141,12 @@ class Prediction:
     def __init__(self, tracks: list[Track], time: float) -> None:
         self.tracks = tracks
         self.time = time
-        self.position = np.array([tr.state_at(time)[:2] for tr in tracks], float).reshape(len(tracks), 2)
+        n = len(tracks)
+        estimates = [tr.estimate() for tr in tracks]
+        t0 = np.fromiter((e[0] for e in estimates), float, n)
+        x = np.array([e[1][:4] for e in estimates], float).reshape(n, 4)
+        # p + v max(t − t₀, 0): the straight line, never backwards
+        self.position = x[:, :2] + x[:, 2:] * np.maximum(time - t0, 0.0)[:, None]
         self.by_mode_s = {tr.mode_s: i for i, tr in enumerate(tracks) if tr.mode_s}
         self._exact: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 

@@ -70,6 +70,8 @@ def _inputs(work: Path) -> dict[str, tuple[bytes, Callable[[Path, random.Random]
             scenario_items(out)
         return read
 
+    snap, restore = _snapshot(work)
+
     def asterix(path: Path, rng: random.Random):
         scenario_items(read_asterix(path, radars=work / "rec.ast.radars.csv", skip_bad=rng.random() < 0.5))
 
@@ -86,7 +88,39 @@ def _inputs(work: Path) -> dict[str, tuple[bytes, Callable[[Path, random.Random]
         "stations.csv": ((work / "stations.csv").read_bytes(), lambda p, r: tio.read_stations(p), "st.csv"),
         "bearings.csv": ((work / "bearings.csv").read_bytes(),
                          lambda p, r: tio.read_bearings(p, skip_bad=r.random() < 0.5), "b.csv"),
+        "snapshot": (snap, restore, "m.rtsnap"),
     }
+
+
+def _snapshot(work: Path) -> tuple[bytes, Callable[[Path, random.Random], object]]:
+    """A TrackManager's snapshot (tracks confirmed, the estimator holding aircraft) and its reader: the
+    mutated payload is given a valid checksum again (a file crafted, not damaged), restored, and the
+    restored manager processes the next inputs of its stream — compiled code reached from a restored
+    state must not crash."""
+    import hashlib
+    import struct
+
+    from radartracker.pipeline.stream import scenario_stream
+    from radartracker.registry import make_manager, restore_manager
+    from radartracker.simulation.scenarios import build_scenario
+    from radartracker.tracking.snapshot import _HEADER, FORMAT_VERSION, MAGIC
+
+    data = build_scenario("demo", seed=3, duration=90.0).run()
+    items = scenario_stream(data)
+    half = len(items) // 2
+    mgr = make_manager(data.radars, data.reference)
+    for item in items[:half]:
+        mgr.process(item)
+    mgr.snapshot(work / "valid.rtsnap")
+    payload = (work / "valid.rtsnap").read_bytes()[_HEADER.size:]
+
+    def restore(path: Path, rng: random.Random):
+        body = path.read_bytes()
+        path.write_bytes(struct.pack(">8sIQ32s", MAGIC, FORMAT_VERSION, len(body), hashlib.sha256(body).digest())
+                         + body)
+        restore_manager(path).process_many(items[half:half + 200])
+
+    return payload, restore
 
 
 def _mutate(buf: bytes, rng: random.Random) -> bytes:

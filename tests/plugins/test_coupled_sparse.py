@@ -346,8 +346,8 @@ def test_dense_information_is_an_arrowhead_unless_biases_drift():
     assert offdiag(EstimatorConfig(motion=MotionModel(0.5), bias_drift_range=10.0, bias_drift_azimuth=1e-8)) > 1e-3
 
 
-def test_bias_arrays_are_read_only_views_equal_to_bias():
-    """bias_arrays() are read-only views equal to bias()'s copies that follow updates, storage growth, deep
+def test_bias_views_are_read_only_views_equal_to_bias():
+    """bias_views() (the plugin's own read of its storage) are read-only views equal to bias()'s copies that follow updates, storage growth, deep
     copies and snapshot round trips (oracle: bias() of an estimator given the same plots)."""
     import copy
 
@@ -360,11 +360,11 @@ def test_bias_arrays_are_read_only_views_equal_to_bias():
 
     def same_biases(a, b):
         for r in sc.radar_ids:
-            mean, cov = b.bias_arrays(r)
+            mean, cov = b.bias_views(r)
             np.testing.assert_array_equal(mean, a.bias(r).bias)
             np.testing.assert_array_equal(cov, a.bias(r).cov)
 
-    views = [fast.bias_arrays(r) for r in sc.radar_ids]
+    views = [fast.bias_views(r) for r in sc.radar_ids]
     for i, m in enumerate(sc.measurements):
         ref.update(m), fast.update(m)
         if i % 25 == 0:
@@ -386,8 +386,8 @@ def test_bias_arrays_are_read_only_views_equal_to_bias():
         e.update_many([m.time], [m.aircraft], [m.radar], m.z[None], m.C[None], m.R[None])
     for e in (twin, restored):
         same_biases(ref, e)
-        assert not np.shares_memory(e.bias_arrays(sc.radar_ids[0])[0], fast.bias_arrays(sc.radar_ids[0])[0])
-    with pytest.raises(ValueError, match=r"z must have shape \(2,\)"):
+        assert not np.shares_memory(e.bias_views(sc.radar_ids[0])[0], fast.bias_views(sc.radar_ids[0])[0])
+    with pytest.raises(ValueError, match=r"z must have shape \(n, 2\)"):
         fast.update(PlaneMeasurement(m.time, m.aircraft, m.radar, np.zeros(3), m.C, m.R))
 
 
