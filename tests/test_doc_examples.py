@@ -21,3 +21,13 @@ def test_example_runs(name, k, tmp_path, monkeypatch, capsys):
     code = _blocks(ROOT / name)[k]
     exec(compile(code, f"{name} example {k}", "exec"), {"__name__": "__example__"})
     assert capsys.readouterr().out or list(tmp_path.iterdir())  # it showed or wrote something
+
+
+def test_the_plugin_guides_associator_passes_its_checks():
+    """docs/plugins.md's nearest-neighbour associator, as written there, passes check_associator."""
+    from radartracker.testing import ASSOCIATOR_CHECKS, check_associator
+
+    block = next(b for b in _blocks(ROOT / "docs/plugins.md") if "class Nearest(Associator)" in b)
+    space: dict = {"__name__": "__example__"}
+    exec(compile(block, "docs/plugins.md associator", "exec"), space)
+    assert check_associator(space["Nearest"]) == ASSOCIATOR_CHECKS

@@ -153,12 +153,16 @@ class Recorder:
         """Record a TrackManager's ``event`` of ``track`` (subscribe this method to the manager's
         :class:`~radartracker.tracking.events.EventSink`): with the filter's covariance when the event's
         state is the track's estimate (not extrapolated; never for a deletion), and the track's identity."""
-        cov = None
+        cov = _NAN16
         if event.kind != "deleted":
             t0, _, P = track.estimate()
             if t0 == event.time:
-                cov = np.ascontiguousarray(np.asarray(P, float)[:4, :4])
-        self.track_event(event, cov, (track.altitude_m, track.mode_s, track.mode_3a, track.target))
+                P = np.asarray(P, float)
+                cov = (P if P.shape == (4, 4) else P[:4, :4]).tobytes()
+        rows = self._rows
+        rows.append((event, cov, (track.altitude_m, track.mode_s, track.mode_3a, track.target)))
+        if len(rows) >= self.flush_every:
+            self._columns()
 
     def bias_due(self, radar: str, time: float) -> bool:
         """Whether :meth:`bias` would record ``radar``'s bias at ``time`` (ask before building the state)."""

@@ -58,7 +58,7 @@ class Admission:
         t, kind = key[2], INPUT_KINDS[key[0]]
         if t <= horizon:
             return self.reject(f"{kind}_late", item)
-        if key in self.keys or any(key == k for k, _ in self.held):
+        if key in self.keys or (self.held and any(key == k for k, _ in self.held)):
             return self.reject(f"{kind}_duplicate", item)
         run, steps = self.clock.run_length, self.clock.steps
         if self.clock.admit(t):

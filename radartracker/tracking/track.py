@@ -64,12 +64,13 @@ class Track:
 
     def estimate(self) -> tuple[float, np.ndarray, np.ndarray]:
         """The filter's (time, χ, P), χ a contiguous float vector; read once after each change of the filter."""
-        if self._estimate is None:
+        e = self._estimate
+        if e is None:
             t, x, P = self.filter.estimate()
             if type(x) is not np.ndarray or x.dtype is not _F8 or x.ndim != 1 or not x.flags.c_contiguous:
                 x = np.ascontiguousarray(x, float).ravel()
-            self._estimate = (t, x, P)
-        return self._estimate
+            e = self._estimate = (t, x, P, tuple(x.tolist()[:4]))
+        return e[:3]
 
     def changed(self) -> None:
         """The filter changed: :meth:`estimate` reads it again."""
@@ -77,9 +78,13 @@ class Track:
 
     def state_at(self, time: float) -> tuple[float, float, float, float]:
         """[x, y, vx, vy] at ``time``, extrapolated in a straight line from the estimate (never backwards)."""
-        t0, x, _ = self.estimate()
-        x0, y0, vx, vy = x.tolist()[:4]
-        dt = max(time - t0, 0.0)
+        if self._estimate is None:
+            self.estimate()
+        t0, state = self._estimate[0], self._estimate[3]
+        if not time > t0:
+            return state
+        x0, y0, vx, vy = state
+        dt = time - t0
         return x0 + vx * dt, y0 + vy * dt, vx, vy
 
     def took(self, src: Plot | AdsbReport | PlaneMeasurement, kind: str) -> None:
