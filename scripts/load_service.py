@@ -53,7 +53,8 @@ from pathlib import Path
 
 import numpy as np
 
-from radartracker.io.asterix import _write_sites, iter_datablocks, sac_sic_of
+from radartracker.io.asterix import sac_sic_of, write_sites
+from radartracker.io.capture import iter_datablocks
 from radartracker.service.codec import blocks, cat021_bytes, cat048_bytes, decode_block_fast, split_block_fast
 from radartracker.simulation.traffic import traffic_scenario
 
@@ -399,7 +400,7 @@ def main() -> None:
         data = traffic_scenario(seed=args.seed, duration=args.duration, aircraft=args.aircraft, radars=args.radars).run()
         records = scenario_records(data)
         sites = Path(tempfile.mkdtemp(prefix="load_service_sites_")) / "radars.csv"
-        _write_sites(sites, data.radars, sac_sic_of(data))
+        write_sites(sites, data.radars, sac_sic_of(data))
         args.source = f"traffic: {args.aircraft} aircraft, {len(data.radars)} radars, {args.duration:g} s, seed {args.seed}"
     sched = datagram_schedule(records)
     if args.core is not None:

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 from load_service import cat062_updates, datagram_schedule, end_to_end, free_port, recording_records
 
-from radartracker.io.asterix import read_cat062, read_sites
+from radartracker.io.asterix_reader import read_cat062, read_sites
 from radartracker.io.scenario import read_scenario
 from radartracker.service import Service, ServiceConfig, parse_endpoint
 from radartracker.service.score import score_cat062

@@ -54,6 +54,17 @@ def ltsolve(L, B, X, n, nc):
 
 
 @njit(cache=True)
+def multiply(A, B, X, nc):
+    """X[:4, :nc] = A B[:4, :nc] for 4×4 A."""
+    for c in range(nc):
+        for i in range(4):
+            acc = 0.0
+            for k in range(4):
+                acc += A[i, k] * B[k, c]
+            X[i, c] = acc
+
+
+@njit(cache=True)
 def identity(T):
     """T = I."""
     for i in range(T.shape[0]):

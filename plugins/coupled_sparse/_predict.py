@@ -11,7 +11,7 @@ from __future__ import annotations
 from numba import njit
 
 from ._layout import ERR_YII, OK
-from ._linalg import chol, conditional, gram, inverse_factor, transition
+from ._linalg import chol, conditional, gram, inverse_factor, multiply, transition
 
 
 @njit(cache=True)
@@ -59,12 +59,7 @@ def _predicted_information(L, A, Q, Sg, T, Yn, Ln):
     Sg, Yn, Ln: scratch."""
     inverse_factor(L, T, Yn)  # Yn = L⁻¹
     gram(Yn, Sg)  # Σ
-    for i in range(4):
-        for j in range(4):
-            acc = 0.0
-            for k in range(4):
-                acc += A[i, k] * Sg[k, j]
-            T[i, j] = acc
+    multiply(A, Sg, T, 4)
     for i in range(4):
         for j in range(i + 1):
             acc = Q[i, j]
@@ -91,12 +86,7 @@ def _remove_old_bias_term(Y, A, Yp, M, G, W, mx, Ybb, eb, idx, nK):
                     acc -= A[k, i] * Yp[k, l] * A[l, j]
             M[i, j] = acc
             M[j, i] = acc
-    for c in range(nK):
-        for i in range(4):
-            acc = 0.0
-            for k in range(4):
-                acc += M[i, k] * G[k, c]
-            W[i, c] = acc
+    multiply(M, G, W, nK)
     for a in range(nK):
         acc = 0.0
         for r in range(4):
@@ -115,28 +105,10 @@ def _remove_old_bias_term(Y, A, Yp, M, G, W, mx, Ybb, eb, idx, nK):
 @njit(cache=True)
 def _write_predicted_blocks(Y, Yb, e, nK, A, Yp, G, W, u, mx):
     """Y_ii ← Y', Y_ib ← Y' A G, η_i ← Y' A m; W, u: scratch."""
-    for c in range(nK):
-        for i in range(4):
-            acc = 0.0
-            for k in range(4):
-                acc += A[i, k] * G[k, c]
-            W[i, c] = acc
-    for i in range(4):
-        acc = 0.0
-        for k in range(4):
-            acc += A[i, k] * mx[k, 0]
-        u[i, 0] = acc
+    multiply(A, G, W, nK)
+    multiply(A, mx, u, 1)
     for i in range(4):
         for j in range(4):
             Y[i, j] = Yp[i, j]
-    for c in range(nK):
-        for i in range(4):
-            acc = 0.0
-            for k in range(4):
-                acc += Yp[i, k] * W[k, c]
-            Yb[i, c] = acc
-    for i in range(4):
-        acc = 0.0
-        for k in range(4):
-            acc += Yp[i, k] * u[k, 0]
-        e[i] = acc
+    multiply(Yp, W, Yb, nK)
+    multiply(Yp, u, e.reshape(4, 1), 1)

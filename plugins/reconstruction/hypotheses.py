@@ -242,81 +242,107 @@ def reconstruct(plots: PlotTrack, cfg: ReconstructionConfig | None = None, biase
         raise ValueError(f"{plots.key}: flight of {plots.duration:.1f} s is shorter than dt_min")
     if biases:
         plots = debias(plots, biases)
-    weight = TrackWeight(plots, cfg.loss, cfg.loss_c)
     t0 = float(plots.t[0])  # fit in time since the first plot: epoch seconds would swamp the steps
     rel = attrs.evolve(plots, t=plots.t - t0)
     start, k0, k_max, q, crit = hypothesis_starts(rel, cfg)
-    found: list[tuple[Hypothesis, ControlTrack]] = []  # with the track in time since the first plot
-    n = len(plots)
-
-    def objective(ct: ControlTrack) -> float:  # the plots' NLL, plus the jump prior's when it is on (MAP)
-        return weight(sample(ct, rel.t)[:, :2]) + jump_prior(ct, cfg)
-
-    def run(ct: ControlTrack, origin: str, floor: float = np.inf) -> Hypothesis:
-        best, _, nfev = fit_hypothesis(ct, rel.t, weight, cfg)
-        wgt = objective(best)
-        if wgt > floor and cfg.refine:  # the window pass lost the start's fit: refine the start alone
-            alt, _, n2 = fit_hypothesis(ct, rel.t, weight, cfg, windows=False)
-            nfev += n2
-            if (w2 := objective(alt)) < wgt:
-                best, wgt = alt, w2
-        n_par = 3 * len(best) + 3
-        chi2 = float(np.sum(weight.distances2(sample(best, rel.t)[:, :2]))) / max(2 * n - n_par, 1)
-        hyp = Hypothesis(best.shifted(t0), wgt, 2 * wgt + cfg.complexity * n_par * np.log(n), n_par, nfev, origin, chi2)
-        found.append((hyp, best))
-        return hyp
-
+    search = _Search(TrackWeight(plots, cfg.loss, cfg.loss_c), rel.t, t0, cfg)
     # starts: K₀, the simple answers (1–3 segments, always, outside the budget), K₀'s neighbours
     for K in dict.fromkeys([k0, 1, 2, 3, round(k0 / 1.5), round(k0 * 1.5)]):
-        if 1 <= K <= k_max and (K <= 3 or len(found) < cfg.hypotheses):
-            run(start(K), "segmentation")
-    # moves from the best hypothesis by score that still has one untried: split its worst-fitting
-    # segments to 1.5× as many (the same track, so the weight can only drop) or merge the most alike
-    # neighbours to 1/1.5 as many (refitted); split first when its χ² says the plots are not yet explained;
-    # a move to a segment count already fitted is not made
+        if 1 <= K <= k_max and (K <= 3 or len(search.found) < cfg.hypotheses):
+            search.run(start(K), "segmentation")
+    _climb(search, k_max)
+    hyps = sorted((h for h, _ in search.found), key=lambda hy: hy.score)
+    geo = geo_track(hyps[0].control, cfg.grid_dt, height_profile(plots))
+    return Reconstruction(plots.key, plots, tuple(hyps), geo, q, k0, tuple(float(c) for c in crit))
+
+
+def _objective(weight: TrackWeight, ct: ControlTrack, t: np.ndarray, cfg: ReconstructionConfig) -> float:
+    """The plots' NLL of the track ``ct`` sampled at ``t``, plus the jump prior's when it is on (MAP)."""
+    return weight(sample(ct, t)[:, :2]) + jump_prior(ct, cfg)
+
+
+def _hypothesis(best: ControlTrack, wgt: float, nfev: int, origin: str, weight: TrackWeight, t: np.ndarray,
+                t0: float, cfg: ReconstructionConfig) -> Hypothesis:
+    """The hypothesis of a fitted track (in time since ``t0``): p = 3K + 3 parameters,
+    score = 2·weight + complexity · p · ln n (BIC), χ² = Σ d_i² / max(2n − p, 1)."""
+    n, n_par = len(t), 3 * len(best) + 3
+    chi2 = float(np.sum(weight.distances2(sample(best, t)[:, :2]))) / max(2 * n - n_par, 1)
+    return Hypothesis(best.shifted(t0), wgt, 2 * wgt + cfg.complexity * n_par * np.log(n), n_par, nfev, origin, chi2)
+
+
+class _Search:
+    """The hypotheses fitted so far for one flight (:attr:`found`, each with its track in time since the
+    first plot) and the fit of one more."""
+
+    def __init__(self, weight: TrackWeight, t: np.ndarray, t0: float, cfg: ReconstructionConfig) -> None:
+        self.weight, self.t, self.t0, self.cfg = weight, t, t0, cfg
+        self.found: list[tuple[Hypothesis, ControlTrack]] = []
+
+    def run(self, ct: ControlTrack, origin: str, floor: float = np.inf) -> Hypothesis:
+        """Fit a hypothesis from the start ``ct``; when its objective is above ``floor`` (the window pass
+        lost the start's fit) the start is also refined alone and the better of the two kept."""
+        cfg = self.cfg
+        best, _, nfev = fit_hypothesis(ct, self.t, self.weight, cfg)
+        wgt = _objective(self.weight, best, self.t, cfg)
+        if wgt > floor and cfg.refine:
+            alt, _, n2 = fit_hypothesis(ct, self.t, self.weight, cfg, windows=False)
+            nfev += n2
+            if (w2 := _objective(self.weight, alt, self.t, cfg)) < wgt:
+                best, wgt = alt, w2
+        hyp = _hypothesis(best, wgt, nfev, origin, self.weight, self.t, self.t0, cfg)
+        self.found.append((hyp, best))
+        return hyp
+
+
+def _climb(search: _Search, k_max: int) -> None:
+    """Moves from the best hypothesis by score that still has one untried, until the budget is spent or
+    two moves in a row did not improve the best score: split its worst-fitting segments to 1.5× as many
+    (the same track, so the weight can only drop) or merge the most alike neighbours to 1/1.5 as many
+    (refitted); split first when its χ² says the plots are not yet explained. A split child whose weight
+    drops by more than a quarter of BIC's charge for its new parameters is split again next."""
+    cfg, found, n = search.cfg, search.found, len(search.t)
     tried: set[tuple[int, str]] = set()
     follow: tuple[Hypothesis, ControlTrack] | None = None
     stale = 0  # moves in a row that did not improve the best score; the search stops at two
     while len(found) < cfg.hypotheses and stale < 2:
         best_score = min(h.score for h, _ in found)
-        fitted = {len(ct) for _, ct in found}  # a move to a count already fitted would spend a fit for little
-        move = None
-        queue = [(*follow, ("split",))] if follow else []
-        queue += [(h, ct, ("split", "merge") if h.chi2 > 1.0 else ("merge", "split"))
-                  for h, ct in sorted(found, key=lambda f: f[0].score)]
-        for h, ct, order in queue:
-            K = len(ct)
-            k_split, k_merge = min(k_max, max(K + 1, round(1.5 * K))), max(1, min(K - 1, round(K / 1.5)))
-            for mv in order:
-                target = k_split if mv == "split" else k_merge
-                if (id(h), mv) not in tried and target != K and target not in fitted:
-                    move = (h, ct, mv, target)
-                    break
-            if move:
-                break
+        move = _next_move(found, follow, tried, k_max)
         if move is None:
             break
         h, ct, mv, K = move
         tried.add((id(h), mv))
         follow = None
         if mv == "merge":
-            child = run(merge(ct, K), f"merge of {len(ct)}")
+            child = search.run(merge(ct, K), f"merge of {len(ct)}")
         else:
-            child_ct = split(ct, K, weight, rel.t, cfg.dt_min)
+            child_ct = split(ct, K, search.weight, search.t, cfg.dt_min)
             if len(child_ct) == len(ct):
                 continue
-            child = run(child_ct, f"split of {len(ct)}", floor=h.weight)
+            child = search.run(child_ct, f"split of {len(ct)}", floor=h.weight)
         stale = 0 if child.score < best_score else stale + 1
         if mv == "merge":
             continue
-        # keep climbing from a split child while its weight drops by more than a quarter of BIC's
-        # charge for its new parameters
         if h.weight - child.weight > cfg.complexity * (child.n_params - h.n_params) * np.log(n) / 8:
             follow = found[-1]
-    hyps = [h for h, _ in found]
-    hyps.sort(key=lambda hy: hy.score)
-    geo = geo_track(hyps[0].control, cfg.grid_dt, height_profile(plots))
-    return Reconstruction(plots.key, plots, tuple(hyps), geo, q, k0, tuple(float(c) for c in crit))
+
+
+def _next_move(found: list[tuple[Hypothesis, ControlTrack]], follow: tuple[Hypothesis, ControlTrack] | None,
+               tried: set[tuple[int, str]], k_max: int) -> tuple[Hypothesis, ControlTrack, str, int] | None:
+    """(hypothesis, its track, "split" or "merge", target segment count) of the next move: the followed
+    split child first, then by score; a move already tried, or to a segment count already fitted (a fit
+    spent for little), is not made. None: no move is left."""
+    fitted = {len(ct) for _, ct in found}
+    queue = [(*follow, ("split",))] if follow else []
+    queue += [(h, ct, ("split", "merge") if h.chi2 > 1.0 else ("merge", "split"))
+              for h, ct in sorted(found, key=lambda f: f[0].score)]
+    for h, ct, order in queue:
+        K = len(ct)
+        k_split, k_merge = min(k_max, max(K + 1, round(1.5 * K))), max(1, min(K - 1, round(K / 1.5)))
+        for mv in order:
+            target = k_split if mv == "split" else k_merge
+            if (id(h), mv) not in tried and target != K and target not in fitted:
+                return h, ct, mv, target
+    return None
 
 
 def refit(rec: Reconstruction, plots: PlotTrack, cfg: ReconstructionConfig) -> Reconstruction:
@@ -326,10 +352,8 @@ def refit(rec: Reconstruction, plots: PlotTrack, cfg: ReconstructionConfig) -> R
     rel = attrs.evolve(plots, t=plots.t - t0)
     weight = TrackWeight(rel, cfg.loss, cfg.loss_c)
     best, _, nfev = fit_hypothesis(rec.control.shifted(-t0), rel.t, weight, cfg, windows=False)
-    n, n_par = len(plots), 3 * len(best) + 3
-    wgt = weight(sample(best, rel.t)[:, :2]) + jump_prior(best, cfg)
-    chi2 = float(np.sum(weight.distances2(sample(best, rel.t)[:, :2]))) / max(2 * n - n_par, 1)
-    hyp = Hypothesis(best.shifted(t0), wgt, 2 * wgt + cfg.complexity * n_par * np.log(n), n_par, nfev, "refit", chi2)
+    wgt = _objective(weight, best, rel.t, cfg)
+    hyp = _hypothesis(best, wgt, nfev, "refit", weight, rel.t, t0, cfg)
     geo = geo_track(hyp.control, cfg.grid_dt, height_profile(plots))
     return Reconstruction(plots.key, plots, (hyp,), geo, rec.smoother_q, rec.k0, rec.count_criterion)
 

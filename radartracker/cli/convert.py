@@ -93,7 +93,7 @@ def _day_start(text: str) -> float:
 
 
 def _cmd_asterix_import(args: argparse.Namespace) -> int:
-    from radartracker.io.asterix import read_asterix
+    from radartracker.io.asterix_reader import read_asterix
     from radartracker.io.scenario import write_scenario
     from radartracker.io.tables import in_time_order
 

@@ -62,7 +62,7 @@ def register_serve(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_serve(args: argparse.Namespace) -> int:
-    from radartracker.io.asterix import read_sites
+    from radartracker.io.asterix_reader import read_sites
     from radartracker.service import Service, ServiceConfig, parse_endpoint
 
     radars, sites = read_sites(args.radars)
@@ -125,7 +125,7 @@ def register_score(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_score(args: argparse.Namespace) -> int:
-    from radartracker.io.asterix import read_cat062
+    from radartracker.io.asterix_reader import read_cat062
     from radartracker.io.scenario import read_scenario
     from radartracker.service.score import score_cat062
 

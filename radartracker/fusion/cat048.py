@@ -30,9 +30,10 @@ import numpy as np
 from radartracker.errors import InputError
 from radartracker.fusion.center import LocalReport, LocalTrackEnd, LocalTracks
 from radartracker.geometry.plane import RadarFrame, SystemPlane
-from radartracker.io.asterix import (CAT021, CAT048, NM, _Clock, _records, atomic_recording, cat021_record,
-                                     cat048_record, datablocks, decode_block, decode_cat048, iter_datablocks,
-                                     read_asterix, read_sites, sac_sic_of)
+from radartracker.io.asterix import (CAT021, CAT048, NM, atomic_recording, cat021_record, cat048_record, datablocks,
+                                     decode_block, decode_cat048, sac_sic_of, sidecar_of)
+from radartracker.io.asterix_reader import Clock, clocked_blocks, decoded_records, read_asterix, read_sites
+from radartracker.io.capture import iter_datablocks
 from radartracker.io.tables import PlotTable, ScenarioData
 
 EARTH_M = 6_371_008.8  # spherical radius for the 1-second heading step (the same both ways)
@@ -122,75 +123,99 @@ def local_tracks_from_asterix(path: Path | str, *, radars: Path | str | None = N
     (ADS-B, radar sites, reference; plots without I161 are left out and counted) as a scenario without
     plots. Covariance: the documented default of the module notes. Records without I200 are skipped
     and counted (``local_tracks_without_I200``). ``reference``: the system plane's centre (default: the
-    mean of the radar sites, as :func:`~radartracker.io.asterix.read_asterix`)."""
+    mean of the radar sites, as :func:`~radartracker.io.asterix_reader.read_asterix`)."""
     path = Path(path)
     data = read_asterix(path, radars=radars, day_start=day_start, skip_bad=skip_bad)
     if reference is not None:
         data = attrs.evolve(data, reference=tuple(reference))
-    plane = SystemPlane(*data.reference)
-    radar_by_id = data.radar_by_id
-    frames = {r.id: RadarFrame(r.lat, r.lon, r.height_m, plane) for r in data.radars}
-    _, ids = read_sites(Path(radars) if radars is not None else Path(str(path) + ".radars.csv"))
-    skipped: Counter[str] = Counter(data.skipped)
-    reports, ends = [], []
-    number: dict[tuple[str, int], int] = {}  # (radar, I161) → our local track id
-    next_id = 0
-    clock = None
-    for k, (stamp, block) in enumerate(iter_datablocks(path, Counter() if skip_bad else None)):
-        if clock is None:
-            clock = _Clock(math.floor(stamp / 86400.0) * 86400.0 if stamp is not None else day_start)
+    _, ids = read_sites(Path(radars) if radars is not None else sidecar_of(path))
+    reader = _TrackReader(data, ids, default_altitude_m, position_sd_scale, velocity_sd_mps)
+    for clock, where, block in clocked_blocks(path, Counter() if skip_bad else None, day_start):
         try:
-            cat, recs = decode_block(block, f"{path}: data block {k}")
+            cat, recs = decode_block(block, where)
         except InputError:
             continue  # counted by read_asterix above (asterix_undecodable_blocks)
-        if cat != 48:
-            continue
-        for rec in recs:
-            i161, i200, i170 = rec.get_item("161"), rec.get_item("200"), rec.get_item("170")
-            if i161 is None:
-                skipped["asterix_cat048_plots_not_tracks"] += 1
-                continue
-            if i200 is None:
-                skipped["local_tracks_without_I200"] += 1
-                continue
-            p = next(_records(48, [rec], decode_cat048, skipped), None)  # None: counted by missing item
-            if p is None:
-                continue
-            if (p["sac"], p["sic"]) not in ids:
-                skipped["local_tracks_unknown_sac_sic"] += 1
-                continue
-            rid, trn = ids[(p["sac"], p["sic"])], i161.variation.get_item("TRN").variation.as_uint()
-            if (rid, trn) not in number:
-                next_id += 1
-                number[(rid, trn)] = next_id
-            tid, time = number[(rid, trn)], clock(p["tod"])
-            alt = None if math.isnan(p["altitude_m"]) else p["altitude_m"]
-            xy, ok = frames[rid].to_plane(p["range_m"], p["azimuth_rad"], default_altitude_m if alt is None else alt)
-            if not ok:
-                skipped["local_tracks_impossible_position"] += 1
-                continue
-            x, y = (float(v) for v in xy)
-            v = i200.variation
-            speed = v.get_item("GSP").variation.content.as_quantity("NM/s") * NM
-            hdg = math.radians(v.get_item("HDG").variation.content.as_quantity("°"))
-            _, _, north, east = _heading_step(plane, x, y)
-            vel = speed * (math.cos(hdg) * north + math.sin(hdg) * east)
-            J = frames[rid].bias_jacobian(np.array([x, y]), p["range_m"], default_altitude_m if alt is None else alt)
-            P = np.zeros((4, 4))
-            P[:2, :2] = position_sd_scale ** 2 * J @ radar_by_id[rid].W @ J.T
-            P[2:, 2:] = np.eye(2) * velocity_sd_mps ** 2
-            reports.append(LocalReport(time, rid, tid, np.array([x, y, vel[0], vel[1]]), P, alt,
-                                       p["mode_s"], p["mode_3a"]))
-            tre = i170 is not None and i170.variation.get_item("TRE") is not None and \
-                i170.variation.get_item("TRE").variation.as_uint() == 1
-            if tre:
-                ends.append(LocalTrackEnd(time, rid, tid))
-                del number[(rid, trn)]
-    if not reports:
+        if cat == 48:
+            for rec in recs:
+                reader.read(rec, clock)
+    if not reader.reports:
         raise InputError(f"{path}: no CAT048 track report (I161 with I200)")
-    reports.sort(key=lambda r: r.time)
-    ends.sort(key=lambda e: e.time)
+    reports = sorted(reader.reports, key=lambda r: r.time)
+    ends = sorted(reader.ends, key=lambda e: e.time)
     empty = PlotTable.from_columns(time=[], radar=[], range_m=[], azimuth_rad=[], altitude_m=[], mode_s=[],
                                    mode_3a=[], target=[])
     return (ScenarioData(data.reference, data.radars, empty, data.adsb, aircraft=data.aircraft, name=data.name,
-                         skipped={k: v for k, v in skipped.items() if v}), LocalTracks(reports, ends))
+                         skipped={k: v for k, v in reader.skipped.items() if v}), LocalTracks(reports, ends))
+
+
+class _TrackReader:
+    """CAT048 track reports → :class:`LocalReport` and :class:`LocalTrackEnd`, one record at a time.
+
+    A (radar, I161) pair is one local track until its TRE report; the number reused after it is a new
+    local track. Every record that is not a usable track report is counted in :attr:`skipped`.
+    """
+
+    def __init__(self, data: ScenarioData, ids: dict[tuple[int, int], str], default_altitude_m: float,
+                 position_sd_scale: float, velocity_sd_mps: float) -> None:
+        self.plane = SystemPlane(*data.reference)
+        self.frames = {r.id: RadarFrame(r.lat, r.lon, r.height_m, self.plane) for r in data.radars}
+        self.radar_by_id, self.ids = data.radar_by_id, ids
+        self.default_altitude_m = default_altitude_m
+        self.position_sd_scale, self.velocity_sd_mps = position_sd_scale, velocity_sd_mps
+        self.skipped: Counter[str] = Counter(data.skipped)
+        self.reports: list[LocalReport] = []
+        self.ends: list[LocalTrackEnd] = []
+        self.number: dict[tuple[str, int], int] = {}  # (radar, I161) → our local track id
+        self.next_id = 0
+
+    def read(self, rec, clock: Clock) -> None:
+        """One CAT048 record: a report of its local track, or counted."""
+        i161, i200, i170 = rec.get_item("161"), rec.get_item("200"), rec.get_item("170")
+        if i161 is None:
+            self.skipped["asterix_cat048_plots_not_tracks"] += 1
+            return
+        if i200 is None:
+            self.skipped["local_tracks_without_I200"] += 1
+            return
+        p = next(decoded_records(48, [rec], decode_cat048, self.skipped), None)  # None: counted by missing item
+        if p is None:
+            return
+        if (p["sac"], p["sic"]) not in self.ids:
+            self.skipped["local_tracks_unknown_sac_sic"] += 1
+            return
+        rid, trn = self.ids[(p["sac"], p["sic"])], i161.variation.get_item("TRN").variation.as_uint()
+        if (rid, trn) not in self.number:
+            self.next_id += 1
+            self.number[(rid, trn)] = self.next_id
+        tid, time = self.number[(rid, trn)], clock(p["tod"])
+        alt = None if math.isnan(p["altitude_m"]) else p["altitude_m"]
+        height = self.default_altitude_m if alt is None else alt
+        xy, ok = self.frames[rid].to_plane(p["range_m"], p["azimuth_rad"], height)
+        if not ok:
+            self.skipped["local_tracks_impossible_position"] += 1
+            return
+        x, y = (float(v) for v in xy)
+        vel = self._velocity(i200.variation, x, y)
+        self.reports.append(LocalReport(time, rid, tid, np.array([x, y, vel[0], vel[1]]),
+                                        self._covariance(rid, x, y, p["range_m"], height), alt,
+                                        p["mode_s"], p["mode_3a"]))
+        tre = i170 is not None and i170.variation.get_item("TRE") is not None and \
+            i170.variation.get_item("TRE").variation.as_uint() == 1
+        if tre:
+            self.ends.append(LocalTrackEnd(time, rid, tid))
+            del self.number[(rid, trn)]
+
+    def _velocity(self, i200, x: float, y: float) -> np.ndarray:
+        """Plane velocity of I200's ground speed and true heading: v = s (cos h · north + sin h · east)."""
+        speed = i200.get_item("GSP").variation.content.as_quantity("NM/s") * NM
+        hdg = math.radians(i200.get_item("HDG").variation.content.as_quantity("°"))
+        _, _, north, east = _heading_step(self.plane, x, y)
+        return speed * (math.cos(hdg) * north + math.sin(hdg) * east)
+
+    def _covariance(self, rid: str, x: float, y: float, range_m: float, height_m: float) -> np.ndarray:
+        """The documented default: P_pp = s² J W Jᵀ, P_vv = σ_v² I, no position–velocity correlation."""
+        J = self.frames[rid].bias_jacobian(np.array([x, y]), range_m, height_m)
+        P = np.zeros((4, 4))
+        P[:2, :2] = self.position_sd_scale ** 2 * J @ self.radar_by_id[rid].W @ J.T
+        P[2:, 2:] = np.eye(2) * self.velocity_sd_mps ** 2
+        return P

@@ -40,7 +40,6 @@ from radartracker.io.tables import (ADSB_COLUMNS, BIAS_COLUMNS, PLOT_COLUMNS, RA
 from radartracker.clock import ClockConfig
 
 log = logging.getLogger(__name__)
-_Rows = Rows  # the name other readers import (radartracker.io.asterix)
 
 
 # --- reading ----------------------------------------------------------------------------------
@@ -134,7 +133,7 @@ def read_truth(path: Path, skip: Skipper) -> TruthTable:
 
 
 def read_truth_biases(path: Path, radar_ids: set[str]) -> dict[str, tuple[float, float]]:
-    rows = _Rows(path, BIAS_COLUMNS)
+    rows = Rows(path, BIAS_COLUMNS)
     out: dict[str, tuple[float, float]] = {}
     first: dict[str, int] = {}
     for line, row in rows:

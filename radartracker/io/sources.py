@@ -14,6 +14,6 @@ def read_source(path: Path | str, *, skip_bad: bool = False) -> ScenarioData:
     """Read a scenario folder (docs/formats.md) or an ASTERIX recording file."""
     path = Path(path)
     if path.suffix.lower() in ASTERIX_SUFFIXES:
-        from radartracker.io.asterix import read_asterix  # lazy: libasterix takes seconds to import
+        from radartracker.io.asterix_reader import read_asterix  # lazy: libasterix takes seconds to import
         return read_asterix(path, skip_bad=skip_bad)
     return read_scenario(path, skip_bad=skip_bad)

@@ -150,79 +150,24 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
     results as the whole grid; the times evaluated may be at most :data:`MAX_GRID_CELLS` / (targets +
     tracks), else an InputError.
     """
-    from scipy.optimize import linear_sum_assignment
-
     targets = sorted(observed)
     tids = sorted(tracks)
-    if isinstance(grid, GridSpec):
-        grid, index, n_all = grid.times([*observed.values(), *((h.start, h.end) for h in tracks.values())])
-    else:
-        index, n_all = np.arange(len(grid)), len(grid)
-    if len(grid) * (len(targets) + len(tids)) > MAX_GRID_CELLS:
-        raise InputError(f"evaluation: {len(grid):,} grid times × {len(targets) + len(tids):,} targets and tracks "
-                         f"exceed {MAX_GRID_CELLS:,} (plot or track times spanning {grid[-1] - grid[0]:.3g} s?)")
-    n_g, c2 = len(grid), c * c
-    # truths (targets × grid) and tracks (tracks × grid): positions and where they count
-    tru_pos = np.zeros((len(targets), n_g, 2))
-    tru_live = np.zeros((len(targets), n_g), bool)
-    for r, tg in enumerate(targets):
-        state, inside = paths.state_at(tg, grid)
-        tru_pos[r], tru_live[r] = state[:, :2], inside & (grid >= observed[tg][0]) & (grid <= observed[tg][1])
-    trk_pos = np.zeros((len(tids), n_g, 2))
-    trk_live = np.zeros((len(tids), n_g), bool)
+    grid, index, n_all = _grid_times(grid, observed, tracks, len(targets) + len(tids))
+    tru_pos, tru_live = _truth_on_grid(paths, observed, targets, grid)
+    trk_pos = np.zeros((len(tids), len(grid), 2))
+    trk_live = np.zeros((len(tids), len(grid)), bool)
     for q, tid in enumerate(tids):
         trk_pos[q], trk_live[q] = tracks[tid].at(grid)
-    assigned = np.full((len(targets), n_g), -1)  # track index held by each target
-    track_targets: list[set[int]] = [set() for _ in tids]
-    g, sq = np.zeros(n_g), []
-    for k in range(n_g):
-        live_t = np.flatnonzero(tru_live[:, k])
-        live_k = np.flatnonzero(trk_live[:, k])
-        if not len(live_t) and not len(live_k):
-            continue
-        # a target keeps the track it had at the previous time while it stays within c
-        prev = assigned[live_t, k - 1] if k and index[k] == index[k - 1] + 1 else np.full(len(live_t), -1)
-        keep = prev >= 0
-        keep[keep] &= trk_live[prev[keep], k]
-        d_keep = np.sum((tru_pos[live_t[keep], k] - trk_pos[prev[keep], k]) ** 2, axis=-1)
-        keep[np.flatnonzero(keep)[d_keep >= c2]] = False
-        rows, cols = list(live_t[keep]), list(prev[keep])
-        d2 = list(np.sum((tru_pos[live_t[keep], k] - trk_pos[prev[keep], k]) ** 2, axis=-1))
-        free_r = live_t[~keep]
-        free_q = live_k[~np.isin(live_k, prev[keep])]
-        if len(free_r) and len(free_q):
-            sub = np.sum((tru_pos[free_r, k][:, None, :] - trk_pos[free_q, k][None, :, :]) ** 2, axis=-1)
-            a, b = linear_sum_assignment(np.minimum(sub, c2))
-            ok = sub[a, b] < c2
-            rows += list(free_r[a[ok]])
-            cols += list(free_q[b[ok]])
-            d2 += list(sub[a[ok], b[ok]])
-        g[k] = gospa(np.array(d2), len(live_t) - len(rows), len(live_k) - len(rows), c)
-        sq.extend(d2)
-        assigned[rows, k] = cols
-        for r, q in zip(rows, cols):
-            track_targets[q].add(r)
+    assigned, track_targets, g, sq = _assignment(tru_pos, tru_live, trk_pos, trk_live, index, c)
     held = np.zeros(trk_live.shape, bool)
     r, k = np.nonzero(assigned >= 0)
     held[assigned[r, k], k] = True
     judged = _supported(tracks, tids, trk_live, grid)
     t_alive = judged.sum(axis=1)
     t_follows = (held & judged).sum(axis=1) + _unassigned_near(trk_pos, judged, held, paths,
-                                                               paths.paths if sensed is None else sensed, grid, c2)
+                                                               paths.paths if sensed is None else sensed, grid, c * c)
     tid_of = np.array(tids + [-1])  # index -1 stays -1
-    assigned = tid_of[assigned]
-    per_target = {}
-    for r, tg in enumerate(targets):
-        a = assigned[r]
-        inside = tru_live[r]
-        held = a[inside & (a >= 0)]
-        right = int(np.bincount(held).argmax()) if len(held) else -1
-        seq = a[inside & (a >= 0)]
-        per_target[tg] = {
-            "right_track": right,
-            "continuity": float(np.mean(a[inside] == right)) if inside.any() else float("nan"),
-            "breaks": int(np.sum(seq[1:] != seq[:-1])) if len(seq) else 0,
-        }
+    per_target = _per_target(tid_of[assigned], tru_live, targets)
     return {
         "per_target": per_target,
         "continuity_min": min((v["continuity"] for v in per_target.values()), default=float("nan")),
@@ -234,6 +179,98 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
         "gospa_mean_m": float(np.sum(g) / n_all) if n_all else float("nan"),
         "gospa": g,
     }
+
+
+def _grid_times(grid: np.ndarray | GridSpec, observed: dict[str, tuple[float, float]],
+                tracks: dict[int, TrackHistory], rows: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """(grid times evaluated, their indices in the whole grid, the whole grid's length); an InputError
+    when the times × ``rows`` (targets + tracks) exceed :data:`MAX_GRID_CELLS`."""
+    if isinstance(grid, GridSpec):
+        grid, index, n_all = grid.times([*observed.values(), *((h.start, h.end) for h in tracks.values())])
+    else:
+        index, n_all = np.arange(len(grid)), len(grid)
+    if len(grid) * rows > MAX_GRID_CELLS:
+        raise InputError(f"evaluation: {len(grid):,} grid times × {rows:,} targets and tracks "
+                         f"exceed {MAX_GRID_CELLS:,} (plot or track times spanning {grid[-1] - grid[0]:.3g} s?)")
+    return grid, index, n_all
+
+
+def _truth_on_grid(paths: TruthPaths, observed: dict[str, tuple[float, float]], targets: list[str],
+                   grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Truth positions (targets × grid × 2) and where they count: inside the truth and the observed span."""
+    tru_pos = np.zeros((len(targets), len(grid), 2))
+    tru_live = np.zeros((len(targets), len(grid)), bool)
+    for r, tg in enumerate(targets):
+        state, inside = paths.state_at(tg, grid)
+        tru_pos[r], tru_live[r] = state[:, :2], inside & (grid >= observed[tg][0]) & (grid <= observed[tg][1])
+    return tru_pos, tru_live
+
+
+def _assignment(tru_pos: np.ndarray, tru_live: np.ndarray, trk_pos: np.ndarray, trk_live: np.ndarray,
+                index: np.ndarray, c: float) -> tuple[np.ndarray, list[set[int]], np.ndarray, list[float]]:
+    """The assignment at each grid time (:func:`track_metrics`): the track index each target holds
+    (targets × grid, −1: none), the targets each track was assigned to, GOSPA per grid time and the
+    squared distances of all assigned pairs. A target's previous track is the one of the grid time
+    before (``index`` consecutive)."""
+    n_g = tru_live.shape[1]
+    assigned = np.full(tru_live.shape, -1)  # track index held by each target
+    track_targets: list[set[int]] = [set() for _ in range(len(trk_live))]
+    g, sq = np.zeros(n_g), []
+    for k in range(n_g):
+        live_t = np.flatnonzero(tru_live[:, k])
+        live_k = np.flatnonzero(trk_live[:, k])
+        if not len(live_t) and not len(live_k):
+            continue
+        prev = assigned[live_t, k - 1] if k and index[k] == index[k - 1] + 1 else np.full(len(live_t), -1)
+        rows, cols, d2 = _assign_at(tru_pos[:, k], trk_pos[:, k], trk_live[:, k], live_t, live_k, prev, c * c)
+        g[k] = gospa(np.array(d2), len(live_t) - len(rows), len(live_k) - len(rows), c)
+        sq.extend(d2)
+        assigned[rows, k] = cols
+        for r, q in zip(rows, cols):
+            track_targets[q].add(r)
+    return assigned, track_targets, g, sq
+
+
+def _assign_at(tru_pos: np.ndarray, trk_pos: np.ndarray, trk_live: np.ndarray, live_t: np.ndarray,
+               live_k: np.ndarray, prev: np.ndarray, c2: float) -> tuple[list, list, list]:
+    """(target rows, track indices, squared distances) of the pairs at one grid time: a target keeps
+    ``prev`` (its track at the time before) while that track lives and stays within c; the free targets
+    and tracks are assigned by minimum total squared distance (Hungarian), pairs at c or farther left out."""
+    from scipy.optimize import linear_sum_assignment
+
+    keep = prev >= 0
+    keep[keep] &= trk_live[prev[keep]]
+    d_keep = np.sum((tru_pos[live_t[keep]] - trk_pos[prev[keep]]) ** 2, axis=-1)
+    keep[np.flatnonzero(keep)[d_keep >= c2]] = False
+    rows, cols = list(live_t[keep]), list(prev[keep])
+    d2 = list(np.sum((tru_pos[live_t[keep]] - trk_pos[prev[keep]]) ** 2, axis=-1))
+    free_r = live_t[~keep]
+    free_q = live_k[~np.isin(live_k, prev[keep])]
+    if len(free_r) and len(free_q):
+        sub = np.sum((tru_pos[free_r][:, None, :] - trk_pos[free_q][None, :, :]) ** 2, axis=-1)
+        a, b = linear_sum_assignment(np.minimum(sub, c2))
+        ok = sub[a, b] < c2
+        rows += list(free_r[a[ok]])
+        cols += list(free_q[b[ok]])
+        d2 += list(sub[a[ok], b[ok]])
+    return rows, cols, d2
+
+
+def _per_target(assigned: np.ndarray, tru_live: np.ndarray, targets: list[str]) -> dict[str, dict]:
+    """Per target, from the track ids it holds (targets × grid, −1: none): the right track (held most
+    often), continuity (the fraction of its observed times the right track holds) and breaks."""
+    per_target = {}
+    for r, tg in enumerate(targets):
+        a = assigned[r]
+        inside = tru_live[r]
+        held = a[inside & (a >= 0)]
+        right = int(np.bincount(held).argmax()) if len(held) else -1
+        per_target[tg] = {
+            "right_track": right,
+            "continuity": float(np.mean(a[inside] == right)) if inside.any() else float("nan"),
+            "breaks": int(np.sum(held[1:] != held[:-1])) if len(held) else 0,
+        }
+    return per_target
 
 
 def _supported(tracks: dict[int, TrackHistory], tids: list[int], trk_live: np.ndarray, grid: np.ndarray) -> np.ndarray:

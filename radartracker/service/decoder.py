@@ -19,7 +19,9 @@ import math
 from collections import Counter
 
 from radartracker.domain import AdsbReport, Plot
-from radartracker.io.asterix import DAY, _blocks_in, _Clock, decode_block, decode_cat021, decode_cat048
+from radartracker.io.asterix import DAY, decode_block, decode_cat021, decode_cat048
+from radartracker.io.asterix_reader import Clock
+from radartracker.io.capture import blocks_in
 from radartracker.service.codec import decode_block_fast
 
 
@@ -34,7 +36,7 @@ class DayClock:
     """t = day_start + tod, a day added at each backwards wrap of the time of day (recordings)."""
 
     def __init__(self, day_start: float) -> None:
-        self._clock = _Clock(day_start)
+        self._clock = Clock(day_start)
 
     def __call__(self, tod: float, received: float) -> float:
         return self._clock(tod)
@@ -56,7 +58,7 @@ class Decoder:
         """The plots and reports of one datagram received at ``received`` (s since 1970)."""
         c = self.counts
         try:
-            blocks = list(_blocks_in(payload, "datagram"))
+            blocks = list(blocks_in(payload, "datagram"))
         except ValueError:
             c["datagrams_malformed"] += 1
             return []

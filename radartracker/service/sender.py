@@ -14,7 +14,8 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from radartracker.io.asterix import CAT021, CAT048, CAT062, DAY, decode_block, iter_datablocks
+from radartracker.io.asterix import CAT021, CAT048, CAT062, DAY, decode_block
+from radartracker.io.capture import iter_datablocks
 from radartracker.service.codec import split_block_fast
 from radartracker.service.endpoints import Endpoint, open_sender
 from radartracker.service.publisher import UDP_PAYLOAD

@@ -4,7 +4,8 @@ import attrs
 import numpy as np
 import pytest
 
-from radartracker.io.asterix import write_asterix, write_pcap
+from radartracker.io.asterix import write_asterix
+from radartracker.io.capture import write_pcap
 from radartracker.io.scenario import write_scenario
 from radartracker.io.tables import AdsbTable, PlotTable
 from radartracker.simulation.scenarios import build_scenario

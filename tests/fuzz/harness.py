@@ -36,7 +36,8 @@ def _inputs(work: Path) -> dict[str, tuple[bytes, Callable[[Path, random.Random]
     """reader name -> (valid bytes, read(path, rng), file name) over small valid inputs made in ``work``."""
     import numpy as np
 
-    from radartracker.io.asterix import read_asterix, write_asterix
+    from radartracker.io.asterix import write_asterix
+    from radartracker.io.asterix_reader import read_asterix
     from radartracker.io.limits import read_json
     from radartracker.io.recording import TrackPoints, read_new4, read_plt, write_new4, write_plt
     from radartracker.io.scenario import read_scenario, write_scenario

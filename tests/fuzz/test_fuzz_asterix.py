@@ -13,7 +13,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from radartracker.io.asterix import CAT021, CAT048, datablocks, read_asterix, read_cat062
+from radartracker.io.asterix import CAT021, CAT048, datablocks
+from radartracker.io.asterix_reader import read_asterix, read_cat062
 
 from tests.fuzz.mutations import apply, mutations, random_mutations, works_or_refuses
 

@@ -13,7 +13,9 @@ import asterix4py  # test-only dependency: the independent decoder
 import numpy as np
 import pytest
 
-from radartracker.io.asterix import (CAT021, CAT048, CAT062, FL_M, NM, cat021_record, cat048_record, cat062_record, datablocks, decode_block, decode_cat062, iter_datablocks, read_asterix, write_asterix, write_cat062, write_pcap)
+from radartracker.io.asterix import (CAT021, CAT048, CAT062, FL_M, NM, cat021_record, cat048_record, cat062_record, datablocks, decode_block, decode_cat062, write_asterix, write_cat062)
+from radartracker.io.asterix_reader import read_asterix
+from radartracker.io.capture import iter_datablocks, write_pcap
 from radartracker.cli import main
 
 RHO_RES, THETA_RES = NM / 256, 2 * math.pi / 2**16  # I048/040

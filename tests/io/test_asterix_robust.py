@@ -6,8 +6,9 @@ from __future__ import annotations
 import pytest
 
 from radartracker.errors import FormatError, InputError
-from radartracker.io.asterix import (CAT021, CAT048, cat021_record, cat048_record, datablocks, read_asterix,
-                                     write_asterix, write_pcap)
+from radartracker.io.asterix import CAT021, CAT048, cat021_record, cat048_record, datablocks, write_asterix
+from radartracker.io.asterix_reader import read_asterix
+from radartracker.io.capture import write_pcap
 
 
 @pytest.fixture(scope="module")

@@ -33,7 +33,7 @@ import asterix4py  # the independent decoder (test dependency)
 import pytest
 
 from radartracker.cli import main
-from radartracker.io.asterix import read_asterix, read_cat062, read_sites
+from radartracker.io.asterix_reader import read_asterix, read_cat062, read_sites
 from radartracker.io.scenario import write_scenario
 from radartracker.pipeline.config import RunConfig
 from radartracker.pipeline.run import run

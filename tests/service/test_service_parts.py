@@ -12,7 +12,8 @@ import pytest
 
 from radartracker.cli import main
 from radartracker.errors import ConfigurationError
-from radartracker.io.asterix import CAT048, CAT062, DAY, cat048_record, cat062_record, datablocks, read_asterix
+from radartracker.io.asterix import CAT048, CAT062, DAY, cat048_record, cat062_record, datablocks
+from radartracker.io.asterix_reader import read_asterix
 from radartracker.io.scenario import read_scenario, write_scenario
 from radartracker.service import parse_endpoint
 from radartracker.service.checkpoints import checkpoints, read_checkpoint, write_checkpoint
