@@ -163,7 +163,7 @@ def _unchecked(cls: type) -> Callable[..., list]:
     setters = [cls.__dict__[a.name].__set__ for a in attrs.fields(cls)]
 
     def make(*cols: list) -> list:
-        # a column at a time, by map over the slots' setters: no Python frame per object (issue 13)
+        # a column at a time, by map over the slots' setters: no Python frame per object
         objs = list(map(object.__new__, itertools.repeat(cls, len(cols[0]))))
         for set_slot, col in zip(setters, cols):
             collections.deque(map(set_slot, objs, col), maxlen=0)
@@ -225,12 +225,13 @@ def plot_rows(time: np.ndarray, radar: np.ndarray, range_m: np.ndarray, azimuth_
               altitude_m: np.ndarray, mode_s: np.ndarray, mode_3a: np.ndarray, target: np.ndarray) -> RowMaker:
     """These columns (arrays; ``altitude_m`` NaN where absent) checked now, as a function giving ``Plot(...)`` of
     their rows ``start:stop``, in order: a long table's objects can be made a slice at a time, each just before
-    it is used (fewer of them alive when the collector looks: issue 13).
+    it is used (fewer of them alive when the cyclic garbage collector scans).
 
     The columns are checked whole against the rules of Plot's validators (numbers as arrays; radar ids
     and codes with the validators themselves, once per distinct value). When every row passes, the
-    objects are made without running the validators again field by field (most of the cost of reading
-    them, issue 13); otherwise every row goes through ``Plot(...)`` now, which raises the first bad row's error.
+    objects are made without running the validators again field by field (the checks are already done,
+    and per object they would be most of the work of reading); otherwise every row goes through
+    ``Plot(...)`` now, which raises the first bad row's error.
     """
     f = attrs.fields(Plot)
     cols = (_numbers(time), _labels(radar, _nonempty, f.radar, _STR), _numbers(range_m, 0.0),

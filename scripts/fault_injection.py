@@ -34,7 +34,8 @@ from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, track_metrics
 from radartracker.simulation.scenarios import build_scenario
 from radartracker.clock import ClockConfig
-from radartracker.tracking.manager import ManagerConfig, TrackManager
+from radartracker.tracking.config import ManagerConfig
+from radartracker.tracking.manager import TrackManager
 
 YEARS_10 = 10 * 365.25 * 86400.0
 OFF = dict(screening=ScreeningConfig(enabled=False), clock=ClockConfig(max_ahead_s=math.inf))
@@ -132,23 +133,22 @@ def report(data: ScenarioData, mgr: TrackManager, events: list) -> dict:
 def measure_gates(args: argparse.Namespace, base: ManagerConfig) -> None:
     """d² of every screened measurement in clean runs and how many the default gates reject; the
     gross errors' d²."""
-    import radartracker.tracking.manager as manager_module
-    from radartracker.estimation import screening
+    import radartracker.tracking.lifecycle as lifecycle
 
     seen: list[tuple[str, float, object]] = []  # (kind, d², the measurement's source item)
     current: list = [None]
-    real_judge, real_apply = screening.judge, manager_module.TrackManager._apply
+    real_judge, real_apply = lifecycle.judge, lifecycle.TrackLifecycle.apply
 
     def recording_judge(config, kind, d2, *args, **kwargs):
         seen.append((kind, d2, current[0]))
         return real_judge(config, kind, d2, *args, **kwargs)
 
-    def recording_apply(self, tr, meas, src):
-        current[0] = src
-        return real_apply(self, tr, meas, src)
+    def recording_apply(self, update, meas):
+        current[0] = update.source
+        return real_apply(self, update, meas)
 
-    manager_module.judge = recording_judge
-    manager_module.TrackManager._apply = recording_apply
+    lifecycle.judge = recording_judge  # the life cycle's screening verdict, recorded with its d²
+    lifecycle.TrackLifecycle.apply = recording_apply
     for name in args.scenarios:
         data = build_scenario(name, seed=args.seed, duration=args.duration).run()
         for model in args.models:

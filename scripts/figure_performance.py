@@ -1,4 +1,4 @@
-"""Figure of docs/performance.md from the JSON lines of scripts/bench_national.py.
+"""Figure of docs/performance.md from the JSON lines of benchmarks/bench_national.py.
 
     python scripts/figure_performance.py RESULTS.jsonl [--out docs/figures/performance.png]
 

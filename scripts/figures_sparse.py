@@ -6,7 +6,7 @@
   10-minute run of a small region (6 radars in a row, ≈10 aircraft, no ADS-B), its
   nonzero pattern (the arrowhead) beside the coupling graph it corresponds to.
 * ``docs/figures/sparse_scaling.png``: time per plot and storage vs number of aircraft, ``coupled`` vs
-  ``coupled-sparse``, from the JSON lines written by ``scripts/bench_scaling.py --out``.
+  ``coupled-sparse``, from the JSON lines written by ``benchmarks/bench_scaling.py --out``.
 """
 
 from __future__ import annotations
@@ -23,27 +23,24 @@ import matplotlib.pyplot as plt  # noqa: E402
 import networkx as nx  # noqa: E402
 import numpy as np  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).parent))
-from bench_scaling import region_plots  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from bench_scaling import PRIOR_COV, region_plots  # noqa: E402
 
 from radartracker.estimation.coupling import CouplingGraph  # noqa: E402
 from radartracker.estimation.motion import MotionModel  # noqa: E402
 from radartracker.estimation.base import EstimatorConfig  # noqa: E402
 from radartracker.registry import make_estimator  # noqa: E402
-from radartracker.pipeline.config import LabelsConfig  # noqa: E402
 
 FIG = Path(__file__).resolve().parent.parent / "docs" / "figures"
 
 
 def structure_figure(out: Path) -> None:
     t, a, radar, z, C, R, ids, period, _ = region_plots(10, 6, 600.0, seed=3, max_range=200e3)
-    life = LabelsConfig()  # the labelled replay's track prior
-    prior_cov = np.diag([life.prior_sd_position_m**2] * 2 + [life.prior_sd_velocity_mps**2] * 2)
     est = make_estimator("coupled-sparse", EstimatorConfig(motion=MotionModel(1.0)), ids)
     graph = CouplingGraph(ids)
     for i in range(len(t)):
         if a[i] not in est.aircraft_keys:
-            est.add_aircraft(a[i], t[i], np.array([z[i][0], z[i][1], 0.0, 0.0]), prior_cov)
+            est.add_aircraft(a[i], t[i], np.array([z[i][0], z[i][1], 0.0, 0.0]), PRIOR_COV)
         est.update_many(t[i:i + 1], a[i:i + 1], radar[i:i + 1], z[i:i + 1], C[i:i + 1], R[i:i + 1])
         graph.observe(f"A{a[i]}", radar[i], t[i])
     info = est.information()

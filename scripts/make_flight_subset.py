@@ -5,9 +5,9 @@ sample files of the MIT-licensed `traffic` package). Keeps the Paris flights air
 hour of 2021-10-07 and three calibration flights that manoeuvre hard. Run from the repository root.
 """
 
+import argparse
 import csv
 import gzip
-import sys
 from pathlib import Path
 
 SOURCE = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real_flights.csv.gz"
@@ -37,4 +37,6 @@ def main(source: Path = SOURCE) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else SOURCE)
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("source", type=Path, nargs="?", default=SOURCE, help="real_flights.csv.gz")
+    main(ap.parse_args().source)

@@ -39,7 +39,8 @@ from radartracker.io.tables import ScenarioData  # noqa: E402
 from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, track_metrics  # noqa: E402
 from radartracker.pipeline.stream import scenario_stream  # noqa: E402
 from radartracker.simulation.scenarios import build_scenario  # noqa: E402
-from radartracker.tracking.manager import ManagerConfig, TrackManager  # noqa: E402
+from radartracker.tracking.config import ManagerConfig  # noqa: E402
+from radartracker.tracking.manager import TrackManager  # noqa: E402
 
 GRID_S, GRACE_S, C_M, HIGH_M = 2.0, 20.0, 2000.0, 7000.0
 

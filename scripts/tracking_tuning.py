@@ -23,7 +23,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import tracking_report as report  # noqa: E402
 
-from radartracker.tracking.manager import ManagerConfig  # noqa: E402
+from radartracker.tracking.config import ManagerConfig  # noqa: E402
 
 
 def main() -> None:

@@ -64,9 +64,9 @@ def _new_parser(registers: list[Callable[[argparse._SubParsersAction], None]]) -
 @functools.lru_cache(maxsize=4)
 def _parser(state: tuple) -> tuple[argparse.ArgumentParser, tuple[str, ...]]:
     """The parser :func:`main` uses and the warnings of its building, built once per state of the path
-    (:func:`radartracker.registry.path_state`): reading every installed distribution's entry points and
-    building a dozen sub-parsers took ~16 ms CPU at each call of ``main`` in one process (embedding,
-    tests, benchmarks). A command installed or removed between two calls makes or removes a dist-info
+    (:func:`radartracker.registry.path_state`), so that a process calling ``main`` many times (embedding,
+    tests, benchmarks) reads every installed distribution's entry points and builds the dozen sub-parsers
+    once, not at each call. A command installed or removed between two calls makes or removes a dist-info
     folder in a folder of the path, which changes the state: a new parser is built. Parsing does not
     change a parser; help is formatted at the terminal's width of the moment."""
     registers, warnings = _commands()
@@ -79,7 +79,7 @@ QUIET_LOGGERS = ("", "distributed", "dask", "bokeh", "tornado", "asyncio", "py.w
 
 def main(argv: list[str] | None = None) -> int:
     parser, warnings = _parser(path_state())
-    for w in warnings:  # a broken command, named at every call as when the parser was built each time
+    for w in warnings:  # a broken command, named at every call, not only at the one that built the parser
         print(w, file=sys.stderr)
     args = parser.parse_args(argv)
     # an option not given holds the cached parser's default object: a list changed in place by one call

@@ -112,7 +112,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     out = prepare(args.out, overwrite=args.overwrite)  # before the computation: fail early, not after it
     local = None
     tracks_in = args.scenario.suffix.lower() in ASTERIX_SUFFIXES and args.scenario.is_file()
-    if tracks_in:  # imported only for a recording: libasterix takes seconds to import
+    if tracks_in:  # imported only for a recording: a folder needs none of libasterix's large generated tables
         from radartracker.fusion.cat048 import has_track_reports, local_tracks_from_asterix
         tracks_in = has_track_reports(args.scenario)
     if tracks_in and config.architecture == "distributed":

@@ -27,8 +27,8 @@ _OMEGA = np.array([[0.0, 1.0], [-1.0, 0.0]])
 @functools.lru_cache(maxsize=32)
 def _stereographic(lat0: float, lon0: float) -> tuple[CRS, Transformer]:
     """The plane's CRS and WGS84 → plane transformer, made once per centre in a process: PROJ finds the
-    operation in its database (~20 ms, twice per replay: the manager's plane and the outputs'). pyproj's
-    CRS and Transformer are safe to share between threads (pyproj ≥ 3.1)."""
+    operation by a query of its database, and a replay asks for the same plane twice (the manager's and the
+    outputs'). pyproj's CRS and Transformer are safe to share between threads (pyproj ≥ 3.1)."""
     crs = CRS.from_proj4(f"+proj=stere +lat_0={lat0} +lon_0={lon0} +k_0=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m")
     return crs, Transformer.from_crs("EPSG:4326", crs, always_xy=True)
 

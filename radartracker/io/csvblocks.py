@@ -44,7 +44,7 @@ def read_text(path: Path) -> str:
 
 
 def newlines(data: bytes | memoryview) -> int:
-    """How many ``\\n`` bytes ``data`` holds (numpy's count: several times ``bytes.count``'s speed)."""
+    """How many ``\\n`` bytes ``data`` holds (one vectorised comparison of the bytes, counted by numpy)."""
     return int(np.count_nonzero(np.frombuffer(data, np.uint8) == 10))
 
 
@@ -72,7 +72,7 @@ def _survey(path: Path, block_bytes: int) -> tuple[int, bool]:
 def _plain(text: str) -> bool:
     if not text.endswith("\n") or text.startswith("\n") or '"' in text or "\r" in text or "\x00" in text:
         return False
-    # a blank line: two line ends in a row (numpy on the bytes: ~4x faster than str's search for them)
+    # a blank line: two line ends in a row (one vectorised pass over the bytes, not a search per line end)
     ends = np.frombuffer(text.encode(), np.uint8) == 10
     return not np.any(ends[1:] & ends[:-1])
 

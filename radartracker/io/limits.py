@@ -10,7 +10,7 @@ docs/reliability.md ("Bounds on inputs"):
 * **Lines** of a line-oriented file (CSV, tab-separated, ``.new4``, ``.plt``) at most
   :data:`MAX_LINE_BYTES` (1 MiB: a row of any of our formats is under 300 bytes); a longer line is
   refused with its number (:func:`check_lines`, :class:`LineMeter`), found in one pass over the
-  bytes, never by growing a buffer line by line (that was quadratic in the length of the line).
+  bytes, never by growing a buffer line by line (which is quadratic in the length of the line).
 * **JSON** (``scenario.json``, ``config.json``; :func:`read_json`): at most
   :data:`MAX_JSON_BYTES`, nested at most :data:`MAX_JSON_DEPTH` deep (deeper JSON ends Python's
   parser in a RecursionError), numbers of at most :data:`MAX_NUMBER_CHARS` characters (a

@@ -154,7 +154,8 @@ class RunResult:
     @functools.cached_property
     def observability(self) -> dict:
         """The coupling graph's observability report (:meth:`CouplingGraph.report`), made once: the graph is the
-        run's final one, and the report grows with the aircraft (~2.6 ms at 200); :meth:`summary` copies it."""
+        run's final one, and the report's work grows with the aircraft (the graph's components, and each
+        radar's partners through the aircraft it shares); :meth:`summary` copies it."""
         return self.coupling.report()
 
     def consistency(self) -> dict:

@@ -22,7 +22,7 @@ from radartracker.pipeline.config import RunConfig
 
 log = logging.getLogger(__name__)
 
-NOTICE_AFTER_S = 3.0  # say what is happening when the warm-up takes longer than this (loading the cache takes ~1 s)
+NOTICE_AFTER_S = 3.0  # say what is happening when the warm-up takes longer than loading a warm disk cache does
 
 
 def warm_up(config: RunConfig, *, labelled: bool = False, notice: bool = True) -> float:

@@ -1,8 +1,9 @@
 """Fast paths of the ASTERIX items the service reads and writes, held byte for byte to libasterix.
 
-``libasterix`` (:mod:`radartracker.io.asterix`) decodes a CAT048 record in about 1 ms of Python;
-national traffic (≈1 200 records/s) would need more than a core for decoding alone. This module
-walks the FSPEC with :mod:`struct` for the layouts radars and ground stations commonly send:
+``libasterix`` (:mod:`radartracker.io.asterix`) decodes every record in Python through its generic
+description of the category, item by item; the service must decode national traffic (≈1 200 records/s)
+on the same core that tracks it. This module walks the FSPEC with :mod:`struct` for the layouts radars
+and ground stations commonly send:
 
 * CAT048: every item of ed. 1.32 except I120 (compound); CAT021: every item of ed. 2.6 except the
   compounds I220, I110 and I295. A record with an item outside that set, or a block whose records

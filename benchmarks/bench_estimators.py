@@ -1,6 +1,6 @@
 """Benchmark: time per plot of each estimator vs aircraft and radars; single-target KF vs FilterPy and Stone Soup.
 
-    python scripts/bench_estimators.py [--aircraft 10 100 500 2000] [--radars 3 10 28] [--budget 2.0]
+    python benchmarks/bench_estimators.py [--aircraft 10 100 500 2000] [--radars 3 10 28] [--budget 2.0]
 
 Data: the seed's linear toy model (radartracker.simulation.linsim), every radar seeing every aircraft. For
 each (estimator, n aircraft, m radars) all aircraft are added, then plots are fed until ``budget``

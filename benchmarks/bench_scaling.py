@@ -1,6 +1,6 @@
 """Benchmark: time per plot and memory of ``coupled`` vs ``coupled-sparse``; a one-hour regional real-time run.
 
-    python scripts/bench_scaling.py [--aircraft 10 20 100 500 2000] [--radars 3 10 28] [--budget 1.0]
+    python benchmarks/bench_scaling.py [--aircraft 10 20 100 500 2000] [--radars 3 10 28] [--budget 1.0]
                                     [--repeat 3] [--rt-aircraft 2000] [--rt-radars 28] [--rt-duration 3600]
                                     [--out FILE]
 
@@ -11,14 +11,16 @@
    then plots are timed one ``update`` call at a time (the plugin API) and, for the sparse filter,
    also as ``update_many`` batches of 1,000: ``--repeat`` consecutive windows of ``--budget`` s (or
    their share of the plots), median reported. ``coupled`` runs where its dense covariance fits in
-   ``--max-dense-gib``. Memory = bytes of the estimator's numpy storage (capacity included).
+   ``--max-dense-gib``. Memory = what ``tracemalloc`` traces while a new estimator is built, given
+   every aircraft and (sparse) the first turn: its arrays, capacity included.
 2. *Real time.* A region of 28 radars on a jittered 7×4 grid (≈200 km apart, range 250 km, periods
    4–12 s, Pd 0.9, constant biases) and traffic of ≈2,000 airborne aircraft (straight flights of
    20–90 min, 200–250 m/s, starting and ending all hour long) for one hour. Plots are generated here in
    the flat plane with the same linearised model (the rotating-radar simulator of
    ``radartracker.simulation.simulator`` would need ≈9 min for this traffic), sorted by time, and replayed through
-   ``coupled-sparse`` with the labelled replay's life cycle: a track starts at its first plot with
-   ``LabelsConfig``'s prior and is marginalised after ``drop_after_s`` without plots (sweeps every second,
+   ``coupled-sparse`` with a life cycle by label: a track starts at its first plot z with the prior
+   N([z, 0, 0], diag(σ_p², σ_p², σ_v², σ_v²)) (σ_p = 10 km, σ_v = 300 m/s: nothing known but the plot) and
+   is marginalised after three antenna periods and 30 s without plots (sweeps every second,
    one ``update_many`` per second of traffic). Reported: plots per wall-clock second and hours of
    traffic per wall-clock second. Estimates are not read back per plot here (the cost of an
    ``aircraft()`` read is reported in part 1).
@@ -39,16 +41,19 @@ import math
 import os
 import sys
 import time
+import tracemalloc
 
 import numpy as np
 
 from radartracker.estimation.motion import MotionModel
 from radartracker.estimation.base import EstimatorConfig, PlaneMeasurement
 from radartracker.registry import make_estimator
-from radartracker.pipeline.config import LabelsConfig, RunConfig
+from radartracker.pipeline.config import RunConfig
 
 P0 = np.diag([1e4**2, 1e4**2, 300.0**2, 300.0**2])
 SIGMA_R, SIGMA_A = 70.0, math.radians(0.08)
+# a track started at its first plot: its position from the plot, its velocity unknown (σ_p, σ_v)
+PRIOR_COV = np.diag([10_000.0**2] * 2 + [300.0**2] * 2)
 
 
 def plane_plots(t: np.ndarray, ac: np.ndarray, src: np.ndarray, p: np.ndarray, rxy: np.ndarray, bias: np.ndarray,
@@ -99,14 +104,19 @@ def ring_plots(n: int, m: int, n_plots: int, seed: int):
     return t, a, ids[src], z, C, R, list(ids), p0
 
 
-def state_bytes(est) -> int:
-    seen, total = set(), 0
-    for obj in (est, getattr(est, "_work", None)):
-        for val in vars(obj).values() if obj is not None else ():
-            if isinstance(val, np.ndarray) and id(val) not in seen:
-                seen.add(id(val))
-                total += val.nbytes
-    return total
+def state_bytes(name: str, n: int, p0: np.ndarray, ids: list, first_turn: tuple | None) -> int:
+    """Bytes that ``tracemalloc`` traces while a new ``name`` estimator is built with ``n`` aircraft and fed
+    ``first_turn`` (the arguments of one ``update_many``, or None)."""
+    tracemalloc.start()
+    try:
+        est = make_estimator(name, EstimatorConfig(motion=MotionModel(1.0)), ids)
+        for i in range(n):
+            est.add_aircraft(i, 0.0, np.array([*p0[i], 0.0, 0.0]), P0)
+        if first_turn is not None:
+            est.update_many(*first_turn)
+        return tracemalloc.get_traced_memory()[0]
+    finally:
+        tracemalloc.stop()
 
 
 def windows(step, i: int, per_window: int, repeat: int, budget: float) -> tuple[int, int, float, list[float]]:
@@ -133,9 +143,8 @@ def time_scaling(name: str, n: int, m: int, budget: float, repeat: int, seed: in
     est = make_estimator(name, EstimatorConfig(motion=MotionModel(1.0)), ids)
     for i in range(n):
         est.add_aircraft(i, 0.0, np.array([*p0[i], 0.0, 0.0]), P0)
-    i0 = 0
+    i0 = i_turn = min(turn, len(t) // 2) if sparse else 0
     if sparse:  # one full turn so that every aircraft carries its m bias blocks
-        i0 = min(turn, len(t) // 2)
         est.update_many(t[:i0], a[:i0], radar[:i0], z[:i0], C[:i0], R[:i0])
     out = {"bench": "scaling", "estimator": name, "aircraft": n, "radars": m}
 
@@ -158,7 +167,8 @@ def time_scaling(name: str, n: int, m: int, budget: float, repeat: int, seed: in
         for r in range(reps):
             est.aircraft(r % n)
         out["us_per_aircraft_read"] = 1e6 * (time.perf_counter() - t0) / reps
-    out["state_mib"] = state_bytes(est) / 2**20
+    first = (t[:i_turn], a[:i_turn], radar[:i_turn], z[:i_turn], C[:i_turn], R[:i_turn]) if sparse else None
+    out["state_mib"] = state_bytes(name, n, p0, ids, first) / 2**20
     return out
 
 
@@ -227,8 +237,7 @@ def time_realtime(n_airborne: int, n_radars: int, duration: float, seed: int = 0
     g0 = time.perf_counter()
     t, a, radar, z, C, R, ids, period, airborne = region_plots(n_airborne, n_radars, duration, seed)
     gen_s = time.perf_counter() - g0
-    life = LabelsConfig(drop_after_s=3 * period.max() + 30)
-    prior_cov = np.diag([life.prior_sd_position_m**2] * 2 + [life.prior_sd_velocity_mps**2] * 2)
+    drop_after_s = 3 * period.max() + 30
     est = make_estimator("coupled-sparse", EstimatorConfig(motion=MotionModel(1.0)), ids)
     last_seen: dict = {}
     started = created = removed = 0
@@ -236,7 +245,7 @@ def time_realtime(n_airborne: int, n_radars: int, duration: float, seed: int = 0
     i, N = 0, len(t)
     while i < N:
         now = t[i]
-        for k in [k for k, ts in last_seen.items() if now - ts > life.drop_after_s]:
+        for k in [k for k, ts in last_seen.items() if now - ts > drop_after_s]:
             est.remove_aircraft(k)
             del last_seen[k]
             removed += 1
@@ -245,7 +254,7 @@ def time_realtime(n_airborne: int, n_radars: int, duration: float, seed: int = 0
         uniq, first = np.unique(keys, return_index=True)
         for k, f in zip(uniq.tolist(), first.tolist()):
             if k not in last_seen:
-                est.add_aircraft(k, t[i + f], np.array([*z[i + f], 0.0, 0.0]), prior_cov)
+                est.add_aircraft(k, t[i + f], np.array([*z[i + f], 0.0, 0.0]), PRIOR_COV)
                 created += 1
         est.update_many(t[i:end], keys, radar[i:end], z[i:end], C[i:end], R[i:end])
         _, last = np.unique(keys[::-1], return_index=True)

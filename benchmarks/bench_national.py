@@ -1,6 +1,6 @@
 """Benchmark: national traffic through the whole unlabelled replay, against one FilterPy cycle.
 
-    python scripts/bench_national.py [--aircraft 200 500 1000 2000] [--minutes 3 9 27] [--radars 28]
+    python benchmarks/bench_national.py [--aircraft 200 500 1000 2000] [--minutes 3 9 27] [--radars 28]
                                      [--estimator coupled-sparse] [--quality] [--repeat N] [--out FILE]
 
 For each size, a child process simulates ``radartracker simulate --scenario traffic`` (Mode S,

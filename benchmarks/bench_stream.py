@@ -1,8 +1,8 @@
 """Benchmark: the streaming replay with and without reading ahead in a second thread (the second-core study).
 
-    python scripts/bench_stream.py [--aircraft 200] [--minutes 9] [--repeat 2] [--out FILE]
+    python benchmarks/bench_stream.py [--aircraft 200] [--minutes 9] [--repeat 2] [--out FILE]
 
-Simulates national traffic once (``scripts/bench_national.py generate``: no labels, no truth), then, each
+Simulates national traffic once (``benchmarks/bench_national.py generate``: no labels, no truth), then, each
 in its own child process (one thread for the numerical libraries, as in bench_national), alternating:
 
 * ``read``: only reading the inputs (``iter_files``: blocks read, checked, converted to items) — the work

@@ -1,20 +1,19 @@
-"""Cost of the motion-model hot path (issue 13): JSON lines, CPU times.
+"""Cost of the motion-model path of a track: JSON lines, CPU times.
 
 Two measurements, each printed as one JSON line:
 
-* ``filter`` — one track's input as the TrackManager handles it (``predict`` at the measurement
-  time for innovation screening, ``update`` with the position, ``estimate``; the same with
-  screening's d², ``normalised_innovation``; and ``screen``, the filter's own screening that updates
-  it when the measurement is in the gate, followed by ``estimate``), on a track that turns and goes
-  straight with plots 1–12 s apart, for ``--model`` (default ``imm``); beside it,
-  in the same process, one FilterPy ``KalmanFilter`` predict + update cycle (4-state CV), so the
-  ratio carries over to another machine.
+* ``filter`` — one track's inputs through a motion-model plugin's public methods (built by
+  ``radartracker.registry.make_filter_factory``), on a track that turns and goes straight with plots
+  1–12 s apart: ``update`` and ``estimate`` per plot, and ``screen`` (the screening the TrackManager asks
+  for: d² against the prediction, and the update when the plot is in the gate) and ``estimate`` per plot,
+  for ``--model`` (default ``imm``); beside it, in the same process, one FilterPy ``KalmanFilter``
+  predict + update cycle (4-state CV), so the ratio carries over to another machine.
 * ``replay`` (with ``--scenario DIR``) — ``radartracker replay DIR --manager --quiet`` in a child
   process: its CPU time (user + system, ``os.wait4``), inputs (rows of plots.csv and adsb.csv) and
-  µs per input; ``--profile`` adds a cProfile run (CPU-time clock) with the calls and cumulative
-  seconds of the motion/screening functions (file:line:name).
+  µs per input; ``--profile`` adds a cProfile run (CPU-time clock) with the ``--top`` functions of the
+  motion plugins and the track life cycle by cumulative time (file:line:name, calls, seconds).
 
-    python scripts/bench_motion.py --scenario /tmp/nat200 [--profile]
+    python benchmarks/bench_motion.py --scenario /tmp/nat200 [--profile]
 """
 
 from __future__ import annotations
@@ -60,19 +59,16 @@ def bench_filter(model: str) -> dict:
     from filterpy.kalman import KalmanFilter
 
     from radartracker.estimation.motion import MotionModel
-    from radartracker.estimation.screening import normalised_innovation
     from radartracker.registry import make_filter_factory
 
     factory = make_filter_factory(model, {}, None)
     inputs = track_inputs()
+    zero2, zero22 = np.zeros(2), np.zeros((2, 2))
 
-    def one_track(screen: bool) -> None:
+    def updated_track() -> None:
         f = factory()
         f.start(inputs[0][0], inputs[0][1], inputs[0][2])
         for t, z, R in inputs[1:]:
-            x, P = f.predict(t)  # innovation screening (TrackManager._screen)
-            if screen:
-                normalised_innovation(z, zero22, R, zero2, zero22, x[:2], P[:2, :2])
             f.update(t, z, R)
             f.estimate()
 
@@ -80,15 +76,14 @@ def bench_filter(model: str) -> dict:
         f = factory()
         f.start(inputs[0][0], inputs[0][1], inputs[0][2])
         for t, z, R in inputs[1:]:
-            f.screen(t, z, zero22, R, zero2, zero22, 600.0)  # d² and the update in the gate
+            f.screen(t, z, zero22, R, zero2, zero22, 600.0)  # an unbiased sensor: C = 0
             f.estimate()
 
-    zero2, zero22 = np.zeros(2), np.zeros((2, 2))
-    one_track(True)  # compile / load the kernels
+    updated_track()  # load the compiled kernels
     screened_track()
-    per_track = cpu_per_call(lambda: one_track(False), 20)
-    with_screening = cpu_per_call(lambda: one_track(True), 20)
-    screen = cpu_per_call(screened_track, 20)
+    n = len(inputs) - 1
+    per_update = cpu_per_call(updated_track, 20) / n
+    per_screen = cpu_per_call(screened_track, 20) / n
     kf = KalmanFilter(dim_x=4, dim_z=2)
     kf.F, kf.Q = MotionModel(5.0).transition(4.0)
     kf.H, kf.R, kf.P = np.eye(2, 4), 80.0**2 * np.eye(2), np.eye(4) * 1e4
@@ -99,18 +94,16 @@ def bench_filter(model: str) -> dict:
         kf.update(z)
 
     fp = cpu_per_call(cycle, 2000)
-    us, us_screened = per_track / (len(inputs) - 1), with_screening / (len(inputs) - 1)
-    return {"bench": "filter", "model": model, "us_per_input": round(us, 2),
-            "us_per_input_with_screening": round(us_screened, 2),
-            "us_per_input_screen": round(screen / (len(inputs) - 1), 2), "filterpy_cycle_us": round(fp, 2),
-            "ratio": round(us / fp, 3), "ratio_with_screening": round(us_screened / fp, 3)}
+    return {"bench": "filter", "model": model, "us_per_input_update": round(per_update, 2),
+            "us_per_input_screen": round(per_screen, 2), "filterpy_cycle_us": round(fp, 2),
+            "ratio_update": round(per_update / fp, 3), "ratio_screen": round(per_screen / fp, 3)}
 
 
-PROFILED = ("_predicted", "switching", "estimate", "normalised_innovation", "update", "predict", "screen",
-            "screen_many", "_screen", "_apply", "_run_frame")
+PROFILED = ("radartracker_plugins/motion", "plugins/motion", "radartracker/tracking/lifecycle",
+            "radartracker/tracking/track")
 
 
-def bench_replay(scenario: Path, motion: str | None, profile: bool) -> dict:
+def bench_replay(scenario: Path, motion: str | None, profile: bool, top: int = 15) -> dict:
     inputs = sum(max(0, sum(1 for _ in open(scenario / f)) - 1) for f in ("plots.csv", "adsb.csv")
                  if (scenario / f).exists())
     with tempfile.TemporaryDirectory() as tmp:
@@ -133,14 +126,10 @@ def bench_replay(scenario: Path, motion: str | None, profile: bool) -> dict:
             import pstats
 
             stats = pstats.Stats(str(Path(tmp) / "prof")).stats
-            cum: dict[str, list[float]] = {}
-            for (file, line, name), (_, ncalls, _, ct, _) in stats.items():
-                if name in PROFILED and any(k in file for k in ("motion", "screening", "manager", "filters")):
-                    key = f"{Path(file).stem}:{line}:{name}"
-                    cum.setdefault(key, [0, 0.0])
-                    cum[key][0] += ncalls
-                    cum[key][1] += ct
-            out["cumulative_s"] = {k: {"calls": v[0], "s": round(v[1], 3)} for k, v in sorted(cum.items())}
+            rows = [(ct, ncalls, f"{Path(file).stem}:{line}:{name}")
+                    for (file, line, name), (_, ncalls, _, ct, _) in stats.items()
+                    if name != "<module>" and any(part in file.replace("\\", "/") for part in PROFILED)]
+            out["cumulative_s"] = {k: {"calls": n, "s": round(ct, 3)} for ct, n, k in sorted(rows, reverse=True)[:top]}
         return out
 
 
@@ -151,13 +140,14 @@ def main() -> None:
     ap.add_argument("--motion-model", help="--motion-model of the replay (default: the manager's)")
     ap.add_argument("--profile", action="store_true", help="also a cProfile run of the replay")
     ap.add_argument("--no-filter", action="store_true", help="skip the filter benchmark")
+    ap.add_argument("--top", type=int, default=15, help="functions listed by the profile")
     args = ap.parse_args()
     if not args.no_filter:
         print(json.dumps(bench_filter(args.model)), flush=True)
     if args.scenario:
         print(json.dumps(bench_replay(args.scenario, args.motion_model, False)), flush=True)
         if args.profile:
-            print(json.dumps(bench_replay(args.scenario, args.motion_model, True)), flush=True)
+            print(json.dumps(bench_replay(args.scenario, args.motion_model, True, args.top)), flush=True)
 
 
 if __name__ == "__main__":
