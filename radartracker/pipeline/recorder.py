@@ -129,7 +129,7 @@ class Recorder:
         self._bias_last: dict[str, float] = {}
         self._bias_sent = 0  # bias rows already handed to the sink
         self._track_ids: set[int] = set()
-        self.nis: list[float] = []
+        self._nis = [0, 0.0]  # count and sum of the NIS values: a run's memory does not grow with them
 
     def event(self, time: float, track: int, kind: str, status: str, state, cov: np.ndarray | None,
               altitude_m: float | None, mode_s: str | None, mode_3a: str | None, target: object = None) -> None:
@@ -163,6 +163,16 @@ class Recorder:
         rows.append((event, cov, (track.altitude_m, track.mode_s, track.mode_3a, track.target)))
         if len(rows) >= self.flush_every:
             self._columns()
+
+    def add_nis(self, values: np.ndarray) -> None:
+        """Take the estimator's NIS values of a batch into the run's mean."""
+        self._nis[0] += len(values)
+        self._nis[1] += float(np.sum(values))
+
+    @property
+    def mean_nis(self) -> float:
+        """The mean NIS so far (NaN before any)."""
+        return self._nis[1] / self._nis[0] if self._nis[0] else math.nan
 
     def bias_due(self, radar: str, time: float) -> bool:
         """Whether :meth:`bias` would record ``radar``'s bias at ``time`` (ask before building the state)."""

@@ -25,7 +25,6 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import attrs
-import numpy as np
 from tqdm import tqdm
 
 from radartracker.errors import ConfigurationError
@@ -45,7 +44,7 @@ from radartracker.registry import FilterFactory, default_estimator, make_estimat
 
 log = logging.getLogger(__name__)
 GC_YOUNG_THRESHOLD = 50_000  # chosen by measurement: docs/performance.md, "Garbage collection"
-PROGRESS_EVERY = 256  # inputs between two moves of the progress bar (~10-25 ms of a replay)
+PROGRESS_EVERY = 256  # inputs between two moves of the progress bar: often enough to look live
 
 
 def run(data: ScenarioData, config: RunConfig | None = None, *, estimator: Estimator | None = None,
@@ -95,10 +94,10 @@ def run(data: ScenarioData, config: RunConfig | None = None, *, estimator: Estim
             counts, coupling = _by_manager(data, cfg, est, factory, rec, progress, inputs, total)
     seconds = _time.perf_counter() - started
     rec.flush()
-    plane = sink.plane if sink is not None else SystemPlane(*data.reference)  # a projection costs ~25 ms
+    plane = sink.plane if sink is not None else SystemPlane(*data.reference)  # the sink's, not a second one
     return RunResult(data=data, config=cfg, plane=plane, events=rec.events(),
                      biases=rec.biases(), final_biases={r: est.bias(r) for r in radar_ids}, counts=dict(counts),
-                     seconds=seconds, nis=np.asarray(rec.nis, float), coupling=coupling, plugins=plugins,
+                     seconds=seconds, mean_nis=rec.mean_nis, coupling=coupling, plugins=plugins,
                      streamed=sink is not None, track_count=len(rec.track_ids))
 
 
@@ -107,7 +106,7 @@ def young_garbage(threshold: int = GC_YOUNG_THRESHOLD) -> Iterator[None]:
     """Python's cyclic collector looks at its youngest generation every ``threshold`` net allocations of
     containers while the block runs (default 700): an input and what is made from it live for the reorder
     window, thousands of inputs, so at 700 they were promoted and scanned again in the older generations
-    (docs/performance.md: about 15 % of a national replay). Restored when the block ends."""
+    (docs/performance.md, "Garbage collection"). Restored when the block ends."""
     old = gc.get_threshold()
     gc.set_threshold(max(threshold, old[0]), *old[1:])
     try:
@@ -122,7 +121,7 @@ def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: Fil
     """The TrackManager with the run's associator; events carry the track filter's state and covariance."""
     mgr = make_manager(data.radars, data.reference, cfg.manager_settings(), estimator=est, filter_factory=factory)
     mgr.events.subscribe(rec.listen)
-    mgr.feed.on_nis = rec.nis.extend
+    mgr.feed.on_nis = rec.add_nis
     if inputs is None:
         inputs, total = iter_scenario(data), len(data.plots) + len(data.adsb)
     bar = tqdm(total=total, desc=f"track {cfg.estimator}/{cfg.motion_model}", unit="item", delay=2.0,
@@ -140,7 +139,7 @@ def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: Fil
 
 def counted(inputs: Iterable, bar: tqdm, every: int = PROGRESS_EVERY) -> Iterator[list]:
     """``inputs`` in lists of ``every``, ``bar`` moved on by each list once it is used: through tqdm's own
-    iterator each input paid ~0.2 µs CPU (a generator step, a count and a clock read; scripts/bench_frame_costs.py)."""
+    iterator each input would pay a generator step, a count and a clock read."""
     it = iter(inputs)
     while piece := list(itertools.islice(it, every)):
         yield piece

@@ -27,6 +27,7 @@ from radartracker.estimation.kalman import SingularInnovation
 
 log = logging.getLogger(__name__)
 _ZERO2, _ZERO22 = np.zeros(2), np.zeros((2, 2))
+_USED = {k: f"{k}_used" for k in ("plots", "adsb", "positions")}
 
 
 class AddAircraft(NamedTuple):
@@ -123,7 +124,8 @@ class EstimatorFeed:
             if done == n and self.on_nis is not None and innovation is not None:
                 self.on_nis(np.asarray(innovation.nis, float))
             self.coupling.observe_many(aircraft[:done], radar[:done], time[:done])
-            self.counts.update(f"{k}_used" for k in kind[:done])
+            for k, c in Counter(kind[:done]).items():
+                self.counts[_USED[k]] += c
             if done < n:
                 self.counts[f"{kind[done]}_singular"] += 1
                 done += 1

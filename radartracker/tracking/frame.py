@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import functools
 import itertools
-from operator import attrgetter
+from operator import attrgetter, methodcaller
 from typing import NamedTuple
 
 import attrs
@@ -31,6 +31,7 @@ from radartracker.tracking.track import Track
 _TIME, _RANGE, _AZIMUTH, _ALTITUDE = (attrgetter(f) for f in ("time", "range_m", "azimuth_rad", "altitude_m"))
 _LAT, _LON, _NACP = attrgetter("lat"), attrgetter("lon"), attrgetter("nacp")
 Input = Plot | AdsbReport | PlaneMeasurement
+_ROW = methodcaller("estimate_row")
 
 
 class FrameMeasurements(NamedTuple):
@@ -142,11 +143,10 @@ class Prediction:
         self.tracks = tracks
         self.time = time
         n = len(tracks)
-        estimates = [tr.estimate() for tr in tracks]
-        t0 = np.fromiter((e[0] for e in estimates), float, n)
-        x = np.array([e[1][:4] for e in estimates], float).reshape(n, 4)
+        rows = list(map(_ROW, tracks))  # each track's (t₀, x, y, vx, vy), as floats
+        table = np.fromiter(itertools.chain.from_iterable(rows), float, 5 * n).reshape(n, 5)
         # p + v max(t − t₀, 0): the straight line, never backwards
-        self.position = x[:, :2] + x[:, 2:] * np.maximum(time - t0, 0.0)[:, None]
+        self.position = table[:, 1:3] + table[:, 3:] * np.maximum(time - table[:, 0], 0.0)[:, None]
         self.by_mode_s = {tr.mode_s: i for i, tr in enumerate(tracks) if tr.mode_s}
         self._exact: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import logging
 from collections import Counter, deque
 from collections.abc import Callable
+from operator import attrgetter
 from typing import NamedTuple
 
 import numpy as np
@@ -32,6 +33,9 @@ from radartracker.tracking.frame import FrameMeasurements
 from radartracker.tracking.track import Pending, Track
 
 log = logging.getLogger(__name__)
+_LAST_UPDATE, _N_ADSB = attrgetter("last_update"), attrgetter("n_adsb")
+_STATUS = attrgetter("status")
+_new = tuple.__new__  # _new(Measure, fields): a named tuple made without its Python-level __new__ (one per input)
 
 
 class Update(NamedTuple):
@@ -125,7 +129,7 @@ class TrackLifecycle:
             if sum(tr.detections) >= self.config.confirm_m:
                 self._confirm(tr)
         else:
-            self.feed.add(Measure(src.time, tr.id, radar, z, C, R, kind))
+            self.feed.add(_new(Measure, (src.time, tr.id, radar, z, C, R, kind)))
             tr.status = "confirmed"
             self.emit(src.time, tr, "updated")
 
@@ -219,9 +223,14 @@ class TrackLifecycle:
         """Delete the tracks that are stale, outside every radar's coverage (unless ADS-B feeds them) or
         tentative with no chance of confirmation."""
         cfg = self.config
-        for tr, cov in zip(tracks, covered.tolist()):
-            if tr.id in self.tracks and (now - tr.last_update > cfg.delete_after_s or not (cov or tr.n_adsb)
-                                         or tr.hopeless(cfg.confirm_m, cfg.confirm_n)):
+        n = len(tracks)
+        last = np.fromiter(map(_LAST_UPDATE, tracks), float, n)
+        kept = covered | np.fromiter(map(_N_ADSB, tracks), bool, n)
+        due = (now - last > cfg.delete_after_s) | ~kept
+        tentative = np.fromiter(map("tentative".__eq__, map(_STATUS, tracks)), bool, n)
+        for i in np.flatnonzero(due | tentative).tolist():
+            tr = tracks[i]
+            if tr.id in self.tracks and (due[i] or tr.hopeless(cfg.confirm_m, cfg.confirm_n)):
                 self.delete(tr, now)
 
     def delete(self, tr: Track, now: float) -> None:
@@ -241,4 +250,4 @@ class TrackLifecycle:
     def emit(self, time: float, tr: Track, kind: str) -> None:
         """The event of ``kind`` at ``time`` with the track's state then (extrapolated when later than its
         estimate)."""
-        self.sink.emit(TrackEvent(float(time), tr.id, kind, tr.status, tr.state_at(time)), tr)
+        self.sink.emit(_new(TrackEvent, (float(time), tr.id, kind, tr.status, tr.state_at(time))), tr)

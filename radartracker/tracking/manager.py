@@ -54,6 +54,7 @@ from radartracker.tracking.schema import save_manager
 from radartracker.tracking.track import Track
 
 Input = Plot | AdsbReport | PlaneMeasurement
+_new = tuple.__new__  # _new(Update, fields): a named tuple made without its Python-level __new__ (one per input)
 
 
 class TrackManager:
@@ -204,8 +205,8 @@ class TrackManager:
                 if i < -1:
                     self.counts[result.reasons.get(k, "plots_refused_by_associator")] += 1
                     continue
-                updates.append(Update(plots[k].time, next(seq), pred.tracks[i] if i >= 0 else None, rows.start + k,
-                                      plots[k]))
+                updates.append(_new(Update, (plots[k].time, next(seq), pred.tracks[i] if i >= 0 else None,
+                                             rows.start + k, plots[k])))
                 if i >= 0:
                     hits.add((r, i))
         return updates, hits

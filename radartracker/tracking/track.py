@@ -72,6 +72,13 @@ class Track:
             e = self._estimate = (t, x, P, tuple(x.tolist()[:4]))
         return e[:3]
 
+    def estimate_row(self) -> tuple[float, float, float, float, float]:
+        """(t, x, y, vx, vy) of the estimate, as floats."""
+        if self._estimate is None:
+            self.estimate()
+        e = self._estimate
+        return (e[0], *e[3])
+
     def changed(self) -> None:
         """The filter changed: :meth:`estimate` reads it again."""
         self._estimate = None

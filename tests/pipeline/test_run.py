@@ -126,8 +126,8 @@ def test_estimator_instance_gets_radars_and_the_runs_q(labelled):
 
 def test_consistency_warning_when_nis_is_far_off(labelled):
     result = run(labelled, RunConfig(estimator="decoupled"), progress=False)
-    assert 0.5 * 2 < np.mean(result.nis) < 2 * 2 and not any("NIS" in w for w in result.consistency()["warnings"])
-    bad = attrs.evolve(result, nis=result.nis * 10)
+    assert 0.5 * 2 < result.mean_nis < 2 * 2 and not any("NIS" in w for w in result.consistency()["warnings"])
+    bad = attrs.evolve(result, mean_nis=result.mean_nis * 10)
     assert any("mean NIS" in w for w in bad.consistency()["warnings"])
 
 
