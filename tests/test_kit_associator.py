@@ -3,12 +3,12 @@ radartracker.api — passes check_associator and runs from ``radartracker replay
 nothing in the core touched."""
 
 import json
-import textwrap
 
 import numpy as np
 import pytest
 
 from radartracker.cli import main
+from tests.plugin_install import install, uninstall
 from radartracker.io.scenario import write_scenario
 from radartracker.registry import available_associators, load_associator
 from radartracker.simulation.scenarios import build_scenario
@@ -63,19 +63,9 @@ class Greedy(Nearest):
 @pytest.fixture()
 def nearest(tmp_path, monkeypatch):
     """The plugin installed the way pip would: a package and a dist-info with entry_points.txt on sys.path."""
-    pkg = tmp_path / "site" / "rt_nearest"
-    pkg.mkdir(parents=True)
-    (pkg / "__init__.py").write_text(textwrap.dedent(PLUGIN))
-    dist = tmp_path / "site" / "rt_nearest-0.1.dist-info"
-    dist.mkdir()
-    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: rt-nearest\nVersion: 0.1\n")
-    (dist / "entry_points.txt").write_text("[radartracker.associators]\nnearest = rt_nearest:Nearest\n"
-                                           "greedy = rt_nearest:Greedy\n")
-    monkeypatch.syspath_prepend(str(tmp_path / "site"))
-    yield
-    import sys
-    for name in [m for m in sys.modules if m.startswith("rt_nearest")]:
-        del sys.modules[name]
+    yield install(tmp_path, monkeypatch, "rt_nearest", PLUGIN,
+                  "[radartracker.associators]\nnearest = rt_nearest:Nearest\ngreedy = rt_nearest:Greedy\n")
+    uninstall("rt_nearest")
 
 
 def test_thirdparty_associator_passes_its_checks(nearest):

@@ -13,7 +13,7 @@ from radartracker.pipeline.stream import scenario_stream
 from radartracker.registry import (CallableFilterFactory, FilterFactory, describe_options, make_estimator,
                                    make_filter_factory, parse_key_values, parse_options, plugin_listing)
 from radartracker.simulation.scenarios import build_scenario
-from radartracker.tracking.manager import ManagerConfig, TrackManager
+from radartracker.tracking.config import ManagerConfig
 from radartracker_plugins.decoupled import DecoupledEstimator
 from radartracker_plugins.motion import AdaptiveConfig, CVConfig, CVFilter, IMMConfig, IMMFilter
 

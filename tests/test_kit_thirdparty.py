@@ -3,21 +3,20 @@ this test as a distribution with entry points (nothing in the core touched): the
 check_motion_model, and their options set on the command line reach them (labelled replay and TrackManager)."""
 
 import json
-import sys
-import textwrap
 
 import numpy as np
 import pytest
 
 from radartracker.registry import make_manager, restore_manager
 from radartracker.cli import main
+from tests.plugin_install import install, uninstall
 from radartracker.errors import ConfigurationError
 from radartracker.io.scenario import write_scenario
 from radartracker.pipeline.stream import scenario_stream
 from radartracker.registry import load_estimator, load_motion_model, make_estimator
 from radartracker.simulation.scenarios import build_scenario
 from radartracker.testing import ESTIMATOR_CHECKS, MOTION_CHECKS, check_estimator, check_motion_model
-from radartracker.tracking.manager import ManagerConfig, TrackManager
+from radartracker.tracking.config import ManagerConfig
 
 PLUGIN = '''
 """Decoupled aircraft and bias filters with a bias forgetting factor (a third party's estimator)."""
@@ -154,17 +153,10 @@ class ThirdCV(TrackFilter):
 @pytest.fixture()
 def thirdparty(tmp_path, monkeypatch):
     """Install the plugin the way pip would: a package and a dist-info with entry_points.txt on sys.path."""
-    pkg = tmp_path / "site" / "rt_kit_thirdparty"
-    pkg.mkdir(parents=True)
-    (pkg / "__init__.py").write_text(textwrap.dedent(PLUGIN))
-    dist = tmp_path / "site" / "rt_kit_thirdparty-0.1.dist-info"
-    dist.mkdir()
-    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: rt-kit-thirdparty\nVersion: 0.1\n")
-    (dist / "entry_points.txt").write_text("[radartracker.estimators]\nthirdparty = rt_kit_thirdparty:Forgetting\n"
-                                           "[radartracker.motion_models]\nthirdcv = rt_kit_thirdparty:ThirdCV\n")
-    monkeypatch.syspath_prepend(str(tmp_path / "site"))
-    yield sys.modules.get("rt_kit_thirdparty") or __import__("rt_kit_thirdparty")
-    sys.modules.pop("rt_kit_thirdparty", None)
+    yield install(tmp_path, monkeypatch, "rt_kit_thirdparty", PLUGIN,
+                  "[radartracker.estimators]\nthirdparty = rt_kit_thirdparty:Forgetting\n"
+                  "[radartracker.motion_models]\nthirdcv = rt_kit_thirdparty:ThirdCV\n")
+    uninstall("rt_kit_thirdparty")
 
 
 @pytest.fixture(scope="module")

@@ -17,7 +17,7 @@ from radartracker.estimation.screening import (ACCEPT, REINIT, REJECT, AdsbPlaus
 from radartracker.pipeline.config import RunConfig
 from radartracker.pipeline.run import run
 from radartracker.simulation.scenarios import _icao, build_scenario
-from radartracker.tracking.manager import ManagerConfig, TrackManager
+from radartracker.tracking.config import ManagerConfig
 
 ESTIMATOR = "coupled-sparse"  # consistent covariances: the decoupled filter's σ is too small for a 3σ test
 

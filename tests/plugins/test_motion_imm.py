@@ -21,7 +21,7 @@ from radartracker.pipeline.stream import scenario_stream
 from radartracker.registry import make_filter_factory
 from radartracker.simulation.scenarios import build_scenario
 from radartracker.registry import motion_q
-from radartracker.tracking.manager import ManagerConfig, TrackManager
+from radartracker.tracking.config import ManagerConfig
 from radartracker.simulation.simulator import KinematicTrajectory, Leg
 from radartracker_plugins.motion import CTMode, CVConfig, CVFilter, CVMode, IMMConfig, IMMFilter
 from radartracker_plugins.motion.ct import ct_noise, ct_transition

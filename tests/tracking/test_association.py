@@ -15,7 +15,7 @@ from radartracker.simulation.scenarios import _radar
 from radartracker.simulation.simulator import KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator
 from radartracker.pipeline.stream import scenario_stream
 from radartracker.tracking.association import MODE_C_VAR, VERTICAL_Q, AltitudeTrack, assign_tiers
-from radartracker.tracking.manager import ManagerConfig, TrackManager
+from radartracker.tracking.config import ManagerConfig
 
 GATE, EXCL = 13.82, 27.63
 

@@ -11,9 +11,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from radartracker.registry import make_manager, restore_manager
+from radartracker.registry import make_manager
 from radartracker.domain import AdsbReport, Plot
-from radartracker.tracking.manager import ManagerConfig, TrackManager
+from radartracker.tracking.config import ManagerConfig
 from radartracker.estimation.base import PlaneMeasurement
 from radartracker.simulation.scenarios import build_scenario
 from radartracker.pipeline.config import RunConfig

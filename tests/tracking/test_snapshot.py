@@ -14,7 +14,7 @@ from radartracker.domain import AdsbReport, Plot
 from radartracker.errors import SnapshotError
 from radartracker.simulation.scenarios import build_scenario
 from radartracker.tracking import snapshot
-from radartracker.tracking.manager import ManagerConfig, TrackManager
+from radartracker.tracking.config import ManagerConfig
 
 
 def _opt(v):
