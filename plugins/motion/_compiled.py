@@ -147,11 +147,11 @@ def _congruence_into(F: np.ndarray, P: np.ndarray, out: np.ndarray) -> None:
 
 
 @njit(cache=True)
-def ct_predict_into(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_sd: float, xp: np.ndarray,
-                    Pp: np.ndarray) -> None:
+def ct_predict_into(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_sd: float, F: np.ndarray,
+                    xp: np.ndarray, Pp: np.ndarray) -> None:
     """:func:`ct_predict` of (x[:5], P[:5, :5]) into (xp, Pp): f(ξ), sym(F P Fᵀ + Q) with
-    Q = the white-acceleration block of density q and σ_ω² |T| on ω."""
-    F = np.empty((5, 5))
+    Q = the white-acceleration block of density q and σ_ω² |T| on ω; the Jacobian F (5×5) is written
+    into the caller's ``F``."""
     _ct_mean_and_jacobian(x, T, xp, F)
     _congruence_into(F, P, Pp)
     _add_white_acceleration(Pp, T, q)
@@ -164,7 +164,7 @@ def ct_predict(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_sd: f
                ) -> tuple[np.ndarray, np.ndarray]:
     """Coordinated-turn EKF prediction of (ξ, P), ξ = [x, y, vx, vy, ω], over ``T`` seconds."""
     xp, Pp = np.empty(5), np.empty((5, 5))
-    ct_predict_into(x, P, T, q, turn_rate_sd, xp, Pp)
+    ct_predict_into(x, P, T, q, turn_rate_sd, np.empty((5, 5)), xp, Pp)
     return xp, Pp
 
 

@@ -129,9 +129,10 @@ class IMMFilter(TrackFilter):
     """IMM of mode filters (default constant velocity and coordinated turn), output moment matched.
 
     Mode states are held padded to the largest mode's size (``X`` n×D, ``PP`` n×D×D; a 4-state mode
-    carries ω = 0 ± σ_e in the fifth place), in the state block of
+    carries ω = 0 ± σ_e in the fifth place), in the state block of the filter's work array of
     :mod:`radartracker_plugins.motion._imm_compiled` (``mu``, ``X``, ``PP`` and the output ``x``, ``P``
-    are views of it). The default modes (:class:`CVMode`, :class:`CTMode`) are predicted in the
+    are views of it; the prediction and the scratch of a cycle live beside it, so that a compiled call
+    takes the filter as one array and allocates nothing). The default modes (:class:`CVMode`, :class:`CTMode`) are predicted in the
     compiled ``advance``; other mode filters are called through their ``predict``. A prediction is
     kept until the state changes, so the update at the time innovation screening just predicted to
     reuses it, and the output (χ̂, P̂) is combined once per update.
@@ -156,10 +157,10 @@ class IMMFilter(TrackFilter):
         modes, self.dims, self.entry_var, self._settings, self.mu0, self._compiled = settings
         self.modes = list(modes)
         n, self.dim = len(modes), int(max(self.dims))
-        self._state = np.zeros(compiled.block_size(n, self.dim))  # (μ, X, PP, χ̂, P̂)
-        self._pred_block = np.zeros(compiled.block_size(n, self.dim))  # (c̄, X̄, P̄, χ̄, P̄) at _pred_time
-        self.mu, self.X, self.PP, self.x, self.P = compiled.block_views(self._state, n, self.dim)
-        self._pred = compiled.block_views(self._pred_block, n, self.dim)
+        self._work = np.zeros(compiled.work_shape(n, self.dim))  # the state, the prediction and the scratch
+        self.mu, self.X, self.PP, self.x, self.P = compiled.block_views(self._work, n, self.dim, compiled.STATE)
+        self._pred = compiled.block_views(self._work, n, self.dim, compiled.PREDICTION)  # (c̄, X̄, P̄, χ̄, P̄)
+        _, _, self._zc, self._Rc, _, self._X0, _, _, self._P0, _ = compiled.scratch_views(self._work, n, self.dim)
         self.mu[:] = self.mu0
         self.time: float | None = None
         self._pred_time = math.nan  # the time _pred is the prediction for (nan: none)
@@ -175,7 +176,7 @@ class IMMFilter(TrackFilter):
         if self._pred_time != time:
             dt = time - self.time
             if self._compiled:
-                compiled.advance(self._settings, self._state, self._pred_block, dt)
+                compiled.advance(self._settings, self._work, dt)
             else:
                 self._predict_modes_in_python(dt)
             self._pred_time = time
@@ -184,10 +185,10 @@ class IMMFilter(TrackFilter):
     def _predict_modes_in_python(self, dt: float) -> None:
         """The prediction of :func:`compiled.advance` with each mode's own ``predict``."""
         cbar, Xp, PPp, x_bar, P_bar = self._pred
-        cbar[:], X0, P0 = compiled.mix(self._settings, self._state, dt)
+        compiled.mix(self._settings, self._work, dt)  # c̄ into the prediction, (X⁰, P⁰) into the scratch
         Xp[:], PPp[:] = 0.0, 0.0
         for j, (mode, d) in enumerate(zip(self.modes, self.dims)):
-            Xp[j, :d], PPp[j, :d, :d] = mode.predict(X0[j, :d].copy(), P0[j, :d, :d].copy(), dt)
+            Xp[j, :d], PPp[j, :d, :d] = mode.predict(self._X0[j, :d].copy(), self._P0[j, :d, :d].copy(), dt)
         mixture_into(cbar, Xp, PPp, 4, x_bar, P_bar)
 
     # --- TrackFilter -----------------------------------------------------------------------------
@@ -216,16 +217,17 @@ class IMMFilter(TrackFilter):
                bias_cov: np.ndarray, gate: float | None = None) -> tuple[float, np.ndarray, np.ndarray, bool]:
         """:meth:`TrackFilter.screen` in one compiled call (:func:`_imm_compiled.screen`: bias correction,
         the prediction to ``time`` unless kept, d² and the correction when it passes ``gate``); a
-        prediction not used is kept for the update at ``time``. Modes called in Python predict first."""
+        prediction not used is kept for the update at ``time``. Modes called in Python predict first.
+        z_c and R_c are written into the filter's scratch and returned as copies (the caller keeps them)."""
         time = self._checked_time(time)
         if self._compiled and self._pred_time != time:
             dt = time - self.time
         else:  # the kept prediction, or the modes' own
             dt = math.nan
             self._predicted(time)
-        zc, Rc = np.empty(2), np.empty((2, 2))
-        d2, nis, code = compiled.screen(self._settings, self._state, self._pred_block, dt, z, C, R, bias, bias_cov,
-                                        -1.0 if gate is None else gate, zc, Rc)
+        d2, nis, code = compiled.screen(self._settings, self._work, dt, z, C, R, bias, bias_cov,
+                                        -1.0 if gate is None else gate)
+        zc, Rc = self._zc.copy(), self._Rc.copy()
         if code == -2:
             self.time, self._pred_time = time, math.nan
             return d2, zc, Rc, True
@@ -242,7 +244,7 @@ class IMMFilter(TrackFilter):
         time, z, R = check_measurement(time, z, R)
         time = self._checked_time(time)
         self._predicted(time)
-        nis, code = compiled.correct(self._settings, self._state, self._pred_block, z, R)
+        nis, code = compiled.correct(self._settings, self._work, z, R)
         if code != -2:
             self._raise_singular(code, R)
         self.time, self._pred_time = time, math.nan
