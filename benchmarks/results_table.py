@@ -24,7 +24,8 @@ SCENARIOS = [
     ("tracking", ["--scenario", "tracking"]),
     ("manoeuvres", ["--scenario", "manoeuvres"]),
     ("traffic-200", ["--scenario", "traffic", "--aircraft", "200", "--duration", "180"]),
-    ("traffic-200-primary", ["--scenario", "traffic", "--aircraft", "200", "--duration", "180", "--primary-share", "1.0"]),
+    ("traffic-200-primary", ["--scenario", "traffic", "--aircraft", "200", "--duration", "180", "--primary-share", "1.0",
+                             "--adsb-share", "0"]),
 ]
 BIG = [("traffic-2000", ["--scenario", "traffic", "--aircraft", "2000", "--duration", "180"])]
 ASSOCIATIONS = {"labels": ["--association", "labels"], "manager": ["--manager"]}
