@@ -33,7 +33,7 @@ from radartracker.tracking.frame import FrameMeasurements
 from radartracker.tracking.track import Pending, Track
 
 log = logging.getLogger(__name__)
-_LAST_UPDATE, _N_ADSB = attrgetter("last_update"), attrgetter("n_adsb")
+_LAST_UPDATE, _N_ADSB, _CREATED = attrgetter("last_update"), attrgetter("n_adsb"), attrgetter("created")
 _STATUS = attrgetter("status")
 _new = tuple.__new__  # _new(Measure, fields): a named tuple made without its Python-level __new__ (one per input)
 
@@ -209,11 +209,13 @@ class TrackLifecycle:
         """Tracks ``tracks[i]`` whose position radar r's antenna swept in [t_a, t_b) (``swept`` radars ×
         tracks) without a plot for it (``hits``: the (radar row, track index) pairs of the frame's plots)
         missed a detection; a confirmed one is then coasting. A track started in the frame is not missed."""
-        radar, track = np.nonzero(swept)
-        for r, i in zip(radar.tolist(), track.tolist()):
+        swept = swept.copy()
+        if hits:
+            r_hit, i_hit = zip(*hits)
+            swept[list(r_hit), list(i_hit)] = False
+        swept[:, np.fromiter(map(_CREATED, tracks), float, len(tracks)) >= t_a] = False
+        for i in np.nonzero(swept)[1].tolist():  # radar by radar, as the antennas swept
             tr = tracks[i]
-            if (r, i) in hits or tr.created >= t_a:
-                continue
             tr.missed()
             if tr.status == "confirmed":
                 tr.status = "coasting"

@@ -69,15 +69,15 @@ class Track:
             t, x, P = self.filter.estimate()
             if type(x) is not np.ndarray or x.dtype is not _F8 or x.ndim != 1 or not x.flags.c_contiguous:
                 x = np.ascontiguousarray(x, float).ravel()
-            e = self._estimate = (t, x, P, tuple(x.tolist()[:4]))
+            state = tuple(x.tolist()[:4])
+            e = self._estimate = (t, x, P, state, (t, *state))
         return e[:3]
 
     def estimate_row(self) -> tuple[float, float, float, float, float]:
         """(t, x, y, vx, vy) of the estimate, as floats."""
         if self._estimate is None:
             self.estimate()
-        e = self._estimate
-        return (e[0], *e[3])
+        return self._estimate[4]
 
     def changed(self) -> None:
         """The filter changed: :meth:`estimate` reads it again."""
