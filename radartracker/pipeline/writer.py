@@ -36,7 +36,10 @@ BIAS_COLUMNS = ("time", "radar", "range_bias_m", "azimuth_bias_deg", "sd_range_m
 # the decimals each number column is rounded to (docs/formats.md)
 DECIMALS = {"time": 3, "lat": 8, "lon": 8, "x_m": 2, "y_m": 2, "vx_mps": 3, "vy_mps": 3, "sd_x_m": 2, "sd_y_m": 2,
             "altitude_m": 1, "range_bias_m": 3, "azimuth_bias_deg": 6, "sd_range_m": 3, "sd_azimuth_deg": 6}
-_CSV = pacsv.WriteOptions(include_header=False, quoting_style="needed")
+_CSV = pacsv.WriteOptions(include_header=False, quoting_style="needed")  # texts quoted: a radar id may hold a comma
+# events.csv and tracks.csv hold numbers and codes (kinds, statuses, hexadecimal and octal codes): never a
+# comma or a quote, so nothing is quoted
+_CSV_CODES = pacsv.WriteOptions(include_header=False, quoting_style="none")
 _NO_TEXT = pa.scalar(None, pa.string())
 log = logging.getLogger(__name__)
 
@@ -76,6 +79,8 @@ def _rows(ev: Events, plane) -> tuple[pa.Table, pa.Table]:
                _numbers(s[:, 2], "vx_mps"), _numbers(s[:, 3], "vy_mps"), _numbers(sd_x, "sd_x_m", optional=True),
                _numbers(sd_y, "sd_y_m", optional=True), _numbers(ev.altitude_m, "altitude_m", optional=True),
                _texts(ev.mode_s), _texts(ev.mode_3a)]
+    # numbers to text once: tracks.csv's rows are events.csv's estimates, the same texts
+    columns = [c if pa.types.is_string(c.type) else pc.cast(c, pa.string()) for c in columns]
     events = pa.Table.from_arrays(columns, names=list(EVENT_COLUMNS))
     return events, events.filter(pa.array(ev.estimate_mask(), pa.bool_())).select(list(TRACK_COLUMNS))
 
@@ -95,10 +100,10 @@ def table_rows(ev: Events, biases: BiasLog, plane) -> tuple[pa.Table, pa.Table, 
     return (*_rows(ev, plane), _bias_rows(biases))
 
 
-def _write_rows(f, table: pa.Table) -> None:
+def _write_rows(f, table: pa.Table, options: pacsv.WriteOptions = _CSV) -> None:
     """``table``'s rows (no header) as CSV onto the binary file ``f``."""
     if table.num_rows:
-        pacsv.write_csv(table, f, _CSV)
+        pacsv.write_csv(table, f, options)
 
 
 class OutputStream:
@@ -116,8 +121,8 @@ class OutputStream:
 
     def events(self, ev: Events) -> None:
         events, tracks = _rows(ev, self.plane)
-        _write_rows(self._files["events.csv"], events)
-        _write_rows(self._files["tracks.csv"], tracks)
+        _write_rows(self._files["events.csv"], events, _CSV_CODES)
+        _write_rows(self._files["tracks.csv"], tracks, _CSV_CODES)
 
     def biases(self, b: BiasLog) -> None:
         _write_rows(self._files["biases.csv"], _bias_rows(b))
@@ -174,11 +179,12 @@ def write_outputs(result: RunResult, out: Path | str, *, figures: bool = False, 
 
 def _write_tables(result: RunResult, stage) -> None:
     events, tracks, biases = table_rows(result.events, result.biases, result.plane)
-    for name, cols, table in (("tracks.csv", TRACK_COLUMNS, tracks), ("events.csv", EVENT_COLUMNS, events),
-                              ("biases.csv", BIAS_COLUMNS, biases)):
+    for name, cols, table, options in (("tracks.csv", TRACK_COLUMNS, tracks, _CSV_CODES),
+                                       ("events.csv", EVENT_COLUMNS, events, _CSV_CODES),
+                                       ("biases.csv", BIAS_COLUMNS, biases, _CSV)):
         with open(stage(name), "wb") as f:
             f.write(_header(cols))
-            _write_rows(f, table)
+            _write_rows(f, table, options)
 
 
 def _config_text(result: RunResult) -> str:

@@ -65,7 +65,8 @@ class Admission:
             if self.clock.steps > steps:  # a clock step: the run held so far is admitted with this input
                 admitted, self.held = [*self.held, (key, item)], []
             else:
-                self.drop_held()
+                if self.held:  # an input at the stream's time: the run held ahead of it broke
+                    self.drop_held()
                 admitted = [(key, item)]
             for k, _ in admitted:
                 self.keys[k] = k[2]
