@@ -32,7 +32,7 @@ _LOG_2PI = math.log(2.0 * math.pi)
 _SMALL = 1e-4  # |ωT| below which the CT Taylor series are used (as ct.py)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def symmetrize_into(P: np.ndarray, n: int) -> None:
     """P[:n, :n] = (P + Pᵀ) / 2 in place."""
     for i in range(n):
@@ -42,7 +42,7 @@ def symmetrize_into(P: np.ndarray, n: int) -> None:
             P[j, i] = m
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def measurement_ok(time: float, z: np.ndarray, R: np.ndarray) -> int:
     """0 if (time, z, R) is a valid position measurement, else 1 (time), 2 (z) or 3 (R)."""
     if not math.isfinite(time):
@@ -66,7 +66,7 @@ def measurement_ok(time: float, z: np.ndarray, R: np.ndarray) -> int:
     return 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _add_white_acceleration(P: np.ndarray, dt: float, q: float) -> None:
     """P[:4, :4] += Q(Δt) of white acceleration of density q (module docstring)."""
     if q == 0.0 or dt == 0.0:
@@ -80,7 +80,7 @@ def _add_white_acceleration(P: np.ndarray, dt: float, q: float) -> None:
         P[k + 2, k + 2] += q1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def cv_predict_into(x: np.ndarray, P: np.ndarray, dt: float, q: float) -> None:
     """:func:`cv_predict` of (x[:4], P[:4, :4]) in place: the rows of A P, then its columns (each step
     reads only entries it does not write), plus Q, symmetrised."""
@@ -96,7 +96,7 @@ def cv_predict_into(x: np.ndarray, P: np.ndarray, dt: float, q: float) -> None:
     symmetrize_into(P, 4)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def cv_predict(x: np.ndarray, P: np.ndarray, dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
     """Constant-velocity prediction of (χ, P) by ``dt`` seconds with white-acceleration density ``q``."""
     xp, Pp = x.copy(), P.copy()
@@ -104,7 +104,7 @@ def cv_predict(x: np.ndarray, P: np.ndarray, dt: float, q: float) -> tuple[np.nd
     return xp, Pp
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _ct_mean_and_jacobian(x: np.ndarray, T: float, xp: np.ndarray, F: np.ndarray) -> None:
     """f(ξ) into xp[:5] and ∂f/∂ξ into F (5×5) of the coordinated turn over T (ct.py's ct_transition)."""
     vx, vy, w = x[2], x[3], x[4]
@@ -130,7 +130,7 @@ def _ct_mean_and_jacobian(x: np.ndarray, T: float, xp: np.ndarray, F: np.ndarray
     F[3, 2], F[3, 3], F[3, 4] = -s, c, T * (-c * vx - s * vy)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _congruence_into(F: np.ndarray, P: np.ndarray, out: np.ndarray) -> None:
     """out[:5, :5] = F P Fᵀ for the 5×5 Jacobian F: Σ_k F_ik (Σ_l P_kl F_jl), F's zeros skipped."""
     for i in range(5):
@@ -146,7 +146,7 @@ def _congruence_into(F: np.ndarray, P: np.ndarray, out: np.ndarray) -> None:
                     out[i, j] += F[i, k] * pf
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def ct_predict_into(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_sd: float, F: np.ndarray,
                     xp: np.ndarray, Pp: np.ndarray) -> None:
     """:func:`ct_predict` of (x[:5], P[:5, :5]) into (xp, Pp): f(ξ), sym(F P Fᵀ + Q) with
@@ -159,7 +159,7 @@ def ct_predict_into(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_
     symmetrize_into(Pp, 5)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def ct_predict(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_sd: float
                ) -> tuple[np.ndarray, np.ndarray]:
     """Coordinated-turn EKF prediction of (ξ, P), ξ = [x, y, vx, vy, ω], over ``T`` seconds."""
@@ -168,7 +168,7 @@ def ct_predict(x: np.ndarray, P: np.ndarray, T: float, q: float, turn_rate_sd: f
     return xp, Pp
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def innovation_nis(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray) -> tuple[float, float, bool]:
     """(NIS = νᵀΛ⁻¹ν, log N(ν; 0, Λ), ok) of position z against (x, P): ν = z − x[:2], Λ = P[:2, :2] + R,
     from Λ's Cholesky factor (lower triangle, as numpy.linalg.cholesky); ok False unless Λ is positive
@@ -189,7 +189,7 @@ def innovation_nis(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray) -
     return nis, -0.5 * nis - (math.log(l00) + math.log(l11)) - _LOG_2PI, True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def position_update_into(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray, n: int, xn: np.ndarray,
                          Pn: np.ndarray) -> tuple[float, float, bool]:
     """:func:`position_update` of (x[:n], P[:n, :n]) into (xn[:n], Pn[:n, :n]): (NIS, log-likelihood,
@@ -211,7 +211,7 @@ def position_update_into(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndar
     return nis, loglik, True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def position_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray):
     """(χ̂, P̂, ν, Λ, NIS, log-likelihood, ok) of the position correction (module docstring); when not ok,
     copies of (x, P) and nan."""
@@ -227,7 +227,7 @@ def position_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray):
     return xn, Pn, nu, S, nis, loglik, ok
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def mixture_into(w: np.ndarray, X: np.ndarray, P: np.ndarray, m: int, x: np.ndarray, out: np.ndarray) -> None:
     """Mean (into x[:m]) and covariance (into out[:m, :m]) of the first ``m`` components of the mixture
     Σ wᵢ N(Xᵢ, Pᵢ); x and out must not share memory with X, P."""
@@ -247,7 +247,7 @@ def mixture_into(w: np.ndarray, X: np.ndarray, P: np.ndarray, m: int, x: np.ndar
     symmetrize_into(out, m)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def moment_match(w: np.ndarray, X: np.ndarray, P: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
     """Mean and covariance of the first ``m`` components of the mixture Σ wᵢ N(Xᵢ, Pᵢ)."""
     x, out = np.empty(m), np.empty((m, m))

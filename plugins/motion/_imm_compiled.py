@@ -86,7 +86,7 @@ def scratch_views(work: np.ndarray, n: int, D: int):
             work[o + 5 + n:o + 5 + 2 * n, :D, :D])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def switching_into(lam: np.ndarray, left: np.ndarray, right: np.ndarray, dt: float, Pi: np.ndarray) -> None:
     """Π(Δt) = max(L diag(e^{λ|Δt|}) R, 0) into ``Pi``: exp(G|Δt|) from G's eigen-decomposition
     G = L diag(λ) R (each sum accumulated over k in order, one e^{λ_k|Δt|} per k); an empty λ means the
@@ -106,7 +106,7 @@ def switching_into(lam: np.ndarray, left: np.ndarray, right: np.ndarray, dt: flo
             Pi[i, j] = max(Pi[i, j], 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def markov_switching(settings: np.ndarray, dt: float) -> np.ndarray:
     """Π(Δt) of an IMM's settings (:func:`switching_into`)."""
     n, _, _, _, _, lam, left, right = settings_views(settings)
@@ -115,7 +115,7 @@ def markov_switching(settings: np.ndarray, dt: float) -> np.ndarray:
     return Pi
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def mix_into(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, Pi: np.ndarray, w: np.ndarray, cbar: np.ndarray,
              X0: np.ndarray, P0: np.ndarray) -> None:
     """c̄ = μ Π and each mode's mixed initial condition: ω_ij = Π_ij μ_i / c̄_j (e_j if c̄_j = 0; one
@@ -134,7 +134,7 @@ def mix_into(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, Pi: np.ndarray, w: n
         mixture_into(w, X, PP, D, X0[j], P0[j])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def mix(settings: np.ndarray, work: np.ndarray, dt: float) -> None:
     """:func:`mix_into` for a step of ``dt`` from the state block: c̄ into the prediction block, (X⁰, P⁰)
     into the scratch (:func:`scratch_views`), the modes' inputs when they are called in Python."""
@@ -146,7 +146,7 @@ def mix(settings: np.ndarray, work: np.ndarray, dt: float) -> None:
     mix_into(mu, X, PP, Pi, w, cbar, X0, P0)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def predict_modes_into(modes: np.ndarray, X0: np.ndarray, P0: np.ndarray, dt: float, F: np.ndarray, Xp: np.ndarray,
                        PPp: np.ndarray) -> None:
     """Each built-in mode's prediction of its mixed initial condition by ``dt`` into (Xp[j], PPp[j]):
@@ -163,7 +163,7 @@ def predict_modes_into(modes: np.ndarray, X0: np.ndarray, P0: np.ndarray, dt: fl
             ct_predict_into(X0[j], P0[j], dt, modes[j, 1], modes[j, 2], F, Xp[j], PPp[j])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def advance(settings: np.ndarray, work: np.ndarray, dt: float) -> None:
     """The prediction by ``dt`` of the state block into the prediction block: switching, mixing, each
     built-in mode's prediction and the predicted mixture weighed by c̄."""
@@ -175,7 +175,7 @@ def advance(settings: np.ndarray, work: np.ndarray, dt: float) -> None:
     mixture_into(cbar, Xp, PPp, 4, x_bar, P_bar)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _correct_modes_into(cbar: np.ndarray, Xp: np.ndarray, PPp: np.ndarray, dims: np.ndarray, entry_var: float,
                         z: np.ndarray, R: np.ndarray, Xn: np.ndarray, PPn: np.ndarray, v: np.ndarray) -> int:
     """Each mode's position update on its own ``dims[j]`` states into (Xn[j], PPn[j]) (zeroed first;
@@ -195,7 +195,7 @@ def _correct_modes_into(cbar: np.ndarray, Xp: np.ndarray, PPp: np.ndarray, dims:
     return -1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _normalised_exp_into(v: np.ndarray, mu: np.ndarray) -> None:
     """μ_j = e^{v_j − max v} / Σ_k e^{v_k − max v}: probabilities from log weights without overflow."""
     top = v[0]
@@ -209,7 +209,7 @@ def _normalised_exp_into(v: np.ndarray, mu: np.ndarray) -> None:
         mu[j] = mu[j] / total
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def correct(settings: np.ndarray, work: np.ndarray, z: np.ndarray, R: np.ndarray) -> tuple[float, int]:
     """Correction of the prediction block by position z into the state block: each mode's update,
     μ_j ∝ c̄_j N(ν_j; 0, Λ_j) (normalised from the largest log weight), output moment matched.
@@ -232,7 +232,7 @@ def correct(settings: np.ndarray, work: np.ndarray, z: np.ndarray, R: np.ndarray
     return nis, -2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def screen(settings: np.ndarray, work: np.ndarray, dt: float, z: np.ndarray, C: np.ndarray, R: np.ndarray,
            bias: np.ndarray, bias_cov: np.ndarray, gate: float) -> tuple[float, float, int]:
     """Innovation screening of a radar measurement and the correction when it passes: zc = z − C ς̂,
