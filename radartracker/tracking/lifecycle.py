@@ -76,6 +76,8 @@ class TrackLifecycle:
         self.by_target: dict[object, int] = {}  # truth label → id of its live track (with labels)
         self.next_id = 1
         self.adsb_check = AdsbPlausibility(config.screening)
+        # the d² gate by (kind, tentative): ScreeningConfig.gate's, looked up once per measurement
+        self.gates = {(k, t): config.screening.gate(k, t) for k in ("plots", "adsb", "positions") for t in (False, True)}
         self.labels = False  # tracks carry their first plot's truth label (set by a label associator)
 
     def with_code(self, code: str | None) -> Track | None:
@@ -139,8 +141,8 @@ class TrackLifecycle:
         when it passes (:meth:`TrackFilter.screen`); a measurement older than the estimate is judged at the
         estimate's time and not updated here. (ACCEPT, None, None, False) when the filter refuses the step."""
         cfg, tentative = self.config.screening, tr.status == "tentative"
-        t_est = tr.estimate()[0]
-        gate = cfg.gate(kind, tentative) if t >= t_est else None
+        t_est = tr.epoch
+        gate = self.gates[kind, tentative] if t >= t_est else None
         try:
             if gate is not None:
                 tr.changed()

@@ -73,6 +73,13 @@ class Track:
             e = self._estimate = (t, x, P, state, (t, *state))
         return e[:3]
 
+    @property
+    def epoch(self) -> float:
+        """The time of the estimate."""
+        if self._estimate is None:
+            self.estimate()
+        return self._estimate[0]
+
     def estimate_row(self) -> tuple[float, float, float, float, float]:
         """(t, x, y, vx, vy) of the estimate, as floats."""
         if self._estimate is None:
