@@ -147,6 +147,12 @@ def _track_of(doc: Any, mgr: Any, what: str) -> Track:
     _need(class_name(filt) == f["class"], f"{what} filter: the track filters were {f['class']}, this manager makes "
                                           f"{class_name(filt)}")
     filt.load_state_dict(decode(f["state"]))
+    try:  # a track's filter holds an estimate: started, finite
+        t, x, P = filt.estimate()
+    except (ValueError, TypeError, KeyError, IndexError) as exc:
+        raise ValueError(f"{what} filter: {exc}") from None
+    _need(isinstance(t, float | int) and math.isfinite(t) and bool(np.isfinite(x).all()) and bool(np.isfinite(P).all()),
+          f"{what} filter: its estimate is not finite")
     v = doc["vertical"]
     vertical = None if v is None else AltitudeTrack(*_floats(v, 6, f"{what} vertical").tolist())
     return Track(tid, filt, doc["status"], _number(doc["created"], f"{what} created"),

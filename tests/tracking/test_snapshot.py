@@ -173,3 +173,18 @@ def test_restore_with_another_estimator_is_refused(saved):
         restore_manager(path, estimator=make_estimator(other, None, []))
     assert type(restore_manager(path, estimator=make_estimator(mgr.config.estimator, None, [])).estimator) \
         is type(mgr.estimator)
+
+
+def test_a_track_whose_filter_was_never_started_is_refused(saved):
+    """Found by fuzzing (a mutated, re-checksummed snapshot, seed 28 input 5 488): a track's filter state that
+    loads but holds no estimate made the restored manager's first process() raise. Refused on restore."""
+    from radartracker.registry import make_filter_factory
+
+    mgr, path = saved
+    meta, blob = snapshot.decode(snapshot.read_snapshot_file(path))
+    state = snapshot.decode(blob)
+    fresh = make_filter_factory(mgr.config.motion_model)(snapshot.decode(state["tracks"][0]["filter"]["config"]))
+    state["tracks"][0]["filter"]["state"] = snapshot.encode(fresh.state_dict(), "filter")
+    _rewrite(path, snapshot.encode([meta, snapshot.encode(state, "state")], "snap"))
+    with pytest.raises(SnapshotError, match="track\\[0\\] filter"):
+        restore_manager(path)
