@@ -341,8 +341,8 @@ def restore_manager(path: str | os.PathLike, on_event: Callable[[TrackEvent], No
     meta, blob = read_manager(path)
     try:
         mgr = make_manager(meta["radars"], tuple(meta["reference"]), meta["config"], on_event, **plugins)
-    except (ConfigurationError, ValueError, TypeError) as exc:
-        raise SnapshotError(str(path), f"cannot restore: {exc}") from None
+    except Exception as exc:  # a crafted file's settings: refused, whatever they provoke (an overflow, …)
+        raise SnapshotError(str(path), f"cannot restore: {type(exc).__name__}: {exc}") from None
     return restore_state(mgr, meta, blob, path)
 
 
