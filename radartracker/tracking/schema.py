@@ -119,6 +119,24 @@ def _pending_of(doc: Any, tid: int, radars: frozenset, what: str) -> Pending:
     return Pending(m, kind)
 
 
+TIME_BOUND_S = 1e11  # |time| of anything restored (3 000 years of seconds): time differences stay finite
+
+
+def _time(v: Any, what: str) -> float:
+    t = _number(v, what)
+    _need(abs(t) <= TIME_BOUND_S, f"{what}: a time within ±{TIME_BOUND_S:g} s expected")
+    return t
+
+
+def _vertical(v: np.ndarray, what: str) -> AltitudeTrack:
+    """The Mode C altitude filter (time, h, ḣ, p00, p01, p11) within physical bounds, its covariance positive."""
+    t, h, rate, p00, p01, p11 = v.tolist()
+    _time(t, what)
+    _need(abs(h) <= 1e6 and abs(rate) <= 1e4, f"{what}: altitude and rate out of physical bounds")
+    _need(0.0 < p00 <= 1e12 and 0.0 < p11 <= 1e12 and p01 * p01 <= p00 * p11, f"{what}: covariance not positive")
+    return AltitudeTrack(t, h, rate, p00, p01, p11)
+
+
 def _rejection(doc: Any, what: str) -> tuple[float, np.ndarray, float]:
     _need(isinstance(doc, list) and len(doc) == 3, f"{what}: [time, z, sd] expected")
     return _number(doc[0], what), _floats(doc[1], 2, what), _number(doc[2], what)
@@ -153,10 +171,11 @@ def _track_of(doc: Any, mgr: Any, what: str) -> Track:
         raise ValueError(f"{what} filter: {exc}") from None
     _need(isinstance(t, float | int) and math.isfinite(t) and bool(np.isfinite(x).all()) and bool(np.isfinite(P).all()),
           f"{what} filter: its estimate is not finite")
+    created, last = (_time(doc[k], f"{what} {k}") for k in ("created", "last_update"))
+    _need(created <= last, f"{what}: created after its last update")
     v = doc["vertical"]
-    vertical = None if v is None else AltitudeTrack(*_floats(v, 6, f"{what} vertical").tolist())
-    return Track(tid, filt, doc["status"], _number(doc["created"], f"{what} created"),
-                 _number(doc["last_update"], f"{what} last_update"), mode_s=doc["mode_s"], mode_3a=doc["mode_3a"],
+    vertical = None if v is None else _vertical(_floats(v, 6, f"{what} vertical"), f"{what} vertical")
+    return Track(tid, filt, doc["status"], created, last, mode_s=doc["mode_s"], mode_3a=doc["mode_3a"],
                  target=doc["target"],
                  altitude_m=None if doc["altitude_m"] is None else _number(doc["altitude_m"], f"{what} altitude_m"),
                  detections=deque(det, maxlen=cfg.confirm_n),

@@ -206,3 +206,16 @@ def test_a_crafted_meta_is_refused_whatever_it_provokes(saved, where):
     with pytest.raises(SnapshotError) as err:
         restore_manager(path)
     assert str(path) in str(err.value)
+
+
+def test_a_vertical_filter_out_of_physical_bounds_is_refused(saved):
+    """Found by fuzzing (seed 29, input 1 648): a track's Mode C filter with a time of about −10³⁰⁰ made the
+    next altitude update overflow (dt³). Times, altitudes, rates and the covariance are bounded on restore."""
+    mgr, path = saved
+    meta, blob = snapshot.decode(snapshot.read_snapshot_file(path))
+    state = snapshot.decode(blob)
+    k = next(i for i, t in enumerate(state["tracks"]) if t["vertical"] is not None)
+    state["tracks"][k]["vertical"][0] = -1e300
+    _rewrite(path, snapshot.encode([meta, snapshot.encode(state, "state")], "snap"))
+    with pytest.raises(SnapshotError, match=f"track\\[{k}\\] vertical"):
+        restore_manager(path)
