@@ -142,6 +142,14 @@ def run_child(mode: str, args: argparse.Namespace, folder: Path, aircraft: int, 
     return json.loads(out.strip().splitlines()[-1]), usage.ru_maxrss / 1024.0
 
 
+def emit(line: dict, out: Path | None) -> None:
+    """Print one JSON line, and append it to ``out`` when given."""
+    print(json.dumps(line), flush=True)
+    if out:
+        with out.open("a") as f:
+            f.write(json.dumps(line) + "\n")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("mode", nargs="?", default="bench", choices=("bench", "generate", "replay", "labelled"))
@@ -196,10 +204,7 @@ def main() -> None:
                 line["labelled"] = {"cpu_seconds": round(lab["seconds"], 2),
                                     "evaluation_cpu_seconds": round(lab["evaluation_seconds"], 2),
                                     "with_evaluation_over_without": round(1.0 + lab["evaluation_seconds"] / lab["seconds"], 3)}
-            print(json.dumps(line), flush=True)
-            if args.out:
-                with args.out.open("a") as f:
-                    f.write(json.dumps(line) + "\n")
+            emit(line, args.out)
 
 
 if __name__ == "__main__":

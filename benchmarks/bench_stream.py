@@ -25,6 +25,10 @@ import tempfile
 import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the sibling benchmarks
+
+from bench_national import emit  # noqa: E402
+
 HERE = Path(__file__).resolve().parent
 
 
@@ -92,11 +96,7 @@ def main() -> None:
             for mode, prefetch in (("read", False), ("read", True), ("replay", False), ("replay", True)):
                 size = ({"folder": str(args.folder)} if args.folder
                         else {"aircraft": args.aircraft, "minutes": args.minutes})
-                line = size | run_child(mode, folder, prefetch)
-                print(json.dumps(line), flush=True)
-                if args.out:
-                    with args.out.open("a") as f:
-                        f.write(json.dumps(line) + "\n")
+                emit(size | run_child(mode, folder, prefetch), args.out)
 
 
 if __name__ == "__main__":
