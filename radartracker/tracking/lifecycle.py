@@ -151,10 +151,6 @@ class TrackLifecycle:
             return ACCEPT, None, None, False
         except Exception as exc:
             raise self.failed(f"motion model {self.new_filter.name!r}", tr.id, t, exc) from exc
-        if gate is not None and d2 <= gate:  # judge's ACCEPT, the common case, without the call
-            if tr.rejected:
-                tr.rejected = []
-            return ACCEPT, zc, Rc, updated
         verdict, tr.rejected = judge(cfg, kind, d2, tr.rejected, tr.mode_s is not None, tentative, t, zc, Rc)
         if verdict == REJECT:
             self.counts[f"{kind}_outlier"] += 1
