@@ -6,6 +6,7 @@ needs from the core is re-exported here; if something is missing, this module gr
 reach into the core's internals.
 """
 
+from radartracker.compiled import kernel
 from radartracker.domain import Aircraft, AdsbReport, BiasState, Plot, Radar, nacp_sigma_m
 from radartracker.errors import (ConfigurationError, FormatError, GeometryError, InputError, NumericalError, PluginError,
                                  RadarTrackerError)
@@ -44,5 +45,5 @@ __all__ = [
     "KinematicTrajectory", "Leg",
     "ALTITUDE_GATE", "AltitudeTrack", "Association", "AssociationSettings", "Associator", "NEW_TRACK", "Prediction",
     "REFUSED", "RadarPlots", "Track", "altitude_d2", "assign", "assign_tiers", "candidate_pairs", "gate_costs",
-    "StateCheck",
+    "StateCheck", "kernel",
 ]

@@ -10,7 +10,8 @@ returns a status code (``OK`` or one of the ``ERR_*`` of :mod:`._layout`) instea
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from radartracker.api import kernel
 
 from ._layout import (C_ALIVE, C_REBUILD_FACTOR, C_REFRESH_EVERY, C_SINCE_REBUILD, C_SINCE_REFRESH, ERR_LAMBDA,
                       ERR_NONFINITE, ERR_R, ERR_REBUILD, ERR_S, ERR_YII, OK, carve, carve_work)
@@ -19,7 +20,7 @@ from ._predict import predict
 from ._refresh import rebuild, refresh
 
 
-@njit(cache=True)
+@kernel
 def update_rows(F, I, WF, slots, radars, times, z, C, R, out):
     """:func:`update_one` of rows 0, 1, … in order (aircraft slot, radar index −1 for unbiased, time, z, C_s,
     R), each row's ν, Λ and NIS into ``out[k]`` ([0:2], [2:6], [6]); returns (status code, the row it
@@ -35,11 +36,12 @@ def update_rows(F, I, WF, slots, radars, times, z, C, R, out):
                 latest = times[k]
         if code != OK:
             return code, k, latest
-        out[k, :7] = io[:7]
+        for a in range(7):
+            out[k, a] = io[a]
     return OK, len(slots), latest
 
 
-@njit(cache=True)
+@kernel
 def update_one(st, wk, s, j, t, z, C, R):
     """Predict aircraft slot s to t and correct it with plot z (C_s = C, noise R) of radar j (−1: unbiased).
     ν, Λ and the NIS go to ``io`` = wk[8] ([0:2], [2:6], [6]); returns the status code."""
@@ -85,7 +87,7 @@ def update_one(st, wk, s, j, t, z, C, R):
     return _maintain(st, wk)
 
 
-@njit(cache=True)
+@kernel
 def _finite(dt, z, C, R):
     """Whether dt, z, C and R are all finite."""
     if not (np.isfinite(dt) and np.isfinite(z[0]) and np.isfinite(z[1])):
@@ -97,7 +99,7 @@ def _finite(dt, z, C, R):
     return True
 
 
-@njit(cache=True)
+@kernel
 def _radar_column(nk, rk, Yxb, s, j):
     """The column c of radar j among aircraft s's bias columns, given it (zero Y_ib) if new; −1 for j = −1.
     The caller guarantees rk[s, :nk[s]] distinct radars, so a new one fits in the row."""
@@ -115,7 +117,7 @@ def _radar_column(nk, rk, Yxb, s, j):
     return k
 
 
-@njit(cache=True)
+@kernel
 def _predicted_measurement(mx, G, bh, idx, nK, C, j):
     """ẑ = C_x x̄ + C_s ς̂_j with x̄ = m − G ς̂_K."""
     zh0, zh1 = mx[0, 0], mx[1, 0]
@@ -128,7 +130,7 @@ def _predicted_measurement(mx, G, bh, idx, nK, C, j):
     return zh0, zh1
 
 
-@njit(cache=True)
+@kernel
 def _bias_gain(Pb, G, idx, nK, C, j, Kb):
     """Kbᵀ = Cov(ς, h) = −Pb[:, K] G[:2]ᵀ + Pb[:, j] Cᵀ (h = C_x χ + C ς_j), one row of Kb per column.
 
@@ -153,7 +155,7 @@ def _bias_gain(Pb, G, idx, nK, C, j, Kb):
             K1[p] += r0[p] * c10 + r1[p] * c11
 
 
-@njit(cache=True)
+@kernel
 def _innovation_covariance(Li, G, Kb, idx, nK, Rs, C, j, Lam):
     """Λ = C_x Cov(χ, h) + C_s Cov(ς_j, h) + R with Cov(χ, h) = Σ[:, :2] − G Kb[K] (χ = m − Gς_K + e,
     Σ = L⁻ᵀL⁻¹ from Li = L⁻¹), exactly symmetric."""
@@ -174,7 +176,7 @@ def _innovation_covariance(Li, G, Kb, idx, nK, Rs, C, j, Lam):
     Lam[1, 0] = l01
 
 
-@njit(cache=True)
+@kernel
 def _schur_update(S, sv, Li, Rs, mx, G, C, z, cj, nK, idx, W, Om, Lo):
     """S += H_bᵀ Ω⁻¹ H_b, sv += H_bᵀ Ω⁻¹ (z − C_x m) with H_b = C_s E_j − C_x G, Ω = R + C_x Σ C_xᵀ: the plot
     with χ_i eliminated through its conditional (a PSD rank-2 term). False if Ω is not positive definite.
@@ -206,7 +208,7 @@ def _schur_update(S, sv, Li, Rs, mx, G, C, z, cj, nK, idx, W, Om, Lo):
     return True
 
 
-@njit(cache=True)
+@kernel
 def _information_update(Y, Yb, e, Ybb, eb, j, cj, z, C, Lr, Ri, RC):
     """Y += Hᵀ R⁻¹ H, η += Hᵀ R⁻¹ z with H = [C_x at the aircraft, C_s at radar j] (R⁻¹ from R's factor
     Lr): the aircraft's Y_ii, η_i, its column cj of Y_ib, and Y_jj, η_j. Ri, RC: scratch."""
@@ -240,7 +242,7 @@ def _information_update(Y, Yb, e, Ybb, eb, j, cj, z, C, Lr, Ri, RC):
         eb[2 * j + a] += C[0, a] * rz0 + C[1, a] * rz1  # Cᵀ R⁻¹ z
 
 
-@njit(cache=True)
+@kernel
 def _bias_downdate(Pb, bh, Kb, Ll, w0, w1):
     """Pb −= U Uᵀ, ς̂ += U w with U = Kb L_Λ⁻ᵀ (Kb's rows overwritten by U's columns) and w = L_Λ⁻¹ ν."""
     nb = Pb.shape[0]
@@ -258,7 +260,7 @@ def _bias_downdate(Pb, bh, Kb, Ll, w0, w1):
             row[r] -= up0 * K0[r] + up1 * K1[r]
 
 
-@njit(cache=True)
+@kernel
 def _maintain(st, wk):
     """Count the update; rebuild S from the blocks every rebuild_factor × (n + 1) updates and reset P_ς, ς̂
     from S every refresh_every updates (ERR_REBUILD, ERR_S if that fails; the update itself stands)."""
@@ -274,7 +276,7 @@ def _maintain(st, wk):
     return OK
 
 
-@njit(cache=True)
+@kernel
 def marginalise(st, wk, s):
     """Remove aircraft slot s: Y_bb −= Y_bi Y_ii⁻¹ Y_ib, η_b −= Y_bi Y_ii⁻¹ η_i (S unchanged), slot freed.
     Returns OK, or ERR_YII (nothing changed) if its Y_ii is not positive definite."""
@@ -291,7 +293,7 @@ def marginalise(st, wk, s):
     return OK
 
 
-@njit(cache=True)
+@kernel
 def read_aircraft(st, wk, s, out_x, out_P):
     """χ̂_i = m − G ς̂_K and P_i = Y_ii⁻¹ + G Pb[K, K] Gᵀ (no dense matrix formed); False if Y_ii ⋡ 0."""
     Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr, idx = st

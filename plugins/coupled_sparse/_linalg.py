@@ -9,10 +9,11 @@ instead of producing NaN.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from radartracker.api import kernel
 
 
-@njit(cache=True)
+@kernel
 def chol(A, L, n):
     """L[:n, :n] = lower Cholesky factor of A[:n, :n]; False (L undefined) unless positive definite."""
     for i in range(n):
@@ -31,7 +32,7 @@ def chol(A, L, n):
     return True
 
 
-@njit(cache=True)
+@kernel
 def lsolve(L, B, X, n, nc):
     """X[:n, :nc] = L⁻¹ B[:n, :nc] (forward substitution)."""
     for c in range(nc):
@@ -42,7 +43,7 @@ def lsolve(L, B, X, n, nc):
             X[i, c] = s / L[i, i]
 
 
-@njit(cache=True)
+@kernel
 def ltsolve(L, B, X, n, nc):
     """X[:n, :nc] = L⁻ᵀ B[:n, :nc] (back substitution)."""
     for c in range(nc):
@@ -53,7 +54,7 @@ def ltsolve(L, B, X, n, nc):
             X[i, c] = s / L[i, i]
 
 
-@njit(cache=True)
+@kernel
 def multiply(A, B, X, nc):
     """X[:4, :nc] = A B[:4, :nc] for 4×4 A."""
     for c in range(nc):
@@ -64,7 +65,7 @@ def multiply(A, B, X, nc):
             X[i, c] = acc
 
 
-@njit(cache=True)
+@kernel
 def identity(T):
     """T = I."""
     for i in range(T.shape[0]):
@@ -72,14 +73,14 @@ def identity(T):
             T[i, j] = 1.0 if i == j else 0.0
 
 
-@njit(cache=True)
+@kernel
 def inverse_factor(L, T, Li):
     """Li = L⁻¹ of a 4×4 lower-triangular L (T: scratch)."""
     identity(T)
     lsolve(L, T, Li, 4, 4)
 
 
-@njit(cache=True)
+@kernel
 def gram(X, out):
     """out = Xᵀ X for 4×4 X (exactly symmetric)."""
     for i in range(4):
@@ -91,7 +92,7 @@ def gram(X, out):
             out[j, i] = acc
 
 
-@njit(cache=True)
+@kernel
 def bias_index(rk, s, nk, idx):
     """idx[:2k] = positions in the bias vector of aircraft s's radars, in their storage order."""
     for c in range(nk):
@@ -99,7 +100,7 @@ def bias_index(rk, s, nk, idx):
         idx[2 * c + 1] = 2 * rk[s, c] + 1
 
 
-@njit(cache=True)
+@kernel
 def conditional(Yxx, Yxb, ex, s, nK, L, V, u, G, mx):
     """Factor Y_ii = L Lᵀ and form V = L⁻¹Y_ib, u = L⁻¹η_i, G = L⁻ᵀV, m = L⁻ᵀu; False if Y_ii ⋡ 0."""
     if not chol(Yxx[s], L, 4):
@@ -111,7 +112,7 @@ def conditional(Yxx, Yxb, ex, s, nK, L, V, u, G, mx):
     return True
 
 
-@njit(cache=True)
+@kernel
 def add_contribution(M, vec, idx, V, u, nK, sign):
     """M[idx, idx] += sign·VᵀV and vec[idx] += sign·Vᵀu (aircraft i's Schur term)."""
     for a in range(nK):
@@ -128,7 +129,7 @@ def add_contribution(M, vec, idx, V, u, nK, sign):
                 M[idx[b], idx[a]] += sign * acc
 
 
-@njit(cache=True)
+@kernel
 def transition(dt, q, A, Q):
     """Constant-velocity A(dt), Q(dt) exactly as radartracker.api.MotionModel.transition."""
     for i in range(4):

@@ -8,13 +8,14 @@ and without process noise Y_ii' = A⁻ᵀ Y_ii A⁻¹, Y_ib' = A⁻ᵀ Y_ib, η_
 
 from __future__ import annotations
 
-from numba import njit
+
+from radartracker.api import kernel
 
 from ._layout import ERR_YII, OK
 from ._linalg import chol, conditional, gram, inverse_factor, multiply, transition
 
 
-@njit(cache=True)
+@kernel
 def predict(Yxx, Yxb, ex, Ybb, eb, s, nK, idx, dt, q, f4, V, G, W, v4):
     """Predict aircraft s by dt (its nK bias columns at positions idx); returns OK or ERR_YII."""
     L, A, Q, Sg, T, Yn, Ln = f4[0], f4[1], f4[2], f4[3], f4[4], f4[5], f4[6]
@@ -32,7 +33,7 @@ def predict(Yxx, Yxb, ex, Ybb, eb, s, nK, idx, dt, q, f4, V, G, W, v4):
     return OK
 
 
-@njit(cache=True)
+@kernel
 def _shift_without_noise(Y, Yb, e, nK, dt):
     """Y ← A⁻ᵀ Y A⁻¹, Y_ib ← A⁻ᵀ Y_ib, η ← A⁻ᵀ η with A⁻¹ = A(−dt): (A⁻ᵀ M)[2+r] = M[2+r] − dt·M[r]."""
     for c in range(4):
@@ -53,7 +54,7 @@ def _shift_without_noise(Y, Yb, e, nK, dt):
             Y[c, r] = y
 
 
-@njit(cache=True)
+@kernel
 def _predicted_information(L, A, Q, Sg, T, Yn, Ln):
     """T = Y' = (A Σ Aᵀ + Q)⁻¹ with Σ = L⁻ᵀ L⁻¹ (L Lᵀ = Y_ii); False if A Σ Aᵀ + Q is not positive definite.
     Sg, Yn, Ln: scratch."""
@@ -74,7 +75,7 @@ def _predicted_information(L, A, Q, Sg, T, Yn, Ln):
     return True
 
 
-@njit(cache=True)
+@kernel
 def _remove_old_bias_term(Y, A, Yp, M, G, W, mx, Ybb, eb, idx, nK):
     """Y_bb −= Gᵀ M G and η_b −= Gᵀ M m with M = Y − Aᵀ Y' A (the change c_i' − c_i of the aircraft's
     Schur term); M, W: scratch."""
@@ -102,7 +103,7 @@ def _remove_old_bias_term(Y, A, Yp, M, G, W, mx, Ybb, eb, idx, nK):
                 Ybb[idx[b], idx[a]] -= acc
 
 
-@njit(cache=True)
+@kernel
 def _write_predicted_blocks(Y, Yb, e, nK, A, Yp, G, W, u, mx):
     """Y_ii ← Y', Y_ib ← Y' A G, η_i ← Y' A m; W, u: scratch."""
     multiply(A, G, W, nK)

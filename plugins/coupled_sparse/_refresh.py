@@ -8,13 +8,14 @@ and the bias marginal reset from S: P_ς = S⁻¹, ς̂ = S⁻¹ sv (refresh).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from radartracker.api import kernel
 
 from ._layout import C_SINCE_REBUILD, C_SINCE_REFRESH
 from ._linalg import add_contribution, bias_index, conditional
 
 
-@njit(cache=True)
+@kernel
 def rebuild(st, wk):
     """S and sv from the blocks, from scratch, on the storage ``st`` (:func:`~._layout.carve`) with the
     scratch ``wk`` (:func:`~._layout.carve_work`); False (S, sv untouched) if an aircraft's Y_ii is not
@@ -43,7 +44,7 @@ def rebuild(st, wk):
     return True
 
 
-@njit(cache=True)
+@kernel
 def refresh(S, sv, Pb, bh, ctr, LS, LSi):
     """Pb = S⁻¹ and ς̂ = S⁻¹ sv through the Cholesky factor S = L Lᵀ; False (Pb, ς̂ untouched) if S is not
     positive definite. LS, LSi: scratch at least as large as S.
@@ -66,7 +67,7 @@ def refresh(S, sv, Pb, bh, ctr, LS, LSi):
     return True
 
 
-@njit(cache=True)
+@kernel
 def _cholesky_transposed(S, Lt, n):
     """Lt = Lᵀ, L Lᵀ = S: column j of L is L[i, j] = (S[i, j] − Σ_{k<j} L[i, k] L[j, k]) / L[j, j], i ≥ j.
     False unless S is positive definite."""
@@ -87,7 +88,7 @@ def _cholesky_transposed(S, Lt, n):
     return True
 
 
-@njit(cache=True)
+@kernel
 def _inverse_lower(Lt, Li, n):
     """Li = L⁻¹ row by row: L⁻¹[i, c] = (δ_ic − Σ_{c≤k<i} L[i, k] L⁻¹[k, c]) / L[i, i], c ≤ i."""
     for i in range(n):
@@ -103,7 +104,7 @@ def _inverse_lower(Lt, Li, n):
             Li[i, c] = Li[i, c] / d
 
 
-@njit(cache=True)
+@kernel
 def _inverse_gram(Li, Pb, n):
     """Pb = L⁻ᵀ L⁻¹: Pb[i, j] = Σ_{k≥i} L⁻¹[k, i] L⁻¹[k, j] for j ≤ i (row i), mirrored."""
     for i in range(n):

@@ -31,7 +31,7 @@ import math
 import numpy as np
 from numba import njit
 
-from radartracker.api import bias_correct_into, position_d2
+from radartracker.api import bias_correct_into, kernel, position_d2
 from radartracker_plugins.motion._compiled import (ct_predict_into, cv_predict_into, innovation_nis, measurement_ok,
                                                    mixture_into, position_update_into)
 
@@ -93,7 +93,9 @@ def switching_into(lam: np.ndarray, left: np.ndarray, right: np.ndarray, dt: flo
     fixed matrix Π = L."""
     m = lam.shape[0]
     if m == 0:
-        Pi[:, :] = left
+        for i in range(left.shape[0]):
+            for j in range(left.shape[1]):
+                Pi[i, j] = left[i, j]
         return
     Pi[:, :] = 0.0
     for k in range(m):
@@ -134,7 +136,7 @@ def mix_into(mu: np.ndarray, X: np.ndarray, PP: np.ndarray, Pi: np.ndarray, w: n
         mixture_into(w, X, PP, D, X0[j], P0[j])
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def mix(settings: np.ndarray, work: np.ndarray, dt: float) -> None:
     """:func:`mix_into` for a step of ``dt`` from the state block: c̄ into the prediction block, (X⁰, P⁰)
     into the scratch (:func:`scratch_views`), the modes' inputs when they are called in Python."""
@@ -163,7 +165,7 @@ def predict_modes_into(modes: np.ndarray, X0: np.ndarray, P0: np.ndarray, dt: fl
             ct_predict_into(X0[j], P0[j], dt, modes[j, 1], modes[j, 2], F, Xp[j], PPp[j])
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def advance(settings: np.ndarray, work: np.ndarray, dt: float) -> None:
     """The prediction by ``dt`` of the state block into the prediction block: switching, mixing, each
     built-in mode's prediction and the predicted mixture weighed by c̄."""
@@ -209,7 +211,7 @@ def _normalised_exp_into(v: np.ndarray, mu: np.ndarray) -> None:
         mu[j] = mu[j] / total
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def correct(settings: np.ndarray, work: np.ndarray, z: np.ndarray, R: np.ndarray) -> tuple[float, int]:
     """Correction of the prediction block by position z into the state block: each mode's update,
     μ_j ∝ c̄_j N(ν_j; 0, Λ_j) (normalised from the largest log weight), output moment matched.
@@ -226,13 +228,16 @@ def correct(settings: np.ndarray, work: np.ndarray, z: np.ndarray, R: np.ndarray
     if failed >= 0:
         return math.nan, failed
     _normalised_exp_into(v, mu)
-    X[:, :] = Xn
-    PP[:, :, :] = PPn
+    for j in range(n):
+        for a in range(D):
+            X[j, a] = Xn[j, a]
+            for b in range(D):
+                PP[j, a, b] = PPn[j, a, b]
     mixture_into(mu, X, PP, 4, x, P)
     return nis, -2
 
 
-@njit(cache=True, inline="always")
+@kernel(inline="always")
 def screen(settings: np.ndarray, work: np.ndarray, dt: float, z: np.ndarray, C: np.ndarray, R: np.ndarray,
            bias: np.ndarray, bias_cov: np.ndarray, gate: float) -> tuple[float, float, int]:
     """Innovation screening of a radar measurement and the correction when it passes: zc = z − C ς̂,

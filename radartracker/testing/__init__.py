@@ -28,6 +28,9 @@ Estimator checks (``ESTIMATOR_CHECKS``):
 * ``update_many`` — the batch call equals one ``update`` after another (1e-9);
 * ``snapshot`` — a ``copy.deepcopy`` and, where the estimator has ``state_dict``, a new instance
   given ``load_state_dict(state_dict())`` continue bit for bit;
+* ``kernels`` — no function of the plugin's package compiled by :func:`radartracker.api.kernel`
+  (numba without its runtime) returns an array, in what the checks before it compiled (a motion model
+  has the same check);
 * ``joint_consistency`` (in ``EXACT_CHECKS``, for an exact joint filter that keeps every
   cross-covariance) — Monte Carlo with three aircraft, two biased radars and unbiased positions, truth
   and biases drawn from the priors: summed NIS, aircraft NEES and final bias NEES inside their
@@ -44,7 +47,7 @@ single-Gaussian filter, ``kalman_update=True``: the update is FilterPy's Kalman 
 ``predict``'s (χ̄, P̄)), ``hygiene`` (symmetric positive definite finite covariances through a 2 g
 manoeuvre, repeated times and a long gap), ``consistency`` (on straight constant-velocity flight with
 q = 1 m²/s³ and the truth's initial velocity drawn from the prior, the mean NEES and NIS are not
-above their 99.9 % χ² bounds: a model may be cautious, not overconfident) and ``snapshot``.
+above their 99.9 % χ² bounds: a model may be cautious, not overconfident), ``snapshot`` and ``kernels``.
 
 Associator checks (``ASSOCIATOR_CHECKS``, :mod:`radartracker.testing.associators`): ``contract``,
 ``obvious`` (plots at well separated tracks go to them, far and impossible plots to none) and ``manager``

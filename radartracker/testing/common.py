@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 import numpy as np
 from scipy.stats import chi2
+
+from radartracker.compiled import array_returns
 
 TOL = 1e-9
 H = np.hstack([np.eye(2), np.zeros((2, 2))])  # position observation of χ = [x, y, vx, vy]
@@ -64,3 +67,25 @@ def run_checks(owner: str, runners: dict, checks: list[str], *args: Any) -> list
         except Exception as exc:
             raise fail(owner, name, f"raised {type(exc).__name__}: {exc}") from exc
     return list(checks)
+
+
+def plugin_modules(cls: type) -> list:
+    """The imported modules of ``cls``'s package: its module's package, or the module itself when it is a
+    package or a top-level module."""
+    module = sys.modules[cls.__module__]
+    prefix = module.__name__ if hasattr(module, "__path__") else module.__name__.rpartition(".")[0] or module.__name__
+    return [m for name, m in list(sys.modules.items()) if m is not None and (name == prefix or name.startswith(prefix + "."))]
+
+
+def check_kernels(cls: type, owner: str) -> int:
+    """The ``kernels`` check: no kernel (:func:`radartracker.compiled.kernel`, compiled without numba's
+    runtime) of ``cls``'s package returns an array, in the signatures compiled by the checks before it.
+    Returns the number of signatures looked at."""
+    seen = 0
+    for module in plugin_modules(cls):
+        bad, n = array_returns(module)
+        seen += n
+        if bad:
+            raise fail(owner, "kernels", f"a kernel compiled without numba's runtime returns an array, which "
+                                         f"Python would hold without an owner: {'; '.join(bad)}")
+    return seen

@@ -14,10 +14,10 @@ from radartracker.errors import ConfigurationError
 from radartracker.estimation.base import AircraftEstimate, Estimator, EstimatorConfig, Innovation, PlaneMeasurement
 from radartracker.estimation.motion import MotionModel
 from radartracker.registry import option_fields, parse_value
-from radartracker.testing.common import (H, CheckFailed, chi2_inside, close, fail, identical, kalman_filter_class,
-                                         noise_cov, run_checks)
+from radartracker.testing.common import (H, CheckFailed, check_kernels, chi2_inside, close, fail, identical,
+                                         kalman_filter_class, noise_cov, run_checks)
 
-ESTIMATOR_CHECKS = ("contract", "filterpy", "consistency", "reads", "lifecycle", "update_many", "snapshot")
+ESTIMATOR_CHECKS = ("contract", "filterpy", "consistency", "reads", "lifecycle", "update_many", "snapshot", "kernels")
 # for an exact joint filter (every cross-covariance kept): consistent on biased measurements too
 EXACT_CHECKS = ESTIMATOR_CHECKS + ("joint_consistency",)
 
@@ -367,7 +367,8 @@ def _check_joint_consistency(make: Callable[[], Estimator], config: EstimatorCon
 
 _ESTIMATOR_RUNNERS = {"contract": _check_contract, "filterpy": _check_filterpy, "consistency": _check_consistency,
                       "reads": _check_reads, "lifecycle": _check_lifecycle, "update_many": _check_update_many,
-                      "snapshot": _check_snapshot, "joint_consistency": _check_joint_consistency}
+                      "snapshot": _check_snapshot, "joint_consistency": _check_joint_consistency,
+                      "kernels": lambda make, config, owner: check_kernels(type(make()), owner)}
 
 
 def check_estimator(cls: type[Estimator], *, config: EstimatorConfig | None = None,

@@ -10,12 +10,12 @@ from scipy.stats import chi2
 
 from radartracker.errors import ConfigurationError
 from radartracker.estimation.motion import MotionModel
-from radartracker.testing.common import (H, CheckFailed, close, fail, identical, kalman_filter_class, noise_cov,
+from radartracker.testing.common import (H, CheckFailed, check_kernels, close, fail, identical, kalman_filter_class, noise_cov,
                                          run_checks)
 from radartracker.tracking.filters import MotionConfig, TrackFilter
 
 MOTION_CHECKS = ("contract", "errors", "reads", "screen", "filterpy", "hygiene", "consistency",
-                 "snapshot")
+                 "snapshot", "kernels")
 
 
 def _run_filter(f: TrackFilter, t: np.ndarray, zs: np.ndarray, Rs: np.ndarray) -> list[float]:
@@ -230,7 +230,8 @@ def _check_motion_snapshot(cls: type[TrackFilter], config: MotionConfig, owner: 
 _MOTION_RUNNERS = {"contract": _check_motion_contract, "errors": _check_motion_errors, "reads": _check_motion_reads,
                    "screen": _check_motion_screen,
                    "filterpy": _check_motion_filterpy, "hygiene": _check_motion_hygiene,
-                   "consistency": _check_motion_consistency, "snapshot": _check_motion_snapshot}
+                   "consistency": _check_motion_consistency, "snapshot": _check_motion_snapshot,
+                   "kernels": lambda cls, config, owner: check_kernels(cls, owner)}
 
 
 def check_motion_model(cls: type[TrackFilter], config: MotionConfig | None = None, *, kalman_update: bool = True,
