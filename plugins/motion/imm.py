@@ -218,7 +218,8 @@ class IMMFilter(TrackFilter):
         """:meth:`TrackFilter.screen` in one compiled call (:func:`_imm_compiled.screen`: bias correction,
         the prediction to ``time`` unless kept, d² and the correction when it passes ``gate``); a
         prediction not used is kept for the update at ``time``. Modes called in Python predict first.
-        z_c and R_c are written into the filter's scratch and returned as copies (the caller keeps them)."""
+        z_c and R_c are written into the filter's scratch and returned as copies (the caller keeps them)
+        unless the filter was updated with them."""
         time = self._checked_time(time)
         if self._compiled and self._pred_time != time:
             dt = time - self.time
@@ -227,11 +228,11 @@ class IMMFilter(TrackFilter):
             self._predicted(time)
         d2, nis, code = compiled.screen(self._settings, self._work, dt, z, C, R, bias, bias_cov,
                                         -1.0 if gate is None else gate)
-        zc, Rc = self._zc.copy(), self._Rc.copy()
-        if code == -2:
+        if code == -2:  # updated: z_c and R_c are of no further use
             self.time, self._pred_time = time, math.nan
-            return d2, zc, Rc, True
+            return d2, None, None, True
         self._pred_time = time
+        zc, Rc = self._zc.copy(), self._Rc.copy()
         if code == -4:
             return d2, zc, Rc, False
         if code == -3:  # a measurement the compiled checks refused: the update raises with the messages

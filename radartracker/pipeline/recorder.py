@@ -8,6 +8,7 @@ per ``bias_log_interval_s``.
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import NamedTuple
 
@@ -92,8 +93,8 @@ def _events_of(rows: list[tuple]) -> Events:
         raise ValueError("an event's covariance is not a 4×4 array of floats")
     altitude_m, mode_s, mode_3a, target = zip(*idents)
     return Events(time=np.array(time, float), track=np.array(track, int), kind=_obj(kind), status=_obj(status),
-                  state=np.array(state, float).reshape(n, 4), cov=cov.reshape(n, 4, 4),
-                  altitude_m=np.array([math.nan if a is None else a for a in altitude_m], float),
+                  state=np.fromiter(itertools.chain.from_iterable(state), float, 4 * n).reshape(n, 4),
+                  cov=cov.reshape(n, 4, 4), altitude_m=np.array([math.nan if a is None else a for a in altitude_m], float),
                   mode_s=_obj(mode_s), mode_3a=_obj(mode_3a), target=_obj(target))
 
 
@@ -151,14 +152,14 @@ class Recorder:
 
     def listen(self, event, track) -> None:
         """Record a TrackManager's ``event`` of ``track`` (subscribe this method to the manager's
-        :class:`~radartracker.tracking.events.EventSink`): with the filter's covariance when the event's
-        state is the track's estimate (not extrapolated; never for a deletion), and the track's identity."""
+        :class:`~radartracker.tracking.events.EventSink`): with the filter's covariance (a float64 4×4 array,
+        the motion-model contract) when the event's state is the track's estimate (not extrapolated; never
+        for a deletion), and the track's identity."""
         cov = _NAN16
         if event.kind != "deleted":
             t0, _, P = track.estimate()
             if t0 == event.time:
-                P = np.asarray(P, float)
-                cov = (P if P.shape == (4, 4) else P[:4, :4]).tobytes()
+                cov = P.tobytes()
         rows = self._rows
         rows.append((event, cov, (track.altitude_m, track.mode_s, track.mode_3a, track.target)))
         if len(rows) >= self.flush_every:

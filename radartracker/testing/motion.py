@@ -73,6 +73,8 @@ def _check_motion_contract(cls: type[TrackFilter], config: MotionConfig, owner: 
     t, x, P = f.estimate()
     if t != 0.0 or np.shape(x) != (4,) or np.shape(P) != (4, 4) or not np.allclose(x[:2], [1e4, 2e4]):
         raise fail(owner, check, f"estimate() after start must be (0.0, χ (4,) at z, P (4, 4)), got {(t, x, P)}")
+    if not all(type(a) is np.ndarray and a.dtype == np.float64 for a in (x, P)):
+        raise fail(owner, check, f"estimate() must give χ and P as float64 numpy arrays, got {type(x)}, {type(P)}")
     sd_v = config.prior_sd_velocity_mps
     if not (np.allclose(P[:2, :2], R) and np.allclose(np.diag(P)[2:], sd_v**2) and np.allclose(x[2:], 0.0)):
         raise fail(owner, check, f"start must give χ = [z, 0, 0], P = diag(R, σ_v² I) with σ_v = {sd_v}, got {x}, {P}")

@@ -84,8 +84,9 @@ class TrackFilter(abc.ABC):
 
         (p̄, P̄_pp) the position part of :meth:`predict` to ``time``, d² = ∞ if the sum is not positive
         definite (:mod:`radartracker.estimation.screening`). If d² ≤ ``gate`` the filter is updated,
-        ``update(time, z_c, R_c)``, and ``updated`` is True; else (or with no gate) it is unchanged and the
-        caller may update it later with (z_c, R_c). Raises what ``predict`` and ``update`` raise.
+        ``update(time, z_c, R_c)``, ``updated`` is True and z_c, R_c may be None (the caller has no further
+        use for them); else (or with no gate) it is unchanged and the caller may update it later with
+        (z_c, R_c), which are then arrays. Raises what ``predict`` and ``update`` raise.
         This default is built on ``predict`` and ``update``; a model may override it, e.g. with one
         compiled call that predicts once for both.
         """

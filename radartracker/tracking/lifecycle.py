@@ -119,7 +119,7 @@ class TrackLifecycle:
                 self.counts["tracks_reinitialised"] += 1
                 self.delete(tr, src.time)
                 tr, updated = None, False
-        if zc is None:
+        if zc is None and not updated:
             zc, Rc = bias_corrected(z, C, R, bias, bias_cov) if radar is not None else (z, R)
         if tr is None:
             tr = self._start(src, zc, Rc, code)

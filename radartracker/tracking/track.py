@@ -14,7 +14,6 @@ from radartracker.tracking.association import AltitudeTrack
 from radartracker.tracking.filters import TrackFilter
 
 TRACK_STATUSES = ("tentative", "confirmed", "coasting", "deleted")
-_F8 = np.dtype(float)
 
 
 class Pending(NamedTuple):
@@ -63,28 +62,24 @@ class Track:
         return self.status in ("confirmed", "coasting")
 
     def estimate(self) -> tuple[float, np.ndarray, np.ndarray]:
-        """The filter's (time, χ, P), χ a contiguous float vector; read once after each change of the filter."""
-        e = self._estimate
-        if e is None:
-            t, x, P = self.filter.estimate()
-            if type(x) is not np.ndarray or x.dtype is not _F8 or x.ndim != 1 or not x.flags.c_contiguous:
-                x = np.ascontiguousarray(x, float).ravel()
-            state = tuple(x.tolist()[:4])
-            e = self._estimate = (t, x, P, state, (t, *state))
-        return e[:3]
+        """The filter's (time, χ, P): float arrays χ (4,) and P (4×4) (the motion-model contract), read
+        once after each change of the filter."""
+        return (self._estimate or self._read())[:3]
+
+    def _read(self) -> tuple:
+        """(t, χ, P, (t, x, y, vx, vy)) of the filter, kept until :meth:`changed`."""
+        t, x, P = self.filter.estimate()
+        e = self._estimate = (t, x, P, (t, *x.tolist()))
+        return e
 
     @property
     def epoch(self) -> float:
         """The time of the estimate."""
-        if self._estimate is None:
-            self.estimate()
-        return self._estimate[0]
+        return (self._estimate or self._read())[0]
 
     def estimate_row(self) -> tuple[float, float, float, float, float]:
         """(t, x, y, vx, vy) of the estimate, as floats."""
-        if self._estimate is None:
-            self.estimate()
-        return self._estimate[4]
+        return (self._estimate or self._read())[3]
 
     def changed(self) -> None:
         """The filter changed: :meth:`estimate` reads it again."""
@@ -92,12 +87,9 @@ class Track:
 
     def state_at(self, time: float) -> tuple[float, float, float, float]:
         """[x, y, vx, vy] at ``time``, extrapolated in a straight line from the estimate (never backwards)."""
-        if self._estimate is None:
-            self.estimate()
-        t0, state = self._estimate[0], self._estimate[3]
+        t0, x0, y0, vx, vy = (self._estimate or self._read())[3]
         if not time > t0:
-            return state
-        x0, y0, vx, vy = state
+            return x0, y0, vx, vy
         dt = time - t0
         return x0 + vx * dt, y0 + vy * dt, vx, vy
 
