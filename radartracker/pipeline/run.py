@@ -105,13 +105,21 @@ def run(data: ScenarioData, config: RunConfig | None = None, *, estimator: Estim
 def young_garbage(threshold: int = GC_YOUNG_THRESHOLD) -> Iterator[None]:
     """Python's cyclic collector looks at its youngest generation every ``threshold`` net allocations of
     containers while the block runs (default 700): an input and what is made from it live for the reorder
-    window, thousands of inputs, so at 700 they were promoted and scanned again in the older generations
-    (docs/performance.md, "Garbage collection"). Restored when the block ends."""
+    window, thousands of inputs, so at 700 they were promoted and scanned again in the older generations.
+    The objects that exist when the block starts (modules, compiled code, the caller's data: some 180 000
+    in a replay) are frozen (``gc.freeze``) so that the oldest generation's collections do not scan them
+    again and again, and given back to the collector (``gc.unfreeze``) when it ends, with the threshold
+    (docs/performance.md, "Garbage collection"). A caller that froze objects itself keeps them frozen."""
     old = gc.get_threshold()
     gc.set_threshold(max(threshold, old[0]), *old[1:])
+    freeze = gc.get_freeze_count() == 0
+    if freeze:
+        gc.freeze()
     try:
         yield
     finally:
+        if freeze:
+            gc.unfreeze()
         gc.set_threshold(*old)
 
 

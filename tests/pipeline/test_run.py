@@ -183,3 +183,27 @@ def test_screening_settings_reach_both_paths(labelled, association):
               progress=False)
     assert tight.counts.get("plots_outlier", 0) > 0 and off.counts.get("plots_outlier", 0) == 0
     assert tight.config.screening["gate_plots"] == 1.0 and off.config.screening["enabled"] is False
+
+
+def test_the_collector_settings_of_a_run_are_given_back() -> None:
+    """young_garbage raises the youngest generation's threshold and freezes the objects that existed before the
+    block, only while it runs; objects a caller froze stay frozen."""
+    import gc
+
+    from radartracker.pipeline.run import GC_YOUNG_THRESHOLD, young_garbage
+
+    before = gc.get_threshold()
+    assert gc.get_freeze_count() == 0
+    kept = [[] for _ in range(10)]  # containers that exist before the block
+    with young_garbage():
+        assert gc.get_threshold()[0] == max(GC_YOUNG_THRESHOLD, before[0])
+        assert gc.get_freeze_count() >= len(kept)
+    assert gc.get_threshold() == before and gc.get_freeze_count() == 0
+    gc.freeze()
+    try:
+        frozen = gc.get_freeze_count()
+        with young_garbage():
+            assert gc.get_freeze_count() >= frozen
+        assert gc.get_freeze_count() >= frozen
+    finally:
+        gc.unfreeze()
