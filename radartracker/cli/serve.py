@@ -16,8 +16,8 @@ from radartracker.errors import ConfigurationError
 
 def _host_port(text: str) -> tuple[str, int]:
     host, _, port = text.rpartition(":")
-    if not host or not port.isdigit():
-        raise argparse.ArgumentTypeError(f"expected HOST:PORT, got {text!r}")
+    if not host or not port.isdigit() or not 0 <= int(port) <= 65_535:
+        raise argparse.ArgumentTypeError(f"expected HOST:PORT with a port in 0..65535, got {text!r}")
     return host, int(port)
 
 
@@ -63,6 +63,7 @@ def register_serve(sub: argparse._SubParsersAction) -> None:
 
 def _cmd_serve(args: argparse.Namespace) -> int:
     from radartracker.io.asterix_reader import read_sites
+    from radartracker.pipeline.config import check_number
     from radartracker.service import Service, ServiceConfig, parse_endpoint
 
     radars, sites = read_sites(args.radars)
@@ -74,6 +75,11 @@ def _cmd_serve(args: argparse.Namespace) -> int:
                                args.sic, args.interface, args.publish_mode)
     except ValueError as exc:
         raise ConfigurationError(f"bad option: {exc}") from None
+    # the tracker's own settings, bounded here: a frame of 0 s divided by zero only once the service ran
+    if args.frame_s is not None:
+        check_number("--frame-s", args.frame_s, lo=0.0, lo_open=True, hi=60.0)
+    if args.reorder_window is not None:
+        check_number("--reorder-window", args.reorder_window, lo=0.0, hi=3_600.0)
     stop = threading.Event()  # a signal during the start still gets a clean stop
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())
@@ -99,11 +105,13 @@ def register_send(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_send(args: argparse.Namespace) -> int:
+    from radartracker.pipeline.config import check_number
     from radartracker.service import parse_endpoint
     from radartracker.service.sender import send
 
-    if args.speed < 0:
-        raise ConfigurationError("--speed must be >= 0 (0: as fast as possible)")
+    # 0: as fast as possible; else a time scale a recording's timing survives (1e-300 overflowed the waits)
+    if check_number("--speed", args.speed, lo=0.0, hi=1e6) != 0.0 and args.speed < 1e-3:
+        raise ConfigurationError(f"--speed: {args.speed!r} must be 0 (as fast as possible) or >= 0.001")
     try:
         sent = send(args.recording, parse_endpoint(args.to), args.speed, args.interface)
     except ValueError as exc:  # a malformed recording: the reader names file and byte offset

@@ -71,20 +71,38 @@ def build_manager(radars: list[Radar], estimator: str | None = None, motion_mode
     return make_manager(radars, ref, mcfg, estimator=est, filter_factory=motion_factory(cfg))
 
 
+def _within(lo: float, hi: float, kind: type = float):
+    """An attrs validator: a ``kind`` number in [lo, hi] (NaN and infinities are not)."""
+    def check(inst: object, attr: attrs.Attribute, value: object) -> None:
+        ok = isinstance(value, (int, float) if kind is float else int) and not isinstance(value, bool)
+        if not (ok and lo <= value <= hi):
+            raise ValueError(f"{attr.name} must be {'an integer' if kind is int else 'a number'} in "
+                             f"[{lo:g}, {hi:g}], not {value!r}")
+    return check
+
+
+def _http(inst: object, attr: attrs.Attribute, value: tuple[str, int] | None) -> None:
+    if value is not None and not (len(value) == 2 and isinstance(value[1], int) and 0 <= value[1] <= 65_535):
+        raise ValueError(f"http: a (host, port) with a port in [0, 65535], not {value!r}")
+
+
 @attrs.frozen
 class ServiceConfig:
-    """Where the service listens and publishes, and its periods (s)."""
+    """Where the service listens and publishes, and its periods (s). Every number has bounds an
+    operator's typo cannot pass: a CAT062 SAC or SIC is one byte, a port two, and the periods and the
+    queue's length are those of a service that can keep up (issue 33: ``--queue 10000000000`` and
+    ``--checkpoint-s 1e-9`` were accepted, ``--sac 999`` failed at the first publication)."""
 
     listen: tuple[Endpoint, ...]
     publish: Endpoint
     state_dir: Path
-    http: tuple[str, int] | None = None
-    period_s: float = attrs.field(default=4.0, validator=attrs.validators.gt(0))
-    checkpoint_s: float = attrs.field(default=60.0, validator=attrs.validators.gt(0))
-    queue_size: int = attrs.field(default=50_000, validator=attrs.validators.gt(0))
+    http: tuple[str, int] | None = attrs.field(default=None, validator=_http)
+    period_s: float = attrs.field(default=4.0, validator=_within(0.05, 3_600.0))
+    checkpoint_s: float = attrs.field(default=60.0, validator=_within(0.1, 86_400.0))
+    queue_size: int = attrs.field(default=50_000, validator=_within(1, 1_000_000, int))
     day_start: float | None = None  # None: the receive clock gives the day (live data)
-    sac: int = 0
-    sic: int = 100
+    sac: int = attrs.field(default=0, validator=_within(0, 255, int))
+    sic: int = attrs.field(default=100, validator=_within(0, 255, int))
     interface: str = "0.0.0.0"  # joins the listened multicast groups and sends the published one
     # chosen by measurement: docs/service.md, "Reorder window and frame (what chose the defaults)"
     publish_mode: str = attrs.field(default="both", validator=attrs.validators.in_(PUBLISH_MODES))
