@@ -2,9 +2,14 @@
 against a scenario's truth, with the replay's track metrics (:func:`radartracker.pipeline.evaluate.
 track_metrics`: continuity, swaps, breaks, false tracks — CLEAR MOT assignment on a 2 s grid).
 
-Each track number's published updates (I070 time, I100 position, I185 velocity) form its history;
-a TSE record ends it. Positions are in the service's plane (centred on the radars' mean position,
-as :func:`radartracker.service.service.build_manager` sets it), where the truth is projected too.
+Each track number's published updates (I070 time, I105 position, I185 velocity) form its history;
+a TSE record ends it. Positions are read from I105 (WGS-84) and projected onto a plane centred on the
+radars' mean position, where the truth is projected too: a capture's I100 plane positions are in the
+sending system's own plane, which the capture does not name (scoring I100 as if it were ours gave
+1 675 m RMSE and 8 false tracks on a replay whose plane was centred elsewhere, issue 33), so a capture
+whose updates lack I105 is refused. I185 is taken as it is, in the sender's axes: between two
+stereographic planes a few degrees apart they turn by under a degree, which over the seconds a
+position is extrapolated between updates is metres.
 A target counts as observed from ``GRACE_S`` after its first labelled plot to its last, as in a
 replay's evaluation. Command line: ``radartracker score CAPTURE --scenario DIR`` (one JSON line).
 """
@@ -37,11 +42,28 @@ def cat062_histories(records: list[dict]) -> dict[int, TrackHistory]:
     return out
 
 
+def placed(records: list[dict], plane: SystemPlane) -> list[dict]:
+    """The track updates with ``x_m``, ``y_m`` from their I105 position in ``plane`` (module docstring);
+    an InputError if any update has none."""
+    live = [r for r in records if not r["ended"]]
+    missing = sum(1 for r in live if r["lat"] is None or r["lon"] is None)
+    if missing:
+        raise InputError(f"{missing} of {len(live)} CAT062 track updates have no I105 (WGS-84 position); their "
+                         "I100 positions are in the sending system's plane, which the capture does not name")
+    if not live:
+        return list(records)
+    x, y = plane.to_plane(np.array([r["lat"] for r in live], float), np.array([r["lon"] for r in live], float))
+    at = {id(r): k for k, r in enumerate(live)}
+    return [r if r["ended"] else r | {"x_m": float(x[at[id(r)]]), "y_m": float(y[at[id(r)]])} for r in records]
+
+
 def score_cat062(records: list[dict], data: ScenarioData, step_s: float = 2.0) -> dict:
-    """Track metrics of the published tracks against ``data``'s truth (which must have plot labels)."""
+    """Track metrics of the published tracks against ``data``'s truth (which must have plot labels), and
+    ``positions``: where the positions came from."""
     if data.truth is None:
         raise InputError("the scenario has no truth to score against")
     plane = SystemPlane(float(np.mean([r.lat for r in data.radars])), float(np.mean([r.lon for r in data.radars])))
+    records = placed(records, plane)
     labelled = np.array([t is not None for t in data.plots.target], bool)
     if not labelled.any():
         raise InputError("the scenario's plots carry no target labels to score against")
@@ -53,4 +75,4 @@ def score_cat062(records: list[dict], data: ScenarioData, step_s: float = 2.0) -
     grid = np.arange(data.truth.time.min(), data.truth.time.max(), step_s)
     metrics = track_metrics(cat062_histories(records), TruthPaths.from_table(data.truth, plane), observed, grid)
     metrics.pop("gospa", None)
-    return metrics
+    return metrics | {"positions": "I105 (WGS-84)"}

@@ -117,7 +117,7 @@ def test_asterix_import_day_start(tmp_path, capsys):
 
 
 def test_cat062_scoring_is_the_replays_evaluation_of_the_same_states():
-    """Records carrying exactly a replay's reported states score exactly as the replay evaluates itself."""
+    """Records carrying a replay's reported states (positions as WGS-84) score as the replay evaluates itself."""
     import attrs
     import numpy as np
 
@@ -132,20 +132,26 @@ def test_cat062_scoring_is_the_replays_evaluation_of_the_same_states():
                                          float(np.mean([r.lon for r in data.radars]))))
     res = run(data, RunConfig(association="manager"), progress=False)
     ev = res.events
+    lat, lon = res.plane.to_geodetic(ev.state[:, 0], ev.state[:, 1])
     records = [{"track_number": int(ev.track[i]), "time": float(ev.time[i]), "x_m": ev.state[i, 0],
                 "y_m": ev.state[i, 1], "vx_mps": ev.state[i, 2], "vy_mps": ev.state[i, 3],
-                "ended": ev.kind[i] == "deleted"}
+                "lat": float(lat[i]), "lon": float(lon[i]), "ended": ev.kind[i] == "deleted"}
                for i in range(len(ev.time)) if ev.kind[i] in ("confirmed", "updated", "deleted")]
     expected = res.evaluation["tracking"]
     got = score_cat062(records, data)
+    assert got["positions"] == "I105 (WGS-84)"
     assert expected["confirmed_tracks"] > 0
     for key in ("continuity_min", "swaps", "breaks", "false_tracks", "confirmed_tracks", "position_rmse_m"):
-        assert got[key] == pytest.approx(expected[key], rel=1e-9), key
+        # positions go through WGS-84 and back (I105): micrometres
+        assert got[key] == pytest.approx(expected[key], rel=1e-6), key
 
 
-def test_score_command_scores_a_cat062_capture_as_the_replay_evaluates_itself(tmp_path, capsys):
-    """The replay's reported states written as CAT062 (its resolutions: 1/128 s, 0.5 m, 0.25 m/s) and
-    scored by ``radartracker score``: the replay's own evaluation, the RMSE within the quantisation."""
+@pytest.mark.parametrize("reference", ["centroid", "away"])
+def test_score_command_scores_a_cat062_capture_as_the_replay_evaluates_itself(tmp_path, capsys, reference):
+    """The replay's reported states written as CAT062 (its resolutions: 1/128 s, I105 180°/2²⁵, 0.5 m,
+    0.25 m/s) and scored by ``radartracker score``: the replay's own evaluation, the RMSE within the
+    quantisation, whether the replay's plane is the radars' centroid's or centred 1.5° away (issue 33:
+    scoring I100 there gave 8 false tracks and 1 675 m on the demo)."""
     import json
 
     import attrs
@@ -157,13 +163,14 @@ def test_score_command_scores_a_cat062_capture_as_the_replay_evaluates_itself(tm
     from radartracker.simulation.scenarios import build_scenario
 
     data = build_scenario("tracking", seed=3, duration=120).run()
-    data = attrs.evolve(data, reference=(float(np.mean([r.lat for r in data.radars])),
-                                         float(np.mean([r.lon for r in data.radars]))))
+    lat0, lon0 = float(np.mean([r.lat for r in data.radars])), float(np.mean([r.lon for r in data.radars]))
+    data = attrs.evolve(data, reference=(lat0, lon0) if reference == "centroid" else (lat0 + 1.0, lon0 - 1.5))
     write_scenario(tmp_path / "sc", data)
     res = run(data, RunConfig(association="manager"), progress=False)
     ev = res.events
-    recs = [cat062_bytes(float(ev.time[i]), 0, 100, int(ev.track[i]), 48.0, 2.0, *map(float, ev.state[i]),
-                         ended=ev.kind[i] == "deleted")
+    lat, lon = res.plane.to_geodetic(ev.state[:, 0], ev.state[:, 1])
+    recs = [cat062_bytes(float(ev.time[i]), 0, 100, int(ev.track[i]), float(lat[i]), float(lon[i]),
+                         *map(float, ev.state[i]), ended=ev.kind[i] == "deleted")
             for i in range(len(ev.time)) if ev.kind[i] in ("confirmed", "updated", "deleted")]
     (tmp_path / "out.ast").write_bytes(b"".join(blocks(62, recs, 1472)))
     assert main(["score", str(tmp_path / "out.ast"), "--scenario", str(tmp_path / "sc")]) == 0
@@ -173,9 +180,23 @@ def test_score_command_scores_a_cat062_capture_as_the_replay_evaluates_itself(tm
     for key in ("swaps", "breaks", "false_tracks", "confirmed_tracks"):
         assert got[key] == expected[key], key
     assert got["continuity_min"] == pytest.approx(expected["continuity_min"], abs=0.02)
-    assert got["position_rmse_m"] == pytest.approx(expected["position_rmse_m"], abs=0.5)
+    assert got["position_rmse_m"] == pytest.approx(expected["position_rmse_m"], rel=0.01)
+    assert got["positions"] == "I105 (WGS-84)"
     (tmp_path / "empty.ast").write_bytes(b"")
     assert main(["score", str(tmp_path / "empty.ast"), "--scenario", str(tmp_path / "sc")]) == 2
+
+
+def test_a_capture_without_i105_is_refused():
+    """Updates with only I100 plane positions cannot be placed: the capture does not name its plane."""
+    from radartracker.errors import InputError
+    from radartracker.geometry.plane import SystemPlane
+    from radartracker.service.score import placed
+
+    rec = {"track_number": 1, "time": 0.0, "x_m": 0.0, "y_m": 0.0, "vx_mps": 0.0, "vy_mps": 0.0, "ended": False}
+    with pytest.raises(InputError, match="1 of 2 CAT062 track updates have no I105"):
+        placed([rec | {"lat": 48.0, "lon": 2.0}, rec | {"lat": None, "lon": None}], SystemPlane(48.0, 2.0))
+    ended = rec | {"lat": None, "lon": None, "ended": True}  # a track end needs no position
+    assert placed([ended], SystemPlane(48.0, 2.0)) == [ended]
 
 
 def test_lateness_histogram_counts_how_out_of_order_records_arrive(tmp_path):
