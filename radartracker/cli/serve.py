@@ -86,7 +86,8 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     manager = {k: v for k, v in (("reorder_window_s", args.reorder_window), ("frame_s", args.frame_s)) if v is not None}
     service = Service(config, radars, sites, estimator=args.estimator, motion_model=args.motion_model, manager=manager)
     print(json.dumps({"serving": [str(e) for e in config.listen], "publish": str(config.publish),
-                      "estimator": service.manager.config.estimator, "resumed_from": service.resumed_from}),
+                      "estimator": service.manager.config.estimator, "resumed_from": service.resumed_from,
+                      "checkpoints_skipped": service.skipped_checkpoints}),
           file=sys.stderr, flush=True)
     summary = service.run(stop)
     print(json.dumps({k: summary[k] for k in ("datagrams", "records", "tracker", "published", "last_checkpoint")}))

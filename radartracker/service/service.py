@@ -34,7 +34,7 @@ import numpy as np
 from radartracker.domain import Radar
 from radartracker.errors import ConfigurationError
 from radartracker.registry import make_estimator
-from radartracker.service.checkpoints import checkpoints, read_checkpoint, write_checkpoint, write_json_atomic
+from radartracker.service.checkpoints import checkpoints, resume, write_checkpoint, write_json_atomic
 from radartracker.service.decoder import DayClock, Decoder, ReceiveClock
 from radartracker.service.endpoints import Endpoint, open_receiver, open_sender
 from radartracker.service.metrics import ServiceMetrics
@@ -119,16 +119,21 @@ class Service:
         self.config = config
         config.state_dir.mkdir(parents=True, exist_ok=True)
         self.base: Counter[str] = Counter()  # counters carried over from the checkpoint resumed
-        self.checkpoint_seq, self.resumed_from = 0, None
-        found = checkpoints(config.state_dir)
+        self.resumed_from = None
+        found, self.skipped_checkpoints = resume(config.state_dir)
+        for line in self.skipped_checkpoints:
+            log.error("checkpoint skipped, damaged: %s", line)
+        # new checkpoints are numbered after every one there, the damaged ones included
+        self.checkpoint_seq = max((n for n, _ in checkpoints(config.state_dir)), default=0)
         if found:
-            self.checkpoint_seq, folder = found[-1]
-            self.manager, state = read_checkpoint(folder)
+            _, folder, self.manager, state = found
             self._check_resume(folder, radars, estimator, motion_model, manager or {})
             self.base.update(state["counts"])
             self.resumed_from = folder.name
         else:
             self.manager = build_manager(radars, estimator, motion_model, LIVE_TRACKER | (manager or {}))
+        if self.skipped_checkpoints:
+            self.base["checkpoints_skipped_damaged"] += len(self.skipped_checkpoints)
         from radartracker.pipeline.config import RunConfig
         from radartracker.pipeline.warmup import warm_up
 

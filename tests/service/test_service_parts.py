@@ -239,3 +239,50 @@ def test_send_goes_on_when_nobody_listens(tmp_path, capsys):
     sent = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert sent["datagrams"] + sent["datagrams_refused"] == 6 and sent["datagrams_refused"] > 0
     assert sent["records"] == sent["datagrams"]  # one record each: refused ones are not counted as sent
+
+
+def test_a_damaged_newest_checkpoint_falls_back_to_the_older_one(tmp_path):
+    """Issue 33: one flipped bit in the newest snapshot, or a damaged service.json, stopped every restart
+    although the older checkpoint was intact. resume() skips what does not read back, naming it, and
+    takes the newest whole one; leftovers of failed writes go; numbering goes past 999 999."""
+    from radartracker.pipeline.stream import scenario_stream
+    from radartracker.service.checkpoints import resume
+    from radartracker.simulation.scenarios import build_scenario
+
+    data = build_scenario("tracking", seed=1, duration=40).run()
+    mgr = build_manager(data.radars)
+    for it in scenario_stream(data)[:300]:
+        mgr.process(it)
+    write_checkpoint(tmp_path, 999_999, mgr, {"counts": {"records_to_tracker": 1}})
+    newest = write_checkpoint(tmp_path, 1_000_000, mgr, {"counts": {"records_to_tracker": 2}})
+    assert [n for n, _ in checkpoints(tmp_path)] == [999_999, 1_000_000]  # ordered as numbers
+    snap = newest / "manager.snapshot"
+    body = bytearray(snap.read_bytes())
+    body[len(body) // 2] ^= 0x10
+    snap.write_bytes(bytes(body))
+    (tmp_path / ".checkpoint-1000001.partial").mkdir()
+    found, skipped = resume(tmp_path)
+    assert found[0] == 999_999 and found[3] == {"counts": {"records_to_tracker": 1}}
+    assert len(skipped) == 1 and skipped[0].startswith("checkpoint-1000000:")
+    assert not (tmp_path / ".checkpoint-1000001.partial").exists()
+    older = checkpoints(tmp_path)[0][1] / "service.json"
+    for bad in ('{"counts": {"records_to_tracker": 1', '{"written": 1}', '{"counts": {"records": "7"}}',
+                '{"counts": {"records": -1}}', '[]', ''):
+        older.write_text(bad)
+        found, skipped = resume(tmp_path)
+        assert found is None and len(skipped) == 2 and "service.json" in skipped[1], (bad, skipped)
+
+
+def test_a_failed_checkpoint_write_leaves_no_partial_folder(tmp_path, monkeypatch):
+    from radartracker.service import checkpoints as ck
+    from radartracker.simulation.scenarios import build_scenario
+
+    mgr = build_manager(build_scenario("tracking", seed=1, duration=10).run().radars)
+
+    def full_disk(*_a, **_k):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(ck, "write_json_atomic", full_disk)
+    with pytest.raises(OSError):
+        write_checkpoint(tmp_path, 1, mgr, {"counts": {}})
+    assert list(tmp_path.iterdir()) == []
