@@ -9,7 +9,8 @@ thread only fills the bounded queue; the HTTP thread only reads the views this l
 (:attr:`Service.view`, :attr:`Service.tracks_json`, :attr:`Service.biases_json`).
 
 Accounting (``summary.json``, the same rule as a replay: every input used or counted under a
-reason): datagrams received = dropped_queue_full + decoded + malformed; CAT048 + CAT021 records =
+reason): datagrams received = dropped_queue_full + dropped_at_stop + decoded + malformed (at a stop,
+what is still queued after :data:`STOP_DRAIN_S` of draining is dropped and counted); CAT048 + CAT021 records =
 records_to_tracker + the per-reason rejections; records_to_tracker = the sum of the manager's
 accounting (used, late, duplicate, in tentative tracks, …). A checkpoint stores these counters
 together with the manager, so after a restart they continue from the checkpoint; what arrived
@@ -44,6 +45,9 @@ from radartracker.registry import default_estimator, make_manager
 from radartracker.tracking.events import TrackEvent
 from radartracker.tracking.manager import TrackManager
 log = logging.getLogger(__name__)
+# seconds a stop spends on what was already received before the final checkpoint: with the checkpoint
+# (~15 s of wall time for 2 000 tracks, docs/service.md) well inside systemd's 60 s stop timeout
+STOP_DRAIN_S = 5.0
 
 PUBLISH_MODES = ("update", "periodic", "both")
 # The tracker's reordering window and frame for live data (a replay's are 2 s and 0.5 s), chosen by
@@ -209,8 +213,7 @@ class Service:
             self.receiver.join()
             for sock in self.sockets.values():
                 sock.close()
-        while self._take(block=False):  # what was received before the stop
-            pass
+        self._drain(time.monotonic() + STOP_DRAIN_S)
         self._collect(self.manager.flush())
         self._publish()  # a full publication at the stop, whatever the mode
         self._checkpoint(wait=True)
@@ -220,6 +223,24 @@ class Service:
             self.http.shutdown()
         self.publisher.sock.close()
         return summary
+
+    def _drain(self, deadline: float) -> None:
+        """At the stop: process what was received until ``deadline`` (monotonic), then count what is
+        still queued as ``datagrams_dropped_at_stop``: a flood's backlog would otherwise keep the final
+        checkpoint waiting past systemd's stop timeout (issue 33: 273 s after a 40 s flood)."""
+        while time.monotonic() < deadline and self._take(block=False):
+            pass
+        dropped = 0
+        try:
+            while True:
+                self.queue.get_nowait()
+                dropped += 1
+        except queue.Empty:
+            pass
+        if dropped:
+            self.base["datagrams_dropped_at_stop"] += dropped
+            log.warning("stop: %d datagrams still queued after %.0f s of draining, dropped and counted",
+                        dropped, STOP_DRAIN_S)
 
     def _take(self, block: bool, batch: int = 64) -> int:
         """Process up to ``batch`` queued datagrams (waiting up to 50 ms for the first if ``block``)."""
@@ -343,7 +364,7 @@ class Service:
             c["datagrams_received"] += r["datagrams_received"]
         else:
             c["datagrams_received"] = (c["datagrams_decoded"] + c["datagrams_malformed"]
-                                       + c["datagrams_dropped_queue_full"])
+                                       + c["datagrams_dropped_queue_full"] + c["datagrams_dropped_at_stop"])
         return c
 
     def _refresh_view(self) -> None:

@@ -286,3 +286,32 @@ def test_a_failed_checkpoint_write_leaves_no_partial_folder(tmp_path, monkeypatc
     with pytest.raises(OSError):
         write_checkpoint(tmp_path, 1, mgr, {"counts": {}})
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_stop_drains_for_a_bounded_time_and_counts_the_rest(tmp_path, monkeypatch):
+    """Issue 33: SIGTERM after a flood drained the whole queue (273 s) before the final checkpoint. The
+    stop now processes the backlog for STOP_DRAIN_S, drops and counts the rest, and still writes the
+    final checkpoint; the datagram accounting balances."""
+    import threading
+
+    from radartracker.service import Service, ServiceConfig
+    from radartracker.service import service as service_module
+    from radartracker.simulation.scenarios import build_scenario
+
+    radars = build_scenario("tracking", seed=1, duration=60).run().radars
+    ep = parse_endpoint("udp://127.0.0.1:0")
+    cfg = ServiceConfig((ep,), parse_endpoint("udp://127.0.0.1:9"), tmp_path / "state", day_start=0.0)
+    svc = Service(cfg, radars, {(0, 1): radars[0].id}, manager={"reorder_window_s": 0.5})
+    block = next(datablocks(CAT048, [cat048_record(10.0, 0, 1, 50_000.0, 1.0)]))
+    for _ in range(500):
+        svc.queue.put((time.time(), time.monotonic(), ep, block))
+    monkeypatch.setattr(service_module, "STOP_DRAIN_S", 0.0)  # a backlog that cannot be drained in time
+    stop = threading.Event()
+    stop.set()
+    started = time.monotonic()
+    summary = svc.run(stop)
+    assert time.monotonic() - started < 30.0
+    dg = summary["datagrams"]
+    assert dg["dropped_at_stop"] == 500 and dg.get("decoded", 0) == 0
+    assert svc._counts(False)["datagrams_received"] == 500  # every datagram processed or counted
+    assert (cfg.state_dir / summary["last_checkpoint"] / "manager.snapshot").is_file()
