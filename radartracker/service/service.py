@@ -162,6 +162,7 @@ class Service:
         self._newest = -math.inf  # the newest record time decoded (for the lateness histogram)
         self.tracks_json: dict = {"tracks": []}
         self.biases_json: dict = {}
+        self.degraded: str | None = None  # why the state folder is not being written (a full disk), if so
         self.view: dict = {}
         self._refresh_view()
         self.metrics = ServiceMetrics(self)
@@ -218,7 +219,7 @@ class Service:
         self._publish()  # a full publication at the stop, whatever the mode
         self._checkpoint(wait=True)
         summary = self.summary()
-        write_json_atomic(cfg.state_dir / "summary.json", summary)
+        self._write_state("summary.json", summary)
         if self.http is not None:
             self.http.shutdown()
         self.publisher.sock.close()
@@ -292,8 +293,22 @@ class Service:
             self._changed, self._ended = set(), []
         self.tracks_json = {"published": time.time(), "tracks": rows}
         self.biases_json = self._biases()
-        write_json_atomic(self.config.state_dir / "biases.json", self.biases_json)
+        self._write_state("biases.json", self.biases_json)
         self._refresh_view()
+
+    def _write_state(self, name: str, obj: dict) -> bool:
+        """Write ``obj`` as ``DIR/name``; a failure (a full disk) degrades the service instead of stopping
+        it: counted (``state_writes_failed``), logged, and named on ``/health`` until a write succeeds."""
+        try:
+            write_json_atomic(self.config.state_dir / name, obj)
+        except OSError as exc:
+            self.base["state_writes_failed"] += 1
+            if self.degraded is None:
+                log.error("%s not written (%s): tracking and CAT062 go on; retried at the next publication", name, exc)
+            self.degraded = f"{name} not written: {exc}"
+            return False
+        self.degraded = None
+        return True
 
     def _biases(self) -> dict:
         mgr = self.manager
@@ -320,8 +335,14 @@ class Service:
             self.checkpoint_seq += 1
             state = {"counts": dict(self._counts(False)), "written": time.time()}
             if wait or not hasattr(os, "fork"):
-                write_checkpoint(self.config.state_dir, self.checkpoint_seq, self.manager, state)
-                self.checkpoints_written += 1
+                try:
+                    write_checkpoint(self.config.state_dir, self.checkpoint_seq, self.manager, state)
+                    self.checkpoints_written += 1
+                except OSError as exc:  # a full disk: the previous checkpoint stands
+                    self.base["checkpoints_failed"] += 1
+                    self.checkpoint_seq -= 1
+                    self.degraded = f"checkpoint not written: {exc}"
+                    log.error("checkpoint %d not written (%s); the previous one stands", self.checkpoint_seq + 1, exc)
                 return
             pid = os.fork()
             if pid == 0:  # the child: write, and leave without running the parent's cleanup
@@ -389,7 +410,8 @@ class Service:
     def health(self) -> dict:
         """``/health``: alive, how long since the last datagram, queue depth, tracks."""
         now = time.time()
-        return {"status": "ok", "uptime_s": now - self.started,
+        degraded = {"status": "degraded", "reason": self.degraded} if self.degraded else {"status": "ok"}
+        return degraded | {"uptime_s": now - self.started,
                 "last_datagram_age_s": None if self.last_datagram is None else now - self.last_datagram,
                 "queue_depth": self.queue.qsize(), "datagrams": self.view["datagrams"],
                 "tracks": self.view["tracks_by_status"],

@@ -315,3 +315,40 @@ def test_a_stop_drains_for_a_bounded_time_and_counts_the_rest(tmp_path, monkeypa
     assert dg["dropped_at_stop"] == 500 and dg.get("decoded", 0) == 0
     assert svc._counts(False)["datagrams_received"] == 500  # every datagram processed or counted
     assert (cfg.state_dir / summary["last_checkpoint"] / "manager.snapshot").is_file()
+
+
+def test_a_full_disk_degrades_the_service_instead_of_stopping_it(tmp_path, monkeypatch):
+    """Issue 33: the first publication's biases.json write raised on a full disk and the service exited.
+    Now the write is counted as failed, /health says "degraded" with the reason, CAT062 goes on, and the
+    status is ok again once a write succeeds; a final checkpoint that cannot be written leaves the
+    previous one standing and the summary is still returned."""
+    import threading
+
+    from radartracker.service import Service, ServiceConfig
+    from radartracker.service import checkpoints as ck
+    from radartracker.service import service as service_module
+    from radartracker.simulation.scenarios import build_scenario
+
+    radars = build_scenario("tracking", seed=1, duration=60).run().radars
+    ep = parse_endpoint("udp://127.0.0.1:0")
+    cfg = ServiceConfig((ep,), parse_endpoint("udp://127.0.0.1:9"), tmp_path / "state", day_start=0.0)
+    svc = Service(cfg, radars, {(0, 1): radars[0].id})
+    write = service_module.write_json_atomic
+
+    def full_disk(*_a, **_k):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(service_module, "write_json_atomic", full_disk)
+    monkeypatch.setattr(ck, "write_json_atomic", full_disk)
+    svc._publish()
+    health = svc.health()
+    assert health["status"] == "degraded" and "biases.json" in health["reason"]
+    assert svc.publisher.counts.get("publications", 0) >= 1  # CAT062 went out
+    stop = threading.Event()
+    stop.set()
+    summary = svc.run(stop)  # the final checkpoint and summary.json fail too: counted, no exception
+    assert summary["checkpoints"]["failed"] == 1 and not list(cfg.state_dir.glob("checkpoint-*"))
+    assert svc._counts(True)["state_writes_failed"] >= 2
+    monkeypatch.setattr(service_module, "write_json_atomic", write)
+    svc._write_state("biases.json", {})
+    assert svc.health()["status"] == "ok"
