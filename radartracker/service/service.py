@@ -222,6 +222,7 @@ class Service:
         self._write_state("summary.json", summary)
         if self.http is not None:
             self.http.shutdown()
+            self.http.server_close()
         self.publisher.sock.close()
         return summary
 

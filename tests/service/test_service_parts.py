@@ -352,3 +352,65 @@ def test_a_full_disk_degrades_the_service_instead_of_stopping_it(tmp_path, monke
     monkeypatch.setattr(service_module, "write_json_atomic", write)
     svc._write_state("biases.json", {})
     assert svc.health()["status"] == "ok"
+
+
+def test_the_http_endpoint_holds_against_half_sent_requests(monkeypatch):
+    """Issue 33: 3 000 half-sent requests made 3 000 threads. Now a few pooled threads serve (100 half-sent
+    requests here), a silent
+    connection is closed after the timeout, connections beyond the pending bound are closed at once,
+    and /health still answers."""
+    import json
+    import threading
+    import urllib.request
+
+    from radartracker.service import http as http_module
+
+    monkeypatch.setattr(http_module, "TIMEOUT_S", 0.25)
+
+    class Fake:
+        def health(self):
+            return {"status": "ok"}
+
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    server = http_module.serve_http(Fake(), "127.0.0.1", port)
+    before = threading.active_count()
+    clients = []
+    try:
+        for _ in range(100):
+            c = socket.create_connection(("127.0.0.1", port), timeout=5)
+            c.sendall(b"GET /health HTTP/1.1\r\nHost: x\r\n")  # never finished
+            clients.append(c)
+        time.sleep(0.5)
+        assert threading.active_count() <= before + http_module.WORKERS
+        deadline = time.monotonic() + 60
+        while True:  # the pool works through the silent ones, a timeout each, then answers
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{port}/health", timeout=10) as r:
+                    assert json.loads(r.read()) == {"status": "ok"}
+                break
+            except OSError:
+                assert time.monotonic() < deadline
+    finally:
+        for c in clients:
+            c.close()
+        server.shutdown()
+        server.server_close()
+
+
+def test_http_connections_beyond_the_pending_bound_are_closed_at_once():
+    from http.server import BaseHTTPRequestHandler
+
+    from radartracker.service.http import MAX_PENDING, PooledHTTPServer
+
+    server = PooledHTTPServer(("127.0.0.1", 0), BaseHTTPRequestHandler)
+    try:
+        for _ in range(MAX_PENDING):  # every pending slot taken
+            server.pending.acquire()
+        a, b = socket.socketpair()
+        server.process_request(a, ("127.0.0.1", 0))
+        assert server.refused == 1 and a.fileno() == -1 and b.recv(1) == b""
+        b.close()
+    finally:
+        server.server_close()
