@@ -51,6 +51,8 @@ def register_serve(sub: argparse._SubParsersAction) -> None:
                         "is 0.5; on resume: the checkpoint's); an input waits for the end of its frame")
     p.add_argument("--checkpoint-s", type=float, default=60.0, help="seconds between checkpoints (default 60)")
     p.add_argument("--queue", type=int, default=50_000, help="datagrams the queue holds before dropping (default 50000)")
+    p.add_argument("--queue-mb", type=float, default=256.0,
+                   help="payload MiB the queue holds before dropping (default 256; 0.0625 to 8192)")
     p.add_argument("--day-start", type=_day_start, default=None, metavar="DATE|SECONDS",
                    help="UTC day of the first record, for a replayed recording (default: the receive clock)")
     p.add_argument("--sac", type=int, default=0, help="SAC of this tracker in CAT062 I010 (default 0)")
@@ -71,8 +73,9 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         raise ConfigurationError(f"{args.radars}: no radar")
     try:
         config = ServiceConfig(tuple(parse_endpoint(e) for e in args.listen), parse_endpoint(args.publish), args.state,
-                               args.http, args.period, args.checkpoint_s, args.queue, args.day_start, args.sac,
-                               args.sic, args.interface, args.publish_mode)
+                               args.http, args.period, args.checkpoint_s, args.queue,
+                               int(check_number("--queue-mb", args.queue_mb, lo=0.0625, hi=8192.0) * (1 << 20)),
+                               args.day_start, args.sac, args.sic, args.interface, args.publish_mode)
     except ValueError as exc:
         raise ConfigurationError(f"bad option: {exc}") from None
     # the tracker's own settings, bounded here: a frame of 0 s divided by zero only once the service ran

@@ -21,6 +21,32 @@ MAX_DATAGRAM = 65_535
 SO_RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40)  # Linux: each datagram carries the socket's drop count
 
 
+class DatagramQueue(queue.Queue):
+    """The queue between the receiver and the tracker: (received, received_mono, endpoint, payload)
+    entries, bounded in entries (``maxsize``) and in payload bytes (``max_bytes``): 50 000 datagrams of
+    64 kB held 3.5 GB (issue 33). A put beyond either bound raises :class:`queue.Full`. One thread
+    puts (the receiver) and takes only shrink the queue, so the byte check before the put holds."""
+
+    def __init__(self, maxsize: int, max_bytes: int) -> None:
+        super().__init__(maxsize)
+        self.max_bytes, self.bytes = max_bytes, 0
+
+    def _put(self, item: tuple) -> None:  # under the queue's lock
+        super()._put(item)
+        self.bytes += len(item[3])
+
+    def _get(self) -> tuple:  # under the queue's lock
+        item = super()._get()
+        self.bytes -= len(item[3])
+        return item
+
+    def put_nowait(self, item: tuple) -> None:
+        with self.mutex:
+            if self.bytes + len(item[3]) > self.max_bytes:
+                raise queue.Full
+        super().put_nowait(item)
+
+
 class Receiver(threading.Thread):
     """Reads every socket until :meth:`stop`; counts datagrams received and dropped.
 

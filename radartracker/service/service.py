@@ -40,7 +40,7 @@ from radartracker.service.decoder import DayClock, Decoder, ReceiveClock
 from radartracker.service.endpoints import Endpoint, open_receiver, open_sender
 from radartracker.service.metrics import ServiceMetrics
 from radartracker.service.publisher import Publisher, track_rows
-from radartracker.service.receiver import Receiver
+from radartracker.service.receiver import DatagramQueue, Receiver
 from radartracker.registry import default_estimator, make_manager
 from radartracker.tracking.events import TrackEvent
 from radartracker.tracking.manager import TrackManager
@@ -104,6 +104,7 @@ class ServiceConfig:
     period_s: float = attrs.field(default=4.0, validator=_within(0.05, 3_600.0))
     checkpoint_s: float = attrs.field(default=60.0, validator=_within(0.1, 86_400.0))
     queue_size: int = attrs.field(default=50_000, validator=_within(1, 1_000_000, int))
+    queue_bytes: int = attrs.field(default=256 << 20, validator=_within(1 << 16, 8 << 30, int))
     day_start: float | None = None  # None: the receive clock gives the day (live data)
     sac: int = attrs.field(default=0, validator=_within(0, 255, int))
     sic: int = attrs.field(default=100, validator=_within(0, 255, int))
@@ -145,7 +146,7 @@ class Service:
         mc = self.manager.config
         warm_up(RunConfig(association="manager", estimator=mc.estimator, motion_model=mc.motion_model,
                           manager=LIVE_TRACKER | (manager or {})))
-        self.queue: queue.Queue = queue.Queue(config.queue_size)
+        self.queue: queue.Queue = DatagramQueue(config.queue_size, config.queue_bytes)
         clock = ReceiveClock() if config.day_start is None else DayClock(config.day_start)
         self.decoder = Decoder(sites, clock)
         self.sockets = {ep: open_receiver(ep, config.interface) for ep in config.listen}

@@ -414,3 +414,45 @@ def test_http_connections_beyond_the_pending_bound_are_closed_at_once():
         b.close()
     finally:
         server.server_close()
+
+
+def test_the_datagram_queue_is_bounded_in_bytes_as_well():
+    """Issue 33: a queue bounded only in datagrams held 3.5 GB of 64 kB datagrams. A put beyond the byte
+    bound is refused (the receiver counts it dropped_queue_full) and a take gives the bytes back."""
+    from radartracker.service.receiver import DatagramQueue
+
+    q = DatagramQueue(100, 1000)
+    entry = (0.0, 0.0, None, b"x" * 600)
+    q.put_nowait(entry)
+    with pytest.raises(queue.Full):
+        q.put_nowait(entry)
+    assert q.bytes == 600
+    assert q.get_nowait() is entry and q.bytes == 0
+    q.put_nowait(entry)
+    q.put_nowait((0.0, 0.0, None, b"y" * 400))
+    assert q.bytes == 1000 and q.qsize() == 2
+
+
+def test_a_receiver_counts_datagrams_the_byte_bound_refuses():
+    from radartracker.service.receiver import DatagramQueue, Receiver
+
+    rx_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    rx_sock.bind(("127.0.0.1", 0))
+    rx_sock.setblocking(False)
+    ep = parse_endpoint(f"udp://127.0.0.1:{rx_sock.getsockname()[1]}")
+    q = DatagramQueue(1000, 3 * 1000)
+    rx = Receiver({ep: rx_sock}, q)
+    rx.start()
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
+            for _ in range(10):
+                tx.sendto(b"z" * 1000, rx_sock.getsockname())
+        deadline = time.monotonic() + 10
+        while rx.counts["datagrams_received"] < 10 and time.monotonic() < deadline:
+            time.sleep(0.01)
+    finally:
+        rx.stop()
+        rx.join()
+        rx_sock.close()
+    assert rx.counts["datagrams_received"] == 10 and q.qsize() == 3 and q.bytes == 3000
+    assert rx.counts["datagrams_dropped_queue_full"] == 7
