@@ -47,13 +47,18 @@ def parse_endpoint(text: str) -> Endpoint:
 
 
 def open_receiver(ep: Endpoint, interface: str = "0.0.0.0") -> socket.socket:
-    """A non-blocking socket bound to ``ep``; a multicast group is joined on ``interface``."""
+    """A non-blocking socket bound to ``ep``; a multicast group is joined on ``interface``. A multicast
+    socket is bound to the group's address, not to every address (issue 33: bound to 0.0.0.0 it decoded
+    unicast datagrams sent to the port from anywhere), and takes only the groups it joined itself
+    (``IP_MULTICAST_ALL`` off, where Linux has it)."""
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM, socket.IPPROTO_UDP)
     try:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER)
         if ep.multicast:
-            sock.bind(("", ep.port))
+            sock.bind((ep.host, ep.port))
+            if hasattr(socket, "IP_MULTICAST_ALL"):
+                sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_ALL, 0)
             mreq = struct.pack("4s4s", socket.inet_aton(ep.host), socket.inet_aton(interface))
             sock.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP, mreq)
         else:

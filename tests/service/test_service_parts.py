@@ -456,3 +456,28 @@ def test_a_receiver_counts_datagrams_the_byte_bound_refuses():
         rx_sock.close()
     assert rx.counts["datagrams_received"] == 10 and q.qsize() == 3 and q.bytes == 3000
     assert rx.counts["datagrams_dropped_queue_full"] == 7
+
+
+def test_a_multicast_listener_takes_only_its_group():
+    """Issue 33: a multicast --listen bound 0.0.0.0:port and decoded unicast datagrams from anyone. Bound
+    to the group, it receives what is sent to the group and not what is sent to the port directly."""
+    from radartracker.service.endpoints import open_receiver, open_sender
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    ep = parse_endpoint(f"udp://239.255.77.1:{port}")
+    rx = open_receiver(ep, "127.0.0.1")
+    try:
+        with open_sender(ep, interface="127.0.0.1") as tx, socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as uni:
+            uni.sendto(b"unicast", ("127.0.0.1", port))
+            tx.send(b"group")
+            got, deadline = [], time.monotonic() + 5
+            while time.monotonic() < deadline and b"group" not in got:
+                try:
+                    got.append(rx.recv(100))
+                except BlockingIOError:
+                    time.sleep(0.01)
+        assert got == [b"group"]
+    finally:
+        rx.close()
