@@ -93,4 +93,8 @@ def test_built_in_kernels_return_only_numbers_and_keep_no_references() -> None:
         seen += n
     bad, n = array_returns(sys.modules["radartracker_plugins.motion._imm_compiled"])
     assert bad == [] and n >= 1  # screen, at least
-    assert seen >= 5
+    # the kernels Python calls are compiled (or loaded from numba's cache) in this process; the ones they
+    # call are compiled into them, and seen only when compiled here, so the count depends on the cache
+    kernels = sys.modules["radartracker_plugins.coupled_sparse._kernels"]
+    assert all(k.nopython_signatures for k in (kernels.update_rows, kernels.read_aircraft, kernels.marginalise))
+    assert seen >= 3

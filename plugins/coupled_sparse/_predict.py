@@ -8,7 +8,6 @@ and without process noise Y_ii' = A⁻ᵀ Y_ii A⁻¹, Y_ib' = A⁻ᵀ Y_ib, η_
 
 from __future__ import annotations
 
-
 from radartracker.api import kernel
 
 from ._layout import ERR_YII, OK

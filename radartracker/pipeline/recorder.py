@@ -155,15 +155,12 @@ class Recorder:
         :class:`~radartracker.tracking.events.EventSink`): with the filter's covariance (a float64 4×4 array,
         the motion-model contract) when the event's state is the track's estimate (not extrapolated; never
         for a deletion), and the track's identity."""
-        cov = _NAN16
+        cov = None
         if event.kind != "deleted":
             t0, _, P = track.estimate()
             if t0 == event.time:
-                cov = P.tobytes()
-        rows = self._rows
-        rows.append((event, cov, (track.altitude_m, track.mode_s, track.mode_3a, track.target)))
-        if len(rows) >= self.flush_every:
-            self._columns()
+                cov = P
+        self.track_event(event, cov, (track.altitude_m, track.mode_s, track.mode_3a, track.target))
 
     def add_nis(self, values: np.ndarray) -> None:
         """Take the estimator's NIS values of a batch into the run's mean."""

@@ -53,8 +53,8 @@ def placed(records: list[dict], plane: SystemPlane) -> list[dict]:
     if not live:
         return list(records)
     x, y = plane.to_plane(np.array([r["lat"] for r in live], float), np.array([r["lon"] for r in live], float))
-    at = {id(r): k for k, r in enumerate(live)}
-    return [r if r["ended"] else r | {"x_m": float(x[at[id(r)]]), "y_m": float(y[at[id(r)]])} for r in records]
+    xy = iter(zip(x.tolist(), y.tolist()))  # the live records' positions, in their order
+    return [r if r["ended"] else r | dict(zip(("x_m", "y_m"), next(xy))) for r in records]
 
 
 def score_cat062(records: list[dict], data: ScenarioData, step_s: float = 2.0) -> dict:

@@ -34,6 +34,7 @@ import numpy as np
 
 from radartracker.domain import Radar
 from radartracker.errors import ConfigurationError
+from radartracker.pipeline.config import check_number
 from radartracker.registry import make_estimator
 from radartracker.service.checkpoints import checkpoints, resume, write_checkpoint, write_json_atomic
 from radartracker.service.decoder import DayClock, Decoder, ReceiveClock
@@ -75,13 +76,13 @@ def build_manager(radars: list[Radar], estimator: str | None = None, motion_mode
     return make_manager(radars, ref, mcfg, estimator=est, filter_factory=motion_factory(cfg))
 
 
-def _within(lo: float, hi: float, kind: type = float):
-    """An attrs validator: a ``kind`` number in [lo, hi] (NaN and infinities are not)."""
+def _within(lo: float, hi: float, integer: bool = False):
+    """An attrs validator: a finite number (an integer if ``integer``) in [lo, hi], by
+    :func:`~radartracker.pipeline.config.check_number`; a text or a bool is not a number here."""
     def check(inst: object, attr: attrs.Attribute, value: object) -> None:
-        ok = isinstance(value, (int, float) if kind is float else int) and not isinstance(value, bool)
-        if not (ok and lo <= value <= hi):
-            raise ValueError(f"{attr.name} must be {'an integer' if kind is int else 'a number'} in "
-                             f"[{lo:g}, {hi:g}], not {value!r}")
+        if isinstance(value, bool) or not isinstance(value, int if integer else (int, float)):
+            raise ValueError(f"{attr.name}: {value!r} is not {'an integer' if integer else 'a number'}")
+        check_number(attr.name, value, lo=lo, hi=hi, integer=integer)
     return check
 
 
@@ -103,11 +104,11 @@ class ServiceConfig:
     http: tuple[str, int] | None = attrs.field(default=None, validator=_http)
     period_s: float = attrs.field(default=4.0, validator=_within(0.05, 3_600.0))
     checkpoint_s: float = attrs.field(default=60.0, validator=_within(0.1, 86_400.0))
-    queue_size: int = attrs.field(default=50_000, validator=_within(1, 1_000_000, int))
-    queue_bytes: int = attrs.field(default=256 << 20, validator=_within(1 << 16, 8 << 30, int))
+    queue_size: int = attrs.field(default=50_000, validator=_within(1, 1_000_000, integer=True))
+    queue_bytes: int = attrs.field(default=256 << 20, validator=_within(1 << 16, 8 << 30, integer=True))
     day_start: float | None = None  # None: the receive clock gives the day (live data)
-    sac: int = attrs.field(default=0, validator=_within(0, 255, int))
-    sic: int = attrs.field(default=100, validator=_within(0, 255, int))
+    sac: int = attrs.field(default=0, validator=_within(0, 255, integer=True))
+    sic: int = attrs.field(default=100, validator=_within(0, 255, integer=True))
     interface: str = "0.0.0.0"  # joins the listened multicast groups and sends the published one
     # chosen by measurement: docs/service.md, "Reorder window and frame (what chose the defaults)"
     publish_mode: str = attrs.field(default="both", validator=attrs.validators.in_(PUBLISH_MODES))
@@ -304,13 +305,18 @@ class Service:
         try:
             write_json_atomic(self.config.state_dir / name, obj)
         except OSError as exc:
-            self.base["state_writes_failed"] += 1
-            if self.degraded is None:
-                log.error("%s not written (%s): tracking and CAT062 go on; retried at the next publication", name, exc)
-            self.degraded = f"{name} not written: {exc}"
+            self._write_failed("state_writes_failed", name, exc)
             return False
         self.degraded = None
         return True
+
+    def _write_failed(self, counter: str, what: str, exc: OSError) -> None:
+        """A write to the state folder failed: counted under ``counter``, logged once while it lasts, and
+        named on ``/health`` (degraded); tracking and CAT062 go on, the next write retries."""
+        self.base[counter] += 1
+        if self.degraded is None:
+            log.error("%s not written (%s): tracking and CAT062 go on; retried at the next write", what, exc)
+        self.degraded = f"{what} not written: {exc}"
 
     def _biases(self) -> dict:
         mgr = self.manager
@@ -341,10 +347,8 @@ class Service:
                     write_checkpoint(self.config.state_dir, self.checkpoint_seq, self.manager, state)
                     self.checkpoints_written += 1
                 except OSError as exc:  # a full disk: the previous checkpoint stands
-                    self.base["checkpoints_failed"] += 1
+                    self._write_failed("checkpoints_failed", f"checkpoint {self.checkpoint_seq}", exc)
                     self.checkpoint_seq -= 1
-                    self.degraded = f"checkpoint not written: {exc}"
-                    log.error("checkpoint %d not written (%s); the previous one stands", self.checkpoint_seq + 1, exc)
                 return
             pid = os.fork()
             if pid == 0:  # the child: write, and leave without running the parent's cleanup

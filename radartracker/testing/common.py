@@ -73,8 +73,9 @@ def plugin_modules(cls: type) -> list:
     """The imported modules of ``cls``'s package: its module's package, or the module itself when it is a
     package or a top-level module."""
     module = sys.modules[cls.__module__]
-    prefix = module.__name__ if hasattr(module, "__path__") else module.__name__.rpartition(".")[0] or module.__name__
-    return [m for name, m in list(sys.modules.items()) if m is not None and (name == prefix or name.startswith(prefix + "."))]
+    name = module.__name__
+    prefix = name if hasattr(module, "__path__") else name.rpartition(".")[0] or name
+    return [m for n, m in list(sys.modules.items()) if m is not None and (n == prefix or n.startswith(prefix + "."))]
 
 
 def check_kernels(cls: type, owner: str) -> int:

@@ -10,8 +10,8 @@ from scipy.stats import chi2
 
 from radartracker.errors import ConfigurationError
 from radartracker.estimation.motion import MotionModel
-from radartracker.testing.common import (H, CheckFailed, check_kernels, close, fail, identical, kalman_filter_class, noise_cov,
-                                         run_checks)
+from radartracker.testing.common import (H, CheckFailed, check_kernels, close, fail, identical, kalman_filter_class,
+                                         noise_cov, run_checks)
 from radartracker.tracking.filters import MotionConfig, TrackFilter
 
 MOTION_CHECKS = ("contract", "errors", "reads", "screen", "filterpy", "hygiene", "consistency",

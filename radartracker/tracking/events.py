@@ -9,6 +9,9 @@ if TYPE_CHECKING:
     from radartracker.tracking.track import Track
 
 EVENT_KINDS = ("created", "confirmed", "updated", "coasting", "deleted")
+# new_tuple(SomeNamedTuple, fields): a named tuple made without its Python-level __new__, for the
+# events, updates and measurements a manager makes once or more per input
+new_tuple = tuple.__new__
 
 
 class TrackEvent(NamedTuple):

@@ -27,7 +27,7 @@ from radartracker.errors import PluginError
 from radartracker.estimation.base import PlaneMeasurement
 from radartracker.estimation.screening import ACCEPT, REINIT, REJECT, AdsbPlausibility, bias_corrected, judge
 from radartracker.tracking.config import ManagerConfig
-from radartracker.tracking.events import EventSink, TrackEvent
+from radartracker.tracking.events import EventSink, TrackEvent, new_tuple
 from radartracker.tracking.feed import AddAircraft, EstimatorFeed, Measure, RemoveAircraft
 from radartracker.tracking.frame import FrameMeasurements
 from radartracker.tracking.track import Pending, Track
@@ -35,7 +35,6 @@ from radartracker.tracking.track import Pending, Track
 log = logging.getLogger(__name__)
 _LAST_UPDATE, _N_ADSB, _CREATED = attrgetter("last_update"), attrgetter("n_adsb"), attrgetter("created")
 _STATUS = attrgetter("status")
-_new = tuple.__new__  # _new(Measure, fields): a named tuple made without its Python-level __new__ (one per input)
 
 
 class Update(NamedTuple):
@@ -131,7 +130,7 @@ class TrackLifecycle:
             if sum(tr.detections) >= self.config.confirm_m:
                 self._confirm(tr)
         else:
-            self.feed.add(_new(Measure, (src.time, tr.id, radar, z, C, R, kind)))
+            self.feed.add(new_tuple(Measure, (src.time, tr.id, radar, z, C, R, kind)))
             tr.status = "confirmed"
             self.emit(src.time, tr, "updated")
 
@@ -250,4 +249,4 @@ class TrackLifecycle:
     def emit(self, time: float, tr: Track, kind: str) -> None:
         """The event of ``kind`` at ``time`` with the track's state then (extrapolated when later than its
         estimate)."""
-        self.sink.emit(_new(TrackEvent, (float(time), tr.id, kind, tr.status, tr.state_at(time))), tr)
+        self.sink.emit(new_tuple(TrackEvent, (float(time), tr.id, kind, tr.status, tr.state_at(time))), tr)

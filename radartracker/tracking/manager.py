@@ -45,7 +45,7 @@ from radartracker.tracking.admission import Admission, ReorderWindow
 from radartracker.tracking.associators import Associator, RadarPlots, associate_position
 from radartracker.tracking.config import ManagerConfig
 from radartracker.tracking.coverage import AntennaSweep
-from radartracker.tracking.events import EventSink, TrackEvent
+from radartracker.tracking.events import EventSink, TrackEvent, new_tuple
 from radartracker.tracking.feed import EstimatorFeed
 from radartracker.tracking.frame import Frame, FrameBuilder, Prediction
 from radartracker.tracking.lifecycle import TrackLifecycle, Update
@@ -54,7 +54,6 @@ from radartracker.tracking.schema import save_manager
 from radartracker.tracking.track import Track
 
 Input = Plot | AdsbReport | PlaneMeasurement
-_new = tuple.__new__  # _new(Update, fields): a named tuple made without its Python-level __new__ (one per input)
 
 
 class TrackManager:
@@ -205,8 +204,8 @@ class TrackManager:
                 if i < -1:
                     self.counts[result.reasons.get(k, "plots_refused_by_associator")] += 1
                     continue
-                updates.append(_new(Update, (plots[k].time, next(seq), pred.tracks[i] if i >= 0 else None,
-                                             rows.start + k, plots[k])))
+                updates.append(new_tuple(Update, (plots[k].time, next(seq), pred.tracks[i] if i >= 0 else None,
+                                                  rows.start + k, plots[k])))
                 if i >= 0:
                     hits.add((r, i))
         return updates, hits

@@ -299,3 +299,22 @@ def test_a_frames_estimator_work_comes_at_its_end_and_a_refused_measurement_cost
     used = sum(v for k, v in counts.items() if k.endswith("_used"))
     assert used == len(received) - 1  # everything after the refusal in its batch was applied
     assert sum(counts.values()) == len(items)
+
+
+def test_the_frame_prediction_is_each_tracks_straight_line():
+    """Prediction.position (all tracks at once) and Track.state_at (one track) are the one straight line
+    p + v·max(t − t₀, 0) from each track's estimate (t₀, χ): computed here from estimate() itself."""
+    from radartracker.tracking.frame import Prediction
+
+    data = build_scenario("demo", seed=3, duration=60.0).run()
+    mgr = make_manager(data.radars, data.reference)
+    items = scenario_stream(data)
+    for item in items[: len(items) // 2]:
+        mgr.process(item)
+    tracks = list(mgr.tracks.values())
+    assert len(tracks) >= 3
+    epochs = np.array([tr.estimate()[0] for tr in tracks])
+    for t in (epochs.min() - 5.0, float(np.median(epochs)), epochs.max() + 7.5):
+        want = np.array([x[:2] + x[2:4] * max(t - t0, 0.0) for t0, x, _ in (tr.estimate() for tr in tracks)])
+        np.testing.assert_allclose(Prediction(tracks, t).position, want, rtol=1e-12)
+        np.testing.assert_allclose([tr.state_at(t)[:2] for tr in tracks], want, rtol=1e-12)
