@@ -165,6 +165,8 @@ class Service:
         self.tracks_json: dict = {"tracks": []}
         self.biases_json: dict = {}
         self.degraded: str | None = None  # why the state folder is not being written (a full disk), if so
+        self.refusing: str | None = None  # why most recent input is refused (its time stamps), if so
+        self._judged = (0, 0)  # (records to the tracker, of them refused by time) at the last view
         self.view: dict = {}
         self._refresh_view()
         self.metrics = ServiceMetrics(self)
@@ -217,7 +219,8 @@ class Service:
             for sock in self.sockets.values():
                 sock.close()
         self._drain(time.monotonic() + STOP_DRAIN_S)
-        self._collect(self.manager.flush())
+        # what the stream has reached; an input alone far ahead stays waiting, in the checkpoint
+        self._collect(self.manager.flush(end=False))
         self._publish()  # a full publication at the stop, whatever the mode
         self._checkpoint(wait=True)
         summary = self.summary()
@@ -394,7 +397,20 @@ class Service:
                                        + c["datagrams_dropped_queue_full"] + c["datagrams_dropped_at_stop"])
         return c
 
+    def _judge_input(self) -> None:
+        """Set :attr:`refusing` when more than half the records the tracker judged since the last view were
+        refused for their time stamps (ahead of the stream clock, or behind the reordering horizon): a feed
+        the tracker cannot follow shows on ``/health`` while it lasts, not only in the counters."""
+        seen = self.decoder.counts["records_to_tracker"]
+        refused = sum(v for k, v in self.manager.counts.items() if k.endswith(("_time_jump", "_late")))
+        n, r = seen - self._judged[0], refused - self._judged[1]
+        self._judged = (seen, refused)
+        if n > 0:
+            self.refusing = (f"input refused: {r} of the last {n} records had time stamps ahead of the stream "
+                             "clock or behind the reordering horizon") if 2 * r > n else None
+
     def _refresh_view(self) -> None:
+        self._judge_input()
         c = self._counts(True)
         groups: dict[str, dict] = {"datagrams": {}, "blocks": {}, "records": {}, "published": {},
                                    "checkpoints": {"written": self.checkpoints_written}}
@@ -416,7 +432,8 @@ class Service:
     def health(self) -> dict:
         """``/health``: alive, how long since the last datagram, queue depth, tracks."""
         now = time.time()
-        degraded = {"status": "degraded", "reason": self.degraded} if self.degraded else {"status": "ok"}
+        reasons = [r for r in (self.degraded, self.refusing) if r]
+        degraded = {"status": "degraded", "reason": "; ".join(reasons)} if reasons else {"status": "ok"}
         return degraded | {"uptime_s": now - self.started,
                 "last_datagram_age_s": None if self.last_datagram is None else now - self.last_datagram,
                 "queue_depth": self.queue.qsize(), "datagrams": self.view["datagrams"],

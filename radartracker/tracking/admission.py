@@ -86,6 +86,17 @@ class Admission:
             self.reject(f"{INPUT_KINDS[key[0]]}_time_jump", item)
         self.held = []
 
+    def overflow(self, item: object) -> None:
+        """``item`` was dropped from a full reordering window: counted ``*_reorder_overflow``, and forgotten
+        (a flood that fills the window leaves no keys behind)."""
+        key = self._key(item)
+        self.keys.pop(key, None)
+        self.reject(f"{INPUT_KINDS[key[0]]}_reorder_overflow", item)
+
+    def reject_ahead(self, item: object) -> None:
+        """``item`` was admitted but the stream ended before reaching its time: counted ``*_time_jump``."""
+        self.reject(f"{INPUT_KINDS[self._key(item)[0]]}_time_jump", item)
+
     def _key(self, item: object) -> tuple | None:
         if isinstance(item, Plot):
             if item.radar not in self.radars:
@@ -114,30 +125,75 @@ class Admission:
 
 
 class ReorderWindow:
-    """Admitted inputs wait until the newest time is ``window_s`` ahead of them, then leave in (time,
-    arrival) order. Most inputs come in time order and wait in a queue; one that came after a later one
-    waits in a heap, so at equal times an input of the queue leaves first."""
+    """Admitted inputs wait until the stream's *confirmed* time is ``window_s`` ahead of them, then leave
+    in (time, arrival) order. Most inputs come in time order and wait in a queue; one that came after a
+    later one waits in a heap, so at equal times an input of the queue leaves first.
 
-    def __init__(self, window_s: float) -> None:
+    The confirmed time is the ``confirm``-th newest time pushed (the stream clock's ``step_after``): a
+    time that ``confirm`` inputs have reached. So one input far ahead of the others (a spoofed time stamp
+    inside the clock's ``max_ahead_s``) moves neither the window nor the horizon behind it: it waits,
+    alone, until the stream reaches its time, and no good input becomes late because of it. The window
+    holds at most ``capacity`` inputs; an input pushed into a full window first drops the oldest one
+    (returned by :meth:`push`, for the caller to count), so a flood of inputs sharing one time stamp
+    cannot grow the memory without bound."""
+
+    def __init__(self, window_s: float, confirm: int = 3, capacity: int = 100_000) -> None:
         self.window_s = window_s
+        self.capacity = capacity
         self.queue: deque = deque()
         self.heap: list[tuple[float, int, object]] = []
         self.arrivals = 0  # inputs that waited in the heap so far (their order at equal times)
         self.newest: float | None = None
+        self.latest = [-math.inf] * confirm  # the ``confirm`` newest times pushed, newest first
         self.horizon = -math.inf  # every input at or before it has left
 
     def __len__(self) -> int:
         return len(self.queue) + len(self.heap)
 
-    def push(self, item: object, t: float) -> float:
-        """Add ``item`` (time ``t``); returns the time up to which inputs may leave."""
+    @property
+    def confirmed(self) -> float:
+        """The newest time that ``confirm`` pushed inputs have reached (−∞ before that many)."""
+        return self.latest[-1]
+
+    def push(self, item: object, t: float) -> object | None:
+        """Add ``item`` (time ``t``); returns the oldest input, dropped to make room, if the window was full."""
+        dropped = self._drop_oldest() if len(self.queue) + len(self.heap) >= self.capacity else None
         if self.newest is None or t >= self.newest:
             self.queue.append(item)
             self.newest = t
         else:
             heapq.heappush(self.heap, (t, self.arrivals, item))
             self.arrivals += 1
-        return self.newest - self.window_s
+        latest = self.latest
+        if t > latest[-1]:
+            i = 0
+            while latest[i] >= t:
+                i += 1
+            latest.insert(i, t)
+            latest.pop()
+        return dropped
+
+    @property
+    def until(self) -> float:
+        """The time up to which inputs may leave: ``window_s`` before the confirmed time."""
+        return self.latest[-1] - self.window_s
+
+    def settled(self, slack_s: float) -> float:
+        """Where a stream's end may be released to: the confirmed time, extended through the newer times
+        pushed each at most ``slack_s`` after the one before (a sparse stream's last inputs), never to an
+        input alone far ahead."""
+        t = self.latest[-1]
+        for x in reversed(self.latest[:-1]):
+            if x - t > slack_s:
+                break
+            t = x
+        return t
+
+    def _drop_oldest(self) -> object:
+        queue, heap = self.queue, self.heap
+        if heap and (not queue or heap[0][0] < queue[0].time):
+            return heapq.heappop(heap)[2]
+        return queue.popleft()
 
     def release(self, until: float) -> Iterator[tuple[float, object]]:
         """The inputs at or before ``until``, in order, with their times."""

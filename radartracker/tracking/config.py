@@ -14,7 +14,7 @@ from radartracker.tracking.filters import MotionConfig
 class ManagerConfig:
     """Settings of the TrackManager, stage by stage (docs/tracking.md says what each stage does).
 
-    Admission: ``reorder_window_s``, ``clock``. Frames: ``frame_s``. Association:
+    Admission: ``reorder_window_s``, ``reorder_capacity``, ``clock``. Frames: ``frame_s``. Association:
     ``associator`` (a ``radartracker.associators`` plugin), ``gate`` (χ²₂ 99.9 %), ``search_radius_m``,
     ``new_track_exclusion`` (χ²₂ 1 − 10⁻⁶: no tentative track this close to a confirmed one),
     ``primary_altitude_m`` and its spread ``primary_altitude_sd_m`` (the height a plot without Mode C is
@@ -37,6 +37,9 @@ class ManagerConfig:
     confirm_n: int = 5
     delete_after_s: float = 40.0
     reorder_window_s: float = 2.0
+    # the most inputs the reordering window holds: 20 s of national traffic (5,000 inputs/s), ten times
+    # the replay's window; only a flood sharing one time stamp fills it (then the oldest is dropped)
+    reorder_capacity: int = attrs.field(default=100_000, validator=attrs.validators.ge(1))
     frame_s: float = 0.5
     primary_altitude_m: float = 6000.0
     primary_altitude_sd_m: float = 3500.0

@@ -6,7 +6,7 @@ A manager is a short recipe of stages, each a class of its own module with one j
    time stamps far ahead of the stream's robust clock, duplicates and inputs behind the reordering
    horizon are rejected and counted; the inputs of a genuine jump of the stream are held, then admitted.
 2. **Reordering** (:class:`~radartracker.tracking.admission.ReorderWindow`): admitted inputs wait until
-   the newest time is ``reorder_window_s`` ahead of them, then leave in time order, into frames of
+   the stream's confirmed time is ``reorder_window_s`` ahead of them, then leave in time order, into frames of
    ``frame_s`` seconds.
 3. **Frame** (:class:`~radartracker.tracking.frame.FrameBuilder`): a frame's plots, ADS-B reports and
    unbiased positions in the plane, and the live tracks predicted to it
@@ -74,7 +74,7 @@ class TrackManager:
         self.coupling = CouplingGraph(list(self.radars))
         self.events = EventSink()
         self.admission = Admission(self.radars, config.clock, self.counts)
-        self.window = ReorderWindow(config.reorder_window_s)
+        self.window = ReorderWindow(config.reorder_window_s, config.clock.step_after, config.reorder_capacity)
         self.frames = FrameBuilder(PlaneConverter(radars, frames, self.plane), config.primary_altitude_m,
                                    config.primary_altitude_sd_m)
         self.antennas = AntennaSweep(radars, [frames[r.id].xy for r in radars],
@@ -89,8 +89,12 @@ class TrackManager:
     # --- public API ------------------------------------------------------------------------------
     def process(self, item: Input) -> list[TrackEvent]:
         """Admit one plot, ADS-B report or unbiased position; return the events it caused (possibly none yet)."""
-        for t, admitted in self.admission.admit(item, self.window.horizon):
-            self._release(self.window.push(admitted, t))
+        window = self.window
+        for t, admitted in self.admission.admit(item, window.horizon):
+            dropped = window.push(admitted, t)
+            if dropped is not None:
+                self.admission.overflow(dropped)
+            self._release(window.until)
         return self.events.take()
 
     def process_many(self, items: Iterable[Input]) -> list[TrackEvent]:
@@ -112,11 +116,20 @@ class TrackManager:
             self.frame += 1
         return self.events.take()
 
-    def flush(self) -> list[TrackEvent]:
-        """Release and process everything still waiting (end of a recording); inputs held ahead of the
-        stream's clock, never confirmed by a clock step, are counted ``*_time_jump``."""
-        self.admission.drop_held()
-        self._release(math.inf)
+    def flush(self, end: bool = True) -> list[TrackEvent]:
+        """Process what the stream has reached: at the end of a recording (``end``) or a service's stop.
+
+        The window is released up to its settled time (:meth:`ReorderWindow.settled`, with a slack of half
+        ``delete_after_s``), so an input alone far ahead of the stream never advances the tracks' time (it
+        would delete every track at once). At the end of a recording that input, and the inputs held ahead of
+        the clock never confirmed by a clock step, are counted ``*_time_jump``; at a stop they stay waiting,
+        in the snapshot, for the stream that resumes."""
+        if end:
+            self.admission.drop_held()
+        self._release(self.window.settled(0.5 * self.config.delete_after_s))
+        if end:
+            for _, item in self.window.release(math.inf):
+                self.admission.reject_ahead(item)
         if self.frame is not None and self.gathered:
             self._run_frame(self.frame)
         self.gathered = []

@@ -8,7 +8,8 @@ attributes::
     counts      {reason: count}
     admission   {"keys": [[tag, source, time, a, b]], "keys_limit", "clock": StreamClock state,
                  "held": [input] (the inputs of a run that may step the clock)}
-    window      {"queue": [input], "heap": [[time, arrival, input]], "arrivals", "newest", "horizon"}
+    window      {"queue": [input], "heap": [[time, arrival, input]], "arrivals", "newest", "latest" (the
+                 newest times pushed, newest first: the stream's confirmed time is the last), "horizon"}
     frame       the frame being gathered (null before the first input), "gathered": [input]
     antennas    AntennaSweep state;  adsb_check: AdsbPlausibility state
     tracks      [track], "next_track": the next track id
@@ -40,7 +41,8 @@ from radartracker.errors import SnapshotError
 from radartracker.tracking.snapshot import class_name, decode, encode, read_snapshot_file, write_snapshot_file
 from radartracker.tracking.track import TRACK_STATUSES, Pending, Track
 
-SCHEMA = 2
+SCHEMA = 3
+READS = (2, 3)  # schema 2 lacks the window's "latest": its newest time stands for them
 _KINDS = ("plots", "adsb", "positions")
 
 
@@ -195,7 +197,8 @@ def state_document(mgr: Any) -> dict:
                           "clock": adm.clock.state_dict(), "held": [input_doc(i) for _, i in adm.held]},
             "window": {"queue": [input_doc(i) for i in win.queue],
                        "heap": [[t, a, input_doc(i)] for t, a, i in win.heap],
-                       "arrivals": win.arrivals, "newest": win.newest, "horizon": win.horizon},
+                       "arrivals": win.arrivals, "newest": win.newest, "latest": list(win.latest),
+                       "horizon": win.horizon},
             "frame": mgr.frame, "gathered": [input_doc(i) for i in mgr.gathered],
             "antennas": mgr.antennas.state_dict(), "adsb_check": mgr.life.adsb_check.state_dict(),
             "tracks": [_track_doc(tr) for tr in mgr.tracks.values()],
@@ -248,7 +251,8 @@ def _dict(v: Any, what: str) -> dict:
 
 
 def _load_window(win: Any, doc: Any, radars: frozenset) -> None:
-    _need(isinstance(doc, dict) and set(doc) == {"queue", "heap", "arrivals", "newest", "horizon"}, "window: fields")
+    fields = {"queue", "heap", "arrivals", "newest", "horizon"}
+    _need(isinstance(doc, dict) and set(doc) - {"latest"} == fields, "window: fields")
     queue = [input_of(x, radars, f"window queue[{i}]") for i, x in enumerate(_list(doc["queue"], "window queue"))]
     heap = []
     for i, e in enumerate(_list(doc["heap"], "window heap")):
@@ -265,6 +269,13 @@ def _load_window(win: Any, doc: Any, radars: frozenset) -> None:
     win.queue, win.heap = deque(queue), heap
     win.arrivals = _integer(doc["arrivals"], "window arrivals")
     win.newest, win.horizon = newest, horizon
+    k = len(win.latest)
+    latest = doc.get("latest", [-math.inf if newest is None else newest] * k)
+    latest = [_number(t, "window latest", finite=False) for t in _list(latest, "window latest")]
+    _need(len(latest) == k and latest == sorted(latest, reverse=True) and not any(map(math.isnan, latest))
+          and latest[0] < math.inf and (newest is None or latest[0] <= newest), "window latest: "
+          f"{k} times, newest first, at most the newest time expected")
+    win.latest = latest
 
 
 def _load_admission(adm: Any, doc: Any, radars: frozenset) -> None:
@@ -307,7 +318,7 @@ def read_manager(path: Path | str) -> tuple[dict, bytes]:
         meta, blob = decode(payload)
         _need(isinstance(meta, dict) and meta.get("kind") == "TrackManager" and isinstance(blob, bytes),
               "the payload is not a TrackManager snapshot")
-        _need(meta.get("schema") == SCHEMA, f"schema {meta.get('schema')!r}, this release reads {SCHEMA}")
+        _need(meta.get("schema") in READS, f"schema {meta.get('schema')!r}, this release reads {READS}")
         _need(set(meta) == {"kind", "schema", "radars", "reference", "config", "estimator", "associator"},
               "meta: fields")
         _need(isinstance(meta["radars"], list) and meta["radars"] and all(isinstance(r, Radar) for r in meta["radars"])

@@ -200,8 +200,9 @@ def test_a_capture_without_i105_is_refused():
 
 
 def test_lateness_histogram_counts_how_out_of_order_records_arrive(tmp_path):
-    """Records at 10, 12, 11, 9.5, 13 s arrive 0, 0, 1, 2.5, 0 s behind the newest before them; with a
-    0.5 s window the tracker has released up to 11 s when 9.5 arrives, so that one alone is late."""
+    """Records at 10, 12, 11, 13, 9.5 s arrive 0, 0, 1, 0, 3.5 s behind the newest before them; with a
+    0.5 s window the tracker has released up to 10.5 s (the third newest time less the window) when 9.5
+    arrives, so that one alone is late."""
     from radartracker.service import Service, ServiceConfig
     from radartracker.simulation.scenarios import build_scenario
 
@@ -210,7 +211,7 @@ def test_lateness_histogram_counts_how_out_of_order_records_arrive(tmp_path):
     cfg = ServiceConfig((ep,), parse_endpoint("udp://127.0.0.1:9"), tmp_path / "state", day_start=0.0)
     svc = Service(cfg, radars, {(0, 1): radars[0].id}, manager={"reorder_window_s": 0.5})
     try:
-        for t in (10.0, 12.0, 11.0, 9.5, 13.0):
+        for t in (10.0, 12.0, 11.0, 13.0, 9.5):
             svc._handle(time.time(), time.monotonic(), ep,
                         next(datablocks(CAT048, [cat048_record(t, 0, 1, 50_000.0, 1.0)])))
     finally:
@@ -218,7 +219,7 @@ def test_lateness_histogram_counts_how_out_of_order_records_arrive(tmp_path):
             sock.close()
     sample = svc.metrics.registry.get_sample_value
     assert sample("radartracker_input_lateness_seconds_count") == 5
-    assert sample("radartracker_input_lateness_seconds_sum") == pytest.approx(3.5)
+    assert sample("radartracker_input_lateness_seconds_sum") == pytest.approx(4.5)
     assert sample("radartracker_input_lateness_seconds_bucket", {"le": "0.0"}) == 3
     assert sample("radartracker_input_lateness_seconds_bucket", {"le": "1.0"}) == 4
     assert svc.manager.accounting().get("plots_late") == 1
@@ -481,3 +482,34 @@ def test_a_multicast_listener_takes_only_its_group():
         assert got == [b"group"]
     finally:
         rx.close()
+
+
+def test_health_is_degraded_while_the_feed_is_refused_and_ok_again_after(tmp_path):
+    """Issue 33: while every input was refused (a frozen clock) /health said "ok". Now a view in which most
+    records were refused for their time stamps makes it "degraded" with the reason, and a view in which
+    they are used again makes it "ok"."""
+    from radartracker.service import Service, ServiceConfig
+    from radartracker.simulation.scenarios import build_scenario
+
+    radars = build_scenario("tracking", seed=1, duration=60).run().radars
+    ep = parse_endpoint("udp://127.0.0.1:0")
+    cfg = ServiceConfig((ep,), parse_endpoint("udp://127.0.0.1:9"), tmp_path / "state", day_start=0.0)
+    svc = Service(cfg, radars, {(0, 1): radars[0].id})
+
+    def feed(times) -> None:
+        for t in times:
+            svc._handle(time.time(), time.monotonic(), ep,
+                        next(datablocks(CAT048, [cat048_record(t, 0, 1, 50_000.0 + t, 1.0)])))
+        svc._refresh_view()
+
+    try:
+        feed([100.0 + k for k in range(20)])
+        assert svc.health()["status"] == "ok"
+        feed([50.0 + 0.1 * k for k in range(20)])  # all behind the reordering horizon: late
+        health = svc.health()
+        assert health["status"] == "degraded" and "20 of the last 20 records" in health["reason"]
+        feed([120.0 + k for k in range(20)])
+        assert svc.health()["status"] == "ok"
+    finally:
+        for sock in [*svc.sockets.values(), svc.publisher.sock]:
+            sock.close()

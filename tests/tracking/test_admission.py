@@ -124,17 +124,18 @@ def test_clock_decisions_are_those_of_the_median_rule(seed):
 
 
 def _reference_release(times: list[float], window: float) -> tuple[list[int], int]:
-    """The reordering rule taken literally: an input waits until the newest time is ``window`` past it, inputs
-    go in (time, arrival) order, and one at or before the last time gone is late. Arrival numbers in the
-    order they go, and the number of late inputs."""
-    waiting, gone, horizon, newest, late = [], [], -math.inf, -math.inf, 0
+    """The reordering rule taken literally: an input waits until the third newest time pushed (the stream's
+    confirmed time) is ``window`` past it, inputs go in (time, arrival) order, and one at or before the last
+    time gone is late. Arrival numbers in the order they go, and the number of late inputs."""
+    waiting, gone, horizon, pushed, late = [], [], -math.inf, [], 0
     for k, t in enumerate(times):
         if t <= horizon:
             late += 1
             continue
         waiting = sorted(waiting + [(t, k)])
-        newest = max(newest, t)
-        while waiting and waiting[0][0] <= newest - window:
+        pushed.append(t)
+        confirmed = sorted(pushed)[-3] if len(pushed) >= 3 else -math.inf
+        while waiting and waiting[0][0] <= confirmed - window:
             horizon, k_gone = waiting.pop(0)
             gone.append(k_gone)
     return gone + [k for _, k in waiting], late
@@ -301,3 +302,66 @@ def test_one_spoofed_time_stamp_is_held_then_counted_and_moves_nothing(demo_data
     assert a.process_many(spoofed) == b.process_many(clean)
     counts = a.accounting()
     assert counts.pop("plots_time_jump") == 1 and counts == b.accounting()
+
+
+def _spoof_at(items: list, k: int, ahead: float) -> tuple[list, object]:
+    import attrs
+
+    spoof = attrs.evolve(items[k], time=items[k].time + ahead)
+    return items[:k] + [spoof] + items[k + 1:], spoof
+
+
+def test_a_lone_record_just_inside_the_clock_costs_only_itself(demo_data):
+    """One plot 290 s ahead (inside the clock's 300 s, so admitted) in the middle of a jittered stream that
+    goes on past its time: no good plot becomes late (it made 14–19 late in the service, issue 33), every
+    other input is accounted exactly as in the stream without it, and the spoof is accounted once."""
+    stream = _jitter(_plots(demo_data, 600.0), seed=5)
+    k = next(i for i, p in enumerate(stream) if p.time > 150.0)
+    dirty, _ = _spoof_at(stream, k, 290.0)
+    clean = stream[:k] + stream[k + 1:]
+    a, b = make_manager(demo_data.radars, demo_data.reference), make_manager(demo_data.radars, demo_data.reference)
+    a.process_many(dirty)
+    b.process_many(clean)
+    got, want = a.accounting(), b.accounting()
+    assert got.get("plots_late", 0) == want.get("plots_late", 0)
+    assert sum(got.values()) == sum(want.values()) + 1
+    assert len([t for t in a.confirmed_tracks()]) == len(b.confirmed_tracks())
+
+
+@pytest.mark.parametrize("end", [True, False])
+def test_a_lone_record_ahead_at_the_end_never_advances_the_tracks(demo_data, end):
+    """The stream ends (a recording, or a service's stop) with one plot 290 s ahead still waiting: the flush
+    releases up to the stream's settled time only, so the events and tracks are those of the stream without
+    it (before, the flush advanced time to the spoof and deleted every track). At the end of a recording it is
+    counted a time jump; at a stop it stays waiting, in the snapshot, for the stream that resumes."""
+    items = scenario_stream(demo_data)[:3000]
+    k = next(i for i in range(len(items) - 1, 0, -1) if isinstance(items[i], Plot))
+    dirty, spoof = _spoof_at(items, k, 290.0)
+    clean = items[:k] + items[k + 1:]
+    a, b = make_manager(demo_data.radars, demo_data.reference), make_manager(demo_data.radars, demo_data.reference)
+    ev_a = [e for it in dirty for e in a.process(it)] + a.flush(end=end)
+    ev_b = [e for it in clean for e in b.process(it)] + b.flush()
+    assert ev_a == ev_b and not any(e.kind == "deleted" for e in ev_a[-50:])
+    assert [t.id for t in a.confirmed_tracks()] == [t.id for t in b.confirmed_tracks()] != []
+    got, want = a.accounting(), b.accounting()
+    assert got.pop("plots_time_jump" if end else "waiting_in_reorder_window") == 1 and got == want
+
+
+def test_a_flood_sharing_one_time_stamp_is_bounded_by_the_window_capacity(demo_data):
+    """20,000 distinct plots at one time into a window of capacity 1,000: the window never holds more, the
+    oldest are dropped and counted ``plots_reorder_overflow``, the keys kept for duplicates stay bounded, and
+    every plot is accounted for."""
+    import attrs
+
+    from radartracker.tracking.config import ManagerConfig
+
+    rid = demo_data.radars[0].id
+    mgr = make_manager(demo_data.radars, demo_data.reference, ManagerConfig(reorder_capacity=1000))
+    peak = 0
+    for k in range(20_000):
+        mgr.process(Plot(100.0, rid, 20_000.0 + k, 1.0))
+        peak = max(peak, len(mgr.window), len(mgr.admission.keys))
+    assert peak <= 1000
+    counts = mgr.accounting()
+    assert counts["plots_reorder_overflow"] == 19_000 and counts["waiting_in_reorder_window"] == 1000
+    assert attrs.fields(ManagerConfig).reorder_capacity.default == 100_000
