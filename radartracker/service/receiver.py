@@ -88,13 +88,30 @@ class Receiver(threading.Thread):
                 data, anc, _, _ = sock.recvmsg(MAX_DATAGRAM, self._cmsg)
             except (BlockingIOError, InterruptedError):
                 return
-            for level, kind, value in anc:
-                if level == socket.SOL_SOCKET and kind == SO_RXQ_OVFL and len(value) >= 4:
-                    self._kernel_drops[ep] = int.from_bytes(value[:4], "little")
-                    self.counts["datagrams_dropped_kernel"] = sum(self._kernel_drops.values())
+            self._kernel_count(ep, anc)
             entry = (time.time(), time.monotonic(), ep, data)
             self.counts["datagrams_received"] += 1
             try:
                 self.out.put_nowait(entry)
             except queue.Full:
                 self.counts["datagrams_dropped_queue_full"] += 1
+
+    def _kernel_count(self, ep: Endpoint, anc: list) -> None:
+        for level, kind, value in anc:
+            if level == socket.SOL_SOCKET and kind == SO_RXQ_OVFL and len(value) >= 4:
+                self._kernel_drops[ep] = int.from_bytes(value[:4], "little")
+                self.counts["datagrams_dropped_kernel"] = sum(self._kernel_drops.values())
+
+    def discard_unread(self) -> int:
+        """After :meth:`stop` and :meth:`join`: read what is still in the sockets' buffers and return how many
+        datagrams there were, so that a stop counts them (dropped at the stop) instead of losing them unseen."""
+        n = 0
+        for ep, sock in self.sockets.items():
+            while True:
+                try:
+                    _, anc, _, _ = sock.recvmsg(MAX_DATAGRAM, self._cmsg)
+                except OSError:  # BlockingIOError: the buffer is empty
+                    break
+                self._kernel_count(ep, anc)
+                n += 1
+        return n

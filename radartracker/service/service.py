@@ -216,6 +216,9 @@ class Service:
         finally:
             self.receiver.stop()
             self.receiver.join()
+            unread = self.receiver.discard_unread()  # in the sockets' buffers at the stop: counted, not lost
+            if unread:
+                self.base["datagrams_dropped_at_stop"] += unread
             for sock in self.sockets.values():
                 sock.close()
         self._drain(time.monotonic() + STOP_DRAIN_S)

@@ -87,8 +87,8 @@ class Admission:
         self.held = []
 
     def overflow(self, item: object) -> None:
-        """``item`` was dropped from a full reordering window: counted ``*_reorder_overflow``, and forgotten
-        (a flood that fills the window leaves no keys behind)."""
+        """``item`` was dropped from a full reordering window: counted ``*_reorder_overflow`` and forgotten
+        (sent again, it is judged again, not called a duplicate)."""
         key = self._key(item)
         self.keys.pop(key, None)
         self.reject(f"{INPUT_KINDS[key[0]]}_reorder_overflow", item)
@@ -132,14 +132,12 @@ class ReorderWindow:
     The confirmed time is the ``confirm``-th newest time pushed (the stream clock's ``step_after``): a
     time that ``confirm`` inputs have reached. So one input far ahead of the others (a spoofed time stamp
     inside the clock's ``max_ahead_s``) moves neither the window nor the horizon behind it: it waits,
-    alone, until the stream reaches its time, and no good input becomes late because of it. The window
-    holds at most ``capacity`` inputs; an input pushed into a full window first drops the oldest one
-    (returned by :meth:`push`, for the caller to count), so a flood of inputs sharing one time stamp
-    cannot grow the memory without bound."""
+    alone, until the stream reaches its time, and no good input becomes late because of it. The caller
+    bounds the window's length with :meth:`drop_newest` and :meth:`pop_oldest`
+    (:meth:`~radartracker.tracking.manager.TrackManager._overfull` says when each)."""
 
-    def __init__(self, window_s: float, confirm: int = 3, capacity: int = 100_000) -> None:
+    def __init__(self, window_s: float, confirm: int = 3) -> None:
         self.window_s = window_s
-        self.capacity = capacity
         self.queue: deque = deque()
         self.heap: list[tuple[float, int, object]] = []
         self.arrivals = 0  # inputs that waited in the heap so far (their order at equal times)
@@ -155,9 +153,8 @@ class ReorderWindow:
         """The newest time that ``confirm`` pushed inputs have reached (−∞ before that many)."""
         return self.latest[-1]
 
-    def push(self, item: object, t: float) -> object | None:
-        """Add ``item`` (time ``t``); returns the oldest input, dropped to make room, if the window was full."""
-        dropped = self._drop_oldest() if len(self.queue) + len(self.heap) >= self.capacity else None
+    def push(self, item: object, t: float) -> None:
+        """Add ``item`` (time ``t``)."""
         if self.newest is None or t >= self.newest:
             self.queue.append(item)
             self.newest = t
@@ -171,7 +168,6 @@ class ReorderWindow:
                 i += 1
             latest.insert(i, t)
             latest.pop()
-        return dropped
 
     @property
     def until(self) -> float:
@@ -189,11 +185,21 @@ class ReorderWindow:
             t = x
         return t
 
-    def _drop_oldest(self) -> object:
+    def drop_newest(self) -> object:
+        """Remove and return the input with the newest time (the last of the queue: an input waits in the
+        heap only when it is older than the newest time at its arrival)."""
+        return self.queue.pop()
+
+    def pop_oldest(self) -> tuple[float, object]:
+        """The oldest input (time, input), out of the window before its time (the horizon moves to it)."""
         queue, heap = self.queue, self.heap
         if heap and (not queue or heap[0][0] < queue[0].time):
-            return heapq.heappop(heap)[2]
-        return queue.popleft()
+            t, _, item = heapq.heappop(heap)
+        else:
+            item = queue.popleft()
+            t = item.time
+        self.horizon = t
+        return t, item
 
     def release(self, until: float) -> Iterator[tuple[float, object]]:
         """The inputs at or before ``until``, in order, with their times."""

@@ -18,7 +18,7 @@ class ManagerConfig:
     ``associator`` (a ``radartracker.associators`` plugin), ``gate`` (χ²₂ 99.9 %), ``search_radius_m``,
     ``new_track_exclusion`` (χ²₂ 1 − 10⁻⁶: no tentative track this close to a confirmed one),
     ``primary_altitude_m`` and its spread ``primary_altitude_sd_m`` (the height a plot without Mode C is
-    converted at). Life cycle: ``confirm_m`` of ``confirm_n``, ``delete_after_s``. Screening: ``screening``.
+    converted at). Life cycle: ``confirm_m`` of ``confirm_n``, ``delete_after_s``, ``max_tracks``. Screening: ``screening``.
     Plugins: ``estimator`` with ``estimator_config`` / ``estimator_options``, ``motion_model`` with
     ``motion`` / ``motion_options``.
     """
@@ -40,6 +40,9 @@ class ManagerConfig:
     # the most inputs the reordering window holds: 20 s of national traffic (5,000 inputs/s), ten times
     # the replay's window; only a flood sharing one time stamp fills it (then the oldest is dropped)
     reorder_capacity: int = attrs.field(default=100_000, validator=attrs.validators.ge(1))
+    # the most live tracks: five times national traffic (2,000 aircraft); a measurement that would start one
+    # more is counted *_track_capacity (a flood of plausible plots cannot grow the memory without bound)
+    max_tracks: int = attrs.field(default=10_000, validator=attrs.validators.ge(1))
     frame_s: float = 0.5
     primary_altitude_m: float = 6000.0
     primary_altitude_sd_m: float = 3500.0

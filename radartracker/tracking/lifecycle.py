@@ -121,6 +121,9 @@ class TrackLifecycle:
         if zc is None and not updated:
             zc, Rc = bias_corrected(z, C, R, bias, bias_cov) if radar is not None else (z, R)
         if tr is None:
+            if len(self.tracks) >= self.config.max_tracks:  # a flood of plausible plots: bounded memory
+                self.counts[f"{kind}_track_capacity"] += 1
+                return
             tr = self._start(src, zc, Rc, code)
         elif not updated and not self._update(tr, src, zc, Rc, radar):
             return

@@ -74,7 +74,7 @@ class TrackManager:
         self.coupling = CouplingGraph(list(self.radars))
         self.events = EventSink()
         self.admission = Admission(self.radars, config.clock, self.counts)
-        self.window = ReorderWindow(config.reorder_window_s, config.clock.step_after, config.reorder_capacity)
+        self.window = ReorderWindow(config.reorder_window_s, config.clock.step_after)
         self.frames = FrameBuilder(PlaneConverter(radars, frames, self.plane), config.primary_altitude_m,
                                    config.primary_altitude_sd_m)
         self.antennas = AntennaSweep(radars, [frames[r.id].xy for r in radars],
@@ -91,9 +91,10 @@ class TrackManager:
         """Admit one plot, ADS-B report or unbiased position; return the events it caused (possibly none yet)."""
         window = self.window
         for t, admitted in self.admission.admit(item, window.horizon):
-            dropped = window.push(admitted, t)
-            if dropped is not None:
-                self.admission.overflow(dropped)
+            newest = window.newest
+            window.push(admitted, t)
+            if len(window) > self.config.reorder_capacity:
+                self._overfull(newest is None or t > newest)
             self._release(window.until)
         return self.events.take()
 
@@ -164,10 +165,25 @@ class TrackManager:
 
     # --- frames ----------------------------------------------------------------------------------
     def _release(self, until: float) -> None:
-        """Hand the inputs up to ``until`` to their frames; run each frame once an input of a later one comes
-        (frames without input between them still sweep the antennas; a gap of 240 frames or more is one)."""
-        fs = self.config.frame_s
-        for t, item in self.window.release(until):
+        """Hand the inputs up to ``until`` to their frames (:meth:`_gather`)."""
+        self._gather(self.window.release(until))
+
+    def _overfull(self, moved_on: bool) -> None:
+        """The window holds more than ``reorder_capacity`` inputs: a flood sharing a few time stamps. If the
+        input just pushed is newer than everything waiting (the stream has moved on), the oldest input leaves
+        early, into its frame; otherwise the newest input is dropped (``*_reorder_overflow``): the flood's
+        own, whether it sits ahead of the stream or arrives at its time, never a good input behind it."""
+        if moved_on:
+            self._gather([self.window.pop_oldest()])
+        else:
+            self.admission.overflow(self.window.drop_newest())
+
+    def _gather(self, released: Iterable[tuple[float, Input]]) -> None:
+        """Each (time, input) into its frame; run each frame once an input of a later one comes (frames
+        without input between them still sweep the antennas; a gap of 240 frames or more is one). A frame
+        that gathers ``reorder_capacity`` inputs (a flood) is processed in parts, to bound the memory."""
+        fs, cap = self.config.frame_s, self.config.reorder_capacity
+        for t, item in released:
             frame = math.floor(t / fs)
             if self.frame is None:
                 self.frame = frame
@@ -175,6 +191,8 @@ class TrackManager:
                 self._run_frame(self.frame)
                 self.frame = self.frame + 1 if frame - self.frame < 240 else frame
             self.gathered.append(item)
+            if len(self.gathered) >= cap:
+                self._run_frame(self.frame)
         self.admission.forget(self.window.horizon)
 
     def _run_frame(self, number: int) -> None:
