@@ -17,6 +17,7 @@ track ids modulo 65 535, in 1…65 535.
 
 from __future__ import annotations
 
+import logging
 import math
 import socket
 from collections import Counter
@@ -28,6 +29,8 @@ from radartracker.service.codec import blocks, cat062_bytes
 from radartracker.geometry.plane import SystemPlane
 from radartracker.tracking.events import TrackEvent
 from radartracker.tracking.manager import TrackManager
+
+log = logging.getLogger(__name__)
 
 UDP_PAYLOAD = 1472  # an Ethernet frame's UDP payload (1500 − IP and UDP headers): no IP fragments
 
@@ -66,13 +69,24 @@ class Publisher:
         """Count the manager's confirmed tracks as published (a resumed service announces their end)."""
         self._published |= {tr.id: (tr.mode_3a, tr.mode_s) for tr in mgr.confirmed_tracks()}
 
+    def _fits(self, x: float, y: float, vx: float, vy: float) -> bool:
+        """Whether a state fits CAT062 (I100 ±4 194 km at 0.5 m, I185 ±8 192 m/s at 0.25 m/s); one that does
+        not is counted ``cat062_records_out_of_range`` and not sent, never a failed publication."""
+        if abs(x) < 4_194_000.0 and abs(y) < 4_194_000.0 and abs(vx) < 8_190.0 and abs(vy) < 8_190.0:
+            return True
+        if not self.counts["cat062_records_out_of_range"]:
+            log.warning("a track state beyond CAT062's range (x %.0f m, y %.0f m) not sent; counted", x, y)
+        self.counts["cat062_records_out_of_range"] += 1
+        return False
+
     def publish(self, rows: list[dict], ended: list[TrackEvent], plane: SystemPlane, full: bool = True) -> int:
         """Send the tracks ``rows`` (:func:`track_rows`) and the ends of published tracks; returns the
         records sent. ``full``: a periodic publication (every track), else an on-update one."""
+        rows = [r for r in rows if self._fits(r["x_m"], r["y_m"], r["vx_mps"], r["vy_mps"])]
         recs = [cat062_bytes(r["time"], self.sac, self.sic, r["track_number"], r["lat"], r["lon"], r["x_m"], r["y_m"],
                              r["vx_mps"], r["vy_mps"], r["altitude_m"], mode_3a=r["mode_3a"], mode_s=r["mode_s"],
                              coasting=r["status"] == "coasting") for r in rows]
-        ends = [ev for ev in ended if ev.track in self._published]
+        ends = [ev for ev in ended if ev.track in self._published and self._fits(*ev.state)]
         if ends:
             x = np.array([ev.state for ev in ends], float)
             lat, lon = plane.to_geodetic(x[:, 0], x[:, 1])

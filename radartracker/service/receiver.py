@@ -8,6 +8,7 @@ listening endpoint, payload)``.
 
 from __future__ import annotations
 
+import os
 import queue
 import selectors
 import socket
@@ -114,4 +115,24 @@ class Receiver(threading.Thread):
                     break
                 self._kernel_count(ep, anc)
                 n += 1
+            late = kernel_drops(sock)  # drops after the last datagram queued are attached to none
+            if late is not None and late > self._kernel_drops.get(ep, 0):
+                self._kernel_drops[ep] = late
+                self.counts["datagrams_dropped_kernel"] = sum(self._kernel_drops.values())
         return n
+
+
+def kernel_drops(sock: socket.socket) -> int | None:
+    """The datagrams the kernel dropped on ``sock`` so far (Linux: the ``drops`` column of /proc/net/udp
+    for the socket's inode), or None where that is not available."""
+    try:
+        inode = str(os.fstat(sock.fileno()).st_ino)
+        for table in ("/proc/net/udp", "/proc/net/udp6"):
+            with open(table, encoding="ascii") as f:
+                for line in f:
+                    fields = line.split()
+                    if len(fields) > 12 and fields[9] == inode:
+                        return int(fields[-1])
+    except (OSError, ValueError):
+        return None
+    return None

@@ -251,5 +251,7 @@ class TrackLifecycle:
 
     def emit(self, time: float, tr: Track, kind: str) -> None:
         """The event of ``kind`` at ``time`` with the track's state then (extrapolated when later than its
-        estimate)."""
-        self.sink.emit(new_tuple(TrackEvent, (float(time), tr.id, kind, tr.status, tr.state_at(time))), tr)
+        estimate; a deletion's at most ``delete_after_s`` past the last update, where the track was due: after
+        a feed gap of two days its state two days on is nowhere)."""
+        at = time if kind != "deleted" else min(time, tr.last_update + self.config.delete_after_s)
+        self.sink.emit(new_tuple(TrackEvent, (float(time), tr.id, kind, tr.status, tr.state_at(at))), tr)
