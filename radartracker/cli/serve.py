@@ -60,6 +60,9 @@ def register_serve(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--interface", default="0.0.0.0",
                    help="IPv4 address of the interface that joins the listened multicast groups and sends to a "
                         "multicast --publish (127.0.0.1: the loopback)")
+    p.add_argument("--allow-from", action="append", default=[], metavar="IP",
+                   help="take datagrams only from this IPv4 address (repeatable; default: any sender); the others "
+                        "are counted as datagrams refused_sender")
     p.set_defaults(func=_cmd_serve)
 
 
@@ -75,7 +78,8 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         config = ServiceConfig(tuple(parse_endpoint(e) for e in args.listen), parse_endpoint(args.publish), args.state,
                                args.http, args.period, args.checkpoint_s, args.queue,
                                int(check_number("--queue-mb", args.queue_mb, lo=0.0625, hi=8192.0) * (1 << 20)),
-                               args.day_start, args.sac, args.sic, args.interface, args.publish_mode)
+                               args.day_start, args.sac, args.sic, args.interface, args.publish_mode,
+                               tuple(args.allow_from))
     except ValueError as exc:
         raise ConfigurationError(f"bad option: {exc}") from None
     # the tracker's own settings, bounded here: a frame of 0 s divided by zero only once the service ran

@@ -4,7 +4,7 @@
 metric                                     type     labels / meaning
 =========================================  =======  ==================================================
 radartracker_datagrams_total               counter  ``outcome``: received, dropped_queue_full,
-                                                    dropped_at_stop, decoded, malformed
+                                                    dropped_at_stop, refused_sender, decoded, malformed
 radartracker_records_total                 counter  ``outcome``: cat048_records, cat021_records,
                                                     records_to_tracker, cat048_unknown_sac_sic, …
 radartracker_tracker_inputs_total          counter  ``reason``: the TrackManager's accounting

@@ -51,14 +51,15 @@ class DatagramQueue(queue.Queue):
 class Receiver(threading.Thread):
     """Reads every socket until :meth:`stop`; counts datagrams received and dropped.
 
-    Drops are counted where they happen: ``datagrams_dropped_queue_full`` here, and
+    Drops are counted where they happen: ``datagrams_dropped_queue_full`` and, when only some senders are
+    allowed (``allow``: their IPv4 addresses), ``datagrams_refused_sender`` here, and
     ``datagrams_dropped_kernel`` — datagrams the kernel discarded because the socket buffer was
     full — from the counter Linux attaches to each datagram (``SO_RXQ_OVFL``).
     """
 
-    def __init__(self, sockets: dict[Endpoint, socket.socket], out: queue.Queue) -> None:
+    def __init__(self, sockets: dict[Endpoint, socket.socket], out: queue.Queue, allow: frozenset[str] = frozenset()) -> None:
         super().__init__(name="radartracker-receiver", daemon=True)
-        self.sockets, self.out = sockets, out
+        self.sockets, self.out, self.allow = sockets, out, allow
         self.counts: Counter[str] = Counter()
         self._halt = threading.Event()
         self._cmsg = socket.CMSG_SPACE(4)
@@ -86,12 +87,15 @@ class Receiver(threading.Thread):
     def _drain(self, sock: socket.socket, ep: Endpoint) -> None:
         while True:
             try:
-                data, anc, _, _ = sock.recvmsg(MAX_DATAGRAM, self._cmsg)
+                data, anc, _, sender = sock.recvmsg(MAX_DATAGRAM, self._cmsg)
             except (BlockingIOError, InterruptedError):
                 return
             self._kernel_count(ep, anc)
-            entry = (time.time(), time.monotonic(), ep, data)
             self.counts["datagrams_received"] += 1
+            if self.allow and sender[0] not in self.allow:
+                self.counts["datagrams_refused_sender"] += 1
+                continue
+            entry = (time.time(), time.monotonic(), ep, data)
             try:
                 self.out.put_nowait(entry)
             except queue.Full:

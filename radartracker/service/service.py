@@ -91,6 +91,16 @@ def _http(inst: object, attr: attrs.Attribute, value: tuple[str, int] | None) ->
         raise ValueError(f"http: a (host, port) with a port in [0, 65535], not {value!r}")
 
 
+def _addresses(inst: object, attr: attrs.Attribute, value: tuple) -> None:
+    import ipaddress
+
+    for a in value:
+        try:
+            ipaddress.IPv4Address(a)
+        except ValueError:
+            raise ValueError(f"{attr.name}: {a!r} is not an IPv4 address") from None
+
+
 @attrs.frozen
 class ServiceConfig:
     """Where the service listens and publishes, and its periods (s). Every number has bounds an
@@ -112,6 +122,8 @@ class ServiceConfig:
     interface: str = "0.0.0.0"  # joins the listened multicast groups and sends the published one
     # chosen by measurement: docs/service.md, "Reorder window and frame (what chose the defaults)"
     publish_mode: str = attrs.field(default="both", validator=attrs.validators.in_(PUBLISH_MODES))
+    # the IPv4 addresses datagrams may come from (empty: any); others are counted datagrams_refused_sender
+    allow_from: tuple[str, ...] = attrs.field(default=(), converter=tuple, validator=_addresses)
 
 
 class Service:
@@ -151,7 +163,7 @@ class Service:
         clock = ReceiveClock() if config.day_start is None else DayClock(config.day_start)
         self.decoder = Decoder(sites, clock)
         self.sockets = {ep: open_receiver(ep, config.interface) for ep in config.listen}
-        self.receiver = Receiver(self.sockets, self.queue)
+        self.receiver = Receiver(self.sockets, self.queue, frozenset(config.allow_from))
         self.publisher = Publisher(open_sender(config.publish, interface=config.interface), config.sac, config.sic)
         self.publisher.remember(self.manager)
         self.checkpoints_written = 0
@@ -393,10 +405,11 @@ class Service:
         r = self.receiver.counts
         c["datagrams_dropped_queue_full"] += r["datagrams_dropped_queue_full"]
         c["datagrams_dropped_kernel"] += r["datagrams_dropped_kernel"]
+        c["datagrams_refused_sender"] += r["datagrams_refused_sender"]
         if live:
             c["datagrams_received"] += r["datagrams_received"]
         else:
-            c["datagrams_received"] = (c["datagrams_decoded"] + c["datagrams_malformed"]
+            c["datagrams_received"] = (c["datagrams_decoded"] + c["datagrams_malformed"] + c["datagrams_refused_sender"]
                                        + c["datagrams_dropped_queue_full"] + c["datagrams_dropped_at_stop"])
         return c
 

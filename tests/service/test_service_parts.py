@@ -459,6 +459,49 @@ def test_a_receiver_counts_datagrams_the_byte_bound_refuses():
     assert rx.counts["datagrams_dropped_queue_full"] == 7
 
 
+def test_a_receiver_takes_only_the_allowed_senders():
+    """Issue 33, a source filter: with --allow-from 127.0.0.2 a datagram from 127.0.0.2 is queued and one from
+    127.0.0.1 is refused and counted (both received); a stop counts what is still in the socket's buffer."""
+    from radartracker.service.receiver import DatagramQueue, Receiver
+
+    rx_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    rx_sock.bind(("127.0.0.1", 0))
+    rx_sock.setblocking(False)
+    ep = parse_endpoint(f"udp://127.0.0.1:{rx_sock.getsockname()[1]}")
+    q = DatagramQueue(1000, 1 << 20)
+    rx = Receiver({ep: rx_sock}, q, frozenset({"127.0.0.2"}))
+    rx.start()
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as a, socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as b:
+            b.bind(("127.0.0.2", 0))
+            a.sendto(b"anyone", rx_sock.getsockname())
+            b.sendto(b"allowed", rx_sock.getsockname())
+            deadline = time.monotonic() + 10
+            while rx.counts["datagrams_received"] < 2 and time.monotonic() < deadline:
+                time.sleep(0.01)
+        rx.stop()
+        rx.join()
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as a:
+            a.sendto(b"late", rx_sock.getsockname())
+        time.sleep(0.1)
+        assert rx.discard_unread() == 1
+    finally:
+        rx.stop()
+        rx.join()
+        rx_sock.close()
+    assert rx.counts["datagrams_received"] == 2 and rx.counts["datagrams_refused_sender"] == 1
+    assert [e[3] for e in list(q.queue)] == [b"allowed"]
+
+
+def test_allow_from_takes_ipv4_addresses_only(tmp_path):
+    from radartracker.service import ServiceConfig
+
+    ep = parse_endpoint("udp://127.0.0.1:0")
+    assert ServiceConfig((ep,), ep, tmp_path, allow_from=["10.0.0.1"]).allow_from == ("10.0.0.1",)
+    with pytest.raises(ValueError, match="allow_from"):
+        ServiceConfig((ep,), ep, tmp_path, allow_from=["radar-1"])
+
+
 def test_a_multicast_listener_takes_only_its_group():
     """Issue 33: a multicast --listen bound 0.0.0.0:port and decoded unicast datagrams from anyone. Bound
     to the group, it receives what is sent to the group and not what is sent to the port directly."""
