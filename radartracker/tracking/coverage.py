@@ -9,8 +9,13 @@ For radar r at plane position (x_r, y_r) and a track predicted at (x, y) (DESIGN
   (α − α_r(t_a)) mod 2π < 2π (t_b − t_a)/T_r. Only tracks within 0.98 ρ_max,r count (the edge of
   coverage is where detection fails for reasons of its own).
 
-The antenna phase φ_r is estimated from the radar's plots, each giving exp(i(θ − 2πt/T_r)), smoothed
-as p ← 0.98 p + exp(i(θ − 2πt/T_r)), φ_r = arg p (:class:`AntennaSweep`). The sweep itself is one
+The antenna phase φ_r is estimated from the radar's plots, each giving e = exp(i(θ − 2πt/T_r)), smoothed
+as p ← 0.98 p + e, φ_r = arg p (:class:`AntennaSweep`). Once the estimate is locked (|p| > 5, five
+agreeing plots), a plot whose e is more than 0.2 rad from φ_r is not taken: a plot of a rotating antenna
+agrees to within its azimuth noise, so one that does not is a reflection, a false plot or a spoofed
+record, and a flood of those (a thousand plots at a wrong phase moved φ_r, marked tracks missed and cost
+good plots) leaves the phase alone. If a whole revolution passes without a plot that agrees (the radar
+restarted with another phase), the next plot starts the estimate again. The sweep itself is one
 compiled pass over radars × tracks (:func:`sweep`).
 """
 
@@ -24,6 +29,8 @@ from numba import njit
 from radartracker.domain import Radar
 
 TWO_PI = 2.0 * math.pi
+LOCKED = 5.0  # |p| above which the phase estimate judges plots
+AGREE = math.cos(0.2)  # a plot agrees with the phase within 0.2 rad
 
 
 @njit(cache=True)
@@ -67,13 +74,22 @@ class AntennaSweep:
         self.max_range = np.array([r.max_range_m for r in radars], float)
         self.phase = np.zeros(len(radars), complex)  # p_r
         self.phased = np.zeros(len(radars), bool)  # which radars have had a plot
+        self.agreed = np.full(len(radars), -np.inf)  # time of each radar's last plot taken
 
     def observe(self, rows: np.ndarray, t: np.ndarray, theta: np.ndarray) -> None:
-        """Plots of radars ``rows`` at times ``t`` with azimuths ``theta``, in order."""
+        """Plots of radars ``rows`` at times ``t`` with azimuths ``theta``, in order (module docstring: a plot
+        that disagrees with a locked phase is not taken)."""
         terms = np.exp(1j * (theta - TWO_PI * t / self.period[rows]))
-        phase = self.phase
-        for r, e in zip(rows.tolist(), terms.tolist()):
-            phase[r] = 0.98 * phase[r] + e
+        phase, agreed, period = self.phase, self.agreed, self.period
+        for r, e, tk in zip(rows.tolist(), terms.tolist(), t.tolist()):
+            p = phase[r]
+            size = abs(p)
+            if size > LOCKED and (e * p.conjugate()).real < AGREE * size:
+                if tk - agreed[r] <= period[r]:
+                    continue
+                p = 0j  # a revolution without an agreeing plot: start again
+            phase[r] = 0.98 * p + e
+            agreed[r] = tk
         self.phased[rows] = True
 
     def sweep(self, positions: np.ndarray, t_a: float, t_b: float) -> tuple[np.ndarray, np.ndarray]:
@@ -87,12 +103,16 @@ class AntennaSweep:
 
     def state_dict(self) -> dict:
         return {"phase_re": self.phase.real.tolist(), "phase_im": self.phase.imag.tolist(),
-                "phased": self.phased.tolist()}
+                "phased": self.phased.tolist(), "agreed": self.agreed.tolist()}
 
     def load_state_dict(self, state: dict) -> None:
+        """The state of :meth:`state_dict` (one without ``agreed``, of schema 2: as if no plot had agreed yet, so
+        a plot that disagrees starts the estimate again)."""
         re, im = np.asarray(state["phase_re"], float), np.asarray(state["phase_im"], float)
         phased = np.asarray(state["phased"], bool)
         m = len(self.period)
-        if re.shape != (m,) or im.shape != (m,) or phased.shape != (m,) or not (np.isfinite(re).all() and np.isfinite(im).all()):
+        agreed = np.asarray(state.get("agreed", [-np.inf] * m), float)
+        if (re.shape != (m,) or im.shape != (m,) or phased.shape != (m,) or agreed.shape != (m,)
+                or not (np.isfinite(re).all() and np.isfinite(im).all()) or np.isnan(agreed).any()):
             raise ValueError(f"antenna phases: {m} finite values expected per radar")
-        self.phase, self.phased = re + 1j * im, phased
+        self.phase, self.phased, self.agreed = re + 1j * im, phased, agreed
