@@ -36,7 +36,7 @@ def register_serve(sub: argparse._SubParsersAction) -> None:
                    help="serve /health, /tracks, /biases and /metrics (Prometheus) here")
     p.add_argument("--estimator", default=None, help="estimator plugin (default: the best installed exact one, "
                                                      "coupled-sparse; on resume: the checkpoint's)")
-    p.add_argument("--motion-model", default=None, help="track motion model plugin (default cv; on resume: the checkpoint's)")
+    p.add_argument("--motion-model", default=None, help="track motion model plugin (default imm; on resume: the checkpoint's)")
     p.add_argument("--period", type=float, default=4.0,
                    help="seconds between periodic CAT062 publications of every track (default 4)")
     p.add_argument("--publish-mode", choices=("update", "periodic", "both"), default="both",
