@@ -164,7 +164,7 @@ def measure_gates(args: argparse.Namespace, base: ManagerConfig) -> None:
                                       "q99": round(float(q[1]), 1), "q999": round(float(q[2]), 1),
                                       "q9999": round(float(q[3]), 1), "max": round(float(d.max()), 1),
                                       "rejected": counts.get(f"{kind}_outlier", 0),
-                                      "tracks_reinitialised": counts.get("tracks_reinitialised", 0)}))
+                                      "tracks_reinitialised": mgr.track_counts().get("tracks_reinitialised", 0)}))
     # the gross errors' d² against healthy tracks: a run screened with the default gates, recording
     # the d² of each injected measurement by the fault it carries
     data = build_scenario("paris", seed=args.seed, duration=args.duration).run()

@@ -37,7 +37,7 @@ from radartracker.tracking.track import Track
 
 def run_distributed(data: ScenarioData, cfg, est: Estimator, factory: FilterFactory, rec: Recorder,
                     progress: bool, fusion: FusionConfig | None = None,
-                    local_tracks: LocalTracks | None = None) -> tuple[Counter, CouplingGraph]:
+                    local_tracks: LocalTracks | None = None) -> tuple[Counter, CouplingGraph, dict[str, int]]:
     """Local trackers, fusion centre and recorder over ``data`` (``cfg`` the run's resolved RunConfig);
     with ``local_tracks`` (imported from CAT048) those replace the local trackers and ``data``'s plots."""
     fusion = fusion or FusionConfig()
@@ -93,10 +93,12 @@ def run_distributed(data: ScenarioData, cfg, est: Estimator, factory: FilterFact
         centre.epoch(next_epoch, final=True)
         _log_biases(rec, est, next_epoch)
     counts: Counter[str] = Counter()
+    track_counts: Counter[str] = Counter()
     for mgr in managers.values():
         counts.update(mgr.accounting())
+        track_counts.update(mgr.track_counts())
     counts.update(centre.counts)
-    return counts, coupling
+    return counts, coupling, dict(track_counts)
 
 
 def local_trackers(data: ScenarioData, cfg, factory: FilterFactory, report: Callable[[LocalReport], None],

@@ -75,7 +75,7 @@ class RunResult:
     events: Events
     biases: BiasLog
     final_biases: dict[str, BiasState]
-    counts: dict[str, int]
+    counts: dict[str, int]  # every input under the reason it was used or refused
     seconds: float
     mean_nis: float  # the estimator's mean normalised innovation νᵀΛ⁻¹ν over the run (NaN: none)
     coupling: CouplingGraph
@@ -84,6 +84,8 @@ class RunResult:
     streamed: bool = False
     #: the number of tracks with an estimate (``None``: counted from ``events``)
     track_count: int | None = None
+    #: what happened to tracks beyond their events (``tracks_reinitialised``), apart from the inputs' counts
+    track_counts: dict[str, int] = attrs.field(factory=dict)
     #: first and last plot time of each truth label (``None``: from ``data.plots``; see :func:`label_spans`)
     label_spans: dict[str, tuple[float, float]] | None = None
 
@@ -200,6 +202,7 @@ class RunResult:
             "q": c.q,
             "reference": {"lat": self.data.reference[0], "lon": self.data.reference[1]},
             "counts": dict(self.counts),
+            "track_counts": dict(self.track_counts),
             "skipped_input_rows": dict(self.data.skipped),
             "seconds": self.seconds,
             "seconds_per_measurement": self.seconds / max(n_meas, 1),

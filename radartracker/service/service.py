@@ -460,7 +460,8 @@ class Service:
         """The run's accounting (module notes), estimator, final biases and checkpoints."""
         self._refresh_view()
         mc = self.manager.config
-        return self.view | {"estimator": mc.estimator, "motion_model": mc.motion_model,
+        return self.view | {"track_counts": self.manager.track_counts(),
+                            "estimator": mc.estimator, "motion_model": mc.motion_model,
                             "tracker_settings": {"reorder_window_s": mc.reorder_window_s, "frame_s": mc.frame_s},
                             "started": self.started, "stopped": time.time(), "resumed_from": self.resumed_from,
                             "last_checkpoint": f"checkpoint-{self.checkpoint_seq:06d}",

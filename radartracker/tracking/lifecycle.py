@@ -68,7 +68,8 @@ class TrackLifecycle:
         self.new_filter = new_filter
         self.feed = feed
         self.sink = sink
-        self.counts = counts
+        self.counts = counts  # inputs by the reason they were used or refused
+        self.track_counts: Counter[str] = Counter()  # what happened to tracks (re-initialisations)
         self.failed = failed
         self.tracks: dict[int, Track] = {}
         self.by_mode_s: dict[str, int] = {}  # Mode S address → id of its live track
@@ -115,7 +116,7 @@ class TrackLifecycle:
             if verdict == REINIT:  # the track, not its measurements, is wrong: start again from this one
                 log.warning("track %s (%s) re-initialised after %d rejected measurements", tr.id, tr.mode_s,
                             screening.reinit_after)
-                self.counts["tracks_reinitialised"] += 1
+                self.track_counts["tracks_reinitialised"] += 1
                 self.delete(tr, src.time)
                 tr, updated = None, False
         if zc is None and not updated:

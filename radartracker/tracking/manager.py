@@ -158,6 +158,11 @@ class TrackManager:
         out["waiting_in_reorder_window"] = len(self.window) + len(self.gathered) + len(self.admission.held)
         return {k: v for k, v in out.items() if v}
 
+    def track_counts(self) -> dict[str, int]:
+        """What happened to tracks beyond their events (``tracks_reinitialised``: a track deleted and started
+        again from a measurement its rejected ones agreed with); not inputs, so apart from :meth:`accounting`."""
+        return {k: v for k, v in self.life.track_counts.items() if v}
+
     def snapshot(self, path: Path | str) -> None:
         """Save the whole state to ``path``, atomically (:mod:`radartracker.tracking.schema`;
         :func:`radartracker.registry.restore_manager` reads it back)."""

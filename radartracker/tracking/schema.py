@@ -192,7 +192,7 @@ def _track_of(doc: Any, mgr: Any, what: str) -> Track:
 def state_document(mgr: Any) -> dict:
     """The state document of ``mgr`` (module docstring)."""
     adm, win = mgr.admission, mgr.window
-    return {"counts": dict(mgr.counts),
+    return {"counts": dict(mgr.counts), "track_counts": dict(mgr.life.track_counts),
             "admission": {"keys": [list(k) for k in adm.keys], "keys_limit": adm.keys_limit,
                           "clock": adm.clock.state_dict(), "held": [input_doc(i) for _, i in adm.held]},
             "window": {"queue": [input_doc(i) for i in win.queue],
@@ -211,11 +211,15 @@ def load_document(mgr: Any, doc: Any) -> None:
     """Fill the new manager ``mgr`` from state document ``doc``, every field checked first."""
     keys = {"counts", "admission", "window", "frame", "gathered", "antennas", "adsb_check", "tracks", "next_track",
             "estimator", "coupling"}
-    _need(isinstance(doc, dict) and set(doc) == keys, f"state: fields {sorted(keys)} expected")
+    _need(isinstance(doc, dict) and set(doc) - {"track_counts"} == keys, f"state: fields {sorted(keys)} expected")
     radars = frozenset(mgr.radars)
-    counts = doc["counts"]
-    _need(isinstance(counts, dict) and all(isinstance(k, str) and type(v) is int and v >= 0 for k, v in counts.items()),
-          "counts: reason → count expected")
+    counts, track_counts = doc["counts"], doc.get("track_counts")
+    if track_counts is None:  # schema 2 counted re-initialisations among the inputs' reasons
+        counts = dict(counts) if isinstance(counts, dict) else counts
+        track_counts = {k: counts.pop(k) for k in ("tracks_reinitialised",) if isinstance(counts, dict) and k in counts}
+    for what, c in (("counts", counts), ("track_counts", track_counts)):
+        _need(isinstance(c, dict) and all(isinstance(k, str) and type(v) is int and v >= 0 for k, v in c.items()),
+              f"{what}: reason → count expected")
     tracks = [_track_of(t, mgr, f"track[{i}]") for i, t in enumerate(_list(doc["tracks"], "tracks"))]
     ids = [t.id for t in tracks]
     next_track = _integer(doc["next_track"], "next_track", 1)
@@ -233,6 +237,7 @@ def load_document(mgr: Any, doc: Any) -> None:
     live = {t.id for t in tracks if t.status != "tentative"}
     _need(set(mgr.estimator.aircraft_keys) == live, "estimator: its aircraft are not the confirmed tracks")
     mgr.counts.update(counts)
+    mgr.life.track_counts.update(track_counts)
     mgr.frame, mgr.gathered = frame, gathered
     mgr.life.tracks = {t.id: t for t in tracks}
     mgr.life.by_mode_s = {t.mode_s: t.id for t in tracks if t.mode_s is not None}

@@ -151,11 +151,11 @@ def test_screening_of_a_dirty_stream_equals_an_independent_filter():
     runs = []
     for factory in (None, lambda: FilterPyCV(cv_config)):
         mgr = make_manager(data.radars, data.reference, config, filter_factory=factory)
-        runs.append((mgr.process_many(items), mgr.biases(), mgr.accounting()))
-    (fast, fast_b, fast_n), (ref, ref_b, ref_n) = runs
-    assert fast_n == ref_n
+        runs.append((mgr.process_many(items), mgr.biases(), mgr.accounting(), mgr.track_counts()))
+    (fast, fast_b, fast_n, fast_t), (ref, ref_b, ref_n, ref_t) = runs
+    assert fast_n == ref_n and fast_t == ref_t
     assert fast_n.get("plots_outlier", 0) > 20 and fast_n.get("adsb_implausible_speed", 0) + fast_n.get("adsb_outlier", 0) > 5
-    assert fast_n.get("tracks_reinitialised", 0) >= 1
+    assert fast_t.get("tracks_reinitialised", 0) >= 1 and sum(fast_n.values()) == len(items)
     assert [(e.time, e.track, e.kind, e.status) for e in fast] == [(e.time, e.track, e.kind, e.status) for e in ref]
     np.testing.assert_allclose([e.state for e in fast], [e.state for e in ref], rtol=1e-9, atol=1e-6)
     for rid in ref_b:
