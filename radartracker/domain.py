@@ -1,7 +1,8 @@
 """Domain objects: radars, aircraft, plots, ADS-B reports, tracks and bias states.
 
 Internally SI (metres, seconds, radians). Construction validates every field and raises
-``ValueError`` naming the field, so a bad number never turns into a silent NaN later; plots and
+:class:`~radartracker.errors.InputError` (a ``RadarTrackerError`` and a ``ValueError``) naming the field
+in its own units, so a bad number never turns into a silent NaN later; plots and
 ADS-B reports made from columns (:func:`plots_from_columns`, :func:`plot_rows`) are checked column by
 column instead. Degrees, feet and knots appear only at the I/O edges (see :mod:`radartracker.formats`).
 """
@@ -17,6 +18,8 @@ from typing import Any
 import attrs
 import numpy as np
 
+from radartracker.errors import InputError
+
 TWO_PI = 2.0 * math.pi
 
 
@@ -24,58 +27,56 @@ def _finite(inst: Any, attr: attrs.Attribute, value: Any) -> None:
     if value is None:
         return
     if not isinstance(value, (int, float, np.integer, np.floating)) or not math.isfinite(value):
-        raise ValueError(f"{attr.name}: expected a finite number, got {value!r}")
+        raise InputError(f"{attr.name}: expected a finite number, got {value!r}")
 
 
 def _positive(inst: Any, attr: attrs.Attribute, value: float) -> None:
     _finite(inst, attr, value)
     if value <= 0:
-        raise ValueError(f"{attr.name}: must be > 0, got {value!r}")
+        raise InputError(f"{attr.name}: must be > 0, got {value!r}")
 
 
 def _non_negative(inst: Any, attr: attrs.Attribute, value: float) -> None:
     _finite(inst, attr, value)
     if value < 0:
-        raise ValueError(f"{attr.name}: must be >= 0, got {value!r}")
+        raise InputError(f"{attr.name}: must be >= 0, got {value!r}")
 
 
 def _latitude(inst: Any, attr: attrs.Attribute, value: float) -> None:
     _finite(inst, attr, value)
     if not -90.0 <= value <= 90.0:
-        raise ValueError(f"{attr.name}: latitude must be in [-90, 90] degrees, got {value!r}")
+        raise InputError(f"{attr.name}: latitude must be in [-90, 90] degrees, got {value!r}")
 
 
 def _longitude(inst: Any, attr: attrs.Attribute, value: float) -> None:
     _finite(inst, attr, value)
     if not -180.0 <= value <= 180.0:
-        raise ValueError(f"{attr.name}: longitude must be in [-180, 180] degrees, got {value!r}")
+        raise InputError(f"{attr.name}: longitude must be in [-180, 180] degrees, got {value!r}")
 
 
 def _azimuth(inst: Any, attr: attrs.Attribute, value: float) -> None:
     _finite(inst, attr, value)
     if not 0.0 <= value < TWO_PI:
-        raise ValueError(
-            f"{attr.name}: azimuth must be in [0, 360) degrees, got {math.degrees(value)!r} deg"
-        )
+        raise InputError(f"{attr.name}: azimuth must be in [0, 2π) radians, got {value!r} rad")
 
 
 def _mode_s(inst: Any, attr: attrs.Attribute, value: str | None) -> None:
     if value is None:
         return
     if not isinstance(value, str) or len(value) != 6 or value.strip("0123456789abcdef"):  # a digit not hex
-        raise ValueError(f"{attr.name}: Mode S address must be 6 lower-case hex digits, got {value!r}")
+        raise InputError(f"{attr.name}: Mode S address must be 6 lower-case hex digits, got {value!r}")
 
 
 def _mode_3a(inst: Any, attr: attrs.Attribute, value: str | None) -> None:
     if value is None:
         return
     if not isinstance(value, str) or len(value) != 4 or value.strip("01234567"):  # a digit not octal
-        raise ValueError(f"{attr.name}: Mode 3/A code must be 4 octal digits, got {value!r}")
+        raise InputError(f"{attr.name}: Mode 3/A code must be 4 octal digits, got {value!r}")
 
 
 def _nonempty(inst: Any, attr: attrs.Attribute, value: str) -> None:
     if not isinstance(value, str) or not value.strip():
-        raise ValueError(f"{attr.name}: must be a non-empty string, got {value!r}")
+        raise InputError(f"{attr.name}: must be a non-empty string, got {value!r}")
 
 
 def _lower(value: str | None) -> str | None:
@@ -283,7 +284,7 @@ NACP_EPU_M = {1: 18520.0, 2: 7408.0, 3: 3704.0, 4: 1852.0, 5: 926.0, 6: 555.6,
 def nacp_sigma_m(nacp: int) -> float:
     """Per-axis standard deviation (m) of an ADS-B position with this NACp."""
     if nacp not in NACP_EPU_M:
-        raise ValueError(f"nacp: must be 1..11 (0 means unknown accuracy, unusable), got {nacp!r}")
+        raise InputError(f"nacp: must be 1..11 (0 means unknown accuracy, unusable), got {nacp!r}")
     return NACP_EPU_M[nacp] / 2.448
 
 

@@ -27,7 +27,9 @@ def radar(**kw):
     ("id", " ", "id: must be a non-empty string"),
 ])
 def test_radar_rejects_bad_fields(field, value, words):
-    with pytest.raises(ValueError, match=words):
+    from radartracker.errors import RadarTrackerError
+
+    with pytest.raises(RadarTrackerError, match=words):
         radar(**{field: value})
 
 
@@ -37,7 +39,7 @@ def test_radar_noise_matrix():
 
 
 @pytest.mark.parametrize("kw,words", [
-    (dict(azimuth_rad=2 * math.pi), "azimuth_rad: azimuth must be in \\[0, 360\\)"),
+    (dict(azimuth_rad=2 * math.pi), "azimuth_rad: azimuth must be in \\[0, 2π\\) radians, got 6.28"),
     (dict(azimuth_rad=-0.1), "azimuth_rad"),
     (dict(range_m=math.nan), "range_m: expected a finite number"),
     (dict(range_m=-5.0), "range_m: must be >= 0"),
@@ -47,10 +49,15 @@ def test_radar_noise_matrix():
     (dict(altitude_m=math.nan), "altitude_m"),
 ])
 def test_plot_rejects_bad_fields(kw, words):
+    """A bad field is an InputError (the RadarTrackerError docs/api.md promises, still a ValueError) naming
+    the field in its own units."""
+    from radartracker.errors import InputError, RadarTrackerError
+
     args = dict(time=0.0, radar="R1", range_m=1e5, azimuth_rad=1.0)
     args.update(kw)
-    with pytest.raises(ValueError, match=words):
+    with pytest.raises(InputError, match=words) as err:
         Plot(**args)
+    assert isinstance(err.value, RadarTrackerError) and isinstance(err.value, ValueError)
 
 
 @pytest.mark.parametrize("field, digits, length", [("mode_s", "0123456789abcdef", 6), ("mode_3a", "01234567", 4)])
