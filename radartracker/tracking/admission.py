@@ -129,20 +129,25 @@ class ReorderWindow:
     in (time, arrival) order. Most inputs come in time order and wait in a queue; one that came after a
     later one waits in a heap, so at equal times an input of the queue leaves first.
 
-    The confirmed time is the ``confirm``-th newest time pushed (the stream clock's ``step_after``): a
-    time that ``confirm`` inputs have reached. So one input far ahead of the others (a spoofed time stamp
-    inside the clock's ``max_ahead_s``) moves neither the window nor the horizon behind it: it waits,
-    alone, until the stream reaches its time, and no good input becomes late because of it. The caller
+    The confirmed time is the ``confirm``-th newest of the last ``memory`` times pushed (the stream
+    clock's ``step_after`` and ``window``): a time that ``confirm`` recent inputs have reached. So one input
+    far ahead of the others (a spoofed time stamp inside the clock's ``max_ahead_s``) moves neither the
+    window nor the horizon behind it: it waits, alone, until the stream reaches its time, and no good
+    input becomes late because of it; and a few inputs far ahead that made a clock step (three spoofed
+    records) stop counting once ``memory`` later inputs have come at the stream's own time. The caller
     bounds the window's length with :meth:`drop_newest` and :meth:`pop_oldest`
     (:meth:`~radartracker.tracking.manager.TrackManager._overfull` says when each)."""
 
-    def __init__(self, window_s: float, confirm: int = 3) -> None:
+    def __init__(self, window_s: float, confirm: int = 3, memory: int = 9) -> None:
         self.window_s = window_s
         self.queue: deque = deque()
         self.heap: list[tuple[float, int, object]] = []
         self.arrivals = 0  # inputs that waited in the heap so far (their order at equal times)
         self.newest: float | None = None
-        self.latest = [-math.inf] * confirm  # the ``confirm`` newest times pushed, newest first
+        self.recent: deque[float] = deque(maxlen=max(memory, confirm))  # the last times pushed, in order
+        self.pushes = 0  # inputs pushed so far
+        self.latest = [-math.inf] * confirm  # the ``confirm`` newest of ``recent``, newest first
+        self._pushed_as = [math.inf] * confirm  # the push number of each (∞: none yet)
         self.horizon = -math.inf  # every input at or before it has left
 
     def __len__(self) -> int:
@@ -150,7 +155,7 @@ class ReorderWindow:
 
     @property
     def confirmed(self) -> float:
-        """The newest time that ``confirm`` pushed inputs have reached (−∞ before that many)."""
+        """The newest time that ``confirm`` recent inputs have reached (−∞ before that many)."""
         return self.latest[-1]
 
     def push(self, item: object, t: float) -> None:
@@ -161,6 +166,8 @@ class ReorderWindow:
         else:
             heapq.heappush(self.heap, (t, self.arrivals, item))
             self.arrivals += 1
+        self.pushes += 1
+        self.recent.append(t)
         latest = self.latest
         if t > latest[-1]:
             i = 0
@@ -168,6 +175,17 @@ class ReorderWindow:
                 i += 1
             latest.insert(i, t)
             latest.pop()
+            self._pushed_as.insert(i, self.pushes)
+            self._pushed_as.pop()
+        if self.pushes - min(self._pushed_as) >= self.recent.maxlen:  # one of them is no longer recent
+            self.recount()
+
+    def recount(self) -> None:
+        """``latest`` taken again from ``recent`` (the last pushed first among equal times)."""
+        n, k = len(self.recent), len(self.latest)
+        order = sorted(range(n), key=self.recent.__getitem__, reverse=True)[:k]
+        self.latest = [self.recent[j] for j in order] + [-math.inf] * (k - len(order))
+        self._pushed_as = [self.pushes - n + 1 + j for j in order] + [math.inf] * (k - len(order))
 
     @property
     def until(self) -> float:

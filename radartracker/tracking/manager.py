@@ -74,7 +74,7 @@ class TrackManager:
         self.coupling = CouplingGraph(list(self.radars))
         self.events = EventSink()
         self.admission = Admission(self.radars, config.clock, self.counts)
-        self.window = ReorderWindow(config.reorder_window_s, config.clock.step_after)
+        self.window = ReorderWindow(config.reorder_window_s, config.clock.step_after, config.clock.window)
         self.frames = FrameBuilder(PlaneConverter(radars, frames, self.plane), config.primary_altitude_m,
                                    config.primary_altitude_sd_m)
         self.antennas = AntennaSweep(radars, [frames[r.id].xy for r in radars],

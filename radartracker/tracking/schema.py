@@ -8,8 +8,8 @@ attributes::
     counts      {reason: count}
     admission   {"keys": [[tag, source, time, a, b]], "keys_limit", "clock": StreamClock state,
                  "held": [input] (the inputs of a run that may step the clock)}
-    window      {"queue": [input], "heap": [[time, arrival, input]], "arrivals", "newest", "latest" (the
-                 newest times pushed, newest first: the stream's confirmed time is the last), "horizon"}
+    window      {"queue": [input], "heap": [[time, arrival, input]], "arrivals", "newest", "recent" (the
+                 last times pushed, in order: the stream's confirmed time is taken from them), "horizon"}
     frame       the frame being gathered (null before the first input), "gathered": [input]
     antennas    AntennaSweep state;  adsb_check: AdsbPlausibility state
     tracks      [track], "next_track": the next track id
@@ -42,7 +42,7 @@ from radartracker.tracking.snapshot import class_name, decode, encode, read_snap
 from radartracker.tracking.track import TRACK_STATUSES, Pending, Track
 
 SCHEMA = 3
-READS = (2, 3)  # schema 2 lacks the window's "latest": its newest time stands for them
+READS = (2, 3)  # schema 2 lacks the window's "recent" times (its newest stands for them) and track counts
 _KINDS = ("plots", "adsb", "positions")
 
 
@@ -197,7 +197,7 @@ def state_document(mgr: Any) -> dict:
                           "clock": adm.clock.state_dict(), "held": [input_doc(i) for _, i in adm.held]},
             "window": {"queue": [input_doc(i) for i in win.queue],
                        "heap": [[t, a, input_doc(i)] for t, a, i in win.heap],
-                       "arrivals": win.arrivals, "newest": win.newest, "latest": list(win.latest),
+                       "arrivals": win.arrivals, "newest": win.newest, "recent": list(win.recent),
                        "horizon": win.horizon},
             "frame": mgr.frame, "gathered": [input_doc(i) for i in mgr.gathered],
             "antennas": mgr.antennas.state_dict(), "adsb_check": mgr.life.adsb_check.state_dict(),
@@ -257,7 +257,7 @@ def _dict(v: Any, what: str) -> dict:
 
 def _load_window(win: Any, doc: Any, radars: frozenset) -> None:
     fields = {"queue", "heap", "arrivals", "newest", "horizon"}
-    _need(isinstance(doc, dict) and set(doc) - {"latest"} == fields, "window: fields")
+    _need(isinstance(doc, dict) and set(doc) - {"recent"} == fields, "window: fields")
     queue = [input_of(x, radars, f"window queue[{i}]") for i, x in enumerate(_list(doc["queue"], "window queue"))]
     heap = []
     for i, e in enumerate(_list(doc["heap"], "window heap")):
@@ -274,13 +274,13 @@ def _load_window(win: Any, doc: Any, radars: frozenset) -> None:
     win.queue, win.heap = deque(queue), heap
     win.arrivals = _integer(doc["arrivals"], "window arrivals")
     win.newest, win.horizon = newest, horizon
-    k = len(win.latest)
-    latest = doc.get("latest", [-math.inf if newest is None else newest] * k)
-    latest = [_number(t, "window latest", finite=False) for t in _list(latest, "window latest")]
-    _need(len(latest) == k and latest == sorted(latest, reverse=True) and not any(map(math.isnan, latest))
-          and latest[0] < math.inf and (newest is None or latest[0] <= newest), "window latest: "
-          f"{k} times, newest first, at most the newest time expected")
-    win.latest = latest
+    recent = doc.get("recent", [] if newest is None else [newest])  # schema 2: its newest time stands for them
+    recent = [_number(t, "window recent") for t in _list(recent, "window recent")]
+    _need(len(recent) <= win.recent.maxlen and all(newest is not None and t <= newest for t in recent),
+          f"window recent: at most {win.recent.maxlen} times, none after the newest, expected")
+    win.recent.extend(recent)
+    win.pushes = len(recent)
+    win.recount()
 
 
 def _load_admission(adm: Any, doc: Any, radars: frozenset) -> None:

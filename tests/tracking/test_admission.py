@@ -392,3 +392,23 @@ def test_a_flood_of_plausible_plots_is_bounded_by_the_track_capacity(demo_data):
     assert peak["tracks"] <= 300
     counts = mgr.accounting()
     assert sum(counts.values()) == n and counts["plots_track_capacity"] > 5_000
+
+
+@pytest.mark.parametrize("end", [True, False])
+def test_three_records_an_hour_ahead_cost_no_good_input_and_no_track(demo_data, end):
+    """Issue 33: three records 1 h ahead, one after the other, make a clock step (they look like a stream
+    resuming after a pause), and the window followed them: every good input after them was late, and a stop
+    advanced time an hour and deleted every track. Now they stop counting for the window once nine good
+    inputs have come: the events are those of the stream without them, and at the end they are counted as
+    time jumps (a recording) or stay waiting (a stop)."""
+    import attrs
+
+    items = scenario_stream(demo_data)[:3000]
+    k = next(i for i, it in enumerate(items) if isinstance(it, Plot) and i > 1500)
+    spoofs = [attrs.evolve(items[k], time=items[k].time + 3600.0 + j) for j in range(3)]
+    a, b = make_manager(demo_data.radars, demo_data.reference), make_manager(demo_data.radars, demo_data.reference)
+    ev_a = [e for it in items[:k] + spoofs + items[k:] for e in a.process(it)] + a.flush(end=end)
+    ev_b = b.process_many(items)
+    assert ev_a == ev_b and [t.id for t in a.confirmed_tracks()] == [t.id for t in b.confirmed_tracks()] != []
+    got, want = a.accounting(), b.accounting()
+    assert got.pop("plots_time_jump" if end else "waiting_in_reorder_window") == 3 and got == want

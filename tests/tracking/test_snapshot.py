@@ -221,25 +221,25 @@ def test_a_vertical_filter_out_of_physical_bounds_is_refused(saved):
         restore_manager(path)
 
 
-def test_a_schema_2_snapshot_restores_and_a_bad_latest_is_refused(saved, items_and_data):
-    """Schema 3 added the window's "latest" times (the stream's confirmed time). A schema 2 snapshot (without
+def test_a_schema_2_snapshot_restores_and_a_bad_recent_is_refused(saved, items_and_data):
+    """Schema 3 added the window's "recent" times (the stream's confirmed time). A schema 2 snapshot (without
     them, and with re-initialisations among the inputs' counts) still restores, its newest time standing for
-    them and the re-initialisations moved to the track counts, and goes on using inputs; a "latest" out of
-    order is refused naming the field."""
+    them and the re-initialisations moved to the track counts, and goes on using inputs; a "recent" time
+    after the window's newest is refused naming the field."""
     items, _ = items_and_data
     mgr, path = saved
     meta, blob = snapshot.decode(snapshot.read_snapshot_file(path))
     state = snapshot.decode(blob)
     old_state = {k: v for k, v in state.items() if k != "track_counts"}  # schema 2 counted them among counts
-    old_state |= {"window": {k: v for k, v in state["window"].items() if k != "latest"},
+    old_state |= {"window": {k: v for k, v in state["window"].items() if k != "recent"},
                   "counts": {**state["counts"], "tracks_reinitialised": 2}}
     old = path.with_name("old")
     _rewrite(old, snapshot.encode([{**meta, "schema": 2}, snapshot.encode(old_state, "state")], "snap"))
     restored = restore_manager(old)
-    assert restored.window.latest == [state["window"]["newest"]] * 3
+    assert list(restored.window.recent) == [state["window"]["newest"]]
     assert restored.track_counts() == {"tracks_reinitialised": 2} and "tracks_reinitialised" not in restored.accounting()
     assert restored.process_many(items[500:]) and restored.accounting()["plots_used"] > 0
-    bad = {**state, "window": {**state["window"], "latest": state["window"]["latest"][::-1]}}
+    bad = {**state, "window": {**state["window"], "recent": [state["window"]["newest"] + 1.0]}}
     _rewrite(path, snapshot.encode([meta, snapshot.encode(bad, "state")], "snap"))
-    with pytest.raises(SnapshotError, match="window latest"):
+    with pytest.raises(SnapshotError, match="window recent"):
         restore_manager(path)
