@@ -134,7 +134,8 @@ class ReorderWindow:
     far ahead of the others (a spoofed time stamp inside the clock's ``max_ahead_s``) moves neither the
     window nor the horizon behind it: it waits, alone, until the stream reaches its time, and no good
     input becomes late because of it; and a few inputs far ahead that made a clock step (three spoofed
-    records) stop counting once ``memory`` later inputs have come at the stream's own time. The caller
+    records) stop counting once ``memory`` later inputs have come at the stream's own time (a stale time
+    above the confirmed one only makes the window release against a newer recent time). The caller
     bounds the window's length with :meth:`drop_newest` and :meth:`pop_oldest`
     (:meth:`~radartracker.tracking.manager.TrackManager._overfull` says when each)."""
 
@@ -177,7 +178,7 @@ class ReorderWindow:
             latest.pop()
             self._pushed_as.insert(i, self.pushes)
             self._pushed_as.pop()
-        if self.pushes - min(self._pushed_as) >= self.recent.maxlen:  # one of them is no longer recent
+        if self.pushes - self._pushed_as[-1] >= self.recent.maxlen:  # the confirmed time is no longer recent
             self.recount()
 
     def recount(self) -> None:

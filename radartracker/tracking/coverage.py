@@ -26,6 +26,7 @@ import math
 import numpy as np
 from numba import njit
 
+from radartracker.compiled import kernel
 from radartracker.domain import Radar
 
 TWO_PI = 2.0 * math.pi
@@ -61,6 +62,24 @@ def sweep(pos: np.ndarray, radar_xy: np.ndarray, north: np.ndarray, max_range: n
             swept[r, i] = hit
 
 
+@kernel
+def observe(rows: np.ndarray, t: np.ndarray, terms: np.ndarray, period: np.ndarray, phase: np.ndarray,
+            agreed: np.ndarray) -> None:
+    """p_r ← 0.98 p_r + e for each plot (radar ``rows[k]``, time ``t[k]``, e = ``terms[k]``) in order, in
+    ``phase``; a plot more than 0.2 rad from a locked phase is not taken unless a revolution (``period``)
+    passed since ``agreed``, the radar's last plot taken, when the estimate starts again from it."""
+    for k in range(rows.shape[0]):
+        r, e = rows[k], terms[k]
+        p = phase[r]
+        size = abs(p)
+        if size > LOCKED and (e * p.conjugate()).real < AGREE * size:
+            if t[k] - agreed[r] <= period[r]:
+                continue
+            p = 0j  # a revolution without an agreeing plot: start again
+        phase[r] = 0.98 * p + e
+        agreed[r] = t[k]
+
+
 class AntennaSweep:
     """The radars' antenna phases, and which tracks each antenna swept during a frame (module docstring).
 
@@ -80,16 +99,8 @@ class AntennaSweep:
         """Plots of radars ``rows`` at times ``t`` with azimuths ``theta``, in order (module docstring: a plot
         that disagrees with a locked phase is not taken)."""
         terms = np.exp(1j * (theta - TWO_PI * t / self.period[rows]))
-        phase, agreed, period = self.phase, self.agreed, self.period
-        for r, e, tk in zip(rows.tolist(), terms.tolist(), t.tolist()):
-            p = phase[r]
-            size = abs(p)
-            if size > LOCKED and (e * p.conjugate()).real < AGREE * size:
-                if tk - agreed[r] <= period[r]:
-                    continue
-                p = 0j  # a revolution without an agreeing plot: start again
-            phase[r] = 0.98 * p + e
-            agreed[r] = tk
+        observe(np.ascontiguousarray(rows, np.int64), np.ascontiguousarray(t, float), terms, self.period,
+                self.phase, self.agreed)
         self.phased[rows] = True
 
     def sweep(self, positions: np.ndarray, t_a: float, t_b: float) -> tuple[np.ndarray, np.ndarray]:
