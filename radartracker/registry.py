@@ -364,8 +364,14 @@ def plugin_listing() -> str:
                 lines.append(f"      (not loadable: {type(exc).__name__}: {exc})")
                 continue
             if options:
-                lines.append("      options: " + ", ".join(f"{k}={_text(v)}" for k, _, v in options))
+                lines.append("      options: " + ", ".join(f"{k}={_run_q() if (k, attr) == ('q', 'config_class') else _text(v)}"
+                                                       for k, _, v in options))
     return "\n".join(lines)
+
+
+def _run_q() -> str:
+    """A motion model's q as a run uses it: the estimator's q (ManagerConfig) unless an option sets it."""
+    return f"{_text(ManagerConfig().estimator_config.motion.q)} (the run's q unless set)"
 
 
 def _text(value: Any) -> str:

@@ -51,6 +51,18 @@ def test_estimators_and_demo(capsys):
     assert "R1" in out and "position RMSE" in out
 
 
+def test_estimators_shows_the_q_a_run_uses(capsys):
+    """Issue 32: the listing showed the motion models' q = 1 while runs use the estimator's q (5): it shows
+    the run's q (read from a run's effective settings, not from the listing's code)."""
+    from radartracker.pipeline.config import RunConfig, motion_factory, resolve
+
+    cfg = resolve(RunConfig(association="manager", estimator="coupled-sparse"), None, "coupled-sparse")
+    q = motion_factory(cfg).config.q
+    assert main(["estimators"]) == 0
+    imm = next(line for line in capsys.readouterr().out.splitlines() if "turn_rate_sd" in line)
+    assert f"q={q:g} (the run's q unless set)" in imm and q == 5.0
+
+
 def test_replay_without_truth_labels_uses_the_track_manager(tmp_path):
     scen, out = tmp_path / "scen", tmp_path / "out"
     assert main(["simulate", str(scen), "--scenario", "tracking", "--duration", "240"]) == 0
