@@ -364,14 +364,13 @@ def plugin_listing() -> str:
                 lines.append(f"      (not loadable: {type(exc).__name__}: {exc})")
                 continue
             if options:
-                lines.append("      options: " + ", ".join(f"{k}={_run_q() if (k, attr) == ('q', 'config_class') else _text(v)}"
-                                                       for k, _, v in options))
+                shown = [(k, _RUN_Q if (k, attr) == ("q", "config_class") else _text(v)) for k, _, v in options]
+                lines.append("      options: " + ", ".join(f"{k}={v}" for k, v in shown))
     return "\n".join(lines)
 
 
-def _run_q() -> str:
-    """A motion model's q as a run uses it: the estimator's q (ManagerConfig) unless an option sets it."""
-    return f"{_text(ManagerConfig().estimator_config.motion.q)} (the run's q unless set)"
+# a motion model's q as a run uses it: the estimator's (ManagerConfig), unless an option sets it
+_RUN_Q = f"{ManagerConfig().estimator_config.motion.q:g} (the run's q unless set)"
 
 
 def _text(value: Any) -> str:

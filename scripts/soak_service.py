@@ -20,8 +20,9 @@ and inside the segments, what an ATC unit meets:
 What :func:`soak` returns (and ``main`` prints as JSON): per segment after an outage the share of its
 records the tracker used (handed on, not refused as late, time jump, duplicate, overflow or over the
 track bound); what the spoofs cost; the datagrams sent against those the service accounted (received =
-decoded + malformed + dropped, all reasons; plus the kernel's drops and those lost to kill -9, which are
-the ones processed after the last checkpoint); the peak RSS through the flood and the attack; the
+decoded + malformed + dropped, all reasons; plus the kernel's drops, those lost to kill -9 — processed
+after the last checkpoint — and those only the corrupted checkpoint accounted for, after the older one
+the restart falls back to); the peak RSS through the flood and the attack; the
 processing latency; the stop under load. Every wait is bounded.
 """
 
@@ -46,6 +47,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from load_service import Listener, datagram_schedule, free_port, get, histogram_quantiles, scenario_records  # noqa: E402
 
 from radartracker.io.asterix import sac_sic_of, write_sites  # noqa: E402
+from radartracker.service.checkpoints import checkpoints  # noqa: E402
 from radartracker.service.codec import blocks, cat048_bytes  # noqa: E402
 from radartracker.simulation.scenarios import build_scenario  # noqa: E402
 
@@ -79,7 +81,8 @@ class Service:
         return None if h is None else json.loads(h)
 
     def counters(self) -> dict[str, float]:
-        """Every labelled counter of ``/metrics`` as ``name{label}`` → value, and the latency text."""
+        """Every singly labelled counter of ``/metrics`` as ``"family:label"`` → value, and the whole text
+        as ``"_text"`` (for the latency histogram)."""
         from prometheus_client.parser import text_string_to_metric_families
 
         text = get(f"http://127.0.0.1:{self.http}/metrics", 5) or ""
@@ -173,6 +176,12 @@ class Feed:
             self.raw(port, block, (len(block) - 3) // len(recs[0]))
 
 
+def accounted(counters: dict) -> int:
+    """The datagrams a service's counters (``/metrics``, as :meth:`Service.counters` reads them) account for:
+    received, or dropped by the kernel before reaching the socket's reader."""
+    return int(counters.get("radartracker_datagrams:received", 0) + counters.get("radartracker_datagrams:dropped_kernel", 0))
+
+
 def used_share(before: dict, after: dict, sent: int) -> dict:
     """What the tracker did with the ``sent`` records of a segment (counter deltas)."""
     delta = {k.split(":", 1)[1]: after.get(k, 0) - before.get(k, 0) for k in after
@@ -186,13 +195,12 @@ def spoof(feed: Feed, port: int, t: float) -> None:
     clock's 300 s), 1 h ahead and 600 s behind."""
     sac, sic = feed.sac_sic[feed.data.radars[0].id]
     for dt in (290.0, 3600.0, -600.0):
-        rec = cat048_bytes(t + dt, sac, sic, 30_000.0, 1.0)
-        feed.raw(port, bytes([48]) + (3 + len(rec)).to_bytes(2, "big") + rec, 1)
+        feed.raw(port, blocks(48, [cat048_bytes(t + dt, sac, sic, 30_000.0, 1.0)], 1472)[0], 1)
 
 
 def flip_newest_checkpoint(state: Path) -> str:
     """Flip one byte in the middle of the newest checkpoint's manager snapshot; its name."""
-    newest = sorted(state.glob("checkpoint-*"))[-1]
+    newest = checkpoints(state)[-1][1]  # numbered in numeric order
     snap = newest / "manager.snapshot"
     b = bytearray(snap.read_bytes())
     b[len(b) // 2] ^= 0xFF
@@ -274,7 +282,7 @@ def segment_c(feed: Feed, holder: dict, start: float, speed: float, flood: int, 
     holder["svc"].kill()
     holder["svc"] = svc = Service(holder["work"], feed.sites, holder["publish"], 0.0, holder["svc"])
     resumed = svc.counters()
-    lost = sent_before_kill - int(resumed.get("radartracker_datagrams:received", 0))
+    lost = sent_before_kill - accounted(resumed)
     base = svc.settle()
     feed.send(sched[half:three_q], svc.port, speed)
     mid = svc.settle()
@@ -308,6 +316,9 @@ def segment_d(feed: Feed, holder: dict, start: float, speed: float, load: int, o
     damaged = flip_newest_checkpoint(state)
     holder["svc"] = svc = Service(holder["work"], feed.sites, holder["publish"], 2 * DAY, holder["svc"])
     resumed = (svc.health() or {}).get("resumed_from")
+    # the datagrams only the corrupted checkpoint accounted for (those after the older one it falls back to)
+    out["lost_to_corrupted_checkpoint"] = (summary["datagrams"]["received"] + summary["datagrams"].get("dropped_kernel", 0)
+                                           - accounted(svc.counters()))
     sched = feed.segment(start)
     half = len(sched) // 2
     before = svc.settle()
@@ -362,7 +373,9 @@ def soak(seg_s: float = 120.0, speed: float = 40.0, flood: int = 2_000, attack: 
                          "dropped_queue_full": dg.get("dropped_queue_full", 0),
                          "dropped_at_stop": dg.get("dropped_at_stop", 0), "dropped_kernel": dg.get("dropped_kernel", 0),
                          "lost_to_kill_9": out["lost_to_kill_9"],
-                         "unaccounted": feed.datagrams - dg["received"] - dg.get("dropped_kernel", 0) - out["lost_to_kill_9"]}
+                         "lost_to_corrupted_checkpoint": out["lost_to_corrupted_checkpoint"]}
+    out["accounting"]["unaccounted"] = (feed.datagrams - dg["received"] - dg.get("dropped_kernel", 0)
+                                        - out["lost_to_kill_9"] - out["lost_to_corrupted_checkpoint"])
     out["wall_s"] = round(time.monotonic() - t_start, 1)
     return out
 

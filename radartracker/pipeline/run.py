@@ -96,7 +96,8 @@ def run(data: ScenarioData, config: RunConfig | None = None, *, estimator: Estim
     rec.flush()
     plane = sink.plane if sink is not None else SystemPlane(*data.reference)  # the sink's, not a second one
     return RunResult(data=data, config=cfg, plane=plane, events=rec.events(),
-                     biases=rec.biases(), final_biases={r: est.bias(r) for r in radar_ids}, counts=dict(counts), track_counts=track_counts,
+                     biases=rec.biases(), final_biases={r: est.bias(r) for r in radar_ids}, counts=dict(counts),
+                     track_counts=track_counts,
                      seconds=seconds, mean_nis=rec.mean_nis, coupling=coupling, plugins=plugins,
                      streamed=sink is not None, track_count=len(rec.track_ids))
 

@@ -104,8 +104,12 @@ class Receiver(threading.Thread):
     def _kernel_count(self, ep: Endpoint, anc: list) -> None:
         for level, kind, value in anc:
             if level == socket.SOL_SOCKET and kind == SO_RXQ_OVFL and len(value) >= 4:
-                self._kernel_drops[ep] = int.from_bytes(value[:4], "little")
-                self.counts["datagrams_dropped_kernel"] = sum(self._kernel_drops.values())
+                self._kernel_dropped(ep, int.from_bytes(value[:4], "little"))
+
+    def _kernel_dropped(self, ep: Endpoint, n: int) -> None:
+        """The kernel has dropped ``n`` datagrams on ``ep``'s socket so far."""
+        self._kernel_drops[ep] = n
+        self.counts["datagrams_dropped_kernel"] = sum(self._kernel_drops.values())
 
     def discard_unread(self) -> int:
         """After :meth:`stop` and :meth:`join`: read what is still in the sockets' buffers and return how many
@@ -121,8 +125,7 @@ class Receiver(threading.Thread):
                 n += 1
             late = kernel_drops(sock)  # drops after the last datagram queued are attached to none
             if late is not None and late > self._kernel_drops.get(ep, 0):
-                self._kernel_drops[ep] = late
-                self.counts["datagrams_dropped_kernel"] = sum(self._kernel_drops.values())
+                self._kernel_dropped(ep, late)
         return n
 
 

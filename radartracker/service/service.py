@@ -451,10 +451,10 @@ class Service:
         reasons = [r for r in (self.degraded, self.refusing) if r]
         degraded = {"status": "degraded", "reason": "; ".join(reasons)} if reasons else {"status": "ok"}
         return degraded | {"uptime_s": now - self.started,
-                "last_datagram_age_s": None if self.last_datagram is None else now - self.last_datagram,
-                "queue_depth": self.queue.qsize(), "datagrams": self.view["datagrams"],
-                "tracks": self.view["tracks_by_status"],
-                "checkpoints_written": self.checkpoints_written, "resumed_from": self.resumed_from}
+                           "last_datagram_age_s": None if self.last_datagram is None else now - self.last_datagram,
+                           "queue_depth": self.queue.qsize(), "datagrams": self.view["datagrams"],
+                           "tracks": self.view["tracks_by_status"],
+                           "checkpoints_written": self.checkpoints_written, "resumed_from": self.resumed_from}
 
     def summary(self) -> dict:
         """The run's accounting (module notes), estimator, final biases and checkpoints."""

@@ -86,16 +86,13 @@ class Admission:
             self.reject(f"{INPUT_KINDS[key[0]]}_time_jump", item)
         self.held = []
 
-    def overflow(self, item: object) -> None:
-        """``item`` was dropped from a full reordering window: counted ``*_reorder_overflow`` and forgotten
-        (sent again, it is judged again, not called a duplicate)."""
+    def withdraw(self, item: object, why: str) -> None:
+        """An admitted ``item`` left the reordering window unused: counted ``*_<why>`` and forgotten (sent
+        again, it is judged again, not called a duplicate). ``reorder_overflow``: dropped from a full
+        window; ``time_jump``: the stream ended before reaching its time."""
         key = self._key(item)
         self.keys.pop(key, None)
-        self.reject(f"{INPUT_KINDS[key[0]]}_reorder_overflow", item)
-
-    def reject_ahead(self, item: object) -> None:
-        """``item`` was admitted but the stream ended before reaching its time: counted ``*_time_jump``."""
-        self.reject(f"{INPUT_KINDS[self._key(item)[0]]}_time_jump", item)
+        self.reject(f"{INPUT_KINDS[key[0]]}_{why}", item)
 
     def _key(self, item: object) -> tuple | None:
         if isinstance(item, Plot):
@@ -182,7 +179,9 @@ class ReorderWindow:
             self.recount()
 
     def recount(self) -> None:
-        """``latest`` taken again from ``recent`` (the last pushed first among equal times)."""
+        """``latest`` taken again from ``recent`` (the older first among equal times, as :meth:`push` keeps
+        them). ``latest`` is a cache of ``recent`` kept by :meth:`push` in a few comparisons: taking it
+        again for every input would cost a sort per input on the national replay's hot path."""
         n, k = len(self.recent), len(self.latest)
         order = sorted(range(n), key=self.recent.__getitem__, reverse=True)[:k]
         self.latest = [self.recent[j] for j in order] + [-math.inf] * (k - len(order))

@@ -18,7 +18,8 @@ class ManagerConfig:
     ``associator`` (a ``radartracker.associators`` plugin), ``gate`` (χ²₂ 99.9 %), ``search_radius_m``,
     ``new_track_exclusion`` (χ²₂ 1 − 10⁻⁶: no tentative track this close to a confirmed one),
     ``primary_altitude_m`` and its spread ``primary_altitude_sd_m`` (the height a plot without Mode C is
-    converted at). Life cycle: ``confirm_m`` of ``confirm_n``, ``delete_after_s``, ``max_tracks``. Screening: ``screening``.
+    converted at). Life cycle: ``confirm_m`` of ``confirm_n``, ``delete_after_s``, ``max_tracks``.
+    Screening: ``screening``.
     Plugins: ``estimator`` with ``estimator_config`` / ``estimator_options``, ``motion_model`` with
     ``motion`` / ``motion_options``.
     """
@@ -38,7 +39,8 @@ class ManagerConfig:
     delete_after_s: float = 40.0
     reorder_window_s: float = 2.0
     # the most inputs the reordering window holds: 20 s of national traffic (5,000 inputs/s), ten times
-    # the replay's window; only a flood sharing one time stamp fills it (then the oldest is dropped)
+    # the replay's window; only a flood sharing one time stamp fills it (TrackManager._overfull: the
+    # flood's newest input is dropped, or the oldest leaves early once the stream has moved on)
     reorder_capacity: int = attrs.field(default=100_000, validator=attrs.validators.ge(1))
     # the most live tracks: five times national traffic (2,000 aircraft); a measurement that would start one
     # more is counted *_track_capacity (a flood of plausible plots cannot grow the memory without bound)

@@ -130,7 +130,7 @@ class TrackManager:
         self._release(self.window.settled(0.5 * self.config.delete_after_s))
         if end:
             for _, item in self.window.release(math.inf):
-                self.admission.reject_ahead(item)
+                self.admission.withdraw(item, "time_jump")
         if self.frame is not None and self.gathered:
             self._run_frame(self.frame)
         self.gathered = []
@@ -181,7 +181,7 @@ class TrackManager:
         if moved_on:
             self._gather([self.window.pop_oldest()])
         else:
-            self.admission.overflow(self.window.drop_newest())
+            self.admission.withdraw(self.window.drop_newest(), "reorder_overflow")
 
     def _gather(self, released: Iterable[tuple[float, Input]]) -> None:
         """Each (time, input) into its frame; run each frame once an input of a later one comes (frames

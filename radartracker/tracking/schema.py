@@ -214,9 +214,9 @@ def load_document(mgr: Any, doc: Any) -> None:
     _need(isinstance(doc, dict) and set(doc) - {"track_counts"} == keys, f"state: fields {sorted(keys)} expected")
     radars = frozenset(mgr.radars)
     counts, track_counts = doc["counts"], doc.get("track_counts")
-    if track_counts is None:  # schema 2 counted re-initialisations among the inputs' reasons
-        counts = dict(counts) if isinstance(counts, dict) else counts
-        track_counts = {k: counts.pop(k) for k in ("tracks_reinitialised",) if isinstance(counts, dict) and k in counts}
+    if track_counts is None and isinstance(counts, dict):  # schema 2 counted them among the inputs' reasons
+        counts = dict(counts)
+        track_counts = {"tracks_reinitialised": counts.pop("tracks_reinitialised", 0)}
     for what, c in (("counts", counts), ("track_counts", track_counts)):
         _need(isinstance(c, dict) and all(isinstance(k, str) and type(v) is int and v >= 0 for k, v in c.items()),
               f"{what}: reason → count expected")

@@ -174,6 +174,15 @@ def _run(data, items, **config):
     return mgr
 
 
+def _swapped_address(items: list, code: str) -> list:
+    """``items`` with a wrong first plot under Mode S ``code``: another aircraft's plot of the same radar,
+    just before that aircraft's own first plot (its track starts in the wrong place)."""
+    first = next(i for i, x in enumerate(items) if isinstance(x, Plot) and x.mode_s == code)
+    donor = next(x for x in items[first:] if isinstance(x, Plot) and x.mode_s not in (code, None)
+                 and x.radar == items[first].radar)
+    return items[:first] + [attrs.evolve(donor, time=items[first].time - 0.01, mode_s=code)] + items[first:]
+
+
 def test_gross_errors_rejected_biases_within_3_sigma(demo):
     """One antipodal ADS-B report, one 1° ADS-B shift, one +20 km Mode S plot: each counted, and the
     estimator ends exactly where the run without those three measurements ends (the oracle)."""
@@ -207,11 +216,7 @@ def test_swapped_address_at_start_does_not_lock_out_the_truth(demo):
     re-initialised on them and the aircraft is tracked and used for the biases."""
     data, _, without = demo
     code = _icao(2)
-    first = next(i for i, x in enumerate(without) if isinstance(x, Plot) and x.mode_s == code)
-    donor = next(x for x in without[first:] if isinstance(x, Plot) and x.mode_s not in (code, None)
-                 and x.radar == without[first].radar)
-    wrong = attrs.evolve(donor, time=without[first].time - 0.01, mode_s=code)
-    mgr = _run(data, without[:first] + [wrong] + without[first:])
+    mgr = _run(data, _swapped_address(without, code))
     assert mgr.track_counts()["tracks_reinitialised"] >= 1
     live = [t for t in mgr.tracks.values() if t.mode_s == code]
     assert len(live) == 1 and live[0].status in ("confirmed", "coasting") and live[0].n_plots > 20
@@ -350,12 +355,7 @@ def test_snapshot_mid_rejection_run_continues_exactly(demo, tmp_path):
     """A snapshot taken while a track holds a run of rejected measurements (and the ADS-B check its
     references) restores them: the continued run equals the uninterrupted one."""
     data, faulty, _ = demo
-    code = _icao(2)
-    first = next(i for i, x in enumerate(faulty) if isinstance(x, Plot) and x.mode_s == code)
-    donor = next(x for x in faulty[first:] if isinstance(x, Plot) and x.mode_s not in (code, None)
-                 and x.radar == faulty[first].radar)
-    items = faulty[:first] + [attrs.evolve(donor, time=faulty[first].time - 0.01, mode_s=code)] + faulty[first:]
-    items = [x for x in items if x.time < 240.0]
+    items = [x for x in _swapped_address(faulty, _icao(2)) if x.time < 240.0]
     whole = _run(data, items)
     mgr = make_manager(data.radars, data.reference, ManagerConfig(estimator=ESTIMATOR))
     k = 0
@@ -378,11 +378,7 @@ def test_a_reinitialised_track_keeps_the_inputs_accounted(demo):
     """Every input is counted once under one reason, re-initialisations included: they are events of a
     track, reported apart (``TrackManager.track_counts``), not a reason an input was used or refused."""
     data, _, without = demo
-    code = _icao(2)
-    first = next(i for i, x in enumerate(without) if isinstance(x, Plot) and x.mode_s == code)
-    donor = next(x for x in without[first:] if isinstance(x, Plot) and x.mode_s not in (code, None)
-                 and x.radar == without[first].radar)
-    items = without[:first] + [attrs.evolve(donor, time=without[first].time - 0.01, mode_s=code)] + without[first:]
+    items = _swapped_address(without, _icao(2))
     mgr = _run(data, items)
     assert mgr.track_counts()["tracks_reinitialised"] >= 1
     assert sum(mgr.accounting().values()) == len(items) and "tracks_reinitialised" not in mgr.accounting()

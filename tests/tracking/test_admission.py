@@ -325,7 +325,7 @@ def test_a_lone_record_just_inside_the_clock_costs_only_itself(demo_data):
     got, want = a.accounting(), b.accounting()
     assert got.get("plots_late", 0) == want.get("plots_late", 0)
     assert sum(got.values()) == sum(want.values()) + 1
-    assert len([t for t in a.confirmed_tracks()]) == len(b.confirmed_tracks())
+    assert len(a.confirmed_tracks()) == len(b.confirmed_tracks())
 
 
 @pytest.mark.parametrize("end", [True, False])
