@@ -8,7 +8,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 # (file, block number): the examples that are whole programs; the others are fragments of a class or a
 # call shown in its context (plugin skeletons), named in docs/plugins.md as such
-RUNNABLE = [("README.md", 0), ("docs/tracking.md", 0), ("docs/user-guide.md", 0), ("docs/user-guide.md", 1)]
+RUNNABLE = [("README.md", 0), ("docs/tracking.md", 0), ("docs/user-guide.md", 0), ("docs/user-guide.md", 1),
+            ("docs/api.md", 0)]
 
 
 def _blocks(path: Path) -> list[str]:
@@ -31,3 +32,12 @@ def test_the_plugin_guides_associator_passes_its_checks():
     space: dict = {"__name__": "__example__"}
     exec(compile(block, "docs/plugins.md associator", "exec"), space)
     assert check_associator(space["Nearest"]) == ASSOCIATOR_CHECKS
+
+
+def test_the_traffic_example_runs(tmp_path, monkeypatch, capsys):
+    """docs/api.md's example with the traffic library (an optional extra: skipped without it)."""
+    pytest.importorskip("traffic.core", reason="the optional extra radartracker[traffic] is not installed")
+    monkeypatch.chdir(tmp_path)
+    block = next(b for b in _blocks(ROOT / "docs/api.md") if "traffic_from_tracks" in b)
+    exec(compile(block, "docs/api.md traffic example", "exec"), {"__name__": "__example__"})
+    assert "flight_id" in capsys.readouterr().out

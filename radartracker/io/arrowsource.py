@@ -31,7 +31,9 @@ from radartracker.errors import FormatError, TableName
 from radartracker.io.limits import MAX_LINE_BYTES, regular_file
 from radartracker.io.tables import OPTIONAL_COLUMNS, SCHEMAS
 
-BATCH_ROWS = 16_384  # rows rendered at a time: about the 1 MiB of a CSV block
+ROW_BYTES = 64  # about a plots.csv line: a block of B bytes is B // ROW_BYTES rows rendered at a time
+MIN_BATCH_ROWS = 256
+READ_BUFFER = 1 << 20  # bytes read from a Parquet file at a time (a column chunk is not read whole first)
 _PLAIN = pacsv.WriteOptions(include_header=False, quoting_style="none")
 _QUOTED = pacsv.WriteOptions(include_header=False, quoting_style="needed")
 _TIME_UNITS = {"s": 1.0, "ms": 1e3, "us": 1e6, "ns": 1e9}
@@ -61,8 +63,8 @@ def parquet_source(path: Path, name: str | None = None) -> ArrowSource:
         raise FormatError(label, None, None, f"not a readable Parquet file ({exc})") from None
 
     def batches(columns: list[str], batch_rows: int) -> Iterator[pa.RecordBatch]:
-        with pq.ParquetFile(path) as f:
-            yield from f.iter_batches(batch_size=batch_rows, columns=columns)
+        with pq.ParquetFile(path, pre_buffer=False, buffer_size=READ_BUFFER) as f:  # no row group held whole
+            yield from f.iter_batches(batch_size=batch_rows, columns=columns, use_threads=False)
 
     return ArrowSource(label, schema, meta.num_rows, batches)
 
@@ -127,7 +129,7 @@ class CsvText:
 
     source: ArrowSource
     columns: list[str]
-    batch_rows: int = BATCH_ROWS
+    batch_rows: int
 
     @property
     def name(self) -> TableName:
@@ -157,9 +159,10 @@ def _read(source: ArrowSource, columns: list[str], batch_rows: int) -> Iterator[
         raise FormatError(source.name, None, None, f"cannot be read ({exc})") from None
 
 
-def text_table(source: ArrowSource, table: str, batch_rows: int = BATCH_ROWS) -> CsvText:
-    """``source`` checked as the scenario table ``table`` and rendered as CSV text for its reader."""
-    return CsvText(source, check_schema(source, table), batch_rows)
+def text_table(source: ArrowSource, table: str, block_bytes: int) -> CsvText:
+    """``source`` checked as the scenario table ``table`` and rendered as CSV text for its reader, in blocks of
+    about ``block_bytes``."""
+    return CsvText(source, check_schema(source, table), max(block_bytes // ROW_BYTES, MIN_BATCH_ROWS))
 
 
 def first_times(source: ArrowSource, n: int) -> list[float]:

@@ -21,33 +21,33 @@ import pyarrow as pa
 import pyarrow.dataset as ds
 
 from radartracker.errors import FormatError, TableName
-from radartracker.io.arrowsource import ArrowSource
+from radartracker.io.arrowsource import ArrowSource, parquet_source
 
 #: the partition keys a scenario table is written with (:func:`write_partitioned`) and read by
 PARTITIONS = {"plots": ("hour", "radar"), "adsb": ("hour",)}
 _KEYS = pa.schema([("hour", pa.int64()), ("radar", pa.string())])  # read as written: a radar "001" stays text
 HOUR_S = 3600.0
-ROWS_PER_GROUP = 65_536  # a row group read at a time holds a few MB
+ROWS_PER_GROUP = 16_384  # rows of a row group as written: what a reader decodes of a column at a time
 
 T = TypeVar("T")
 
 
 def _source(fragment: ds.ParquetFileFragment, root: Path) -> ArrowSource:
-    """One file of the dataset, its partition keys as columns (named by its path below ``root``)."""
+    """One file of the dataset (named by its path below ``root``), its partition keys as columns of constant
+    value: the file read as :func:`~radartracker.io.arrowsource.parquet_source` reads one."""
     name = TableName(Path(fragment.path).relative_to(root).as_posix())
-    try:
-        physical = fragment.physical_schema
-        rows = fragment.metadata.num_rows
-    except (pa.ArrowException, OSError) as exc:
-        raise FormatError(name, None, None, f"not a readable Parquet file ({exc})") from None
-    keys = ds.get_partition_keys(fragment.partition_expression)
-    schema = pa.schema([*physical, *(_KEYS.field(k) for k in keys if k not in physical.names)])
+    file = parquet_source(Path(fragment.path), name)
+    keys = {k: v for k, v in ds.get_partition_keys(fragment.partition_expression).items()
+            if k not in file.schema.names}
+    schema = pa.schema([*file.schema, *(_KEYS.field(k) for k in keys)])
 
     def batches(columns: list[str], batch_rows: int) -> Iterator[pa.RecordBatch]:
-        yield from fragment.to_batches(schema=schema, columns=columns, batch_size=batch_rows, batch_readahead=0,
-                                       fragment_readahead=0, use_threads=False)
+        for b in file.batches([c for c in columns if c not in keys], batch_rows):
+            yield pa.RecordBatch.from_arrays([b.column(c) if c not in keys else
+                                              pa.array([keys[c]] * b.num_rows, _KEYS.field(c).type) for c in columns],
+                                             names=columns)
 
-    return ArrowSource(name, schema, rows, batches)
+    return ArrowSource(name, schema, file.num_rows, batches)
 
 
 def hour_groups(folder: Path, root: Path) -> list[list[ArrowSource]]:
@@ -110,11 +110,13 @@ def merge_blocks(streams: Iterable[Iterator[T]]) -> Iterator[T]:
         yield _take(merged, np.argsort(merged.time, kind="stable"))
 
 
-def dataset_blocks(folder: Path, root: Path, blocks: Callable[[ArrowSource], Iterator[T]]) -> Iterator[T]:
+def dataset_blocks(folder: Path, root: Path, blocks: Callable[[ArrowSource, int], Iterator[T]]) -> Iterator[T]:
     """The kept rows of the dataset ``folder`` in time order: hour after hour, the ``blocks`` of that hour's
-    files (each read by the reader ``blocks`` makes for it) merged by :func:`merge_blocks`."""
+    files merged by :func:`merge_blocks`. ``blocks(source, n)`` reads one of ``n`` files read together: each
+    takes an n-th of a block's memory, so that a merge step (a block of each) holds about one block whatever
+    the number of radars."""
     for group in hour_groups(folder, root):
-        yield from merge_blocks([blocks(source) for source in group])
+        yield from merge_blocks([blocks(source, len(group)) for source in group])
 
 
 def write_partitioned(table: pa.Table, folder: Path, by: tuple[str, ...]) -> None:

@@ -75,12 +75,13 @@ def read_radars(path: Table) -> list[Radar]:
     return [r for r, _ in radars.values()]
 
 
-def _each_file(path: Table, read: Callable[[Table], Iterator[T]]) -> Iterator[T]:
-    """``read`` of the table, or of each file of a dataset folder, merged in time order
-    (:func:`radartracker.io.datasets.dataset_blocks`; the files named below the scenario folder)."""
+def _each_file(path: Table, read: Callable[[Table, int], Iterator[T]]) -> Iterator[T]:
+    """``read(table, 1)`` of the table, or ``read(file, n)`` of each file of a dataset folder (n of them read
+    together), merged in time order (:func:`radartracker.io.datasets.dataset_blocks`; the files named below the
+    scenario folder)."""
     if isinstance(path, Path) and path.is_dir():
         return dataset_blocks(path, path.parent, read)
-    return read(as_source(path))
+    return read(as_source(path), 1)
 
 
 def plot_blocks(path: Table, radar_ids: set[str], skip: Skipper, *, block_bytes: int = BLOCK_BYTES,
@@ -89,7 +90,7 @@ def plot_blocks(path: Table, radar_ids: set[str], skip: Skipper, *, block_bytes:
     in file order (``fast``: plain blocks column by column). A table without a usable row is an error (nothing
     to track)."""
     kept = 0
-    for table in _each_file(path, lambda t: _plot_file(t, radar_ids, skip, block_bytes, fast)):
+    for table in _each_file(path, lambda t, n: _plot_file(t, radar_ids, skip, block_bytes // n, fast)):
         kept += len(table)
         yield table
     if not kept:
@@ -109,8 +110,8 @@ def _plot_file(table: Table, radar_ids: set[str], skip: Skipper, block_bytes: in
 def adsb_blocks(path: Table, skip: Skipper, *, block_bytes: int = BLOCK_BYTES, fast: bool = True,
                 latest_only: bool = False) -> Iterator[AdsbTable]:
     """The ADS-B table as tables of the rows kept, block by block, in file order (see :class:`AdsbReader`)."""
-    def read(table: Table) -> Iterator[AdsbTable]:
-        rows = open_rows(table, "adsb", skip, block_bytes=block_bytes)
+    def read(table: Table, n: int) -> Iterator[AdsbTable]:
+        rows = open_rows(table, "adsb", skip, block_bytes=block_bytes // n)
         yield from _tables(rows, AdsbReader(rows, latest_only=latest_only), columnar.adsb if fast else None)
 
     return _each_file(path, read)

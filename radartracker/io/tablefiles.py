@@ -55,7 +55,7 @@ def open_rows(table: Table, name: str, skip: Skipper | None = None, *, block_byt
     """The rows of ``table`` (a CSV path or an :class:`ArrowSource`, see :func:`as_source`) read as the scenario
     table ``name``."""
     if isinstance(table, ArrowSource):
-        return Rows(text_table(table, name), required_columns(name), skip)
+        return Rows(text_table(table, name, block_bytes), required_columns(name), skip)
     return Rows(table, required_columns(name), skip, block_bytes=block_bytes)
 
 

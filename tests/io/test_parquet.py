@@ -85,25 +85,28 @@ def test_a_dataset_written_by_hour_and_radar_replays_as_the_csv_folder(csv_folde
         assert math.hypot(float(ra["x_m"]) - float(rb["x_m"]), float(ra["y_m"]) - float(rb["y_m"])) < 1.0
 
 
-def test_a_dataset_streams_its_plots_in_time_order(tmp_path):
-    """Two hours of plots of three radars as nine files: the streamed blocks are the plots of the CSV reading,
-    in time order, and none is larger than one batch of each file of an hour."""
-    data = build_scenario("demo", seed=3, duration=600.0).run()
-    data.plots.time[:] += 7200.0 - 300.0  # across an hour boundary: hours 1 and 2
+def test_a_dataset_streams_its_plots_in_time_order_a_block_at_a_time(tmp_path):
+    """Plots of three radars across an hour boundary as six files: the streamed blocks are the plots of the CSV
+    reading, in time order, and each holds at most what one block's memory (shared by the hour's three files:
+    512 rows each here) allows, however long the recording."""
+    data = build_scenario("demo", seed=3, duration=1200.0).run()
+    data.plots.time[:] += 7200.0 - 600.0  # hours 1 and 2
     write_scenario(tmp_path / "ds", data, format="dataset")
     write_scenario(tmp_path / "csv", data)
     hours = {p.name for p in (tmp_path / "ds" / "plots").iterdir()}
     assert hours == {"hour=1", "hour=2"}
-    files = open_scenario(tmp_path / "ds")
+    files = open_scenario(tmp_path / "ds", block_bytes=3 * 512 * 64)
     blocks = list(files.plot_blocks())
     got = np.concatenate([b.time for b in blocks])
     want = np.sort(read_scenario(tmp_path / "csv").plots.time)
     assert files.rows == len(data.plots) + len(data.adsb)
     assert np.all(np.diff(got) >= 0) and np.allclose(got, want, atol=5e-5, rtol=0)
+    assert len(blocks) > 3 and max(len(b) for b in blocks) <= 3 * 512
 
 
-def test_merging_streams_keeps_time_order_and_stream_order_at_equal_times():
-    rng = np.random.default_rng(4)
+@pytest.mark.parametrize("seed", range(5))
+def test_merging_streams_keeps_time_order_and_stream_order_at_equal_times(seed):
+    rng = np.random.default_rng(seed)
     streams, rows = [], []
     for k in range(4):
         t = np.sort(rng.integers(0, 50, 40)).astype(float)  # many equal times, within and across streams
