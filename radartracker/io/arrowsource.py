@@ -11,8 +11,8 @@ Then its batches are rendered as CSV text by pyarrow — a number as the shortes
 the same double, a null as an empty field — and read by :class:`~radartracker.io.csvblocks.Rows` and the
 readers of :mod:`radartracker.io.scenario` as a file is, row numbers for line numbers: every row passes
 the one set of checks (ranges, codes, order, duplicates, the stream clock) and the rows kept, hence the
-tracks, are those of the same table written as CSV. The rendering costs about what parsing the text
-again costs (docs/performance.md, "Parquet"); the checks are not written twice.
+tracks, are those of the same table written as CSV. The rendering costs about 0.5 µs a row
+(docs/performance.md, "Parquet"); the checks are not written twice.
 """
 
 from __future__ import annotations
@@ -54,11 +54,12 @@ class ArrowSource:
 
 
 def parquet_source(path: Path, name: str | None = None) -> ArrowSource:
-    """A Parquet file (read lazily, row group by row group); ``name`` for messages (default: the file's)."""
+    """A Parquet file (its footer read now, its rows batch by batch when asked for); ``name`` for messages
+    (default: the file's)."""
     label = TableName(name or path.name)
     try:
-        meta = pq.ParquetFile(regular_file(path)).metadata
-        schema = meta.schema.to_arrow_schema()
+        with pq.ParquetFile(regular_file(path)) as f:
+            schema, rows = f.schema_arrow, f.metadata.num_rows
     except (pa.ArrowException, OSError) as exc:
         raise FormatError(label, None, None, f"not a readable Parquet file ({exc})") from None
 
@@ -66,7 +67,7 @@ def parquet_source(path: Path, name: str | None = None) -> ArrowSource:
         with pq.ParquetFile(path, pre_buffer=False, buffer_size=READ_BUFFER) as f:  # no row group held whole
             yield from f.iter_batches(batch_size=batch_rows, columns=columns, use_threads=False)
 
-    return ArrowSource(label, schema, meta.num_rows, batches)
+    return ArrowSource(label, schema, rows, batches)
 
 
 def table_source(table: pa.Table, name: str) -> ArrowSource:
@@ -167,9 +168,7 @@ def text_table(source: ArrowSource, table: str, block_bytes: int) -> CsvText:
 
 def first_times(source: ArrowSource, n: int) -> list[float]:
     """The finite ``time`` values of the first ``n`` rows (the look ahead of
-    :class:`~radartracker.io.rowchecks.PlotReader`; the checks are the reader's)."""
-    if _kind(source.schema.field("time").type) not in ("number", "timestamp"):
-        return []
+    :class:`~radartracker.io.rowchecks.PlotReader`, after :func:`check_schema`; the checks are the reader's)."""
     for batch in _read(source, ["time"], n):
         times = _plain_column(source, "time", batch.column(0)).cast(pa.float64()).to_pylist()
         return [t for t in times if t is not None and math.isfinite(t)]
