@@ -97,11 +97,11 @@ def check_schema(source: ArrowSource, table: str) -> list[str]:
         raise FormatError(source.name, None, None, f"missing column(s) {', '.join(missing)}; it has {names}")
     out = []
     for col in (c for c in SCHEMAS[table] if c.name in names):
-        want = "text" if pa.types.is_string(col.type) else "number"
-        got = _kind(source.schema.field(col.name).type)
+        want, given = "text" if pa.types.is_string(col.type) else "number", source.schema.field(col.name).type
+        got = _kind(given)
         if got != want and not (col.name == "time" and got == "timestamp"):
             expected = "text (a string type)" if want == "text" else "a number (an integer or floating type)"
-            raise FormatError(source.name, None, col.name, f"type {source.schema.field(col.name).type}, expected {expected}")
+            raise FormatError(source.name, None, col.name, f"type {given}, expected {expected}")
         out.append(col.name)
     return out
 

@@ -132,15 +132,15 @@ class Rows:
             # a last line without its newline may have been cut short: its errors say so
             self.cut_line = None if ends else count + 1
             self._raw = self._read_blocks(self._file_chunks(), 1)
-        first = next(self._raw, (1, ""))[1]
+        start, first = next(self._raw, (1, ""))
         if _plain(first):
             head, _, rest = first.partition("\n")
             header = head.split(",")
-            self._pending: tuple[int, str] | None = (2, rest) if rest else None
+            self._pending: tuple[int, str] | None = (start + 1, rest) if rest else None
             self._reader = None
         else:  # csv.reader from the first line on
             self._pending = None
-            self._reader, self._base = csv.reader(self._lines(first)), 0
+            self._reader, self._base = csv.reader(self._lines(first)), start - 1
             try:
                 header = next(self._reader, None)
             except csv.Error as exc:

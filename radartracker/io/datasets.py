@@ -125,7 +125,7 @@ def write_partitioned(table: pa.Table, folder: Path, by: tuple[str, ...]) -> Non
     if "hour" in by:
         hour = np.floor(table.column("time").to_numpy() / HOUR_S).astype(np.int64)
         table = table.append_column("hour", pa.array(hour))
-    ds.write_dataset(table, folder, format="parquet", partitioning=ds.partitioning(pa.schema([_KEYS.field(k) for k in by]),
-                                                                                   flavor="hive"),
-                     basename_template="part-{i}.parquet", use_threads=False, preserve_order=True,
-                     max_rows_per_group=ROWS_PER_GROUP, existing_data_behavior="error")
+    keys = ds.partitioning(pa.schema([_KEYS.field(k) for k in by]), flavor="hive")
+    ds.write_dataset(table, folder, format="parquet", partitioning=keys, basename_template="part-{i}.parquet",
+                     use_threads=False, preserve_order=True, max_rows_per_group=ROWS_PER_GROUP,
+                     existing_data_behavior="error")

@@ -39,7 +39,7 @@ from radartracker.io.csvblocks import BLOCK_BYTES, Rows, Skipper
 from radartracker.io.datasets import dataset_blocks
 from radartracker.io.limits import read_json, regular_file
 from radartracker.io.tablefiles import Table, as_source, data_rows, find_table, first_times, open_rows, table_files
-from radartracker.io.rowchecks import PLOT_FIELDS, AdsbReader, PlotReader, _key, _physical, _range  # noqa: F401
+from radartracker.io.rowchecks import PLOT_FIELDS, AdsbReader, PlotReader, _key, _physical, _range
 from radartracker.io.tables import (ADSB_COLUMNS, BIAS_COLUMNS, PLOT_COLUMNS, RADAR_COLUMNS, SCHEMAS, TRUTH_COLUMNS,
                                     AdsbTable, PlotTable, ScenarioData, TruthTable, label_spans)
 from radartracker.clock import ClockConfig

@@ -32,11 +32,13 @@ _TEXT = pa.string()
 SCHEMAS: dict[str, tuple[Column, ...]] = {
     "radars": (Column("radar", _TEXT), *_numbers("deg", "lat", "lon"), *_numbers("m", "height_m", "sigma_range_m"),
                *_numbers("deg", "sigma_azimuth_deg"), *_numbers("s", "period_s"), *_numbers("m", "max_range_m")),
-    "plots": (*_numbers("s", "time"), Column("radar", _TEXT), *_numbers("m", "range_m"), *_numbers("deg", "azimuth_deg"),
-              *_numbers("m", "altitude_m"), Column("mode_s", _TEXT), Column("mode_3a", _TEXT), Column("target", _TEXT)),
-    "adsb": (*_numbers("s", "time"), Column("icao24", _TEXT), *_numbers("deg", "lat", "lon"), *_numbers("m", "altitude_m"),
-             Column("nacp", pa.int64())),
-    "truth": (*_numbers("s", "time"), Column("target", _TEXT), *_numbers("deg", "lat", "lon"), *_numbers("m", "altitude_m")),
+    "plots": (*_numbers("s", "time"), Column("radar", _TEXT), *_numbers("m", "range_m"),
+              *_numbers("deg", "azimuth_deg"), *_numbers("m", "altitude_m"), Column("mode_s", _TEXT),
+              Column("mode_3a", _TEXT), Column("target", _TEXT)),
+    "adsb": (*_numbers("s", "time"), Column("icao24", _TEXT), *_numbers("deg", "lat", "lon"),
+             *_numbers("m", "altitude_m"), Column("nacp", pa.int64())),
+    "truth": (*_numbers("s", "time"), Column("target", _TEXT), *_numbers("deg", "lat", "lon"),
+              *_numbers("m", "altitude_m")),
     "truth_biases": (Column("radar", _TEXT), *_numbers("m", "range_bias_m"), *_numbers("deg", "azimuth_bias_deg")),
 }
 OPTIONAL_COLUMNS = {"plots": ("target",)}
@@ -47,7 +49,7 @@ def required_columns(table: str) -> tuple[str, ...]:
     return tuple(c.name for c in SCHEMAS[table] if c.name not in OPTIONAL_COLUMNS.get(table, ()))
 
 
-RADAR_COLUMNS, PLOT_COLUMNS, ADSB_COLUMNS = required_columns("radars"), required_columns("plots"), required_columns("adsb")
+RADAR_COLUMNS, PLOT_COLUMNS, ADSB_COLUMNS = (required_columns(t) for t in ("radars", "plots", "adsb"))
 TRUTH_COLUMNS, BIAS_COLUMNS = required_columns("truth"), required_columns("truth_biases")
 
 

@@ -18,7 +18,6 @@ from __future__ import annotations
 import functools
 import logging
 import math
-
 from typing import TYPE_CHECKING
 
 import attrs
@@ -106,24 +105,28 @@ class RunResult:
         """The track estimates (events ``confirmed`` and ``updated``), as in ``tracks.csv``."""
         return self.events.estimates()
 
-    def _tables(self) -> tuple[pa.Table, pa.Table]:
+    def _held(self) -> None:
+        """Refuse a table of a run that streamed them into its output folder and kept none (no truth)."""
         if self.streamed and self.data.truth is None:
             raise ConfigurationError("this run streamed its tables into its output folder and kept none: read them "
                                      "with radartracker.pipeline.outputs.read_output(OUT / 'tracks.csv').to_pandas()")
+
+    def _event_tables(self) -> tuple[pa.Table, pa.Table]:
+        self._held()
         return event_tables(self.events, self.plane)
 
     def tracks_frame(self) -> pd.DataFrame:
         """The track estimates as a DataFrame: the columns, units and values of ``tracks.csv`` (docs/formats.md;
         a value not known is NaN or None)."""
-        return self._tables()[1].to_pandas()
+        return self._event_tables()[1].to_pandas()
 
     def events_frame(self) -> pd.DataFrame:
         """Every track event as a DataFrame: the columns, units and values of ``events.csv``."""
-        return self._tables()[0].to_pandas()
+        return self._event_tables()[0].to_pandas()
 
     def biases_frame(self) -> pd.DataFrame:
         """The bias estimates over time as a DataFrame: the columns, units and values of ``biases.csv``."""
-        self._tables()
+        self._held()
         return bias_table(self.biases).to_pandas()
 
     def histories(self) -> dict[int, TrackHistory]:

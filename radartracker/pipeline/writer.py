@@ -7,7 +7,7 @@ results refused or removed) by :func:`prepare` before the computation starts.
 
 The three tables are pyarrow tables (:mod:`radartracker.pipeline.outputs`) written by ``pyarrow.csv``
 (RFC 4180: texts quoted, a missing value an empty field), each number rounded to its column's decimals
-(:data:`radartracker.pipeline.outputs.DECIMALS`) and written as the shortest text that reads back as the rounded double; or, with
+(``outputs.DECIMALS``) and written as the shortest text that reads back as the rounded double; or, with
 ``table_format="parquet"``, as ``tracks.parquet``, ``events.parquet`` and ``biases.parquet``, the same values
 typed. They are written either at the end (:func:`write_outputs`) or as the run goes (:class:`OutputStream`,
 fed by the recorder), alike.

@@ -159,6 +159,9 @@ BAD = {
                   "plots.parquet row 7, field 'azimuth_deg': 400.0 outside [0, 360)"),
     "not finite": (lambda c, t: _set(c, t, "range_m", pa.array([1e5] * 4 + [math.inf] + [1e5] * (len(t) - 5))),
                    "plots.parquet row 5, field 'range_m': 'inf' is not finite"),
+    "quoted text": (lambda c, t: _set(c, t, "radar", pa.array(t["radar"].to_pylist()[:2] + ['A,"1'] +
+                                                              t["radar"].to_pylist()[3:])),
+                    "plots.parquet row 3, field 'radar': unknown radar 'A,\"1'"),
     "two tables": (lambda c, t: shutil.copy(c / "plots.parquet", c / "plots.csv"),
                    "plots.csv and plots.parquet are the same table 'plots': keep one"),
 }
