@@ -122,7 +122,8 @@ class RunResult:
             spans = {tg: (float(p[0].min()), float(p[0].max())) for tg, p in paths.paths.items()}
         observed = {tg: (lo + GRACE_S, hi) for tg, (lo, hi) in spans.items() if hi - lo > GRACE_S}
         grid = GridSpec(float(d.truth.time.min()), float(d.truth.time.max()), 2.0)  # its live times only
-        tracking = track_metrics(self.histories(), paths, observed, grid)
+        tracking = track_metrics(self.histories(), paths, observed, grid,
+                                 first_seen={tg: lo for tg, (lo, _) in spans.items()})
         tracking.pop("gospa")
         # the target of each estimate: its truth label, else the target its track was assigned to
         owner = {v["right_track"]: tg for tg, v in tracking["per_target"].items() if v["right_track"] >= 0}
@@ -230,6 +231,12 @@ class RunResult:
                          f"{f(tm['velocity_rmse_mps'], '.2f')} m/s, mean NEES {f(tm['mean_nees'], '.2f')} (4 expected); "
                          f"{s['tracks']} tracks, {tk['breaks']} breaks, {tk['swaps']} swaps, "
                          f"{tk['false_tracks']} false tracks")
+            q = tk["indicators"]
+            pct = {k: None if q[k] is None else 100.0 * q[k] for k in ("multiple_share_of_time", "probability_of_update")}
+            lines.append(f"multiple tracks {q['multiple_tracks']} ({f(pct['multiple_share_of_time'], '.2f')} % of "
+                         f"flight time, {q['flights_with_multiple_tracks']} flights), probability of update "
+                         f"{f(pct['probability_of_update'], '.1f')} % (per {q['update_interval_s']:g} s), "
+                         f"initiation delay p95 {f(q['initiation_delay_p95_s'], '.1f')} s")
         lines += [f"warning: {w}" for w in s["consistency"]["warnings"]]
         c = s["counts"]
         lines.append(f"{c.get('plots_used', 0)} plots and {c.get('adsb_used', 0)} ADS-B reports used in "
