@@ -98,7 +98,14 @@ def run_distributed(data: ScenarioData, cfg, est: Estimator, factory: FilterFact
         counts.update(mgr.accounting())
         track_counts.update(mgr.track_counts())
     counts.update(centre.counts)
-    return counts, coupling, dict(track_counts)
+    return counts, coupling, dict(track_counts), pooled_innovations([m.innovations() for m in managers.values()])
+
+
+def pooled_innovations(parts: list[dict[str, float]]) -> dict[str, float]:
+    """The local trackers' innovation statistics (:meth:`TrackManager.innovations`) as one."""
+    n = sum(p["count"] for p in parts)
+    total = sum(p["count"] * p["mean_nis"] for p in parts if p["count"])
+    return {"count": n, "mean_nis": total / n if n else math.nan}
 
 
 def local_trackers(data: ScenarioData, cfg, factory: FilterFactory, report: Callable[[LocalReport], None],

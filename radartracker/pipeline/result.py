@@ -32,6 +32,19 @@ from radartracker.pipeline.recorder import BiasLog, Events
 
 log = logging.getLogger(__name__)
 CONSISTENCY_FACTOR = 2.0
+
+
+def mean_chi2_band(dof: int, n: int, level: float = 0.95) -> list[float] | None:
+    """Where the mean of ``n`` independent χ² values of ``dof`` degrees of freedom falls with probability
+    ``level``: [χ²_{n·dof}((1 − level)/2), χ²_{n·dof}((1 + level)/2)] / n (Bar-Shalom, Li & Kirubarajan
+    §5.4); ``None`` without values. A filter's values are correlated in time, so a mean outside the band
+    says more than one inside it."""
+    if n <= 0:
+        return None
+    from scipy.stats import chi2
+
+    lo, hi = chi2.ppf([(1 - level) / 2, (1 + level) / 2], dof * n) / n
+    return [float(lo), float(hi)]
 GRACE_S = 20.0  # a target counts as observed this long after its first plot (M-of-N confirmation)
 
 
@@ -86,6 +99,8 @@ class RunResult:
     track_count: int | None = None
     #: what happened to tracks beyond their events (``tracks_reinitialised``), apart from the inputs' counts
     track_counts: dict[str, int] = attrs.field(factory=dict)
+    #: the confirmed tracks' innovations (:meth:`TrackManager.innovations`: ``count``, ``mean_nis``)
+    track_nis: dict[str, float] = attrs.field(factory=lambda: {"count": 0, "mean_nis": math.nan})
     #: first and last plot time of each truth label (``None``: from ``data.plots``; see :func:`label_spans`)
     label_spans: dict[str, tuple[float, float]] | None = None
 
@@ -151,6 +166,7 @@ class RunResult:
             "position_rmse_m": float(np.sqrt(np.mean(np.sum(e[:, :2] ** 2, axis=1)))) if len(e) else math.nan,
             "velocity_rmse_mps": float(np.sqrt(np.mean(np.sum(e[:, 2:] ** 2, axis=1)))) if len(e) else math.nan,
             "mean_nees": float(np.mean(nees(e[finite], cov[finite]))) if finite.any() else math.nan,
+            "nees_compared": int(finite.sum()),
         }
         return {"truth": truth, "tracking": tracking}
 
@@ -165,13 +181,17 @@ class RunResult:
         """Mean NEES and NIS against their expectations, with warnings when far off (module docstring)."""
         ev = self.evaluation
         out = {"mean_nees": ev["truth"]["mean_nees"] if ev else math.nan, "expected_nees": 4.0,
+               "nees_band_95": mean_chi2_band(4, ev["truth"]["nees_compared"] if ev else 0),
                "mean_nis": self.mean_nis, "expected_nis": 2.0,
+               "mean_track_nis": self.track_nis["mean_nis"], "expected_track_nis": 2.0,
+               "track_nis_band_95": mean_chi2_band(2, self.track_nis["count"]),
                "warnings": []}
-        for what, dof in (("nees", 4.0), ("nis", 2.0)):
+        for what, dof in (("nees", 4.0), ("nis", 2.0), ("track_nis", 2.0)):
             value = out[f"mean_{what}"]
             if math.isfinite(value) and not dof / CONSISTENCY_FACTOR <= value <= dof * CONSISTENCY_FACTOR:
+                name = {"nees": "NEES", "nis": "NIS of the estimator", "track_nis": "NIS of the track filters"}[what]
                 out["warnings"].append(
-                    f"mean {what.upper()} {value:.2f} against {dof:.0f} expected: the "
+                    f"mean {name} {value:.2f} against {dof:.0f} expected: the "
                     f"{'filter is optimistic (covariance too small; raise q?)' if value > dof else 'filter is pessimistic'}")
         return out
 
@@ -237,7 +257,11 @@ class RunResult:
                          f"flight time, {q['flights_with_multiple_tracks']} flights), probability of update "
                          f"{f(pct['probability_of_update'], '.1f')} % (per {q['update_interval_s']:g} s), "
                          f"initiation delay p95 {f(q['initiation_delay_p95_s'], '.1f')} s")
-        lines += [f"warning: {w}" for w in s["consistency"]["warnings"]]
+        cons = s["consistency"]
+        if cons["mean_track_nis"] is not None:
+            lines.append(f"track filters' mean NIS {cons['mean_track_nis']:.2f} (2 expected) over "
+                         f"{self.track_nis['count']} accepted measurements")
+        lines += [f"warning: {w}" for w in cons["warnings"]]
         c = s["counts"]
         lines.append(f"{c.get('plots_used', 0)} plots and {c.get('adsb_used', 0)} ADS-B reports used in "
                      f"{s['seconds']:.2f} s; not used: "

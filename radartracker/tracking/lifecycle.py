@@ -15,6 +15,7 @@ outside every radar's coverage, or tentative and unable to reach M of N, is dele
 from __future__ import annotations
 
 import logging
+import math
 from collections import Counter, deque
 from collections.abc import Callable
 from operator import attrgetter
@@ -79,6 +80,7 @@ class TrackLifecycle:
         # the d² gate by (kind, tentative): ScreeningConfig.gate's, looked up once per measurement
         self.gates = {(k, t): config.screening.gate(k, t) for k in ("plots", "adsb", "positions") for t in (False, True)}
         self.labels = False  # tracks carry their first plot's truth label (set by a label associator)
+        self.nis = [0, 0.0]  # count and sum of confirmed tracks' d² of the measurements they accepted
 
     def with_code(self, code: str | None) -> Track | None:
         """The live track with Mode S address ``code`` (at most one); with truth labels, else the track of
@@ -157,6 +159,9 @@ class TrackLifecycle:
         verdict, tr.rejected = judge(cfg, kind, d2, tr.rejected, tr.mode_s is not None, tentative, t, zc, Rc)
         if verdict == REJECT:
             self.counts[f"{kind}_outlier"] += 1
+        elif not tentative and d2 < math.inf:  # a confirmed track's innovation: what its gates are sized on
+            self.nis[0] += 1
+            self.nis[1] += d2
         return verdict, zc, Rc, updated
 
     def _start(self, src: Plot | AdsbReport | PlaneMeasurement, zc: np.ndarray, Rc: np.ndarray,
