@@ -35,6 +35,7 @@ _EARTH_RADIUS_M = 6_371_008.8
 _MODE_C_STEP_M = 25 * 0.3048
 MIN_SPLINE_POINTS = 5  # make_smoothing_spline's least: fewer recorded points are joined by straight lines
 SMOOTHING_S3 = 100.0  # λ = σ²/q of a recorded flight's smoothing spline: (20 m)² / (4 m²/s³), in s³
+OUTLIER_FLOOR_M, OUTLIER_FLOOR_ALT_M = 150.0, 100.0  # residuals this small are never outliers
 _CONE_OF_SILENCE_RAD = math.radians(45.0)
 
 
@@ -113,7 +114,8 @@ class RecordedTrajectory:
     point: on the ``paris`` flights the tracks' velocity errors against such a truth were 18 m/s RMS and
     the mean NEES 19 (position part 2.3, velocity part 10), against a smoothed one 7.7 m/s and 2.6 — the
     jumps were in the truth, not in the filters (docs/design-notes.md). (λ chosen per flight by generalised
-    cross-validation gave the same figures within 10 % at 30 times the cost.)
+    cross-validation gave the same figures within 10 % at 30 times the cost.) Recorded outliers are left out
+    of the fit (:func:`_robust_spline`).
     """
 
     def __init__(self, t: np.ndarray, x: np.ndarray, y: np.ndarray, h: np.ndarray, smooth: bool = True) -> None:
@@ -121,7 +123,8 @@ class RecordedTrajectory:
         if len(self.t) < 2 or np.any(np.diff(self.t) <= 0):
             raise ValueError("recorded trajectory needs ≥ 2 points with strictly increasing times")
         self.t_start, self.t_end = float(self.t[0]), float(self.t[-1])
-        self._splines = ([make_smoothing_spline(self.t, v, lam=SMOOTHING_S3) for v in (self.x, self.y, self.h)]
+        self._splines = ([_robust_spline(self.t, v, floor) for v, floor in
+                          ((self.x, OUTLIER_FLOOR_M), (self.y, OUTLIER_FLOOR_M), (self.h, OUTLIER_FLOOR_ALT_M))]
                          if smooth and len(self.t) >= MIN_SPLINE_POINTS else None)
 
     @classmethod
@@ -135,6 +138,22 @@ class RecordedTrajectory:
             return np.interp(t, self.t, self.x), np.interp(t, self.t, self.y), np.interp(t, self.t, self.h)
         t = np.clip(t, self.t_start, self.t_end)  # as np.interp: the end points before and after
         return tuple(s(t) for s in self._splines)
+
+
+def _robust_spline(t: np.ndarray, v: np.ndarray, floor: float):
+    """The smoothing spline of ``v(t)`` (λ = :data:`SMOOTHING_S3`) fitted again without the points more than
+    max(5 σ̂, ``floor``) off it, σ̂ = 1.4826 · the median absolute residual, up to three times. A recorded
+    outlier (OpenSky's altitude spikes to 10 668 m on an approach at 3 400 m) would otherwise pull the
+    spline over ±20 s, and the Mode C of the plots with it; joined by straight lines it lasted a second."""
+    keep = np.ones(len(t), bool)
+    for _ in range(3):
+        spline = make_smoothing_spline(t[keep], v[keep], lam=SMOOTHING_S3)
+        r = np.abs(v - spline(t))
+        kept = r <= max(5.0 * 1.4826 * float(np.median(r[keep])), floor)
+        if (kept == keep).all() or kept.sum() < MIN_SPLINE_POINTS:
+            break
+        keep = kept
+    return spline
 
 
 @attrs.frozen
