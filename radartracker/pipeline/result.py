@@ -29,6 +29,7 @@ from radartracker.io.tables import ScenarioData, label_spans
 from radartracker.pipeline.config import RunConfig
 from radartracker.pipeline.evaluate import GridSpec, TrackHistory, TruthPaths, nees, state_errors, track_metrics
 from radartracker.pipeline.recorder import BiasLog, Events
+from radartracker.tracking.events import ENDS
 
 log = logging.getLogger(__name__)
 CONSISTENCY_FACTOR = 2.0
@@ -116,7 +117,7 @@ class RunResult:
     def histories(self) -> dict[int, TrackHistory]:
         """Each track's estimates and life span (created to deleted, or to its last estimate)."""
         ev, est = self.events, self.tracks
-        deleted = ev.kind == "deleted"
+        deleted = np.isin(ev.kind, ENDS)
         end = dict(zip(ev.track[deleted][::-1].tolist(), ev.time[deleted][::-1].tolist()))  # first deletion wins
         order = np.argsort(est.track, kind="stable")
         ids, first = np.unique(est.track[order], return_index=True)

@@ -213,6 +213,7 @@ class TrackManager:
         items, self.gathered = self.gathered, []
         tracks = list(self.tracks.values())
         pred = Prediction(tracks, 0.5 * (t_a + t_b))
+        self.life.begin_frame(pred)
         frame = self.frames.build(t_a, t_b, items, tracks)
         n = len(frame.plots)
         self.antennas.observe(frame.meas.radar[:n], frame.meas.time[:n], frame.azimuth)
