@@ -61,24 +61,19 @@ def test_file_blocks_parse(name):
                 pytest.fail(f"{block.where}: the ```{block.lang} block does not parse: {exc}")
 
 
+STATIC = {  # what the report counts → the check: module and file paths resolve, commands name what the CLI
+    # has, quoted defaults are the code's
+    "paths": checks.module_path_problems,
+    "commands parsed": checks.cli_problems,
+    "defaults": checks.default_problems,
+}
+
+
+@pytest.mark.parametrize("what", STATIC)
 @pytest.mark.parametrize("name", DOCS)
-def test_module_and_file_paths_resolve(name):
-    problems, checked = checks.module_path_problems(name, load(name).text)
-    REPORT.add("paths", checked)
-    _none(problems)
-
-
-@pytest.mark.parametrize("name", DOCS)
-def test_commands_name_what_the_cli_has(name):
-    problems, checked = checks.cli_problems(name, load(name).text)
-    REPORT.add("commands parsed", checked)
-    _none(problems)
-
-
-@pytest.mark.parametrize("name", DOCS)
-def test_quoted_defaults_are_the_codes(name):
-    problems, checked = checks.default_problems(name, load(name).text)
-    REPORT.add("defaults", checked)
+def test_static_checks(name, what):
+    problems, checked = STATIC[what](name, load(name).text)
+    REPORT.add(what, checked)
     _none(problems)
 
 
