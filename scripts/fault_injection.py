@@ -28,6 +28,7 @@ import attrs
 import numpy as np
 
 from radartracker.registry import make_manager
+from radartracker.tracking.events import ENDS
 from radartracker.domain import AdsbReport, Plot
 from radartracker.estimation.screening import ScreeningConfig
 from radartracker.io.tables import ScenarioData
@@ -103,7 +104,7 @@ def tracking(data: ScenarioData, mgr: TrackManager, events: list, grace_s: float
     for tid, evs in rows.items():
         rep = [e for e in evs if e.kind in ("confirmed", "updated", "coasting")]
         if rep:
-            end = next((e.time for e in evs if e.kind == "deleted"), rep[-1].time)
+            end = next((e.time for e in evs if e.kind in ENDS), rep[-1].time)
             hist[tid] = TrackHistory(np.array([e.time for e in rep]), np.array([e.state for e in rep]),
                                      rep[0].time, end)
     observed = {}

@@ -27,6 +27,7 @@ from radartracker.geometry.plane import SystemPlane
 from radartracker.io.tables import ScenarioData
 from radartracker.simulation.flights import load_flights
 from radartracker.simulation.scenarios import _radar
+from radartracker.simulation.traffic import traffic_scenario
 from radartracker.simulation.simulator import (KinematicTrajectory, Leg, RecordedTrajectory, SimAircraft, SimRadar,
                                                Simulator)
 
@@ -86,6 +87,55 @@ def enroute(seed: int = 1, duration: float = 3600.0, mode_s: bool = False, max_f
     aircraft = [SimAircraft(_identity(i, f"{0x3a0000 + i:06x}", mode_s), traj) for i, traj in enumerate(kept[:max_flights])]
     sim = Simulator(PARIS, radars, aircraft, t0, t0 + duration, seed=seed, name="enroute")
     return primary_only(sim.run())
+
+
+def cruise(seed: int = 1, duration: float = 1800.0, mode_c: bool = True, aircraft: int = 60) -> ScenarioData:
+    """En-route cruise under dense overlapping coverage (issue 29): five 250 km radars 100 km apart (every
+    coverage overlaps the others), periods 8–12 s, biases N(0, 50 m) and N(0, 0.06°); flights at FL300–400
+    and 170–310 m/s with level turns; plots with Mode C altitude and no identity (``mode_c=False``: no
+    altitude either, pure primary), no ADS-B."""
+    sim = traffic_scenario(seed=seed, duration=duration, aircraft=aircraft, radars=5, spacing_km=100.0,
+                           period_s=(8.0, 12.0), range_bias_sd_m=50.0, azimuth_bias_sd_deg=0.06,
+                           altitude_m=(9144.0, 12192.0), speed_mps=(170.0, 310.0), adsb_share=0.0,
+                           transponder="mode_c" if mode_c else "none")
+    data = sim.run()
+    data.name = "cruise" if mode_c else "cruise-no-mode-c"
+    return data
+
+
+SWISS = (46.8, 8.2)
+SWISS_DATA = Path(__file__).resolve().parent / "data" / "switzerland_cruise.csv.gz"
+
+
+def cruise_real(seed: int = 1, mode_c: bool = True, path: Path | None = None) -> ScenarioData:
+    """Real en-route cruise (issue 29): the 100 flights at FL350–390 over Switzerland between 09:00 and
+    10:00 UTC on 1 August 2018 (``scripts/data/switzerland_cruise.csv.gz``: OpenSky Network state vectors
+    every 10 s, from the `traffic` library's ``switzerland`` sample, MIT), 204–263 m/s, seen by five 250 km
+    radars whose coverages all overlap (periods 8, 10 and 12 s, range biases up to 100 m, azimuth biases
+    up to 0.11°); plots with Mode C altitude and no Mode S or Mode 3/A (``mode_c=False``: no altitude)."""
+    plane = SystemPlane(*SWISS)
+    sites = [("JURA", -110, 20, 8.0, 1600.0), ("SANTIS", 90, 70, 10.0, 2500.0), ("LEMAN", -140, -110, 12.0, 1000.0),
+             ("GOTTHARD", 20, -40, 10.0, 2000.0), ("ENGADIN", 170, -60, 8.0, 1800.0)]
+    biases = [(80.0, 0.10), (-60.0, -0.11), (100.0, 0.08), (-90.0, 0.06), (50.0, -0.10)]
+    radars = [SimRadar(_radar(plane, rid, x, y, period=T, sr=70.0, sa_deg=0.06, height=h), b[0], math.radians(b[1]),
+                       pd=0.9) for (rid, x, y, T, h), b in zip(sites, biases)]
+    flights = load_flights(path or SWISS_DATA)
+    t0 = min(f.time[0] for f in flights.values())
+    t1 = max(f.time[-1] for f in flights.values())
+    aircraft = [SimAircraft(Aircraft(f"{0x3c0000 + i:06x}", f.callsign, None,
+                                     transponder="mode_a_c" if mode_c else "none"),
+                            RecordedTrajectory.from_geodetic(plane, f.time, f.lat, f.lon, f.altitude_m))
+                for i, f in enumerate(flights.values())]
+    data = Simulator(SWISS, radars, aircraft, t0, t1, seed=seed, name="cruise-real").run()
+    data.name = "cruise-real" if mode_c else "cruise-real-no-mode-c"
+    return data
+
+
+def national_primary(seed: int = 1, duration: float = 600.0, aircraft: int = 200) -> ScenarioData:
+    """The built-in national traffic (28 radars 200 km apart, periods 4–12 s), every aircraft primary-only."""
+    data = traffic_scenario(seed=seed, duration=duration, aircraft=aircraft, primary_share=1.0, adsb_share=0.0).run()
+    data.name = "national-primary"
+    return data
 
 
 def _conflict(a: RecordedTrajectory, b: RecordedTrajectory) -> bool:

@@ -152,6 +152,18 @@ def register_simulate(sub: argparse._SubParsersAction) -> None:
     traffic.add_argument("--radars", type=int, help="number of radars on a 200 km grid (default 28)")
     traffic.add_argument("--adsb-share", type=float, help="share of aircraft with ADS-B (default 0.3)")
     traffic.add_argument("--primary-share", type=float, help="share of primary-only aircraft (default 0)")
+    traffic.add_argument("--spacing-km", type=float, help="distance between neighbouring radars (default 200)")
+    traffic.add_argument("--max-range-km", type=float, help="each radar's coverage (default 250)")
+    traffic.add_argument("--period-s", type=float, nargs=2, metavar=("LO", "HI"),
+                         help="rotation periods drawn from [LO, HI] (default 4 12)")
+    traffic.add_argument("--range-bias-sd-m", type=float, help="σ of the radars' range biases (default 100)")
+    traffic.add_argument("--azimuth-bias-sd-deg", type=float, help="σ of the radars' azimuth biases (default 0.1)")
+    traffic.add_argument("--altitude-m", type=float, nargs=2, metavar=("LO", "HI"),
+                         help="flight altitudes drawn from [LO, HI] (default 7000 12000)")
+    traffic.add_argument("--speed-mps", type=float, nargs=2, metavar=("LO", "HI"),
+                         help="ground speeds drawn from [LO, HI] (default 200 250)")
+    traffic.add_argument("--transponder", choices=("mode_s", "mode_c", "none"),
+                         help="what plots carry: Mode S + 3/A + C, Mode C altitude alone, or nothing (default mode_s)")
     p.set_defaults(func=_cmd_simulate)
 
 
@@ -168,10 +180,13 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         check_number("--duration", args.duration, lo=0.0, lo_open=True, hi=7 * 86400.0)
     # counts a country's airspace can hold; the memory a size needs is checked by the simulator itself
     bounds = {"aircraft": (1, 10_000_000), "radars": (1, 10_000), "adsb_share": (0.0, 1.0),
-              "primary_share": (0.0, 1.0)}
-    options = {k: getattr(args, k) for k in bounds if getattr(args, k) is not None}
+              "primary_share": (0.0, 1.0), "spacing_km": (0.001, 1e4), "max_range_km": (0.001, 1e4),
+              "period_s": (0.5, 3600.0), "range_bias_sd_m": (0.0, 1e4), "azimuth_bias_sd_deg": (0.0, 10.0),
+              "altitude_m": (0.0, 3e4), "speed_mps": (1.0, 1000.0)}
+    options = {k: getattr(args, k) for k in [*bounds, "transponder"] if getattr(args, k) is not None}
     for k, v in options.items():
-        check_number(f"--{k.replace('_', '-')}", v, lo=bounds[k][0], hi=bounds[k][1])
+        for x in (v if isinstance(v, list) else [v] if k in bounds else []):
+            check_number(f"--{k.replace('_', '-')}", x, lo=bounds[k][0], hi=bounds[k][1])
     if args.scenario == "traffic":
         from radartracker.simulation.traffic import traffic_scenario
 

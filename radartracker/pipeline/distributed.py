@@ -30,7 +30,7 @@ from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.recorder import Recorder
 from radartracker.pipeline.stream import iter_scenario
 from radartracker.registry import FilterFactory, default_estimator, make_estimator, make_manager
-from radartracker.tracking.events import TrackEvent
+from radartracker.tracking.events import ENDS, TrackEvent
 from radartracker.tracking.manager import TrackManager
 from radartracker.tracking.track import Track
 
@@ -98,7 +98,14 @@ def run_distributed(data: ScenarioData, cfg, est: Estimator, factory: FilterFact
         counts.update(mgr.accounting())
         track_counts.update(mgr.track_counts())
     counts.update(centre.counts)
-    return counts, coupling, dict(track_counts)
+    return counts, coupling, dict(track_counts), pooled_innovations([m.innovations() for m in managers.values()])
+
+
+def pooled_innovations(parts: list[dict[str, float]]) -> dict[str, float]:
+    """The local trackers' innovation statistics (:meth:`TrackManager.innovations`) as one."""
+    n = sum(p["count"] for p in parts)
+    total = sum(p["count"] * p["mean_nis"] for p in parts if p["count"])
+    return {"count": n, "mean_nis": total / n if n else math.nan}
 
 
 def local_trackers(data: ScenarioData, cfg, factory: FilterFactory, report: Callable[[LocalReport], None],
@@ -112,7 +119,7 @@ def local_trackers(data: ScenarioData, cfg, factory: FilterFactory, report: Call
     local_settings = attrs.evolve(cfg.estimator_settings(), bias_sd_range_m=1e-6, bias_sd_azimuth_rad=1e-12)
     for radar in data.radars:
         def on_event(ev: TrackEvent, tr: Track, rid: str = radar.id) -> None:
-            if ev.kind == "deleted":
+            if ev.kind in ENDS:
                 drop(rid, ev.track)
                 return
             if ev.kind not in ("confirmed", "updated"):

@@ -16,6 +16,7 @@ import numpy as np
 from radartracker.errors import InputError
 from radartracker.io.tables import TruthTable
 from radartracker.geometry.plane import SystemPlane
+from radartracker.pipeline.indicators import Assignment, indicators
 
 
 @attrs.frozen
@@ -129,7 +130,8 @@ def gospa(d2: np.ndarray, n_missed: int, n_false: int, c: float) -> float:
 
 
 def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: dict[str, tuple[float, float]],
-                  grid: np.ndarray | GridSpec, c: float = 2000.0, sensed: Iterable[str] | None = None) -> dict:
+                  grid: np.ndarray | GridSpec, c: float = 2000.0, sensed: Iterable[str] | None = None,
+                  first_seen: dict[str, float] | None = None) -> dict:
     """Track-to-truth assignment on a time grid and the metrics derived from it.
 
     At each grid time the alive tracks are assigned to the observed truths as in CLEAR MOT
@@ -148,7 +150,10 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
     vanished, as simulated flights do at their end). A :class:`GridSpec` is evaluated at its times where
     something lives (the others add nothing but zeros to the GOSPA mean, counted in it), with the same
     results as the whole grid; the times evaluated may be at most :data:`MAX_GRID_CELLS` / (targets +
-    tracks), else an InputError.
+    tracks), else an InputError. ``indicators``: the standards' track-quality indicators
+    (:mod:`radartracker.pipeline.indicators`: multiple tracks, probability of update, breaks per flight
+    hour, initiation delay from ``first_seen``, each target's first detection, by default the start of
+    its observed span).
     """
     targets = sorted(observed)
     tids = sorted(tracks)
@@ -168,15 +173,22 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
                                                                paths.paths if sensed is None else sensed, grid, c * c)
     tid_of = np.array(tids + [-1])  # index -1 stays -1
     per_target = _per_target(tid_of[assigned], tru_live, targets)
+    breaks = sum(v["breaks"] for v in per_target.values())
+    found = Assignment(grid, assigned, trk_pos, trk_live, tru_pos, tru_live, [tracks[t].times for t in tids],
+                       np.array([tracks[t].start for t in tids], float))
+    seen = first_seen or {}
+    quality = indicators(found, {r: observed[tg] for r, tg in enumerate(targets)},
+                         {r: seen.get(tg, observed[tg][0]) for r, tg in enumerate(targets)}, breaks, c)
     return {
         "per_target": per_target,
         "continuity_min": min((v["continuity"] for v in per_target.values()), default=float("nan")),
         "swaps": sum(len(s) > 1 for s in track_targets),
-        "breaks": sum(v["breaks"] for v in per_target.values()),
+        "breaks": breaks,
         "false_tracks": int(np.sum((t_alive > 0) & (t_follows < 0.5 * t_alive))),
         "confirmed_tracks": len(tids),
         "position_rmse_m": float(np.sqrt(np.mean(sq))) if sq else float("nan"),
         "gospa_mean_m": float(np.sum(g) / n_all) if n_all else float("nan"),
+        "indicators": quality,
         "gospa": g,
     }
 

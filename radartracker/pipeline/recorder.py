@@ -16,6 +16,7 @@ import attrs
 import numpy as np
 
 from radartracker.domain import BiasState
+from radartracker.tracking.events import ENDS
 
 TRACK_KINDS = ("confirmed", "updated")
 
@@ -156,7 +157,7 @@ class Recorder:
         the motion-model contract) when the event's state is the track's estimate (not extrapolated; never
         for a deletion), and the track's identity."""
         cov = None
-        if event.kind != "deleted":
+        if event.kind not in ENDS:
             t0, _, P = track.estimate()
             if t0 == event.time:
                 cov = P

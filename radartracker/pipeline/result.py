@@ -33,12 +33,26 @@ from radartracker.pipeline.config import RunConfig
 from radartracker.pipeline.evaluate import GridSpec, TrackHistory, TruthPaths, nees, state_errors, track_metrics
 from radartracker.pipeline.outputs import bias_table, event_tables
 from radartracker.pipeline.recorder import BiasLog, Events
+from radartracker.tracking.events import ENDS
 
 if TYPE_CHECKING:  # pandas is imported by pyarrow's to_pandas, when a DataFrame is asked for
     import pandas as pd
 
 log = logging.getLogger(__name__)
 CONSISTENCY_FACTOR = 2.0
+
+
+def mean_chi2_band(dof: int, n: int, level: float = 0.95) -> list[float] | None:
+    """Where the mean of ``n`` independent χ² values of ``dof`` degrees of freedom falls with probability
+    ``level``: [χ²_{n·dof}((1 − level)/2), χ²_{n·dof}((1 + level)/2)] / n (Bar-Shalom, Li & Kirubarajan
+    §5.4); ``None`` without values. A filter's values are correlated in time, so a mean outside the band
+    says more than one inside it."""
+    if n <= 0:
+        return None
+    from scipy.stats import chi2
+
+    lo, hi = chi2.ppf([(1 - level) / 2, (1 + level) / 2], dof * n) / n
+    return [float(lo), float(hi)]
 GRACE_S = 20.0  # a target counts as observed this long after its first plot (M-of-N confirmation)
 
 
@@ -93,6 +107,8 @@ class RunResult:
     track_count: int | None = None
     #: what happened to tracks beyond their events (``tracks_reinitialised``), apart from the inputs' counts
     track_counts: dict[str, int] = attrs.field(factory=dict)
+    #: the confirmed tracks' innovations (:meth:`TrackManager.innovations`: ``count``, ``mean_nis``)
+    track_nis: dict[str, float] = attrs.field(factory=lambda: {"count": 0, "mean_nis": math.nan})
     #: first and last plot time of each truth label (``None``: from ``data.plots``; see :func:`label_spans`)
     label_spans: dict[str, tuple[float, float]] | None = None
 
@@ -132,7 +148,7 @@ class RunResult:
     def histories(self) -> dict[int, TrackHistory]:
         """Each track's estimates and life span (created to deleted, or to its last estimate)."""
         ev, est = self.events, self.tracks
-        deleted = ev.kind == "deleted"
+        deleted = np.isin(ev.kind, ENDS)
         end = dict(zip(ev.track[deleted][::-1].tolist(), ev.time[deleted][::-1].tolist()))  # first deletion wins
         order = np.argsort(est.track, kind="stable")
         ids, first = np.unique(est.track[order], return_index=True)
@@ -153,7 +169,8 @@ class RunResult:
             spans = {tg: (float(p[0].min()), float(p[0].max())) for tg, p in paths.paths.items()}
         observed = {tg: (lo + GRACE_S, hi) for tg, (lo, hi) in spans.items() if hi - lo > GRACE_S}
         grid = GridSpec(float(d.truth.time.min()), float(d.truth.time.max()), 2.0)  # its live times only
-        tracking = track_metrics(self.histories(), paths, observed, grid)
+        tracking = track_metrics(self.histories(), paths, observed, grid,
+                                 first_seen={tg: lo for tg, (lo, _) in spans.items()})
         tracking.pop("gospa")
         # the target of each estimate: its truth label, else the target its track was assigned to
         owner = {v["right_track"]: tg for tg, v in tracking["per_target"].items() if v["right_track"] >= 0}
@@ -181,6 +198,7 @@ class RunResult:
             "position_rmse_m": float(np.sqrt(np.mean(np.sum(e[:, :2] ** 2, axis=1)))) if len(e) else math.nan,
             "velocity_rmse_mps": float(np.sqrt(np.mean(np.sum(e[:, 2:] ** 2, axis=1)))) if len(e) else math.nan,
             "mean_nees": float(np.mean(nees(e[finite], cov[finite]))) if finite.any() else math.nan,
+            "nees_compared": int(finite.sum()),
         }
         return {"truth": truth, "tracking": tracking}
 
@@ -195,13 +213,17 @@ class RunResult:
         """Mean NEES and NIS against their expectations, with warnings when far off (module docstring)."""
         ev = self.evaluation
         out = {"mean_nees": ev["truth"]["mean_nees"] if ev else math.nan, "expected_nees": 4.0,
+               "nees_band_95": mean_chi2_band(4, ev["truth"]["nees_compared"] if ev else 0),
                "mean_nis": self.mean_nis, "expected_nis": 2.0,
+               "mean_track_nis": self.track_nis["mean_nis"], "expected_track_nis": 2.0,
+               "track_nis_band_95": mean_chi2_band(2, self.track_nis["count"]),
                "warnings": []}
-        for what, dof in (("nees", 4.0), ("nis", 2.0)):
+        for what, dof in (("nees", 4.0), ("nis", 2.0), ("track_nis", 2.0)):
             value = out[f"mean_{what}"]
             if math.isfinite(value) and not dof / CONSISTENCY_FACTOR <= value <= dof * CONSISTENCY_FACTOR:
+                name = {"nees": "NEES", "nis": "NIS of the estimator", "track_nis": "NIS of the track filters"}[what]
                 out["warnings"].append(
-                    f"mean {what.upper()} {value:.2f} against {dof:.0f} expected: the "
+                    f"mean {name} {value:.2f} against {dof:.0f} expected: the "
                     f"{'filter is optimistic (covariance too small; raise q?)' if value > dof else 'filter is pessimistic'}")
         return out
 
@@ -261,7 +283,17 @@ class RunResult:
                          f"{f(tm['velocity_rmse_mps'], '.2f')} m/s, mean NEES {f(tm['mean_nees'], '.2f')} (4 expected); "
                          f"{s['tracks']} tracks, {tk['breaks']} breaks, {tk['swaps']} swaps, "
                          f"{tk['false_tracks']} false tracks")
-        lines += [f"warning: {w}" for w in s["consistency"]["warnings"]]
+            q = tk["indicators"]
+            pct = {k: None if q[k] is None else 100.0 * q[k] for k in ("multiple_share_of_time", "probability_of_update")}
+            lines.append(f"multiple tracks {q['multiple_tracks']} ({f(pct['multiple_share_of_time'], '.2f')} % of "
+                         f"flight time, {q['flights_with_multiple_tracks']} flights), probability of update "
+                         f"{f(pct['probability_of_update'], '.1f')} % (per {q['update_interval_s']:g} s), "
+                         f"initiation delay p95 {f(q['initiation_delay_p95_s'], '.1f')} s")
+        cons = s["consistency"]
+        if cons["mean_track_nis"] is not None:
+            lines.append(f"track filters' mean NIS {cons['mean_track_nis']:.2f} (2 expected) over "
+                         f"{self.track_nis['count']} accepted measurements")
+        lines += [f"warning: {w}" for w in cons["warnings"]]
         c = s["counts"]
         lines.append(f"{c.get('plots_used', 0)} plots and {c.get('adsb_used', 0)} ADS-B reports used in "
                      f"{s['seconds']:.2f} s; not used: "

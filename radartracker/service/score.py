@@ -67,12 +67,13 @@ def score_cat062(records: list[dict], data: ScenarioData, step_s: float = 2.0) -
     labelled = np.array([t is not None for t in data.plots.target], bool)
     if not labelled.any():
         raise InputError("the scenario's plots carry no target labels to score against")
-    observed = {}
+    observed, first = {}, {}
     for tg in np.unique(data.plots.target[labelled].astype(str)):
         t = data.plots.time[data.plots.target == tg]
         if t.max() - t.min() > GRACE_S:
-            observed[str(tg)] = (float(t.min()) + GRACE_S, float(t.max()))
+            observed[str(tg)], first[str(tg)] = (float(t.min()) + GRACE_S, float(t.max())), float(t.min())
     grid = np.arange(data.truth.time.min(), data.truth.time.max(), step_s)
-    metrics = track_metrics(cat062_histories(records), TruthPaths.from_table(data.truth, plane), observed, grid)
+    metrics = track_metrics(cat062_histories(records), TruthPaths.from_table(data.truth, plane), observed, grid,
+                            first_seen=first)
     metrics.pop("gospa", None)
     return metrics | {"positions": "I105 (WGS-84)"}

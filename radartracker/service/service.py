@@ -43,7 +43,7 @@ from radartracker.service.metrics import ServiceMetrics
 from radartracker.service.publisher import Publisher, track_rows
 from radartracker.service.receiver import DatagramQueue, Receiver
 from radartracker.registry import default_estimator, make_manager
-from radartracker.tracking.events import TrackEvent
+from radartracker.tracking.events import ENDS, TrackEvent
 from radartracker.tracking.manager import TrackManager
 log = logging.getLogger(__name__)
 # seconds a stop spends on what was already received before the final checkpoint: with the checkpoint
@@ -294,7 +294,7 @@ class Service:
 
     def _collect(self, events: list[TrackEvent]) -> None:
         for e in events:
-            if e.kind == "deleted":
+            if e.kind in ENDS:
                 self._ended.append(e)
                 self._changed.discard(e.track)
             elif e.kind in _CHANGED:

@@ -50,9 +50,43 @@ def _at_least(low: float, strict: bool = False):
     return check
 
 
+def _span(low: float):
+    """A (low, high) pair of numbers with ``low`` ≤ the first ≤ the second (a uniform draw's bounds)."""
+    def check(inst, attr, value) -> None:
+        try:
+            lo, hi = (float(v) for v in value)
+        except (TypeError, ValueError):
+            raise ConfigurationError(f"{attr.name}: expected two numbers (low, high), got {value!r}") from None
+        if not (math.isfinite(lo) and math.isfinite(hi) and low <= lo <= hi):
+            raise ConfigurationError(f"{attr.name}: expected {low:g} <= low <= high, got {value!r}")
+    return check
+
+
+def _one_of(names: tuple[str, ...]):
+    def check(inst, attr, value) -> None:
+        if value not in names:
+            raise ConfigurationError(f"{attr.name}: one of {', '.join(names)}, got {value!r}")
+    return check
+
+
+TRANSPONDERS = ("mode_s", "mode_c", "none")
+
+
 @attrs.frozen
 class TrafficConfig:
-    """Size and mix of the synthetic traffic: mean airborne ``aircraft``, ``radars``, ``duration_s``."""
+    """Size and mix of the synthetic traffic: mean airborne ``aircraft``, ``radars``, ``duration_s``.
+
+    The airspace: radars on a grid ``spacing_km`` apart with coverage ``max_range_km`` and rotation
+    periods drawn uniformly from ``period_s``, constant biases drawn from N(0, ``range_bias_sd_m``²) and
+    N(0, ``azimuth_bias_sd_deg``²); flights at constant altitudes and speeds drawn uniformly from
+    ``altitude_m`` and ``speed_mps``. What the plots of an aircraft with a transponder carry is
+    ``transponder``: ``mode_s`` (Mode S address, Mode 3/A code and Mode C altitude), ``mode_c`` (Mode C
+    altitude alone: no identity, as old transponders or stripped recordings) or ``none`` (no transponder
+    at all: primary plots without altitude); ``primary_share`` of the aircraft have no transponder
+    whatever ``transponder`` says. The defaults are the national traffic; an en-route cruise set under
+    dense overlapping coverage is e.g. ``radars=5, spacing_km=100, period_s=(8, 12),
+    altitude_m=(9144, 12192), speed_mps=(170, 310), transponder="mode_c"``.
+    """
 
     aircraft: int = attrs.field(default=200, validator=_at_least(1))
     radars: int = attrs.field(default=28, validator=_at_least(1))
@@ -63,6 +97,12 @@ class TrafficConfig:
     false_per_scan: float = attrs.field(default=0.0, validator=_at_least(0.0))
     spacing_km: float = attrs.field(default=200.0, validator=_at_least(0.0, strict=True))
     max_range_km: float = attrs.field(default=250.0, validator=_at_least(0.0, strict=True))
+    period_s: tuple[float, float] = attrs.field(default=(4.0, 12.0), converter=tuple, validator=_span(0.5))
+    range_bias_sd_m: float = attrs.field(default=100.0, validator=_at_least(0.0))
+    azimuth_bias_sd_deg: float = attrs.field(default=0.1, validator=_at_least(0.0))
+    altitude_m: tuple[float, float] = attrs.field(default=(7000.0, 12000.0), converter=tuple, validator=_span(0.0))
+    speed_mps: tuple[float, float] = attrs.field(default=(200.0, 250.0), converter=tuple, validator=_span(1.0))
+    transponder: str = attrs.field(default="mode_s", validator=_one_of(TRANSPONDERS))
     truth_step_s: float = attrs.field(default=2.0, validator=_at_least(0.0, strict=True))
     reference: tuple[float, float] = (46.5, 2.5)
     seed: int = 1
@@ -138,8 +178,9 @@ class TrafficSimulator:
         lat, lon = self.plane.to_geodetic(rxy[:, 0], rxy[:, 1])
         self.radars = [
             SimRadar(Radar(f"R{j:02d}", float(lat[j]), float(lon[j]), 100.0, 70.0, math.radians(0.08),
-                           float(rng.uniform(4.0, 12.0)), c.max_range_km * 1e3),
-                     float(rng.normal(0.0, 100.0)), float(rng.normal(0.0, math.radians(0.1))), pd=c.pd,
+                           float(rng.uniform(*c.period_s)), c.max_range_km * 1e3),
+                     float(rng.normal(0.0, c.range_bias_sd_m)), float(rng.normal(0.0, math.radians(c.azimuth_bias_sd_deg))),
+                     pd=c.pd,
                      false_per_scan=c.false_per_scan, phase_rad=float(rng.uniform(0, 2 * np.pi)))
             for j in range(c.radars)]
         half = np.abs(rxy).max(axis=0) + c.max_range_km * 1e3 * 0.6
@@ -148,8 +189,11 @@ class TrafficSimulator:
         kind = rng.random(n)
         primary = kind < c.primary_share
         adsb = ~primary & (rng.random(n) < c.adsb_share / max(1.0 - c.primary_share, 1e-9))
-        self.aircraft = [Aircraft(f"{0x400000 + i:06x}", f"TFC{i:05d}", f"{(1000 + 37 * i) % 4096:04o}",
-                                  adsb=bool(adsb[i]), nacp=8, transponder="none" if primary[i] else "mode_s")
+        # "mode_c": a Mode A/C transponder without a Mode 3/A code, so its plots carry the altitude alone
+        fitted = {"mode_s": "mode_s", "mode_c": "mode_a_c", "none": "none"}[c.transponder]
+        self.aircraft = [Aircraft(f"{0x400000 + i:06x}", f"TFC{i:05d}",
+                                  f"{(1000 + 37 * i) % 4096:04o}" if c.transponder == "mode_s" else None,
+                                  adsb=bool(adsb[i]), nacp=8, transponder="none" if primary[i] else fitted)
                          for i in range(n)]
 
     def _flights(self, rng: np.random.Generator, half: np.ndarray) -> Flights:
@@ -160,9 +204,9 @@ class TrafficSimulator:
         keep = (start + life > 0.0)
         n = int(keep.sum())
         life, start = life[keep], start[keep]
-        speed = rng.uniform(200.0, 250.0, n)
+        speed = rng.uniform(*c.speed_mps, n)
         heading = rng.uniform(0.0, 2 * np.pi, n)
-        altitude = rng.uniform(7000.0, 12000.0, n)
+        altitude = rng.uniform(*c.altitude_m, n)
         # alternating straight legs (5–15 min) and turns of 1–3 °/s for 20–60 s
         dur = np.where(np.arange(_N_LEGS) % 2 == 0, rng.uniform(300.0, 900.0, (n, _N_LEGS)),
                        rng.uniform(20.0, 60.0, (n, _N_LEGS)))

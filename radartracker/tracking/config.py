@@ -18,7 +18,8 @@ class ManagerConfig:
     ``associator`` (a ``radartracker.associators`` plugin), ``gate`` (χ²₂ 99.9 %), ``search_radius_m``,
     ``new_track_exclusion`` (χ²₂ 1 − 10⁻⁶: no tentative track this close to a confirmed one),
     ``primary_altitude_m`` and its spread ``primary_altitude_sd_m`` (the height a plot without Mode C is
-    converted at). Life cycle: ``confirm_m`` of ``confirm_n``, ``delete_after_s``, ``max_tracks``.
+    converted at). Life cycle: ``confirm_m`` of ``confirm_n``, ``delete_after_s``, ``max_tracks``,
+    ``merge_distance_m`` (tracks on one aircraft: :mod:`radartracker.tracking.duplicates`).
     Screening: ``screening``.
     Plugins: ``estimator`` with ``estimator_config`` / ``estimator_options``, ``motion_model`` with
     ``motion`` / ``motion_options``.
@@ -50,6 +51,9 @@ class ManagerConfig:
     primary_altitude_sd_m: float = 3500.0
     search_radius_m: float = 25_000.0
     new_track_exclusion: float = 27.63
+    # a lost (coasting) track this close to a track being confirmed, with a velocity that agrees, is the
+    # same aircraft: the older number takes over (tracking/duplicates.py)
+    merge_distance_m: float = attrs.field(default=2500.0, validator=attrs.validators.gt(0.0))
     screening: ScreeningConfig = attrs.field(factory=ScreeningConfig)
     clock: ClockConfig = attrs.field(factory=ClockConfig)
 

@@ -8,7 +8,8 @@ from typing import TYPE_CHECKING, NamedTuple
 if TYPE_CHECKING:
     from radartracker.tracking.track import Track
 
-EVENT_KINDS = ("created", "confirmed", "updated", "coasting", "deleted")
+EVENT_KINDS = ("created", "confirmed", "updated", "coasting", "deleted", "merged")
+ENDS = ("deleted", "merged")  # the kinds that end a track number (merged: into an older track)
 # new_tuple(SomeNamedTuple, fields): a named tuple made without its Python-level __new__, for the
 # events, updates and measurements a manager makes once or more per input
 new_tuple = tuple.__new__

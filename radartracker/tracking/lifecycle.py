@@ -15,6 +15,7 @@ outside every radar's coverage, or tentative and unable to reach M of N, is dele
 from __future__ import annotations
 
 import logging
+import math
 from collections import Counter, deque
 from collections.abc import Callable
 from operator import attrgetter
@@ -27,9 +28,10 @@ from radartracker.errors import PluginError
 from radartracker.estimation.base import PlaneMeasurement
 from radartracker.estimation.screening import ACCEPT, REINIT, REJECT, AdsbPlausibility, bias_corrected, judge
 from radartracker.tracking.config import ManagerConfig
-from radartracker.tracking.events import EventSink, TrackEvent, new_tuple
+from radartracker.tracking.duplicates import TWIN, duplicate_of
+from radartracker.tracking.events import ENDS, EventSink, TrackEvent, new_tuple
 from radartracker.tracking.feed import AddAircraft, EstimatorFeed, Measure, RemoveAircraft
-from radartracker.tracking.frame import FrameMeasurements
+from radartracker.tracking.frame import FrameMeasurements, Prediction
 from radartracker.tracking.track import Pending, Track
 
 log = logging.getLogger(__name__)
@@ -79,6 +81,13 @@ class TrackLifecycle:
         # the d² gate by (kind, tentative): ScreeningConfig.gate's, looked up once per measurement
         self.gates = {(k, t): config.screening.gate(k, t) for k in ("plots", "adsb", "positions") for t in (False, True)}
         self.labels = False  # tracks carry their first plot's truth label (set by a label associator)
+        self.nis = [0, 0.0]  # count and sum of confirmed tracks' d² of the measurements they accepted
+        self.neighbours: Prediction | None = None  # the frame's live tracks, where duplicates are looked for
+        self.merged: dict[int, Track] = {}  # a track merged in this frame → the track that goes on for it
+
+    def begin_frame(self, pred: Prediction) -> None:
+        """A frame starts with live tracks ``pred``."""
+        self.neighbours, self.merged = pred, {}
 
     def with_code(self, code: str | None) -> Track | None:
         """The live track with Mode S address ``code`` (at most one); with truth labels, else the track of
@@ -103,8 +112,8 @@ class TrackLifecycle:
                 self.counts[why] += 1
                 return
         bias, bias_cov = self.feed.bias(radar)
-        if tr is not None and tr.id not in self.tracks:  # re-initialised earlier in this frame
-            tr = None
+        if tr is not None and tr.id not in self.tracks:  # re-initialised, or merged, earlier in this frame
+            tr = self.merged.get(tr.id)
         if tr is None:  # an ADS-B report may find the track a plot of this frame just started
             tr = self.with_code(code)
         zc = Rc = None
@@ -132,7 +141,7 @@ class TrackLifecycle:
         if tr.status == "tentative":
             tr.pending.append(Pending(PlaneMeasurement(src.time, tr.id, radar, z, C, R), kind))
             if sum(tr.detections) >= self.config.confirm_m:
-                self._confirm(tr)
+                self._confirm_or_merge(tr)
         else:
             self.feed.add(new_tuple(Measure, (src.time, tr.id, radar, z, C, R, kind)))
             tr.status = "confirmed"
@@ -157,6 +166,9 @@ class TrackLifecycle:
         verdict, tr.rejected = judge(cfg, kind, d2, tr.rejected, tr.mode_s is not None, tentative, t, zc, Rc)
         if verdict == REJECT:
             self.counts[f"{kind}_outlier"] += 1
+        elif not tentative and d2 < math.inf:  # a confirmed track's innovation: what its gates are sized on
+            self.nis[0] += 1
+            self.nis[1] += d2
         return verdict, zc, Rc, updated
 
     def _start(self, src: Plot | AdsbReport | PlaneMeasurement, zc: np.ndarray, Rc: np.ndarray,
@@ -205,6 +217,27 @@ class TrackLifecycle:
         tr.status = "confirmed"
         self.emit(tr.last_update, tr, "confirmed")
 
+    def _confirm_or_merge(self, tr: Track) -> None:
+        """Confirm ``tr``, unless an older track follows its aircraft (:mod:`~radartracker.tracking.duplicates`):
+        a twin is dropped (its held measurements counted ``*_in_merged_tracks``); a lost older track takes
+        over its filter and measurements under the older number. Either way a ``merged`` event retires ``tr``."""
+        found = duplicate_of(tr, self.neighbours, self.config.merge_distance_m)
+        if found is None:
+            self._confirm(tr)
+            return
+        old, how = found
+        self.track_counts[f"tracks_merged_{how}"] += 1
+        self.merged[tr.id] = old
+        if how == TWIN:
+            self.delete(tr, tr.last_update, "merged", "in_merged_tracks")
+            return
+        self.feed.add(RemoveAircraft(tr.last_update, old.id))  # its estimator state followed the lost path
+        old.take_over(tr)
+        self.delete(tr, tr.last_update, "merged")
+        if old.mode_s is not None:
+            self.by_mode_s[old.mode_s] = old.id
+        self._confirm(old)
+
     # --- misses and deletion -----------------------------------------------------------------------
     def missed(self, tracks: list[Track], swept: np.ndarray, hits: set[tuple[int, int]], t_a: float, t_b: float) -> None:
         """Tracks ``tracks[i]`` whose position radar r's antenna swept in [t_a, t_b) (``swept`` radars ×
@@ -236,7 +269,9 @@ class TrackLifecycle:
             if tr.id in self.tracks and (due[i] or tr.hopeless(cfg.confirm_m, cfg.confirm_n)):
                 self.delete(tr, now)
 
-    def delete(self, tr: Track, now: float) -> None:
+    def delete(self, tr: Track, now: float, kind: str = "deleted", held: str = "in_dropped_tentative_tracks") -> None:
+        """End ``tr`` with an event of ``kind`` (``deleted``, or ``merged`` into another track); a tentative
+        track's held measurements are counted ``*_<held>``."""
         del self.tracks[tr.id]
         if tr.mode_s is not None and self.by_mode_s.get(tr.mode_s) == tr.id:
             del self.by_mode_s[tr.mode_s]
@@ -244,15 +279,15 @@ class TrackLifecycle:
             del self.by_target[tr.target]
         if tr.status == "tentative":
             for p in tr.pending:
-                self.counts[f"{p.kind}_in_dropped_tentative_tracks"] += 1
+                self.counts[f"{p.kind}_{held}"] += 1
         else:
             self.feed.add(RemoveAircraft(now, tr.id))
         tr.status = "deleted"
-        self.emit(now, tr, "deleted")
+        self.emit(now, tr, kind)
 
     def emit(self, time: float, tr: Track, kind: str) -> None:
         """The event of ``kind`` at ``time`` with the track's state then (extrapolated when later than its
         estimate; a deletion's at most ``delete_after_s`` past the last update, where the track was due: after
         a feed gap of two days its state two days on is nowhere)."""
-        at = time if kind != "deleted" else min(time, tr.last_update + self.config.delete_after_s)
+        at = time if kind not in ENDS else min(time, tr.last_update + self.config.delete_after_s)
         self.sink.emit(new_tuple(TrackEvent, (float(time), tr.id, kind, tr.status, tr.state_at(at))), tr)

@@ -163,6 +163,13 @@ class TrackManager:
         again from a measurement its rejected ones agreed with); not inputs, so apart from :meth:`accounting`."""
         return {k: v for k, v in self.life.track_counts.items() if v}
 
+    def innovations(self) -> dict[str, float]:
+        """The confirmed tracks' normalised innovations d² = νᵀS⁻¹ν of the measurements they accepted
+        (S = P̄_pp + C P_ς Cᵀ + R, :mod:`~radartracker.tracking.lifecycle`): ``count`` and ``mean_nis``
+        (χ² with 2 degrees of freedom, mean 2, when the filters' covariances and R are right)."""
+        n, total = self.life.nis
+        return {"count": n, "mean_nis": total / n if n else math.nan}
+
     def snapshot(self, path: Path | str) -> None:
         """Save the whole state to ``path``, atomically (:mod:`radartracker.tracking.schema`;
         :func:`radartracker.registry.restore_manager` reads it back)."""
@@ -206,6 +213,7 @@ class TrackManager:
         items, self.gathered = self.gathered, []
         tracks = list(self.tracks.values())
         pred = Prediction(tracks, 0.5 * (t_a + t_b))
+        self.life.begin_frame(pred)
         frame = self.frames.build(t_a, t_b, items, tracks)
         n = len(frame.plots)
         self.antennas.observe(frame.meas.radar[:n], frame.meas.time[:n], frame.azimuth)

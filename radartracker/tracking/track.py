@@ -113,6 +113,19 @@ class Track:
                 self.altitude_m = src.altitude_m
         self.detections.append(True)
 
+    def take_over(self, new: Track) -> None:
+        """This track lost its aircraft and ``new``, a younger track, found it: this track number goes on
+        with ``new``'s filter, detections, held measurements and vertical filter (identity kept, completed
+        by ``new``'s)."""
+        self.filter, self.detections, self.vertical, self.pending = new.filter, new.detections, new.vertical, new.pending
+        self.last_update, self.rejected = new.last_update, []
+        self.altitude_m = new.altitude_m if new.altitude_m is not None else self.altitude_m
+        self.mode_s, self.mode_3a = self.mode_s or new.mode_s, new.mode_3a or self.mode_3a
+        self.n_plots += new.n_plots
+        self.n_adsb += new.n_adsb
+        new.pending = []
+        self.changed()
+
     def missed(self) -> None:
         """An antenna swept the track without a plot for it."""
         self.detections.append(False)

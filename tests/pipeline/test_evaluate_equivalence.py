@@ -108,6 +108,7 @@ def test_track_metrics_equal_the_straightforward_loop(seed):
     grid = np.arange(0, 600, 2.0)
     fast, slow = track_metrics(tracks, paths, observed, grid), naive_track_metrics(tracks, paths, observed, grid)
     assert slow["breaks"] > 0 and slow["swaps"] > 0 and slow["false_tracks"] > 0  # the scene exercises every rule
+    fast.pop("indicators")  # tested on scenes of their own (tests/pipeline/test_indicators.py)
     np.testing.assert_allclose(fast.pop("gospa"), slow.pop("gospa"), rtol=1e-12)
     fast_t, slow_t = fast.pop("per_target"), slow.pop("per_target")
     assert fast_t.keys() == slow_t.keys()
@@ -141,10 +142,13 @@ def test_a_grid_spec_gives_the_whole_grids_metrics(seed):
     slow = naive_track_metrics(tracks, paths, observed, grid)
     fast = track_metrics(tracks, paths, observed, GridSpec(-200.0, 900.0, 2.0))
     slow.pop("gospa"), fast.pop("gospa")
+    whole = track_metrics(tracks, paths, observed, grid)["indicators"]
+    assert fast.pop("indicators") == pytest.approx(whole, rel=1e-12, nan_ok=True)
     assert fast.pop("per_target") == slow.pop("per_target")
     assert fast == pytest.approx(slow, rel=1e-12, nan_ok=True)
     far = track_metrics(tracks, paths, observed, GridSpec(-200.0, 1e9, 2.0))  # 5·10⁸ grid times: not made
     far.pop("gospa")
+    assert far.pop("indicators") == pytest.approx(whole, rel=1e-12, nan_ok=True)
     assert far.pop("per_target") == naive_track_metrics(tracks, paths, observed, grid)["per_target"]
     assert far["gospa_mean_m"] == pytest.approx(slow["gospa_mean_m"] * len(grid) / 500_000_100, rel=1e-9)
     far["gospa_mean_m"] = slow["gospa_mean_m"]

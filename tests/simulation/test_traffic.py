@@ -81,8 +81,29 @@ def test_size_and_shares():
     assert len(sim.radars) == 9 and len({a.icao24 for a in sim.aircraft}) == n
 
 
+def test_the_airspace_options_shape_radars_flights_and_plots():
+    """Periods, biases, altitudes, speeds and what the plots carry follow the options (checked on the
+    simulated radars, flights and plots themselves)."""
+    cfg = dict(aircraft=40, radars=5, duration_s=120.0, spacing_km=100.0, period_s=(8.0, 12.0), range_bias_sd_m=0.0,
+               azimuth_bias_sd_deg=0.0, altitude_m=(9144.0, 12192.0), speed_mps=(170.0, 310.0), adsb_share=0.0)
+    runs = {tp: TrafficSimulator(TrafficConfig(transponder=tp, **cfg)) for tp in ("mode_s", "mode_c", "none")}
+    sim = runs["mode_c"]
+    assert all(8.0 <= sr.radar.period_s <= 12.0 for sr in sim.radars)
+    assert all(sr.range_bias_m == 0.0 and sr.azimuth_bias_rad == 0.0 for sr in sim.radars)
+    assert (9144.0 <= sim.flights.altitude).all() and (sim.flights.altitude <= 12192.0).all()
+    assert (170.0 <= sim.flights.speed).all() and (sim.flights.speed <= 310.0).all()
+    xy = np.array([sim.plane.to_plane(sr.radar.lat, sr.radar.lon) for sr in sim.radars])
+    assert np.hypot(*(xy[:, None] - xy[None]).transpose(2, 0, 1)).max() < 250e3  # every coverage holds every radar
+    plots = {tp: s.run().plots for tp, s in runs.items()}
+    carried = {tp: (np.isfinite(p.altitude_m.astype(float)).mean(), np.mean([c is not None for c in p.mode_s]),
+                    np.mean([c is not None for c in p.mode_3a])) for tp, p in plots.items()}
+    assert carried == {"mode_s": (1.0, 1.0, 1.0), "mode_c": (1.0, 0.0, 0.0), "none": (0.0, 0.0, 0.0)}
+    np.testing.assert_array_equal(plots["mode_c"].range_m, plots["none"].range_m)  # the same plots otherwise
+
+
 @pytest.mark.parametrize("bad", [dict(aircraft=0), dict(adsb_share=1.5), dict(adsb_share=0.7, primary_share=0.5),
-                                 dict(duration_s=-1.0)])
+                                 dict(duration_s=-1.0), dict(period_s=(12.0, 8.0)), dict(speed_mps=(0.0, 10.0)),
+                                 dict(altitude_m=(1.0,)), dict(transponder="mode_x"), dict(range_bias_sd_m=-1.0)])
 def test_bad_configuration(bad):
     with pytest.raises(ConfigurationError):
         TrafficConfig(**bad)
@@ -96,5 +117,9 @@ def test_cli_writes_traffic(tmp_path, capsys):
     same = traffic_scenario(seed=1, duration=60.0, aircraft=20, radars=3, adsb_share=0.5).run()
     assert len(data.radars) == 3 and len(data.plots) == len(same.plots) > 0 and len(data.adsb) == len(same.adsb) > 0
     np.testing.assert_allclose(data.plots.range_m, same.plots.range_m, atol=1e-3)
+    assert main(["simulate", str(tmp_path / "c"), "--scenario", "traffic", "--aircraft", "10", "--radars", "2",
+                 "--duration", "60", "--period-s", "8", "12", "--transponder", "mode_c"]) == 0
+    assert all(8.0 <= r.period_s <= 12.0 for r in read_scenario(tmp_path / "c").radars)
+    assert main(["simulate", str(tmp_path / "d"), "--scenario", "traffic", "--period-s", "12", "8"]) == 2
     assert main(["simulate", str(tmp_path / "u"), "--scenario", "seed", "--aircraft", "20"]) == 2
     assert "--aircraft applies to --scenario traffic only" in capsys.readouterr().err
