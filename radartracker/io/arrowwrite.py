@@ -3,7 +3,7 @@ hour (and radar) (:mod:`radartracker.io.datasets`).
 
 The columns and units are those of the CSV files (degrees at the edge, :data:`~radartracker.io.tables.SCHEMAS`),
 each number the double itself (no decimals to round to), a value not known a null; every field carries its
-unit in its metadata (``unit``) and the schema names its table (``radartracker.table``), as
+unit in its metadata (``unit``) and the schema names its table (:func:`~radartracker.io.tables.table_metadata`), as
 :func:`table_schema` makes them (docs/formats.md, "Parquet").
 """
 
@@ -16,17 +16,14 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from radartracker.io.datasets import PARTITIONS, ROWS_PER_GROUP, write_partitioned
-from radartracker.io.tables import SCHEMAS, ScenarioData
-
-TABLE_KEY = b"radartracker.table"
-
+from radartracker.io.tables import SCHEMAS, ScenarioData, table_metadata
 
 def table_schema(name: str, columns: list[str] | None = None) -> pa.Schema:
     """The Arrow schema of the scenario table ``name`` (the given ``columns`` of it, in its order): types, each
     field's unit in its metadata, the table's name in the schema's."""
     fields = [pa.field(c.name, c.type, metadata={"unit": c.unit}) for c in SCHEMAS[name]
               if columns is None or c.name in columns]
-    return pa.schema(fields, metadata={TABLE_KEY: name.encode()})
+    return pa.schema(fields, metadata=table_metadata(name))
 
 
 def _numbers(x: np.ndarray) -> pa.Array:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterable
 from typing import Any
 
@@ -51,6 +52,15 @@ def required_columns(table: str) -> tuple[str, ...]:
 
 RADAR_COLUMNS, PLOT_COLUMNS, ADSB_COLUMNS = (required_columns(t) for t in ("radars", "plots", "adsb"))
 TRUTH_COLUMNS, BIAS_COLUMNS = required_columns("truth"), required_columns("truth_biases")
+
+
+FORMAT_VERSION = 1  # of the Parquet tables' metadata (docs/formats.md)
+
+
+def table_metadata(table: str) -> dict[bytes, bytes]:
+    """The schema metadata of a table radartracker writes as Parquet: key ``radartracker``, a JSON object
+    naming the table and the version of its format (as pandas keeps its own under ``pandas``)."""
+    return {b"radartracker": json.dumps({"table": table, "version": FORMAT_VERSION}).encode()}
 
 
 def _obj(values: Iterable[Any]) -> np.ndarray:

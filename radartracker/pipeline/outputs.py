@@ -20,6 +20,7 @@ import pyarrow.parquet as pq
 
 from radartracker.errors import FormatError, TableName
 from radartracker.io.limits import regular_file
+from radartracker.io.tables import table_metadata
 from radartracker.pipeline.recorder import BiasLog, Events
 
 TRACK_COLUMNS = ("time", "track", "lat", "lon", "x_m", "y_m", "vx_mps", "vy_mps", "sd_x_m", "sd_y_m", "altitude_m",
@@ -35,7 +36,6 @@ DECIMALS = {"time": 3, "lat": 8, "lon": 8, "x_m": 2, "y_m": 2, "vx_mps": 3, "vy_
 UNITS = {"time": "s", "lat": "deg", "lon": "deg", "x_m": "m", "y_m": "m", "vx_mps": "m/s", "vy_mps": "m/s",
          "sd_x_m": "m", "sd_y_m": "m", "altitude_m": "m", "range_bias_m": "m", "azimuth_bias_deg": "deg",
          "sd_range_m": "m", "sd_azimuth_deg": "deg"}
-TABLE_KEY = b"radartracker.table"
 _NO_TEXT = pa.scalar(None, pa.string())
 
 
@@ -47,7 +47,7 @@ def output_schema(table: str) -> pa.Schema:
     """The Arrow schema of ``table`` (``tracks``, ``events`` or ``biases``): types, each field's unit in its
     metadata (``""`` for a text or the track id), the table's name in the schema's."""
     return pa.schema([pa.field(c, _type(c), metadata={"unit": UNITS.get(c, "")}) for c in COLUMNS[table]],
-                     metadata={TABLE_KEY: table.encode()})
+                     metadata=table_metadata(table))
 
 
 def _numbers(x, column: str, *, optional: bool = False) -> pa.Array:

@@ -5,6 +5,7 @@ naming the file and the field (exit 2), never a traceback."""
 from __future__ import annotations
 
 import csv
+import json
 import math
 import shutil
 from pathlib import Path
@@ -191,3 +192,15 @@ def test_a_bad_row_of_a_dataset_names_its_file_and_row(tmp_path):
     back = read_scenario(tmp_path / "ds", skip_bad=True)
     assert back.skipped == {"plots/hour=0/radar=R2/part-0.parquet:malformed": 1}
     assert len(back.plots) == len(data.plots) - 1
+
+
+def test_written_scenario_tables_have_the_documented_schema(tmp_path):
+    from tests.pipeline.test_outputs import documented
+
+    write_scenario(tmp_path / "pq", build_scenario("demo", seed=3, duration=60.0).run(), format="parquet")
+    doc = documented(0)
+    for path in sorted((tmp_path / "pq").glob("*.parquet")):
+        schema = pq.read_schema(path)
+        assert {f.name: (str(f.type), f.metadata[b"unit"].decode()) for f in schema} == doc[path.stem], path.name
+        assert json.loads(schema.metadata[b"radartracker"]) == {"table": path.stem, "version": 1}
+    assert {p.stem for p in (tmp_path / "pq").glob("*.parquet")} == set(doc)

@@ -4,6 +4,7 @@ the metadata), read back with pyarrow and pandas, holding the values of the CSV 
 from __future__ import annotations
 
 import csv
+import json
 import math
 import re
 from pathlib import Path
@@ -61,7 +62,7 @@ def test_parquet_outputs_have_the_documented_schema(runs, table):
     assert schema.names == header  # the CSV file's columns, in its order
     doc = documented(1)[table]
     assert {f.name: (str(f.type), f.metadata[b"unit"].decode()) for f in schema} == doc
-    assert schema.metadata[b"radartracker.table"] == table.encode()
+    assert json.loads(schema.metadata[b"radartracker"]) == {"table": table, "version": 1}
     assert not list((runs / "parquet").glob("*.csv"))
 
 
