@@ -5,8 +5,8 @@ of plots partitioned by hour and radar (``plots/hour=475000/radar=LFPG/part-0.pa
 (:mod:`pyarrow.dataset` finds the files and their partition keys): the files of one hour are read
 batch by batch, each checked as a table of its own (:mod:`radartracker.io.arrowsource`; errors name the
 file and its row), and their kept rows merged in time order (:func:`merge_blocks`), one hour after the
-other. Only a batch of each file of the hour at hand is in memory, so a day of recordings streams in the
-memory of a few minutes (docs/performance.md).
+other. The hour's files share one block's memory (:func:`dataset_blocks`), so a day of recordings streams
+in the memory of a few minutes (docs/performance.md, "Parquet").
 """
 
 from __future__ import annotations
