@@ -17,10 +17,12 @@ import math
 import sys
 from collections import defaultdict
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from radartracker.api import ConfigurationError, prepare_output_folder, replace_outputs, write_text
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 def register_triangulate(sub: argparse._SubParsersAction) -> None:
@@ -81,6 +83,8 @@ def _check_options(args: argparse.Namespace) -> None:
 
 
 def _output_times(target: str, t_min: float, t_max: float, step: float) -> np.ndarray:
+    import numpy as np  # here, not at the top: registering the command needs none of it
+
     n = (t_max - t_min) / step + 1  # a float: a denormal step makes it infinite
     if not n <= MAX_OUTPUT_TIMES:
         raise ConfigurationError(f"--step {step:g}: target {target} would get {n:.3g} output times over "
@@ -89,6 +93,8 @@ def _output_times(target: str, t_min: float, t_max: float, step: float) -> np.nd
 
 
 def _cmd_triangulate(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from radartracker_plugins.triangulation import (GeometryError, StationWeights, TriangulationFrame, io, locate,
                                                     read_weights, track)
 

@@ -11,7 +11,7 @@ from radartracker.errors import ConfigurationError, InputError
 
 
 def register_convert(sub: argparse._SubParsersAction) -> None:
-    from radartracker.io.convert import ConvertOptions
+    from radartracker.io.convert_options import ConvertOptions
 
     d = ConvertOptions()
     p = sub.add_parser("convert", help="convert a text recording (tracks.txt, plots.txt, plots_ads.txt) "
@@ -35,8 +35,9 @@ MAX_MB = 1e6  # a terabyte: beyond that a typo (write-recording --synthetic-mb 1
 
 
 def _cmd_convert(args: argparse.Namespace) -> int:
-    from radartracker.io.convert import ConvertOptions, convert
-    from radartracker.pipeline.config import check_number
+    from radartracker.io.convert import convert
+    from radartracker.io.convert_options import ConvertOptions
+    from radartracker.settings import check_number
 
     check_number("--bucket-mb", args.bucket_mb, lo=1 / 1024, hi=MAX_MB)  # inf reached int() as a traceback
     try:
@@ -138,7 +139,7 @@ def register_write_recording(sub: argparse._SubParsersAction) -> None:
 
 def _cmd_write_recording(args: argparse.Namespace) -> int:
     from radartracker.io.recording import write_scenario_recording, write_synthetic_recording
-    from radartracker.pipeline.config import check_number
+    from radartracker.settings import check_number
 
     if args.synthetic_mb is not None:  # NaN/inf were tracebacks, ≤ 0 still wrote a recording
         check_number("--synthetic-mb", args.synthetic_mb, lo=0.0, lo_open=True, hi=MAX_MB)

@@ -11,11 +11,13 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-
-import attrs
+from typing import TYPE_CHECKING
 
 from radartracker.errors import ConfigurationError
-from radartracker.pipeline.config import ARCHITECTURES, ASSOCIATIONS, DEFAULT_Q, RunConfig, check_number
+from radartracker.settings import ARCHITECTURES, ASSOCIATIONS, DEFAULT_Q, check_number
+
+if TYPE_CHECKING:  # imported by the commands when they run: registering them must stay light
+    from radartracker.pipeline.config import RunConfig
 
 
 def add_run_options(p: argparse.ArgumentParser, *, estimator_options: bool = True) -> None:
@@ -51,6 +53,9 @@ def add_run_options(p: argparse.ArgumentParser, *, estimator_options: bool = Tru
 
 def run_config(args: argparse.Namespace, base: RunConfig | None = None) -> RunConfig:
     """The RunConfig of the parsed options on top of ``base`` (a config file's, or the defaults)."""
+    import attrs
+
+    from radartracker.pipeline.config import RunConfig
     from radartracker.registry import parse_key_values
 
     base = base or RunConfig()
@@ -156,6 +161,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
     from radartracker.io.scenario import write_scenario
     from radartracker.io.sources import read_source
+    from radartracker.pipeline.config import RunConfig
     from radartracker.pipeline.run import run
     from radartracker.pipeline.writer import prepare, write_outputs
     from radartracker.simulation.scenarios import build_scenario
