@@ -107,6 +107,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     from radartracker.io.sources import ASTERIX_SUFFIXES, read_source
     from radartracker.pipeline.config import read_config
     from radartracker.pipeline.run import replay_folder, run
+    from radartracker.pipeline.warmup import before_progress_bar, warm_up
     from radartracker.pipeline.writer import prepare, write_outputs
 
     from radartracker.io.scenario import check_regular_files
@@ -129,9 +130,8 @@ def _cmd_replay(args: argparse.Namespace) -> int:
                   "their positions as plots; --architecture distributed fuses them as tracks", file=sys.stderr)
         data = None if args.scenario.is_dir() and not args.plots else read_source(args.scenario, skip_bad=config.skip_bad)
     progress = not getattr(args, "quiet", False)
-    if progress and sys.stderr.isatty():  # compile (first run) or load the kernels before the progress bar
+    if progress and before_progress_bar():  # compile (first run) or load the kernels before the bar starts
         from radartracker.pipeline.run import streamable
-        from radartracker.pipeline.warmup import warm_up
 
         warm_up(config, labelled=data.plots.has_truth_labels if data is not None
                 else not streamable(args.scenario, config) and config.association != "manager")
@@ -163,6 +163,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from radartracker.io.sources import read_source
     from radartracker.pipeline.config import RunConfig
     from radartracker.pipeline.run import run
+    from radartracker.pipeline.warmup import before_progress_bar, warm_up
     from radartracker.pipeline.writer import prepare, write_outputs
     from radartracker.simulation.scenarios import build_scenario
 
@@ -175,9 +176,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         write_scenario(scen_dir, data)
         data = read_source(scen_dir)  # through the public file format, as a user would
         config, progress = RunConfig(estimator=args.estimator), not getattr(args, "quiet", False)
-        if progress and sys.stderr.isatty():  # compile (first run) or load the kernels before the progress bar
-            from radartracker.pipeline.warmup import warm_up
-
+        if progress and before_progress_bar():  # compile (first run) or load the kernels before the bar starts
             warm_up(config, labelled=data.plots.has_truth_labels)
         result = run(data, config, progress=progress)
         print(f"demo: scenario 'demo' ({len(data.radars)} radars, {len(data.plots)} plots, "
