@@ -30,7 +30,8 @@ if TYPE_CHECKING:
     from radartracker.estimation.state import StateCheck
     from radartracker.geometry.kinematics import propagate
     from radartracker.geometry.plane import RadarFrame, SystemPlane
-    from radartracker.io.atomic import atomic_open, atomic_path, prepare_output_folder, replace_outputs, write_text
+    from radartracker.io.atomic import (atomic_open, atomic_path, prepare_output_folder, removed_if_failed,
+                                        replace_outputs, write_text)
     from radartracker.io.csvblocks import read_text
     from radartracker.io.recording import TrackPoints, read_new4, write_plt
     from radartracker.io.scenario import read_radars, read_scenario
@@ -56,7 +57,8 @@ _EXPORTS = {
     "radartracker.estimation.state": ("StateCheck",),
     "radartracker.geometry.kinematics": ("propagate",),
     "radartracker.geometry.plane": ("RadarFrame", "SystemPlane"),
-    "radartracker.io.atomic": ("atomic_open", "atomic_path", "prepare_output_folder", "replace_outputs", "write_text"),
+    "radartracker.io.atomic": ("atomic_open", "atomic_path", "prepare_output_folder", "removed_if_failed",
+                               "replace_outputs", "write_text"),
     "radartracker.io.csvblocks": ("read_text",),
     "radartracker.io.recording": ("TrackPoints", "read_new4", "write_plt"),
     "radartracker.io.scenario": ("read_radars", "read_scenario"),
