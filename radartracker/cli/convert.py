@@ -72,6 +72,7 @@ def register_asterix_import(sub: argparse._SubParsersAction) -> None:
                         "pcap files take the day from their packet time stamps)")
     p.add_argument("--skip-bad", action="store_true",
                    help="skip (and count) unreadable framing and plots of SAC/SIC the sidecar lacks")
+    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS, help="no progress bars; errors only")
     p.set_defaults(func=_cmd_asterix_import)
 
 
@@ -112,6 +113,7 @@ def register_asterix_export(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("asterix-export", help="write a scenario folder as ASTERIX CAT048 + CAT021 (.ast)")
     p.add_argument("scenario", type=Path, help="scenario folder (see docs/formats.md)")
     p.add_argument("--out", type=Path, required=True, help=".ast file to write (must not exist)")
+    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS, help="no progress bar; errors only")
     p.set_defaults(func=_cmd_asterix_export)
 
 

@@ -1,5 +1,5 @@
 """Figures of a run (matplotlib, non-interactive backend), written atomically, with a progress bar on stderr
-once one takes 2 s (off with TQDM_DISABLE / --quiet)."""
+once one takes 2 s (off with --quiet)."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from tqdm import tqdm  # noqa: E402
 
 from radartracker.io.atomic import atomic_path  # noqa: E402
 from radartracker.pipeline.result import RunResult  # noqa: E402
+from radartracker.progress import progress_bar  # noqa: E402
 
 
 def save(fig, path: Path | str, dpi: int = 110) -> None:
@@ -49,7 +49,7 @@ def plot_biases(result: RunResult, path: Path) -> None:
     b = result.biases
     truth = result.data.truth_biases or {}
     t0 = b.time[0] if len(b.time) else 0.0
-    for k, rid in enumerate(tqdm(radars, desc=f"figure {Path(path).name}", unit="radar", delay=2.0)):
+    for k, rid in enumerate(progress_bar(radars, desc=f"figure {Path(path).name}", unit="radar")):
         idx = b.radar == rid
         for row, (scale, unit, what) in enumerate(((1.0, "m", "range"), (math.degrees(1.0), "deg", "azimuth"))):
             ax = axes[2 * (k // cols) + row, k % cols]
@@ -85,8 +85,8 @@ def plot_tracks_over_truth(result: RunResult, path: Path) -> None:
             m = d.truth.target == tg
             ax.plot(x[m] / 1e3, y[m] / 1e3, color="0.6", lw=3, alpha=0.6)
     histories = result.histories()
-    for tid, h in tqdm(histories.items(), desc=f"figure {Path(path).name}", unit="track", total=len(histories),
-                       delay=2.0):
+    for tid, h in progress_bar(histories.items(), desc=f"figure {Path(path).name}", unit="track",
+                               total=len(histories)):
         ax.plot(h.states[:, 0] / 1e3, h.states[:, 1] / 1e3, lw=1, label=f"track {tid}")
     for r in d.radars:
         xy = np.array(plane.to_plane(r.lat, r.lon), float) / 1e3
