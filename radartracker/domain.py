@@ -4,7 +4,7 @@ Internally SI (metres, seconds, radians). Construction validates every field and
 :class:`~radartracker.errors.InputError` (a ``RadarTrackerError`` and a ``ValueError``) naming the field
 in its own units, so a bad number never turns into a silent NaN later; plots and
 ADS-B reports made from columns (:func:`plots_from_columns`, :func:`plot_rows`) are checked column by
-column instead. Degrees, feet and knots appear only at the I/O edges (see :mod:`radartracker.formats`).
+column instead. Degrees, feet and knots appear only at the I/O edges (:mod:`radartracker.io`).
 """
 
 from __future__ import annotations
@@ -26,7 +26,8 @@ TWO_PI = 2.0 * math.pi
 def _finite(inst: Any, attr: attrs.Attribute, value: Any) -> None:
     if value is None:
         return
-    if not isinstance(value, (int, float, np.integer, np.floating)) or not math.isfinite(value):
+    if (isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating))
+            or not math.isfinite(value)):  # True is an int to Python, not a time or a range
         raise InputError(f"{attr.name}: expected a finite number, got {value!r}")
 
 
@@ -74,6 +75,36 @@ def _mode_3a(inst: Any, attr: attrs.Attribute, value: str | None) -> None:
         raise InputError(f"{attr.name}: Mode 3/A code must be 4 octal digits, got {value!r}")
 
 
+def _address(inst: Any, attr: attrs.Attribute, value: str) -> None:
+    if value is None:  # an aircraft's identity: never absent, unlike a plot's Mode S address
+        raise InputError(f"{attr.name}: Mode S address must be 6 lower-case hex digits, got None")
+    _mode_s(inst, attr, value)
+
+
+def _nacp(lowest: int) -> Callable[[Any, attrs.Attribute, Any], None]:
+    """A validator of a NACp category (DO-260B): an integer ``lowest``..11 (0: accuracy unknown)."""
+    def check(inst: Any, attr: attrs.Attribute, value: Any) -> None:
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lowest <= value <= 11:
+            raise InputError(f"{attr.name}: NACp must be an integer category {lowest}..11"
+                             f"{' (0: accuracy unknown)' if lowest == 0 else ''}, got {value!r}")
+    return check
+
+
+def _transponder(inst: Any, attr: attrs.Attribute, value: Any) -> None:
+    if value not in TRANSPONDERS:
+        raise InputError(f"{attr.name}: must be one of {', '.join(TRANSPONDERS)}, got {value!r}")
+
+
+def _text(inst: Any, attr: attrs.Attribute, value: Any) -> None:
+    if not isinstance(value, str):
+        raise InputError(f"{attr.name}: expected a string, got {value!r}")
+
+
+def _flag(inst: Any, attr: attrs.Attribute, value: Any) -> None:
+    if not isinstance(value, (bool, np.bool_)):
+        raise InputError(f"{attr.name}: expected true or false, got {value!r}")
+
+
 def _nonempty(inst: Any, attr: attrs.Attribute, value: str) -> None:
     if not isinstance(value, str) or not value.strip():
         raise InputError(f"{attr.name}: must be a non-empty string, got {value!r}")
@@ -119,12 +150,12 @@ class Aircraft:
     identifies it in simulation truth and ADS-B.
     """
 
-    icao24: str = attrs.field(converter=_lower, validator=_mode_s)
-    callsign: str = ""
+    icao24: str = attrs.field(converter=_lower, validator=_address)
+    callsign: str = attrs.field(default="", validator=_text)
     mode_3a: str | None = attrs.field(default=None, validator=_mode_3a)
-    adsb: bool = False
-    nacp: int = attrs.field(default=8, validator=attrs.validators.in_(range(0, 12)))
-    transponder: str = attrs.field(default="mode_s", validator=attrs.validators.in_(TRANSPONDERS))
+    adsb: bool = attrs.field(default=False, validator=_flag)
+    nacp: int = attrs.field(default=8, validator=_nacp(0))
+    transponder: str = attrs.field(default="mode_s", validator=_transponder)
 
 
 @attrs.frozen(slots=True)
@@ -154,7 +185,7 @@ class AdsbReport:
     lat: float = attrs.field(validator=_latitude)
     lon: float = attrs.field(validator=_longitude)
     altitude_m: float | None = attrs.field(default=None, validator=_finite)
-    nacp: int = attrs.field(default=8, validator=attrs.validators.in_(range(1, 12)))
+    nacp: int = attrs.field(default=8, validator=_nacp(1))
 
 
 def _unchecked(cls: type) -> Callable[..., list]:

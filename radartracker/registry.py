@@ -11,19 +11,17 @@ into it from the fields' annotations: ``float``, ``int``, ``bool`` (true/false/y
 
 from __future__ import annotations
 
-import functools
 import math
 import os
-import sys
 import types
 import typing
 from collections.abc import Callable, Iterable, Mapping
-from importlib.metadata import EntryPoint, entry_points
 from typing import Any
 
 import attrs
 
 from radartracker.domain import Radar
+from radartracker.entrypoints import installed
 from radartracker.errors import ConfigurationError, SnapshotError
 from radartracker.estimation.base import Estimator, EstimatorConfig
 from radartracker.tracking.associators import AssociationSettings, Associator
@@ -41,35 +39,9 @@ ASSOCIATOR_GROUP = "radartracker.associators"
 PREFERRED_ESTIMATORS = ("coupled-sparse", "coupled", "blom", "decoupled")
 
 
-def _group(group: str) -> dict[str, Any]:
-    """The entry points of ``group`` by name (a later one of the same name wins, as ``entry_points`` lists them)."""
-    return dict(_entry_points(group, path_state()))
-
-
-def path_state() -> tuple:
-    """``sys.path`` and the modification time of each of its folders: installing or removing a package there
-    (a dist-info folder made or deleted) or changing the path changes it. What is read from the installed
-    distributions' metadata (entry points) is kept per state; a file edited in place inside an installed
-    dist-info (no folder on the path modified) is not seen until the path changes."""
-    state = []
-    for p in sys.path:
-        try:
-            state.append((p, os.stat(p or ".").st_mtime_ns))
-        except (OSError, TypeError, ValueError):
-            state.append((p, None))
-    return tuple(state)
-
-
-@functools.lru_cache(maxsize=16)
-def _entry_points(group: str, state: tuple) -> dict[str, EntryPoint]:
-    """``group``'s entry points, read once per ``state`` of the path: ``entry_points`` reads every installed
-    distribution's metadata, and a run looks several groups up."""
-    return {ep.name: ep for ep in entry_points(group=group)}
-
-
 def _load(group: str, name: str, what: str, base: type | None = None) -> Any:
     """Load entry point ``name`` of ``group``; a clear error lists what is installed."""
-    eps = _group(group)
+    eps = installed(group)
     if name not in eps:
         known = ", ".join(sorted(eps)) or "none"
         raise ConfigurationError(f"unknown {what} {name!r}; installed: {known}")
@@ -81,7 +53,7 @@ def _load(group: str, name: str, what: str, base: type | None = None) -> Any:
 
 def available_estimators() -> list[str]:
     """Names of the installed estimator plugins."""
-    return sorted(_group(ESTIMATOR_GROUP))
+    return sorted(installed(ESTIMATOR_GROUP))
 
 
 def load_estimator(name: str) -> type[Estimator]:
@@ -91,13 +63,13 @@ def load_estimator(name: str) -> type[Estimator]:
 
 def default_estimator() -> str:
     """The best installed estimator plugin: the first of ``PREFERRED_ESTIMATORS`` that is installed."""
-    installed = available_estimators()
-    return next((n for n in PREFERRED_ESTIMATORS if n in installed), installed[0] if installed else PREFERRED_ESTIMATORS[0])
+    names = available_estimators()
+    return next((n for n in PREFERRED_ESTIMATORS if n in names), names[0] if names else PREFERRED_ESTIMATORS[0])
 
 
 def available_associators() -> list[str]:
     """Names of the installed associator plugins."""
-    return sorted(_group(ASSOCIATOR_GROUP))
+    return sorted(installed(ASSOCIATOR_GROUP))
 
 
 def load_associator(name: str) -> type[Associator]:
@@ -107,7 +79,7 @@ def load_associator(name: str) -> type[Associator]:
 
 def available_reconstructors() -> list[str]:
     """Names of the installed reconstructor plugins."""
-    return sorted(_group(RECONSTRUCTOR_GROUP))
+    return sorted(installed(RECONSTRUCTOR_GROUP))
 
 
 def load_reconstructor(name: str) -> Any:
@@ -117,7 +89,7 @@ def load_reconstructor(name: str) -> Any:
 
 def available_motion_models() -> list[str]:
     """Names of the installed track motion-model plugins."""
-    return sorted(_group(MOTION_GROUP))
+    return sorted(installed(MOTION_GROUP))
 
 
 def load_motion_model(name: str) -> type[TrackFilter]:
@@ -354,7 +326,7 @@ def plugin_listing() -> str:
                                (ASSOCIATOR_GROUP, "associators", None),
                                (RECONSTRUCTOR_GROUP, "reconstructors", None)):
         lines.append(f"{title}:")
-        for name, ep in sorted(_group(group).items()):
+        for name, ep in sorted(installed(group).items()):
             lines.append(f"  {name:<16} {ep.value}")
             if attr is None:
                 continue

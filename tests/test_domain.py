@@ -94,6 +94,25 @@ def test_adsb_and_aircraft_validate():
         Aircraft("zz")
 
 
+@pytest.mark.parametrize("make,words", [
+    (lambda: Aircraft("4b1a2c", nacp=12), "nacp: NACp must be an integer category 0..11"),
+    (lambda: Aircraft("4b1a2c", nacp=True), "nacp: NACp"),
+    (lambda: Aircraft("4b1a2c", transponder="mode_c"), "transponder: must be one of mode_s, mode_a_c, none"),
+    (lambda: Aircraft("4b1a2c", callsign=7), "callsign: expected a string"),
+    (lambda: Aircraft("4b1a2c", adsb="yes"), "adsb: expected true or false"),
+    (lambda: Aircraft(None), "icao24: Mode S address"),
+    (lambda: AdsbReport(0.0, "4b1a2c", 48.0, 2.0, nacp=12), "nacp: NACp must be an integer category 1..11"),
+    (lambda: AdsbReport(0.0, "4b1a2c", 48.0, 2.0, nacp="8"), "nacp: NACp"),
+    (lambda: Plot(True, "R1", 1e5, 1.0), "time: expected a finite number, got True"),
+])
+def test_every_refused_field_is_a_radartracker_error_naming_it(make, words):
+    """Not attrs' ValueError with its tuple of internals: the one error class the CLI turns into one line."""
+    from radartracker.errors import InputError
+
+    with pytest.raises(InputError, match=words):
+        make()
+
+
 def test_nacp_sigma_is_95_percent_radius():
     # a circular 2-D Gaussian holds 95 % inside 2.448 σ: P(r < kσ) = 1 − exp(−k²/2)
     assert 1 - math.exp(-(2.448**2) / 2) == pytest.approx(0.95, abs=1e-3)

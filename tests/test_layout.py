@@ -130,3 +130,15 @@ def test_the_folder_walker_sees_a_circle_of_folders(tmp_path):
     (pkg / "x" / "d.py").write_text("w = 2\n")
     g = _graph(pkg, "pkg")
     assert not list(nx.simple_cycles(g)) and list(nx.simple_cycles(folder_graph(g)))
+
+
+def test_the_lazy_api_runs_what_type_checkers_read():
+    """radartracker.api imports its names on first use (``_EXPORTS``); its ``TYPE_CHECKING`` block, what type
+    checkers and editors read, names the same modules and names, and each resolves."""
+    import radartracker.api as api
+
+    tree = ast.parse((ROOT / "radartracker" / "api.py").read_text())
+    block = next(n for n in tree.body if isinstance(n, ast.If) and getattr(n.test, "id", "") == "TYPE_CHECKING")
+    read = {node.module: tuple(a.name for a in node.names) for node in block.body}
+    assert read == api._EXPORTS
+    assert all(getattr(api, name) is not None for name in api.__all__)

@@ -7,7 +7,8 @@ import textwrap
 
 from importlib.metadata import entry_points
 
-from radartracker.registry import ESTIMATOR_GROUP, MOTION_GROUP, _group, available_estimators, load_estimator
+from radartracker.entrypoints import installed
+from radartracker.registry import ESTIMATOR_GROUP, MOTION_GROUP, available_estimators, load_estimator
 
 PLUGIN = '''
 from radartracker.api import Estimator
@@ -24,8 +25,8 @@ def _fresh(group):  # the oracle: importlib.metadata itself, read now
 
 def test_cached_groups_equal_importlib_metadata():
     for group in (ESTIMATOR_GROUP, MOTION_GROUP, "radartracker.commands"):
-        assert list(_group(group).items()) == list(_fresh(group).items())
-        assert list(_group(group).items()) == list(_fresh(group).items())  # the cached answer too
+        assert list(installed(group).items()) == list(_fresh(group).items())
+        assert list(installed(group).items()) == list(_fresh(group).items())  # the cached answer too
 
 
 def test_a_plugin_installed_into_a_folder_already_on_the_path_is_found_then_forgotten(tmp_path, monkeypatch):

@@ -12,14 +12,18 @@ A library package, not an estimator or reconstructor plugin: it registers no ent
 used by ``radartracker triangulate`` and by scripts.
 """
 
-from ._lsq import GeometryError
-from .dynamic import PolynomialBasis, TrackFix, track
-from .feed import fix_measurement, plane_measurement
-from .frame import TriangulationFrame
-from .sensors import Bearing, DirectionFinder
-from .static import Fix, locate
-from .weights import StationWeights, read_weights
+from radartracker.api import lazy_exports
 
-__all__ = ["Bearing", "DirectionFinder", "Fix", "GeometryError", "PolynomialBasis", "TrackFix",
-           "StationWeights", "TriangulationFrame", "fix_measurement", "locate", "plane_measurement", "read_weights",
-           "track"]
+# imported when first used: `radartracker triangulate` registers its command without numpy or pyproj
+_EXPORTS = {
+    "._lsq": ("GeometryError",),
+    ".dynamic": ("PolynomialBasis", "TrackFix", "track"),
+    ".feed": ("fix_measurement", "plane_measurement"),
+    ".frame": ("TriangulationFrame",),
+    ".sensors": ("Bearing", "DirectionFinder"),
+    ".static": ("Fix", "locate"),
+    ".weights": ("StationWeights", "read_weights"),
+}
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+
+__all__ = sorted(name for names in _EXPORTS.values() for name in names)

@@ -17,10 +17,13 @@ import math
 import sys
 from collections import defaultdict
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
+from radartracker.api import (ConfigurationError, prepare_output_folder, removed_if_failed, replace_outputs,
+                              write_text)
 
-from radartracker.api import ConfigurationError, prepare_output_folder, replace_outputs, write_text
+if TYPE_CHECKING:
+    import numpy as np
 
 
 def register_triangulate(sub: argparse._SubParsersAction) -> None:
@@ -81,6 +84,8 @@ def _check_options(args: argparse.Namespace) -> None:
 
 
 def _output_times(target: str, t_min: float, t_max: float, step: float) -> np.ndarray:
+    import numpy as np  # here, not at the top: registering the command needs none of it
+
     n = (t_max - t_min) / step + 1  # a float: a denormal step makes it infinite
     if not n <= MAX_OUTPUT_TIMES:
         raise ConfigurationError(f"--step {step:g}: target {target} would get {n:.3g} output times over "
@@ -89,10 +94,17 @@ def _output_times(target: str, t_min: float, t_max: float, step: float) -> np.nd
 
 
 def _cmd_triangulate(args: argparse.Namespace) -> int:
+    _check_options(args)
+    with removed_if_failed(args.out):  # a run that fails leaves no empty --out of its own making
+        return _triangulate(args)
+
+
+def _triangulate(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from radartracker_plugins.triangulation import (GeometryError, StationWeights, TriangulationFrame, io, locate,
                                                     read_weights, track)
 
-    _check_options(args)
     # before the computation; an earlier run's files stay until this run's replace them
     out = prepare_output_folder(args.out, OUTPUT_FILES, overwrite=args.overwrite, keep_earlier=True)
     if args.estimator == "ml" and args.weights is not None:

@@ -19,8 +19,9 @@ from importlib.metadata import entry_points
 from pathlib import Path
 
 from radartracker.cli.replay import register_demo, register_replay  # noqa: F401 (entry points name them here)
+from radartracker.entrypoints import path_state
 from radartracker.errors import ConfigurationError, RadarTrackerError
-from radartracker.registry import path_state
+from radartracker.settings import SCENARIOS
 
 COMMAND_GROUP = "radartracker.commands"
 
@@ -64,7 +65,7 @@ def _new_parser(registers: list[Callable[[argparse._SubParsersAction], None]]) -
 @functools.lru_cache(maxsize=4)
 def _parser(state: tuple) -> tuple[argparse.ArgumentParser, tuple[str, ...]]:
     """The parser :func:`main` uses and the warnings of its building, built once per state of the path
-    (:func:`radartracker.registry.path_state`), so that a process calling ``main`` many times (embedding,
+    (:func:`radartracker.entrypoints.path_state`), so that a process calling ``main`` many times (embedding,
     tests, benchmarks) reads every installed distribution's entry points and builds the dozen sub-parsers
     once, not at each call. A command installed or removed between two calls makes or removes a dist-info
     folder in a folder of the path, which changes the state: a new parser is built. Parsing does not
@@ -136,11 +137,9 @@ def _cmd_estimators(args: argparse.Namespace) -> int:
 
 
 def register_simulate(sub: argparse._SubParsersAction) -> None:
-    from radartracker.simulation.scenarios import STANDARD_SCENARIOS
-
     p = sub.add_parser("simulate", help="simulate a multi-radar scenario into a scenario folder")
     p.add_argument("out", type=Path, help="scenario folder to write (must not exist)")
-    p.add_argument("--scenario", default="seed", choices=sorted([*STANDARD_SCENARIOS, "traffic"]),
+    p.add_argument("--scenario", default="seed", choices=sorted([*SCENARIOS, "traffic"]),
                    help="built-in scenario (default: seed); 'traffic': national traffic of any size")
     p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     p.add_argument("--duration", type=float, default=None, help="seconds to simulate")
@@ -171,7 +170,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from radartracker.io.scenario import write_scenario
     from radartracker.simulation.scenarios import build_scenario
 
-    from radartracker.pipeline.config import check_number
+    from radartracker.settings import check_number
 
     if args.out.exists():
         raise ConfigurationError(f"{args.out} already exists; choose a new folder")

@@ -20,7 +20,7 @@ def register_compare(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from radartracker.io.atomic import prepare_output_folder, replace_outputs
+    from radartracker.io.atomic import prepare_output_folder, removed_if_failed, replace_outputs
     from radartracker.io.sources import read_source
     from radartracker.pipeline.compare import COMPARISON_FILES, run_comparison, write_comparison
     from radartracker.registry import available_estimators
@@ -31,12 +31,13 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         raise ConfigurationError(f"--estimators: unknown {', '.join(unknown) or '(none given)'}; "
                                  f"installed: {', '.join(available_estimators())}")
     config = run_config(args)
-    # an earlier comparison stays until this one's files are all written (replace_outputs)
-    out = prepare_output_folder(args.out, COMPARISON_FILES, overwrite=args.overwrite, keep_earlier=True)
-    data = read_source(args.scenario, skip_bad=config.skip_bad)
-    results = run_comparison(data, names, config, progress=not getattr(args, "quiet", False))
-    with replace_outputs(out, COMPARISON_FILES, last="comparison.md") as stage:
-        write_comparison(results, out, stage=stage)
+    with removed_if_failed(args.out):  # a comparison that fails leaves no empty --out of its own making
+        # an earlier comparison stays until this one's files are all written (replace_outputs)
+        out = prepare_output_folder(args.out, COMPARISON_FILES, overwrite=args.overwrite, keep_earlier=True)
+        data = read_source(args.scenario, skip_bad=config.skip_bad)
+        results = run_comparison(data, names, config, progress=not getattr(args, "quiet", False))
+        with replace_outputs(out, COMPARISON_FILES, last="comparison.md") as stage:
+            write_comparison(results, out, stage=stage)
     print((out / "comparison.md").read_text(), end="")
     print(f"outputs in {out}")
     return 0

@@ -11,7 +11,7 @@ from radartracker.errors import ConfigurationError, InputError
 
 
 def register_convert(sub: argparse._SubParsersAction) -> None:
-    from radartracker.io.convert import ConvertOptions
+    from radartracker.io.convert_options import ConvertOptions
 
     d = ConvertOptions()
     p = sub.add_parser("convert", help="convert a text recording (tracks.txt, plots.txt, plots_ads.txt) "
@@ -35,8 +35,9 @@ MAX_MB = 1e6  # a terabyte: beyond that a typo (write-recording --synthetic-mb 1
 
 
 def _cmd_convert(args: argparse.Namespace) -> int:
-    from radartracker.io.convert import ConvertOptions, convert
-    from radartracker.pipeline.config import check_number
+    from radartracker.io.convert import convert
+    from radartracker.io.convert_options import ConvertOptions
+    from radartracker.settings import check_number
 
     check_number("--bucket-mb", args.bucket_mb, lo=1 / 1024, hi=MAX_MB)  # inf reached int() as a traceback
     try:
@@ -71,6 +72,7 @@ def register_asterix_import(sub: argparse._SubParsersAction) -> None:
                         "pcap files take the day from their packet time stamps)")
     p.add_argument("--skip-bad", action="store_true",
                    help="skip (and count) unreadable framing and plots of SAC/SIC the sidecar lacks")
+    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS, help="no progress bars; errors only")
     p.set_defaults(func=_cmd_asterix_import)
 
 
@@ -111,6 +113,7 @@ def register_asterix_export(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("asterix-export", help="write a scenario folder as ASTERIX CAT048 + CAT021 (.ast)")
     p.add_argument("scenario", type=Path, help="scenario folder (see docs/formats.md)")
     p.add_argument("--out", type=Path, required=True, help=".ast file to write (must not exist)")
+    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS, help="no progress bar; errors only")
     p.set_defaults(func=_cmd_asterix_export)
 
 
@@ -138,7 +141,7 @@ def register_write_recording(sub: argparse._SubParsersAction) -> None:
 
 def _cmd_write_recording(args: argparse.Namespace) -> int:
     from radartracker.io.recording import write_scenario_recording, write_synthetic_recording
-    from radartracker.pipeline.config import check_number
+    from radartracker.settings import check_number
 
     if args.synthetic_mb is not None:  # NaN/inf were tracebacks, ≤ 0 still wrote a recording
         check_number("--synthetic-mb", args.synthetic_mb, lo=0.0, lo_open=True, hi=MAX_MB)

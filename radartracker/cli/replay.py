@@ -11,11 +11,14 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-
-import attrs
+from typing import TYPE_CHECKING
 
 from radartracker.errors import ConfigurationError
-from radartracker.pipeline.config import ARCHITECTURES, ASSOCIATIONS, DEFAULT_Q, RunConfig, check_number
+from radartracker.settings import ARCHITECTURES, ASSOCIATIONS, DEFAULT_Q, check_number
+
+if TYPE_CHECKING:  # imported by the commands when they run: registering them must stay light
+    from radartracker.pipeline.config import RunConfig
+    from radartracker.pipeline.result import RunResult
 
 
 def add_run_options(p: argparse.ArgumentParser, *, estimator_options: bool = True) -> None:
@@ -51,6 +54,9 @@ def add_run_options(p: argparse.ArgumentParser, *, estimator_options: bool = Tru
 
 def run_config(args: argparse.Namespace, base: RunConfig | None = None) -> RunConfig:
     """The RunConfig of the parsed options on top of ``base`` (a config file's, or the defaults)."""
+    import attrs
+
+    from radartracker.pipeline.config import RunConfig
     from radartracker.registry import parse_key_values
 
     base = base or RunConfig()
@@ -101,17 +107,31 @@ def register_replay(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
-    from radartracker.io.sources import ASTERIX_SUFFIXES, read_source
-    from radartracker.pipeline.config import read_config
-    from radartracker.pipeline.run import replay_folder, run
-    from radartracker.pipeline.writer import prepare, write_outputs
-
+    from radartracker.io.atomic import removed_if_failed
     from radartracker.io.scenario import check_regular_files
+    from radartracker.pipeline.config import read_config
+    from radartracker.pipeline.writer import prepare
 
     config = run_config(args, read_config(args.config) if args.config is not None else None)
     if args.scenario.is_dir():  # a device or pipe in the folder has no end: refused before any reading
         check_regular_files(args.scenario)
-    out = prepare(args.out, overwrite=args.overwrite)  # before the computation: fail early, not after it
+    with removed_if_failed(args.out):  # a run that fails leaves no empty --out of its own making
+        out = prepare(args.out, overwrite=args.overwrite)  # before the computation: fail early, not after it
+        result = _replay(args, config, out)
+    print(f"{result.config.association} association, estimator {result.config.estimator}"
+          + (f", motion model {result.config.motion_model}" if result.config.motion_model else ""))
+    print(result.summary_table())
+    print(f"outputs in {out}")
+    return 0
+
+
+def _replay(args: argparse.Namespace, config: RunConfig, out: Path) -> RunResult:
+    """The run of ``replay`` into the prepared folder ``out``, its files written."""
+    from radartracker.io.sources import ASTERIX_SUFFIXES, read_source
+    from radartracker.pipeline.run import replay_folder, run, streamable
+    from radartracker.pipeline.warmup import before_progress_bar, warm_up
+    from radartracker.pipeline.writer import write_outputs
+
     local = None
     tracks_in = args.scenario.suffix.lower() in ASTERIX_SUFFIXES and args.scenario.is_file()
     if tracks_in:  # imported only for a recording: a folder needs none of libasterix's large generated tables
@@ -126,22 +146,14 @@ def _cmd_replay(args: argparse.Namespace) -> int:
                   "their positions as plots; --architecture distributed fuses them as tracks", file=sys.stderr)
         data = None if args.scenario.is_dir() and not args.plots else read_source(args.scenario, skip_bad=config.skip_bad)
     progress = not getattr(args, "quiet", False)
-    if progress and sys.stderr.isatty():  # compile (first run) or load the kernels before the progress bar
-        from radartracker.pipeline.run import streamable
-        from radartracker.pipeline.warmup import warm_up
-
+    if progress and before_progress_bar():  # compile (first run) or load the kernels before the bar starts
         warm_up(config, labelled=data.plots.has_truth_labels if data is not None
                 else not streamable(args.scenario, config) and config.association != "manager")
     if data is None:  # a scenario folder: streamed when it can be (pipeline.run.replay_folder)
-        result = replay_folder(args.scenario, config, out, progress=progress, table_format=args.format)
-    else:
-        result = run(data, config, progress=progress, local_tracks=local)
-        write_outputs(result, out, figures=args.plots, table_format=args.format)
-    print(f"{result.config.association} association, estimator {result.config.estimator}"
-          + (f", motion model {result.config.motion_model}" if result.config.motion_model else ""))
-    print(result.summary_table())
-    print(f"outputs in {out}")
-    return 0
+        return replay_folder(args.scenario, config, out, progress=progress, table_format=args.format)
+    result = run(data, config, progress=progress, local_tracks=local)
+    write_outputs(result, out, figures=args.plots, table_format=args.format)
+    return result
 
 
 def register_demo(sub: argparse._SubParsersAction) -> None:
@@ -156,14 +168,17 @@ def register_demo(sub: argparse._SubParsersAction) -> None:
 def _cmd_demo(args: argparse.Namespace) -> int:
     import tempfile
 
+    from radartracker.io.atomic import removed_if_failed
     from radartracker.io.scenario import write_scenario
     from radartracker.io.sources import read_source
+    from radartracker.pipeline.config import RunConfig
     from radartracker.pipeline.run import run
+    from radartracker.pipeline.warmup import before_progress_bar, warm_up
     from radartracker.pipeline.writer import prepare, write_outputs
     from radartracker.simulation.scenarios import build_scenario
 
     check_number("--seed", args.seed, lo=0, integer=True)
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, removed_if_failed((args.out or Path(tmp)) / "replay"):
         root = args.out or Path(tmp)
         out = prepare(root / "replay")
         scen_dir = root / "scenario"
@@ -171,9 +186,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         write_scenario(scen_dir, data)
         data = read_source(scen_dir)  # through the public file format, as a user would
         config, progress = RunConfig(estimator=args.estimator), not getattr(args, "quiet", False)
-        if progress and sys.stderr.isatty():  # compile (first run) or load the kernels before the progress bar
-            from radartracker.pipeline.warmup import warm_up
-
+        if progress and before_progress_bar():  # compile (first run) or load the kernels before the bar starts
             warm_up(config, labelled=data.plots.has_truth_labels)
         result = run(data, config, progress=progress)
         print(f"demo: scenario 'demo' ({len(data.radars)} radars, {len(data.plots)} plots, "

@@ -68,7 +68,7 @@ def register_serve(sub: argparse._SubParsersAction) -> None:
 
 def _cmd_serve(args: argparse.Namespace) -> int:
     from radartracker.io.asterix_reader import read_sites
-    from radartracker.pipeline.config import check_number
+    from radartracker.settings import check_number
     from radartracker.service import Service, ServiceConfig, parse_endpoint
 
     radars, sites = read_sites(args.radars)
@@ -113,7 +113,7 @@ def register_send(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_send(args: argparse.Namespace) -> int:
-    from radartracker.pipeline.config import check_number
+    from radartracker.settings import check_number
     from radartracker.service import parse_endpoint
     from radartracker.service.sender import send
 

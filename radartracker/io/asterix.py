@@ -25,7 +25,7 @@ import math
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 import numpy as np
 from asterix.base import Bits, RawDatablock
@@ -35,6 +35,7 @@ from radartracker.domain import Radar
 from radartracker.errors import InputError
 from radartracker.io.atomic import atomic_open
 from radartracker.io.tables import RADAR_COLUMNS, ScenarioData
+from radartracker.progress import progress_bar
 
 CAT048, CAT021, CAT062 = gen.Cat_048_1_32, gen.Cat_021_2_6, gen.Cat_062_1_21
 NM, FT = 1852.0, 0.3048
@@ -149,17 +150,26 @@ def write_asterix(path: Path | str, data: ScenarioData, *, sac_sic: dict[str, tu
         raise ValueError(f"no SAC/SIC for radar(s) {', '.join(missing)}")
     p, a = data.plots, data.adsb
     events = sorted([(float(p.time[i]), 0, i) for i in range(len(p))] + [(float(a.time[i]), 1, i) for i in range(len(a))])
-    with atomic_recording(path, data.radars, sac_sic) as fh:
+    # a progress bar on stderr once writing takes 2 s (off with --quiet): encoding is pure Python
+    bar = progress_bar(total=len(events), desc=f"write {path.name}", unit="record")
+    with atomic_recording(path, data.radars, sac_sic) as fh, bar:
         for cat, group in _runs(events):
             if cat == 0:
                 recs = (cat048_record(p.time[i], *sac_sic[p.radar[i]], p.range_m[i], p.azimuth_rad[i],
-                                      p.altitude_m[i], p.mode_s[i], p.mode_3a[i]) for i in group)
+                                      p.altitude_m[i], p.mode_s[i], p.mode_3a[i]) for i in _ticking(group, bar))
                 fh.writelines(datablocks(CAT048, recs))
             else:
                 recs = (cat021_record(a.time[i], *adsb_sac_sic, a.icao24[i], a.lat[i], a.lon[i],
-                                      a.altitude_m[i], int(a.nacp[i])) for i in group)
+                                      a.altitude_m[i], int(a.nacp[i])) for i in _ticking(group, bar))
                 fh.writelines(datablocks(CAT021, recs))
     return len(events)
+
+
+def _ticking(items: Iterable[int], bar: Any) -> Iterator[int]:
+    """``items``, ``bar`` moved on by each one once it is used."""
+    for item in items:
+        yield item
+        bar.update()
 
 
 @contextmanager

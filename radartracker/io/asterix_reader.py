@@ -31,6 +31,7 @@ from radartracker.io.capture import iter_datablocks
 from radartracker.io.csvblocks import Rows
 from radartracker.io.scenario import read_radars
 from radartracker.io.tables import RADAR_COLUMNS, AdsbTable, PlotTable, ScenarioData
+from radartracker.progress import progress_bar
 
 log = logging.getLogger(__name__)
 
@@ -131,20 +132,25 @@ def _read_reports(path: Path, day_start: float, bad: Counter | None,
     plots: list[dict] = []
     adsb: list[dict] = []
     seen: set[tuple] = set()
-    for clock, where, block in clocked_blocks(path, bad, day_start):
-        try:
-            cat, recs = decode_block(block, where)
-        except InputError as exc:
-            if not skipped["asterix_undecodable_blocks"]:
-                log.warning("skipping blocks that do not decode (counted): %s", exc)
-            skipped["asterix_undecodable_blocks"] += 1
-            continue
-        if cat == 48:
-            plots += _plots(recs, clock, seen, skipped)
-        elif cat == 21:
-            adsb += _adsb(recs, clock, seen, skipped)
-        else:
-            skipped[f"asterix_cat{cat:03d}_blocks"] += 1
+    # bytes of the file: the blocks, then the framing between them (FINAL, pcap) once all are read; the bar
+    # shows on stderr once reading takes 2 s (off with --quiet): decoding is pure Python
+    with progress_bar(total=path.stat().st_size, desc=f"read {path.name}", unit="B", unit_scale=True) as bar:
+        for clock, where, block in clocked_blocks(path, bad, day_start):
+            bar.update(len(block))
+            try:
+                cat, recs = decode_block(block, where)
+            except InputError as exc:
+                if not skipped["asterix_undecodable_blocks"]:
+                    log.warning("skipping blocks that do not decode (counted): %s", exc)
+                skipped["asterix_undecodable_blocks"] += 1
+                continue
+            if cat == 48:
+                plots += _plots(recs, clock, seen, skipped)
+            elif cat == 21:
+                adsb += _adsb(recs, clock, seen, skipped)
+            else:
+                skipped[f"asterix_cat{cat:03d}_blocks"] += 1
+        bar.update(bar.total - bar.n)
     return plots, adsb
 
 

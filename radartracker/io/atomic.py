@@ -248,3 +248,22 @@ def prepare_output_folder(out: Path | str, outputs: Iterable[str], *, overwrite:
     except OSError as exc:
         raise ConfigurationError(f"output folder {out} cannot be written: {exc.strerror or exc}") from exc
     return out
+
+
+@contextmanager
+def removed_if_failed(folder: Path | str) -> Iterator[None]:
+    """``folder``, and those of its parents that do not exist yet, removed again if the block raises and leaves
+    them empty: a command that fails (bad input, a refused option, Ctrl-C) leaves no empty output folder of
+    its own making behind. A folder that existed before stays as it was, with whatever it holds; so does one
+    the block left files in (:func:`prepare_output_folder` and the writers remove what a failed run wrote)."""
+    folder = Path(folder).absolute()
+    new = [p for p in (folder, *folder.parents) if not p.exists()]  # the deepest first
+    try:
+        yield
+    except BaseException:
+        for p in new:
+            try:
+                p.rmdir()  # an empty folder only
+            except OSError:
+                break
+        raise

@@ -36,6 +36,7 @@ import numpy as np
 
 from radartracker.errors import FormatError
 from radartracker.io.atomic import atomic_folder
+from radartracker.io.convert_options import ConvertOptions
 from radartracker.io.limits import BOUNDS, MAX_LINE_BYTES, check_lines, regular_file
 from radartracker.io.recording import ADS_FILE, COLUMNS, MULTI_RADAR, PLOTS_FILE, TRACKS_FILE, format_new4, format_plt
 
@@ -47,17 +48,6 @@ MAX_LISTED_LINES = 10_000  # line numbers of bad lines kept per reason (the coun
 _FLUSH_RECORDS = 100_000
 _READ_BYTES = 1 << 20
 UNIX_TIME_S = BOUNDS["unix_time_s"][:2]
-
-
-@attrs.frozen
-class ConvertOptions:
-    """The seed's parameters (names as in seed 000 §2.6) and the bucket size of the external sort."""
-
-    AZN_TRACKS_MAX: int = attrs.field(default=100, validator=attrs.validators.ge(1))
-    AZN_TRACKS_MIN_MEASUR: int = attrs.field(default=20, validator=attrs.validators.ge(1))
-    TRACKS_MIN_MEASUR: int = attrs.field(default=10, validator=attrs.validators.ge(1))
-    RADAR_SENSOR_ONLY: str | None = None  # None: keep every sensor type
-    bucket_bytes: int = attrs.field(default=32 << 20, validator=attrs.validators.ge(1 << 10))
 
 
 class _Tally:

@@ -28,7 +28,6 @@ from typing import Any, TypeVar
 
 import attrs
 import numpy as np
-from tqdm import tqdm
 
 from radartracker.domain import Aircraft, Radar
 from radartracker.errors import ConfigurationError, FormatError, InputError
@@ -43,6 +42,7 @@ from radartracker.io.rowchecks import PLOT_FIELDS, AdsbReader, PlotReader, _key,
 from radartracker.io.tables import (ADSB_COLUMNS, BIAS_COLUMNS, PLOT_COLUMNS, RADAR_COLUMNS, SCHEMAS, TRUTH_COLUMNS,
                                     AdsbTable, PlotTable, ScenarioData, TruthTable, label_spans)
 from radartracker.clock import ClockConfig
+from radartracker.progress import progress_bar
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -360,8 +360,8 @@ def _write(path: Path, header: tuple[str, ...], rows: Iterable[Iterable[str]]) -
 
 
 def _progress(n: int, name: str) -> Iterable[int]:
-    """range(n) with a progress bar on stderr once writing takes 2 s (off with TQDM_DISABLE / --quiet)."""
-    return tqdm(range(n), desc=f"write {name}", unit="row", delay=2.0, mininterval=1.0, miniters=10_000)
+    """range(n) with a progress bar on stderr once writing takes 2 s (off with --quiet)."""
+    return progress_bar(range(n), desc=f"write {name}", unit="row", miniters=10_000)
 
 
 FORMATS = ("csv", "parquet", "dataset")

@@ -12,7 +12,6 @@ Numbers are validated when the configuration is built: a non-finite or out-of-ra
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -26,31 +25,11 @@ from radartracker.fusion.center import FusionConfig
 from radartracker.io.tables import ScenarioData
 from radartracker.registry import FilterFactory, load_motion_model, make_filter_factory, option_fields
 from radartracker.clock import ClockConfig
+from radartracker.settings import ARCHITECTURES, ASSOCIATIONS, DEFAULT_Q, check_number
 from radartracker.tracking.config import ManagerConfig
 
 CONFIG_FORMAT = "radartracker-run-config"
 CONFIG_VERSION = 2
-DEFAULT_Q = 5.0  # m²/s³: real aircraft turn; with the seed's q = 0 a manoeuvre is explained away as bias
-ASSOCIATIONS = ("auto", "labels", "manager")
-ARCHITECTURES = ("central", "distributed")
-
-
-def check_number(option: str, value: Any, *, lo: float | None = None, lo_open: bool = False,
-                 hi: float | None = None, integer: bool = False) -> float | int:
-    """``value`` as a finite number within bounds, or a ConfigurationError naming ``option``."""
-    try:
-        number = float(value)
-    except (TypeError, ValueError, OverflowError):
-        raise ConfigurationError(f"{option}: {value!r} is not a number") from None
-    if not math.isfinite(number):
-        raise ConfigurationError(f"{option}: {value!r} is not finite")
-    if integer and number != int(number):
-        raise ConfigurationError(f"{option}: {value!r} is not an integer")
-    if lo is not None and (number <= lo if lo_open else number < lo):
-        raise ConfigurationError(f"{option}: {value!r} must be {'>' if lo_open else '>='} {lo}")
-    if hi is not None and number > hi:
-        raise ConfigurationError(f"{option}: {value!r} must be <= {hi}")
-    return int(number) if integer else number
 
 
 def _str_dict(value: Mapping[str, Any] | None) -> dict[str, str]:

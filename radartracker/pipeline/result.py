@@ -10,7 +10,8 @@ tracks, GOSPA; :func:`radartracker.pipeline.evaluate.track_metrics`), and a cons
 
 Consecutive estimates of one aircraft are strongly correlated, so a χ² bound on the mean would be
 far too tight; a mean more than :data:`CONSISTENCY_FACTOR` times off its expectation (either way)
-gives a warning in the log and in ``summary.json``.
+gives a warning in the log and in ``summary.json`` (once: :meth:`RunResult.summary_table` shows the values,
+not the warnings again), saying what it means and what to change (:func:`consistency_warning`).
 """
 
 from __future__ import annotations
@@ -53,6 +54,32 @@ def mean_chi2_band(dof: int, n: int, level: float = 0.95) -> list[float] | None:
 
     lo, hi = chi2.ppf([(1 - level) / 2, (1 + level) / 2], dof * n) / n
     return [float(lo), float(hi)]
+
+
+# what each mean is of, and whose innovations or errors it weighs
+_CONSISTENCY = {"nees": ("NEES", "the track estimates' errors", ""),
+                "nis": ("NIS of the estimator", "the estimator's innovations", " or the radars' σ in radars.csv"),
+                "track_nis": ("NIS of the track filters", "the track filters' innovations",
+                              " or the radars' σ in radars.csv")}
+
+
+def consistency_warning(what: str, value: float, dof: float, q: float) -> str:
+    """What a mean NEES (``what`` "nees": the track estimates against the truth) or NIS ("nis": the
+    estimator's innovations, "track_nis": the track filters') of ``value`` against its expectation ``dof``
+    means, and what to change: the errors are √(value / dof) times the σ the filter states. Too large: its
+    covariance is too small (overconfident), the process noise q (m²/s³) too small for how the aircraft move
+    (a NIS: or the radars' σ too small); too small: the other way round (docs/user-guide.md, "When a run
+    warns")."""
+    name, errors, sigmas = _CONSISTENCY[what]
+    if value > dof:
+        meaning = (f"the filter is overconfident: q = {q:g} m²/s³{sigmas} too small for how these aircraft move; "
+                   "raise --q")
+    else:
+        meaning = f"the filter is too cautious: q = {q:g} m²/s³{sigmas} larger than these aircraft need; lower --q"
+    return (f"mean {name} {value:.2f} against {dof:.0f} expected: {errors} are {math.sqrt(value / dof):.1f} times "
+            f"the σ the filter states ({meaning}; docs/user-guide.md, 'When a run warns')")
+
+
 GRACE_S = 20.0  # a target counts as observed this long after its first plot (M-of-N confirmation)
 
 
@@ -221,10 +248,7 @@ class RunResult:
         for what, dof in (("nees", 4.0), ("nis", 2.0), ("track_nis", 2.0)):
             value = out[f"mean_{what}"]
             if math.isfinite(value) and not dof / CONSISTENCY_FACTOR <= value <= dof * CONSISTENCY_FACTOR:
-                name = {"nees": "NEES", "nis": "NIS of the estimator", "track_nis": "NIS of the track filters"}[what]
-                out["warnings"].append(
-                    f"mean {name} {value:.2f} against {dof:.0f} expected: the "
-                    f"{'filter is optimistic (covariance too small; raise q?)' if value > dof else 'filter is pessimistic'}")
+                out["warnings"].append(consistency_warning(what, value, dof, self.config.q))
         return out
 
     def bias_entry(self, rid: str) -> dict:
@@ -293,7 +317,6 @@ class RunResult:
         if cons["mean_track_nis"] is not None:
             lines.append(f"track filters' mean NIS {cons['mean_track_nis']:.2f} (2 expected) over "
                          f"{self.track_nis['count']} accepted measurements")
-        lines += [f"warning: {w}" for w in cons["warnings"]]
         c = s["counts"]
         lines.append(f"{c.get('plots_used', 0)} plots and {c.get('adsb_used', 0)} ADS-B reports used in "
                      f"{s['seconds']:.2f} s; not used: "

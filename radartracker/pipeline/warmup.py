@@ -5,24 +5,25 @@ after installing (or upgrading) compiles, for some seconds, and later runs load 
 of a second. Without a warm-up, that first run stalls inside its first measurements, with the progress
 bar showing an ETA of hours. :func:`warm_up` runs a tiny built-in traffic scenario through the same
 path as the run that follows (association, estimator, motion model and their options) so that every
-kernel is compiled or loaded before the real inputs, and the service before it listens.
+kernel is compiled or loaded before the real inputs, and the service before it listens; when it
+compiles, it says so (:func:`radartracker.compiled.compile_notice`). :func:`before_progress_bar` says
+when a run with a progress bar needs one.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import sys
-import threading
 import time
 
 import numpy as np
 
+from radartracker.compiled import cache_is_cold, compile_notice
 from radartracker.errors import RadarTrackerError
 from radartracker.pipeline.config import RunConfig
 
 log = logging.getLogger(__name__)
-
-NOTICE_AFTER_S = 3.0  # say what is happening when the warm-up takes longer than loading a warm disk cache does
 
 
 def warm_up(config: RunConfig, *, labelled: bool = False, notice: bool = True) -> float:
@@ -30,20 +31,29 @@ def warm_up(config: RunConfig, *, labelled: bool = False, notice: bool = True) -
     dropped) through ``config`` (with truth labels when the run's data has them: ``labelled``, so that
     ``auto`` chooses the same association), then end an aircraft in a fresh estimator of the run's
     plugin (its marginalisation); returns the CPU seconds it took. With ``notice``, a line on stderr
-    says that the kernels are being compiled when that takes more than :data:`NOTICE_AFTER_S`."""
+    says that the kernels are being compiled, when numba's disk cache lacks them, and one more how long
+    that took."""
     started = time.process_time()
-    timer = threading.Timer(NOTICE_AFTER_S, lambda: print(
-        "compiling the numba kernels (once after installing; later runs load them from the disk cache)...",
-        file=sys.stderr, flush=True))
-    if notice:
-        timer.start()
-    try:
-        _exercise(config, labelled)
-    except RadarTrackerError as exc:  # a setting this tiny scenario cannot take: the run itself will say so
-        log.debug("warm-up skipped: %s", exc)
-    finally:
-        timer.cancel()
+    with compile_notice() if notice else contextlib.nullcontext():
+        try:
+            _exercise(config, labelled)
+        except RadarTrackerError as exc:  # a setting this tiny scenario cannot take: the run itself will say so
+            log.debug("warm-up skipped: %s", exc)
     return time.process_time() - started
+
+
+def before_progress_bar() -> bool:
+    """Whether a run that shows a progress bar warms up first: on a terminal always (from a warm cache that
+    takes under a second, and the bar's rate is the run's from its first input); elsewhere (a notebook, a
+    log) when numba's disk cache is cold, so that the compiling is said and kept out of the bar's rate
+    instead of stalling it at its first inputs with an ETA of hours. Cold is told by the kernels of the
+    TrackManager's coverage and of the estimators' screening, which no step before the run (reading the
+    inputs, loading the plugins) compiles: none is cached after a fresh install, an upgrade or an emptied
+    cache."""
+    from radartracker.estimation import screening
+    from radartracker.tracking import coverage
+
+    return sys.stderr.isatty() or cache_is_cold(coverage, screening)
 
 
 def _exercise(config: RunConfig, labelled: bool) -> None:

@@ -34,7 +34,7 @@ import numpy as np
 
 from radartracker.domain import Radar
 from radartracker.errors import ConfigurationError
-from radartracker.pipeline.config import check_number
+from radartracker.settings import check_number
 from radartracker.registry import make_estimator
 from radartracker.service.checkpoints import checkpoints, resume, write_checkpoint, write_json_atomic
 from radartracker.service.decoder import DayClock, Decoder, ReceiveClock

@@ -8,7 +8,7 @@ import textwrap
 import pytest
 
 from radartracker.cli import _parser, build_parser, main
-from radartracker.registry import path_state
+from radartracker.entrypoints import path_state
 
 COMMAND = '''
 CALLS = []
