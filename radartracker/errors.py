@@ -17,12 +17,19 @@ class InputError(RadarTrackerError, ValueError):
     """Input that cannot be used: a file, a record or a value handed to the API."""
 
 
+class TableName(str):
+    """The name of a table whose records are rows, not lines of text (a Parquet file, a DataFrame): a
+    :class:`FormatError` naming it counts its rows from 1 and says ``row 7`` where a text file's says ``line 7``."""
+
+
 class FormatError(InputError):
     """A row or record of an input file that cannot be used: says file, line, field and why
-    (``line`` None where lines mean nothing, as in a JSON document: the field path says where)."""
+    (``line`` None where lines mean nothing, as in a JSON document: the field path says where; the row of a
+    :class:`TableName`)."""
 
     def __init__(self, file: str, line: int | None, field: str | None, message: str, reason: str = "malformed"):
-        where = file + (f" line {line}" if line is not None else "") + (f", field '{field}'" if field else "")
+        unit = "row" if isinstance(file, TableName) else "line"
+        where = file + (f" {unit} {line}" if line is not None else "") + (f", field '{field}'" if field else "")
         super().__init__(f"{where}: {message}")
         self.file, self.line, self.field, self.reason, self.message = file, line, field, reason, message
 

@@ -143,6 +143,9 @@ def register_simulate(sub: argparse._SubParsersAction) -> None:
                    help="built-in scenario (default: seed); 'traffic': national traffic of any size")
     p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     p.add_argument("--duration", type=float, default=None, help="seconds to simulate")
+    p.add_argument("--format", choices=("csv", "parquet", "dataset"), default="csv",
+                   help="CSV files (default), a Parquet file per table, or Parquet with plots and ADS-B reports as "
+                        "datasets partitioned by hour and radar (docs/formats.md)")
     traffic = p.add_argument_group("traffic scenario (radartracker.simulation.traffic)")
     traffic.add_argument("--aircraft", type=int, help="mean number of airborne aircraft (default 200)")
     traffic.add_argument("--radars", type=int, help="number of radars on a 200 km grid (default 28)")
@@ -195,7 +198,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if len(data.plots) == 0:  # nothing useful: say so instead of writing a scenario no command can read
         raise ConfigurationError(f"the simulation produced no plots (--duration {args.duration} s is shorter than "
                                  "a radar scan?); nothing written")
-    write_scenario(args.out, data)
+    write_scenario(args.out, data, format=args.format)
     print(f"wrote {args.out}: {len(data.radars)} radars, {len(data.plots)} plots, "
           f"{len(data.adsb)} ADS-B reports")
     return 0

@@ -101,6 +101,8 @@ def register_replay(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--estimator", default=None, help="estimator plugin (default: the best installed, coupled-sparse)")
     add_run_options(p)
     p.add_argument("--plots", action="store_true", help="also write figures (biases.png, tracks.png)")
+    p.add_argument("--format", choices=("csv", "parquet"), default="csv",
+                   help="the tables tracks, events and biases as CSV (default) or Parquet files (docs/formats.md)")
     p.set_defaults(func=_cmd_replay)
 
 
@@ -148,9 +150,9 @@ def _replay(args: argparse.Namespace, config: RunConfig, out: Path) -> RunResult
         warm_up(config, labelled=data.plots.has_truth_labels if data is not None
                 else not streamable(args.scenario, config) and config.association != "manager")
     if data is None:  # a scenario folder: streamed when it can be (pipeline.run.replay_folder)
-        return replay_folder(args.scenario, config, out, progress=progress)
+        return replay_folder(args.scenario, config, out, progress=progress, table_format=args.format)
     result = run(data, config, progress=progress, local_tracks=local)
-    write_outputs(result, out, figures=args.plots)
+    write_outputs(result, out, figures=args.plots, table_format=args.format)
     return result
 
 

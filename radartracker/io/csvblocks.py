@@ -20,6 +20,7 @@ import math
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -98,6 +99,17 @@ class Skipper:
         self.counts[key] += 1
 
 
+@runtime_checkable
+class TextTable(Protocol):
+    """A table given as CSV text instead of a file (a Parquet file or a DataFrame rendered by pyarrow:
+    :mod:`radartracker.io.arrowsource`): its ``name`` for messages and ``chunks()``, the UTF-8 bytes of whole
+    lines, header first. The header is line 0, so that a row's line number is its row number."""
+
+    name: str
+
+    def chunks(self) -> Iterator[bytes]: ...
+
+
 class Rows:
     """Iterate a CSV file's rows with line numbers; parse fields with errors naming the place.
 
@@ -106,24 +118,29 @@ class Rows:
     ``for line, row in rows`` gives each row as a dict; :meth:`blocks` gives them block by block.
     """
 
-    def __init__(self, path: Path, required: tuple[str, ...], skip: Skipper | None = None, *,
+    def __init__(self, path: Path | TextTable, required: tuple[str, ...], skip: Skipper | None = None, *,
                  block_bytes: int = BLOCK_BYTES):
-        self.path, self.name = path, path.name
         self.skip = skip if skip is not None else Skipper(False)
         self.block_bytes = block_bytes
-        count, ends = _survey(path, block_bytes)
-        # a last line without its newline may have been cut short: its errors say so
-        self.cut_line = None if ends else count + 1
-        self._raw = self._read_blocks()
-        first = next(self._raw, (1, ""))[1]
+        if isinstance(path, TextTable):  # rendered by a library from a table: whole lines, valid UTF-8
+            self.path, self.name, self.cut_line = None, path.name, None
+            self._raw = self._read_blocks(path.chunks(), 0)
+        else:
+            self.path = Path(path)
+            self.name = self.path.name
+            count, ends = _survey(self.path, block_bytes)
+            # a last line without its newline may have been cut short: its errors say so
+            self.cut_line = None if ends else count + 1
+            self._raw = self._read_blocks(self._file_chunks(), 1)
+        start, first = next(self._raw, (1, ""))
         if _plain(first):
             head, _, rest = first.partition("\n")
             header = head.split(",")
-            self._pending: tuple[int, str] | None = (2, rest) if rest else None
+            self._pending: tuple[int, str] | None = (start + 1, rest) if rest else None
             self._reader = None
         else:  # csv.reader from the first line on
             self._pending = None
-            self._reader, self._base = csv.reader(self._lines(first)), 0
+            self._reader, self._base = csv.reader(self._lines(first)), start - 1
             try:
                 header = next(self._reader, None)
             except csv.Error as exc:
@@ -140,21 +157,23 @@ class Rows:
         self.header = header
         self.optional = set(header)
 
-    def _read_blocks(self) -> Iterator[tuple[int, str]]:
-        """(line number of the block's first line, text of whole lines); the last block may lack its newline."""
-        line, tail = 1, b""
+    def _file_chunks(self) -> Iterator[bytes]:
         with self.path.open("rb") as f:
-            while True:
-                data = f.read(self.block_bytes)
-                buf = tail + data
-                cut = len(buf) if not data else buf.rfind(b"\n") + 1
-                if cut:
-                    text = buf[:cut].decode("utf-8-sig" if line == 1 else "utf-8")
-                    yield line, text
-                    line += newlines(memoryview(buf)[:cut])
-                tail = buf[cut:]
-                if not data:
-                    return
+            yield from iter(lambda: f.read(self.block_bytes), b"")
+
+    @staticmethod
+    def _read_blocks(chunks: Iterable[bytes], line: int) -> Iterator[tuple[int, str]]:
+        """(line number of the block's first line, text of whole lines) of the bytes ``chunks``, the first line
+        numbered ``line``; the last block may lack its newline."""
+        first, tail = line, b""
+        for data in itertools.chain(chunks, [b""]):
+            buf = tail + data
+            cut = len(buf) if not data else buf.rfind(b"\n") + 1
+            if cut:
+                text = buf[:cut].decode("utf-8-sig" if line == first else "utf-8")
+                yield line, text
+                line += newlines(memoryview(buf)[:cut])
+            tail = buf[cut:]
 
     def _lines(self, first: str) -> Iterator[str]:
         """The text's lines as ``io.StringIO(text, newline="")`` splits them, from ``first`` to the end."""

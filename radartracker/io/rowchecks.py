@@ -99,7 +99,7 @@ class PlotReader:
                 t = rows.number(row, line, "time")
                 rid = rows.text(row, "radar")
                 if rid not in self.radar_ids:
-                    raise FormatError(rows.name, line, "radar", f"unknown radar {rid!r} (radars.csv has "
+                    raise FormatError(rows.name, line, "radar", f"unknown radar {rid!r} (the radars table has "
                                       f"{sorted(self.radar_ids)})", "unknown_radar")
                 if not self._in_order(line, row, t, rid):
                     continue

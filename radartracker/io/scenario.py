@@ -2,12 +2,15 @@
 
 A scenario folder holds ``radars.csv``, ``plots.csv`` and optionally ``adsb.csv``, ``truth.csv``,
 ``truth_biases.csv`` and ``scenario.json`` (reference point, name). Degrees at the edge, SI inside.
+Each table may be a Parquet file instead (``plots.parquet``), plots and ADS-B reports also a partitioned
+Parquet dataset (``plots/``): :mod:`radartracker.io.tablefiles` finds a table and hands its rows to the
+readers here whatever its format.
 
 Reading validates every row. A malformed row raises :class:`FormatError` naming file, line and
 field; with ``skip_bad=True`` it is skipped instead and counted under its reason in
 ``ScenarioData.skipped`` (the replay reports those counts in ``summary.json``).
 
-``plots.csv`` and ``adsb.csv`` are read block by block (:mod:`radartracker.io.csvblocks`), each plain
+The plots and ADS-B tables are read block by block (:mod:`radartracker.io.csvblocks`), each plain
 block converted column by column (:mod:`radartracker.io.columnar`) and any other row by row, with the
 same checks and the same results. :func:`read_scenario` gathers the blocks; :func:`open_scenario`
 hands them on one at a time (the streaming replay), so that only one block is in memory.
@@ -19,34 +22,37 @@ import csv
 import json
 import logging
 import math
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import attrs
 import numpy as np
 
 from radartracker.domain import Aircraft, Radar
-from radartracker.errors import FormatError, InputError
+from radartracker.errors import ConfigurationError, FormatError, InputError
+from radartracker.io.arrowwrite import write_tables
 from radartracker.io import columnar
 from radartracker.io.atomic import atomic_folder
-from radartracker.io.csvblocks import BLOCK_BYTES, Rows, Skipper, newlines
+from radartracker.io.csvblocks import BLOCK_BYTES, Rows, Skipper
+from radartracker.io.datasets import dataset_blocks
 from radartracker.io.limits import read_json, regular_file
-from radartracker.io.rowchecks import (PLOT_FIELDS, AdsbReader, PlotReader, _key, _physical, _range,  # noqa: F401
-                                       first_times)
-from radartracker.io.tables import (ADSB_COLUMNS, BIAS_COLUMNS, PLOT_COLUMNS, RADAR_COLUMNS, TRUTH_COLUMNS, AdsbTable,
-                                    PlotTable, ScenarioData, TruthTable, label_spans)
+from radartracker.io.tablefiles import Table, as_source, data_rows, find_table, first_times, open_rows, table_files
+from radartracker.io.rowchecks import PLOT_FIELDS, AdsbReader, PlotReader, _key, _physical, _range
+from radartracker.io.tables import (ADSB_COLUMNS, BIAS_COLUMNS, PLOT_COLUMNS, RADAR_COLUMNS, SCHEMAS, TRUTH_COLUMNS,
+                                    AdsbTable, PlotTable, ScenarioData, TruthTable, label_spans)
 from radartracker.clock import ClockConfig
 from radartracker.progress import progress_bar
 
 log = logging.getLogger(__name__)
+T = TypeVar("T")
 
 
 # --- reading ----------------------------------------------------------------------------------
 
 
-def read_radars(path: Path) -> list[Radar]:
-    rows = Rows(path, RADAR_COLUMNS)
+def read_radars(path: Table) -> list[Radar]:
+    rows = open_rows(as_source(path), "radars")
     radars: dict[str, tuple[Radar, int]] = {}
     for line, row in rows:
         rid = rows.text(row, "radar")
@@ -69,25 +75,46 @@ def read_radars(path: Path) -> list[Radar]:
     return [r for r, _ in radars.values()]
 
 
-def plot_blocks(path: Path, radar_ids: set[str], skip: Skipper, *, block_bytes: int = BLOCK_BYTES,
+def _each_file(path: Table, read: Callable[[Table, int], Iterator[T]]) -> Iterator[T]:
+    """``read(table, 1)`` of the table, or ``read(file, n)`` of each file of a dataset folder (n of them read
+    together), merged in time order (:func:`radartracker.io.datasets.dataset_blocks`; the files named below the
+    scenario folder)."""
+    if isinstance(path, Path) and path.is_dir():
+        return dataset_blocks(path, path.parent, read)
+    return read(as_source(path), 1)
+
+
+def plot_blocks(path: Table, radar_ids: set[str], skip: Skipper, *, block_bytes: int = BLOCK_BYTES,
                 fast: bool = True) -> Iterator[PlotTable]:
-    """``plots.csv`` as tables of the rows kept, block by block, in file order (``fast``: plain blocks
-    column by column). A file without a usable row is an error (nothing to track)."""
-    rows = Rows(path, PLOT_COLUMNS, skip, block_bytes=block_bytes)
-    reader = PlotReader(rows, radar_ids, first_times(path, ClockConfig().window))
-    yield from _tables(rows, reader, columnar.plots if fast else None)
-    reader.finish()  # rows still held at the end of the file never stepped the clock: refused
-    if not reader.kept:
-        bad = sum(n for k, n in skip.counts.items() if k.startswith(f"{rows.name}:"))
-        raise FormatError(rows.name, None, None, "no usable plot rows" + (f" ({bad} skipped)" if bad else
+    """The plots table (a file, a dataset folder or an Arrow source) as tables of the rows kept, block by block,
+    in file order (``fast``: plain blocks column by column). A table without a usable row is an error (nothing
+    to track)."""
+    kept = 0
+    for table in _each_file(path, lambda t, n: _plot_file(t, radar_ids, skip, block_bytes // n, fast)):
+        kept += len(table)
+        yield table
+    if not kept:
+        name = path.name + ("/" if isinstance(path, Path) and path.is_dir() else "")
+        bad = sum(n for k, n in skip.counts.items() if k.startswith(name if name.endswith("/") else f"{name}:"))
+        raise FormatError(name, None, None, "no usable plot rows" + (f" ({bad} skipped)" if bad else
                           " after the header") + ": nothing to track", "empty")
 
 
-def adsb_blocks(path: Path, skip: Skipper, *, block_bytes: int = BLOCK_BYTES, fast: bool = True,
+def _plot_file(table: Table, radar_ids: set[str], skip: Skipper, block_bytes: int, fast: bool) -> Iterator[PlotTable]:
+    rows = open_rows(table, "plots", skip, block_bytes=block_bytes)
+    reader = PlotReader(rows, radar_ids, first_times(table, ClockConfig().window))
+    yield from _tables(rows, reader, columnar.plots if fast else None)
+    reader.finish()  # rows still held at the end of the file never stepped the clock: refused
+
+
+def adsb_blocks(path: Table, skip: Skipper, *, block_bytes: int = BLOCK_BYTES, fast: bool = True,
                 latest_only: bool = False) -> Iterator[AdsbTable]:
-    """``adsb.csv`` as tables of the rows kept, block by block, in file order (see :class:`AdsbReader`)."""
-    rows = Rows(path, ADSB_COLUMNS, skip, block_bytes=block_bytes)
-    yield from _tables(rows, AdsbReader(rows, latest_only=latest_only), columnar.adsb if fast else None)
+    """The ADS-B table as tables of the rows kept, block by block, in file order (see :class:`AdsbReader`)."""
+    def read(table: Table, n: int) -> Iterator[AdsbTable]:
+        rows = open_rows(table, "adsb", skip, block_bytes=block_bytes // n)
+        yield from _tables(rows, AdsbReader(rows, latest_only=latest_only), columnar.adsb if fast else None)
+
+    return _each_file(path, read)
 
 
 def _tables(rows: Rows, reader, columns) -> Iterator:
@@ -106,17 +133,17 @@ def _concat(cls, tables: list, names: Iterable[str]):
     return cls(**{k: np.concatenate([getattr(t, k) for t in tables]) for k in names})
 
 
-def read_plots(path: Path, radar_ids: set[str], skip: Skipper, **kw: Any) -> PlotTable:
+def read_plots(path: Table, radar_ids: set[str], skip: Skipper, **kw: Any) -> PlotTable:
     return _concat(PlotTable, list(plot_blocks(path, radar_ids, skip, **kw)), PLOT_FIELDS)
 
 
-def read_adsb(path: Path, skip: Skipper, **kw: Any) -> AdsbTable:
+def read_adsb(path: Table, skip: Skipper, **kw: Any) -> AdsbTable:
     tables = list(adsb_blocks(path, skip, **kw)) or [AdsbTable.from_columns(**{k: [] for k in ADSB_COLUMNS})]
     return _concat(AdsbTable, tables, ADSB_COLUMNS)
 
 
-def read_truth(path: Path, skip: Skipper) -> TruthTable:
-    rows = Rows(path, TRUTH_COLUMNS)
+def read_truth(path: Table, skip: Skipper) -> TruthTable:
+    rows = open_rows(as_source(path), "truth")
     cols: dict[str, list] = {k: [] for k in TRUTH_COLUMNS}
     seen: set = set()
     for line, row in rows:
@@ -132,8 +159,8 @@ def read_truth(path: Path, skip: Skipper) -> TruthTable:
     return TruthTable.from_columns(**cols)
 
 
-def read_truth_biases(path: Path, radar_ids: set[str]) -> dict[str, tuple[float, float]]:
-    rows = Rows(path, BIAS_COLUMNS)
+def read_truth_biases(path: Table, radar_ids: set[str]) -> dict[str, tuple[float, float]]:
+    rows = open_rows(as_source(path), "truth_biases")
     out: dict[str, tuple[float, float]] = {}
     first: dict[str, int] = {}
     for line, row in rows:
@@ -188,18 +215,17 @@ def read_meta(path: Path) -> dict[str, Any]:
     return out
 
 
-SCENARIO_FILES = ("scenario.json", "radars.csv", "plots.csv", "adsb.csv", "truth.csv", "truth_biases.csv")
-
-
 def check_regular_files(folder: Path | str) -> None:
     """Refuse a scenario folder whose files are not regular files (a ``plots.csv`` linked to ``/dev/zero``
     has no end): an InputError naming the file, before anything reads it."""
-    for name in SCENARIO_FILES:
-        if (Path(folder) / name).exists():
-            regular_file(Path(folder) / name)
+    for path in (Path(folder) / "scenario.json", *table_files(Path(folder))):
+        if path.exists():
+            regular_file(path)
 
 
-def _meta(folder: Path) -> tuple[dict[str, Any], list[Radar]]:
+def _meta(folder: Path) -> tuple[dict[str, Any], dict[str, Table | None]]:
+    """``scenario.json``'s contents and the folder's tables (:func:`find_table`; radars and plots as their CSV
+    names where absent, for the reader to name)."""
     if folder.is_file():  # e.g. `replay plots.csv`: name what a scenario is rather than "does not exist"
         raise InputError(f"{folder} is a file, not a scenario folder (docs/formats.md; an ASTERIX recording "
                          f"ends in .ast, .pcap, .ff or .final)")
@@ -207,19 +233,22 @@ def _meta(folder: Path) -> tuple[dict[str, Any], list[Radar]]:
         raise FileNotFoundError(f"scenario folder {folder} does not exist")
     check_regular_files(folder)
     meta = read_meta(folder / "scenario.json") if (folder / "scenario.json").exists() else {}
-    return meta, read_radars(folder / "radars.csv")
+    tables: dict[str, Table | None] = {name: find_table(folder, name) for name in SCHEMAS}
+    for name in ("radars", "plots"):
+        tables[name] = tables[name] or folder / f"{name}.csv"
+    return meta, tables
 
 
-def _scenario(folder: Path, meta: dict, radars: list[Radar], plots: PlotTable, adsb: AdsbTable,
-              skips: dict[str, Skipper]) -> ScenarioData:
+def _scenario(tables: dict[str, Table | None], meta: dict, radars: list[Radar], plots: PlotTable, adsb: AdsbTable,
+              skips: dict[str, Skipper], name: str) -> ScenarioData:
     ids = {r.id for r in radars}
-    truth = read_truth(folder / "truth.csv", skips["truth"]) if (folder / "truth.csv").exists() else None
-    tb = read_truth_biases(folder / "truth_biases.csv", ids) if (folder / "truth_biases.csv").exists() else None
+    truth = read_truth(tables["truth"], skips["truth"]) if tables.get("truth") is not None else None
+    tb = read_truth_biases(tables["truth_biases"], ids) if tables.get("truth_biases") is not None else None
     # documented default reference: the centroid of the radar sites
     reference = meta.get("reference") or (float(np.mean([r.lat for r in radars])),
                                            float(np.mean([r.lon for r in radars])))
     return ScenarioData(reference=reference, radars=radars, plots=plots, adsb=adsb, truth=truth,
-                        truth_biases=tb, aircraft=meta.get("aircraft", []), name=meta.get("name", folder.name),
+                        truth_biases=tb, aircraft=meta.get("aircraft", []), name=meta.get("name", name),
                         skipped=_skipped(skips))
 
 
@@ -241,16 +270,25 @@ def read_scenario(folder: Path | str, *, skip_bad: bool = False, block_bytes: in
     """Read and validate a scenario folder (see docs/formats.md).
 
     Exact duplicate rows of plots, ADS-B and truth are used once and counted under
-    ``<file>:duplicate_row``; a ``plots.csv`` without a usable row is an error (nothing to track).
+    ``<file>:duplicate_row``; a plots table without a usable row is an error (nothing to track).
     ``fast=False`` reads every row one by one (the reference the columnar reading is held to).
     """
     folder = Path(folder)
-    meta, radars = _meta(folder)
+    meta, tables = _meta(folder)
+    return read_tables(tables, meta, folder.name, skip_bad=skip_bad, block_bytes=block_bytes, fast=fast)
+
+
+def read_tables(tables: dict[str, Table | None], meta: dict[str, Any], name: str, *, skip_bad: bool = False,
+                block_bytes: int = BLOCK_BYTES, fast: bool = True) -> ScenarioData:
+    """A scenario from its tables (a key of :data:`~radartracker.io.tables.SCHEMAS` each: a file, a dataset
+    folder or an Arrow source; radars and plots required, the others ``None`` or absent) and ``meta`` (what
+    :func:`read_meta` gives); ``name`` where ``meta`` has none."""
+    radars = read_radars(tables["radars"])
     skips = _skippers(skip_bad)
     kw = {"block_bytes": block_bytes, "fast": fast}
-    plots = read_plots(folder / "plots.csv", {r.id for r in radars}, skips["plots"], **kw)
-    adsb = read_adsb(folder / "adsb.csv", skips["adsb"], **kw) if (folder / "adsb.csv").exists() else _no_adsb()
-    return _scenario(folder, meta, radars, plots, adsb, skips)
+    plots = read_plots(tables["plots"], {r.id for r in radars}, skips["plots"], **kw)
+    adsb = read_adsb(tables["adsb"], skips["adsb"], **kw) if tables.get("adsb") is not None else _no_adsb()
+    return _scenario(tables, meta, radars, plots, adsb, skips, name)
 
 
 @attrs.define
@@ -258,10 +296,10 @@ class ScenarioFiles:
     """A scenario folder opened for streaming: ``data`` holds everything but the plots and ADS-B reports
     (its tables are empty; ``data.skipped`` is complete once both streams are read), which
     :meth:`plot_blocks` and :meth:`adsb_blocks` read block by block in file order. ADS-B duplicates are
-    looked for at the latest time only (:class:`AdsbReader`): the streaming replay needs each file in
-    time order and checks it. ``rows`` is the number of data lines of both files (for progress)."""
+    looked for at the latest time only (:class:`AdsbReader`): the streaming replay needs each table in
+    time order and checks it. ``rows`` is the number of data rows of both tables (for progress)."""
 
-    folder: Path
+    tables: dict[str, Table | None]
     data: ScenarioData
     skips: dict[str, Skipper]
     block_bytes: int = BLOCK_BYTES
@@ -270,9 +308,9 @@ class ScenarioFiles:
     label_spans: dict[str, tuple[float, float]] = attrs.field(factory=dict)
 
     def plot_blocks(self) -> Iterator[PlotTable]:
-        """``plots.csv``'s blocks; with truth, the first and last time of each label are kept
+        """The plots' blocks; with truth, the first and last time of each label are kept
         (:attr:`label_spans`, what the evaluation needs of the plots)."""
-        for table in plot_blocks(self.folder / "plots.csv", {r.id for r in self.data.radars}, self.skips["plots"],
+        for table in plot_blocks(self.tables["plots"], {r.id for r in self.data.radars}, self.skips["plots"],
                                  block_bytes=self.block_bytes, fast=self.fast):
             if self.data.truth is not None:
                 self.label_spans = label_spans(table.time, table.target, self.label_spans)
@@ -280,8 +318,8 @@ class ScenarioFiles:
         self.data.skipped = _skipped(self.skips)
 
     def adsb_blocks(self) -> Iterator[AdsbTable]:
-        if (self.folder / "adsb.csv").exists():
-            yield from adsb_blocks(self.folder / "adsb.csv", self.skips["adsb"], block_bytes=self.block_bytes,
+        if self.tables["adsb"] is not None:
+            yield from adsb_blocks(self.tables["adsb"], self.skips["adsb"], block_bytes=self.block_bytes,
                                    fast=self.fast, latest_only=True)
         self.data.skipped = _skipped(self.skips)
 
@@ -291,18 +329,13 @@ def open_scenario(folder: Path | str, *, skip_bad: bool = False, block_bytes: in
     """A scenario folder for streaming (:class:`ScenarioFiles`): ``scenario.json``, radars, truth and true
     biases read and checked now; plots and ADS-B reports when their blocks are asked for."""
     folder = Path(folder)
-    meta, radars = _meta(folder)
+    meta, tables = _meta(folder)
+    radars = read_radars(tables["radars"])
     skips = _skippers(skip_bad)
-    data = _scenario(folder, meta, radars, PlotTable.from_columns(**{k: [] for k in PLOT_FIELDS}), _no_adsb(), skips)
-    rows = sum(_data_lines(folder / f) for f in ("plots.csv", "adsb.csv"))
-    return ScenarioFiles(folder, data, skips, block_bytes, fast, rows)
-
-
-def _data_lines(path: Path) -> int:
-    if not path.exists():
-        return 0
-    with regular_file(path).open("rb") as f:
-        return max(sum(map(newlines, iter(lambda: f.read(BLOCK_BYTES), b""))) - 1, 0)
+    data = _scenario(tables, meta, radars, PlotTable.from_columns(**{k: [] for k in PLOT_FIELDS}), _no_adsb(), skips,
+                     folder.name)
+    rows = sum(data_rows(tables[name]) for name in ("plots", "adsb"))
+    return ScenarioFiles(tables, data, skips, block_bytes, fast, rows)
 
 
 # --- writing ----------------------------------------------------------------------------------
@@ -331,13 +364,24 @@ def _progress(n: int, name: str) -> Iterable[int]:
     return progress_bar(range(n), desc=f"write {name}", unit="row", miniters=10_000)
 
 
-def write_scenario(folder: Path | str, data: ScenarioData) -> None:
-    """Write ``data`` as a scenario folder (the folder must not exist); it appears complete or not at all."""
+FORMATS = ("csv", "parquet", "dataset")
+
+
+def write_scenario(folder: Path | str, data: ScenarioData, *, format: str = "csv") -> None:
+    """Write ``data`` as a scenario folder (the folder must not exist); it appears complete or not at all.
+    ``format``: ``csv`` (the CSV files), ``parquet`` (a Parquet file per table) or ``dataset`` (Parquet, with
+    plots and ADS-B reports as datasets partitioned by hour and radar: :mod:`radartracker.io.arrowwrite`)."""
+    if format not in FORMATS:
+        raise ConfigurationError(f"format {format!r}: one of {', '.join(FORMATS)}")
     with atomic_folder(folder) as tmp:
-        _write_scenario_files(tmp, data)
+        if format == "csv":
+            _write_csv_files(tmp, data)
+        else:
+            write_tables(tmp, data, partitioned=format == "dataset")
+        _write_meta(tmp, data)
 
 
-def _write_scenario_files(folder: Path, data: ScenarioData) -> None:
+def _write_csv_files(folder: Path, data: ScenarioData) -> None:
     _write(folder / "radars.csv", RADAR_COLUMNS, (
         (r.id, f"{r.lat:.8f}", f"{r.lon:.8f}", f"{r.height_m:.2f}", f"{r.sigma_range_m:g}",
          f"{math.degrees(r.sigma_azimuth_rad):.6g}", f"{r.period_s:g}", f"{r.max_range_m:g}") for r in data.radars))
@@ -359,6 +403,9 @@ def _write_scenario_files(folder: Path, data: ScenarioData) -> None:
     if data.truth_biases is not None:
         _write(folder / "truth_biases.csv", BIAS_COLUMNS, (
             (rid, f"{b[0]:.4f}", f"{math.degrees(b[1]):.8f}") for rid, b in data.truth_biases.items()))
+
+
+def _write_meta(folder: Path, data: ScenarioData) -> None:
     meta = {"name": data.name, "reference": {"lat": data.reference[0], "lon": data.reference[1]},
             "aircraft": [attrs.asdict(ac) for ac in data.aircraft]}
     (folder / "scenario.json").write_text(json.dumps(meta, indent=1))

@@ -2,19 +2,66 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterable
 from typing import Any
 
 import attrs
 import numpy as np
+import pyarrow as pa
 
 from radartracker.domain import Aircraft, Radar
 
-RADAR_COLUMNS = ("radar", "lat", "lon", "height_m", "sigma_range_m", "sigma_azimuth_deg", "period_s", "max_range_m")
-PLOT_COLUMNS = ("time", "radar", "range_m", "azimuth_deg", "altitude_m", "mode_s", "mode_3a")
-ADSB_COLUMNS = ("time", "icao24", "lat", "lon", "altitude_m", "nacp")
-TRUTH_COLUMNS = ("time", "target", "lat", "lon", "altitude_m")
-BIAS_COLUMNS = ("radar", "range_bias_m", "azimuth_bias_deg")
+
+@attrs.frozen
+class Column:
+    """A column of a scenario table (docs/formats.md): its Arrow ``type`` as written to Parquet (a reader takes
+    any integer or floating type for a number, any string type for a text) and the ``unit`` of its numbers
+    ("" for a text), which a Parquet file carries in the field's metadata."""
+
+    name: str
+    type: pa.DataType
+    unit: str = ""
+
+
+def _numbers(unit: str, *names: str) -> tuple[Column, ...]:
+    return tuple(Column(n, pa.float64(), unit) for n in names)
+
+
+_TEXT = pa.string()
+#: every scenario table's columns, in the order written; plots' ``target`` is optional
+SCHEMAS: dict[str, tuple[Column, ...]] = {
+    "radars": (Column("radar", _TEXT), *_numbers("deg", "lat", "lon"), *_numbers("m", "height_m", "sigma_range_m"),
+               *_numbers("deg", "sigma_azimuth_deg"), *_numbers("s", "period_s"), *_numbers("m", "max_range_m")),
+    "plots": (*_numbers("s", "time"), Column("radar", _TEXT), *_numbers("m", "range_m"),
+              *_numbers("deg", "azimuth_deg"), *_numbers("m", "altitude_m"), Column("mode_s", _TEXT),
+              Column("mode_3a", _TEXT), Column("target", _TEXT)),
+    "adsb": (*_numbers("s", "time"), Column("icao24", _TEXT), *_numbers("deg", "lat", "lon"),
+             *_numbers("m", "altitude_m"), Column("nacp", pa.int64())),
+    "truth": (*_numbers("s", "time"), Column("target", _TEXT), *_numbers("deg", "lat", "lon"),
+              *_numbers("m", "altitude_m")),
+    "truth_biases": (Column("radar", _TEXT), *_numbers("m", "range_bias_m"), *_numbers("deg", "azimuth_bias_deg")),
+}
+OPTIONAL_COLUMNS = {"plots": ("target",)}
+
+
+def required_columns(table: str) -> tuple[str, ...]:
+    """The names of the columns ``table`` (a key of :data:`SCHEMAS`) must have."""
+    return tuple(c.name for c in SCHEMAS[table] if c.name not in OPTIONAL_COLUMNS.get(table, ()))
+
+
+RADAR_COLUMNS, PLOT_COLUMNS, ADSB_COLUMNS = (required_columns(t) for t in ("radars", "plots", "adsb"))
+TRUTH_COLUMNS, BIAS_COLUMNS = required_columns("truth"), required_columns("truth_biases")
+
+
+FORMAT_VERSION = 1  # of the Parquet tables' metadata (docs/formats.md)
+
+
+def table_metadata(table: str) -> dict[bytes, bytes]:
+    """The schema metadata of a table radartracker writes as Parquet: key ``radartracker``, a JSON object
+    naming the table and the version of its format (as pandas keeps its own under ``pandas``)."""
+    return {b"radartracker": json.dumps({"table": table, "version": FORMAT_VERSION}).encode()}
+
 
 def _obj(values: Iterable[Any]) -> np.ndarray:
     arr = np.empty(len(values := list(values)), dtype=object)

@@ -19,18 +19,25 @@ from __future__ import annotations
 import functools
 import logging
 import math
+from typing import TYPE_CHECKING
 
 import attrs
 import numpy as np
+import pyarrow as pa
 
 from radartracker.domain import BiasState
+from radartracker.errors import ConfigurationError
 from radartracker.estimation.coupling import CouplingGraph
 from radartracker.geometry.plane import SystemPlane
 from radartracker.io.tables import ScenarioData, label_spans
 from radartracker.pipeline.config import RunConfig
 from radartracker.pipeline.evaluate import GridSpec, TrackHistory, TruthPaths, nees, state_errors, track_metrics
+from radartracker.pipeline.outputs import bias_table, event_tables
 from radartracker.pipeline.recorder import BiasLog, Events
 from radartracker.tracking.events import ENDS
+
+if TYPE_CHECKING:  # pandas is imported by pyarrow's to_pandas, when a DataFrame is asked for
+    import pandas as pd
 
 log = logging.getLogger(__name__)
 CONSISTENCY_FACTOR = 2.0
@@ -140,6 +147,30 @@ class RunResult:
     def tracks(self) -> Events:
         """The track estimates (events ``confirmed`` and ``updated``), as in ``tracks.csv``."""
         return self.events.estimates()
+
+    def _held(self) -> None:
+        """Refuse a table of a run that streamed them into its output folder and kept none (no truth)."""
+        if self.streamed and self.data.truth is None:
+            raise ConfigurationError("this run streamed its tables into its output folder and kept none: read them "
+                                     "with radartracker.pipeline.outputs.read_output(OUT / 'tracks.csv').to_pandas()")
+
+    def _event_tables(self) -> tuple[pa.Table, pa.Table]:
+        self._held()
+        return event_tables(self.events, self.plane)
+
+    def tracks_frame(self) -> pd.DataFrame:
+        """The track estimates as a DataFrame: the columns, units and values of ``tracks.csv`` (docs/formats.md;
+        a value not known is NaN or None)."""
+        return self._event_tables()[1].to_pandas()
+
+    def events_frame(self) -> pd.DataFrame:
+        """Every track event as a DataFrame: the columns, units and values of ``events.csv``."""
+        return self._event_tables()[0].to_pandas()
+
+    def biases_frame(self) -> pd.DataFrame:
+        """The bias estimates over time as a DataFrame: the columns, units and values of ``biases.csv``."""
+        self._held()
+        return bias_table(self.biases).to_pandas()
 
     def histories(self) -> dict[int, TrackHistory]:
         """Each track's estimates and life span (created to deleted, or to its last estimate)."""

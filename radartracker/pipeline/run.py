@@ -25,15 +25,17 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import attrs
+import pyarrow as pa
 from tqdm import tqdm
 
-from radartracker.errors import ConfigurationError
+from radartracker.errors import ConfigurationError, RadarTrackerError
 from radartracker.estimation.base import Estimator
 from radartracker.estimation.coupling import CouplingGraph
 from radartracker.fusion.center import LocalTracks
 from radartracker.pipeline.distributed import run_distributed
 from radartracker.geometry.plane import SystemPlane
 from radartracker.io.scenario import open_scenario
+from radartracker.io.tablefiles import columns, find_table
 from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.config import RunConfig, motion_factory, resolve
 from radartracker.pipeline.recorder import Recorder
@@ -159,7 +161,7 @@ def counted(inputs: Iterable, bar: tqdm, every: int = PROGRESS_EVERY) -> Iterato
 
 def streamable(folder: Path | str, config: RunConfig) -> bool:
     """Whether :func:`replay_folder` can stream the scenario folder ``folder`` under ``config``: the
-    TrackManager association (named, or chosen by ``auto`` because ``plots.csv`` has no ``target``
+    TrackManager association (named, or chosen by ``auto`` because the plots have no ``target``
     column) and the central architecture."""
     folder = Path(folder)
     if config.architecture != "central" or not folder.is_dir() or config.association == "labels":
@@ -167,23 +169,23 @@ def streamable(folder: Path | str, config: RunConfig) -> bool:
     if config.association == "manager":
         return True
     try:
-        with (folder / "plots.csv").open(encoding="utf-8-sig", newline="") as f:
-            header = next(csv.reader([f.readline()]), [])
-    except (OSError, UnicodeDecodeError, csv.Error):
+        plots = find_table(folder, "plots")
+        header = columns(plots) if plots is not None else []
+    except (OSError, UnicodeDecodeError, csv.Error, RadarTrackerError, pa.ArrowException):
         return False  # read whole: the reader names the problem
-    return "target" not in [h.strip() for h in header]
+    return "target" not in header
 
 
 def replay_folder(folder: Path | str, config: RunConfig, out: Path | str, *, progress: bool = True,
-                  prefetch: bool = False) -> RunResult:
-    """Replay the scenario folder ``folder`` into the prepared folder ``out`` (tables, summary, config),
-    streamed when :func:`streamable` (memory flat in the recording's length), else read whole: the
-    same files either way. A file whose kept rows are not in time order cannot be merged as it is
-    read: that run is abandoned and the folder read whole. ``prefetch``: see
+                  prefetch: bool = False, table_format: str = "csv") -> RunResult:
+    """Replay the scenario folder ``folder`` into the prepared folder ``out`` (tables as ``table_format``, csv
+    or parquet; summary, config), streamed when :func:`streamable` (memory flat in the recording's length),
+    else read whole: the same files either way. A table whose kept rows are not in time order cannot be
+    merged as it is read: that run is abandoned and the folder read whole. ``prefetch``: see
     :func:`radartracker.pipeline.stream.iter_files`."""
     if streamable(folder, config):
         files = open_scenario(folder, skip_bad=config.skip_bad)
-        sink = OutputStream(out, SystemPlane(*files.data.reference))
+        sink = OutputStream(out, SystemPlane(*files.data.reference), table_format)
         try:
             result = run(files.data, config, progress=progress, inputs=iter_files(files, prefetch=prefetch),
                          sink=sink, total=files.rows)
@@ -201,5 +203,5 @@ def replay_folder(folder: Path | str, config: RunConfig, out: Path | str, *, pro
     from radartracker.io.sources import read_source
 
     result = run(read_source(folder, skip_bad=config.skip_bad), config, progress=progress)
-    write_outputs(result, out)
+    write_outputs(result, out, table_format=table_format)
     return result

@@ -131,7 +131,7 @@ def iter_files(files: ScenarioFiles, *, prefetch: bool = False) -> Iterator[Plot
     plots, adsb = files.plot_blocks(), files.adsb_blocks()
     if prefetch:
         plots, adsb = _prefetch(plots), _prefetch(adsb)
-    return itertools.chain.from_iterable(_merged(_ordered(plots, "plots.csv"), _ordered(adsb, "adsb.csv")))
+    return itertools.chain.from_iterable(_merged(_ordered(plots, "the plots table"), _ordered(adsb, "the ADS-B table")))
 
 
 _END = object()

@@ -10,6 +10,8 @@
   6 epochs) from direction finders ``{id: (lat, lon, height_m)}`` with σ 1 mrad.
 * ``write_bearings(stations_csv, bearings_csv)``: three stations and such bearings in the files of
   ``radartracker triangulate`` (docs/formats.md, "Triangulation files").
+* ``requires(module)``: skip the rest of the document, with the reason, where ``module`` (an optional extra's,
+  such as ``traffic.core``) is not installed; CI installs the extras, so there it runs.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from tests.docs import commands
 
@@ -81,6 +84,10 @@ def write_bearings(stations_csv: str, bearings_csv: str, cwd: Path) -> None:
     (cwd / bearings_csv).write_text("time_s,station,azimuth_deg,elevation_deg,target\n" + "\n".join(lines) + "\n")
 
 
+def requires(module: str) -> None:
+    pytest.importorskip(module, reason=f"{module} is not installed (an optional extra of radartracker)")
+
+
 def namespace(cwd: Path, monkeypatch) -> dict:
     """A document's Python namespace, with the helpers above bound to its scratch folder."""
     return {
@@ -90,4 +97,5 @@ def namespace(cwd: Path, monkeypatch) -> dict:
         "write_capture": lambda scenario, path: write_capture(scenario, path, cwd),
         "example_bearings": example_bearings,
         "write_bearings": lambda stations_csv, bearings_csv: write_bearings(stations_csv, bearings_csv, cwd),
+        "requires": requires,
     }

@@ -61,7 +61,7 @@ def test_replay_interrupted_while_writing_leaves_the_earlier_outputs(tmp_path, m
         yield "1.0,1,partial\n"
         raise KeyboardInterrupt
 
-    monkeypatch.setattr("radartracker.pipeline.writer._rows", rows_then_fail)
+    monkeypatch.setattr("radartracker.pipeline.writer.event_tables", rows_then_fail)
     from radartracker.io.sources import read_source
     from radartracker.pipeline.config import RunConfig
     from radartracker.pipeline.run import run
