@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import attrs
 import numpy as np
-from scipy.stats import chi2
 
 from radartracker.api import ConfigurationError, MotionConfig, MotionModel, TrackFilter, symmetrize
 from radartracker_plugins.motion.base import check_measurement, check_time, position_update, require_started, start_state
@@ -84,6 +83,8 @@ class _ScaledCV(TrackFilter):
     def __init__(self, config: ScaledConfig | None = None) -> None:
         super().__init__(config)
         self.window, sig = self.config.window, self.config.significance
+        from scipy.stats import chi2  # here: scipy.stats costs 0.3 s to import, listing the plugins none
+
         self.bounds = (chi2.ppf(sig / 2, 2 * self.window), chi2.ppf(1 - sig / 2, 2 * self.window))
         self.kappa_max = self.config.kappa_max
         self.time: float | None = None

@@ -18,8 +18,6 @@ from __future__ import annotations
 
 import attrs
 import numpy as np
-from scipy.optimize import linear_sum_assignment
-from scipy.spatial import cKDTree
 
 _INADMISSIBLE = 1e12
 
@@ -42,6 +40,8 @@ def candidate_pairs(z: np.ndarray, pos: np.ndarray, radius: float, allowed: np.n
     """(plot, track) index pairs within ``radius`` metres, optionally masked by ``allowed`` (K, T)."""
     if len(z) == 0 or len(pos) == 0:
         return np.empty((0, 2), int)
+    from scipy.spatial import cKDTree  # here: scipy costs 0.3 s to import, a command that lists plugins none
+
     tree = cKDTree(pos)
     hits = tree.query_ball_point(z, radius)
     pairs = [(k, t) for k, ts in enumerate(hits) for t in ts if allowed is None or allowed[k, t]]
@@ -64,6 +64,8 @@ def assign(pairs: np.ndarray, d2: np.ndarray, cost: np.ndarray, gate: float) -> 
     log_det = np.full(n_p, np.inf)
     np.minimum.at(log_det, p_idx, cost - d2[keep])
     M[np.arange(n_p), n_t + np.arange(n_p)] = gate + log_det
+    from scipy.optimize import linear_sum_assignment
+
     rows, cols = linear_sum_assignment(M)
     return [(int(plots[r]), int(tracks[c])) for r, c in zip(rows, cols) if c < n_t and M[r, c] < _INADMISSIBLE]
 
