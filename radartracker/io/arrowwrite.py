@@ -1,5 +1,5 @@
-"""A scenario's tables as Parquet: one file per table, or plots and ADS-B reports as datasets partitioned by
-hour (and radar) (:mod:`radartracker.io.datasets`).
+"""A scenario's tables as one set of Arrow tables, written as CSV files or as Parquet: one file per table, or
+plots and ADS-B reports as datasets partitioned by hour (and radar) (:mod:`radartracker.io.datasets`).
 
 The columns and units are those of the CSV files (degrees at the edge, :data:`~radartracker.io.tables.SCHEMAS`),
 each number the double itself (no decimals to round to), a value not known a null; every field carries its
@@ -13,10 +13,29 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from radartracker.io.datasets import PARTITIONS, ROWS_PER_GROUP, write_partitioned
 from radartracker.io.tables import SCHEMAS, ScenarioData, table_metadata
+
+_PLAIN = pacsv.WriteOptions(include_header=False, quoting_style="none")
+_QUOTED = pacsv.WriteOptions(include_header=False, quoting_style="needed")
+
+
+def _write_csv(table: pa.Table, path: Path) -> None:
+    """``table`` as a CSV file: its header, then its rows with bare fields, or quoted texts when one holds a
+    comma or a quote (pyarrow refuses those bare)."""
+    with open(path, "wb") as f:
+        f.write((",".join(table.column_names) + "\n").encode())
+        try:
+            pacsv.write_csv(table, f, _PLAIN)
+        except pa.ArrowInvalid:
+            f.seek(0)
+            f.truncate()
+            f.write((",".join(table.column_names) + "\n").encode())
+            pacsv.write_csv(table, f, _QUOTED)
+
 
 def table_schema(name: str, columns: list[str] | None = None) -> pa.Schema:
     """The Arrow schema of the scenario table ``name`` (the given ``columns`` of it, in its order): types, each
@@ -74,11 +93,15 @@ def scenario_tables(data: ScenarioData) -> dict[str, pa.Table]:
     return out
 
 
-def write_tables(folder: Path, data: ScenarioData, *, partitioned: bool = False) -> None:
-    """Write ``data``'s tables into ``folder`` as ``NAME.parquet``, or (``partitioned``) plots and ADS-B reports
-    as the datasets ``plots/`` (by hour and radar) and ``adsb/`` (by hour)."""
+def write_tables(folder: Path, data: ScenarioData, table_format: str = "parquet") -> None:
+    """Write ``data``'s tables into ``folder`` as ``NAME.csv`` (``table_format`` csv: pyarrow's CSV writer, each
+    number the shortest text that reads back as its double, a null an empty field, a text quoted where it
+    holds a comma or a quote), as ``NAME.parquet`` (parquet), or (dataset) as Parquet with plots and ADS-B
+    reports as the datasets ``plots/`` (by hour and radar) and ``adsb/`` (by hour)."""
     for name, table in scenario_tables(data).items():
-        if partitioned and name in PARTITIONS:
+        if table_format == "csv":
+            _write_csv(table, folder / f"{name}.csv")
+        elif table_format == "dataset" and name in PARTITIONS:
             write_partitioned(table, folder / name, PARTITIONS[name])
         else:
             pq.write_table(table, folder / f"{name}.parquet", row_group_size=ROWS_PER_GROUP)

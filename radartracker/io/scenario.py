@@ -18,7 +18,6 @@ hands them on one at a time (the streaming replay), so that only one block is in
 
 from __future__ import annotations
 
-import csv
 import json
 import logging
 import math
@@ -42,7 +41,6 @@ from radartracker.io.rowchecks import PLOT_FIELDS, AdsbReader, PlotReader, _key,
 from radartracker.io.tables import (ADSB_COLUMNS, BIAS_COLUMNS, PLOT_COLUMNS, RADAR_COLUMNS, SCHEMAS, TRUTH_COLUMNS,
                                     AdsbTable, PlotTable, ScenarioData, TruthTable, label_spans)
 from radartracker.clock import ClockConfig
-from radartracker.progress import progress_bar
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -341,68 +339,19 @@ def open_scenario(folder: Path | str, *, skip_bad: bool = False, block_bytes: in
 # --- writing ----------------------------------------------------------------------------------
 
 
-def _fmt(v: Any, spec: str) -> str:
-    if v is None or (isinstance(v, float) and math.isnan(v)):
-        return ""
-    return format(v, spec) if spec else str(v)
-
-
-def _azimuth_deg(rad: float) -> str:
-    deg = round(math.degrees(rad) % 360.0, 7)
-    return f"{0.0 if deg >= 360.0 else deg:.7f}"
-
-
-def _write(path: Path, header: tuple[str, ...], rows: Iterable[Iterable[str]]) -> None:
-    with path.open("w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f, lineterminator="\n")
-        w.writerow(header)
-        w.writerows(rows)
-
-
-def _progress(n: int, name: str) -> Iterable[int]:
-    """range(n) with a progress bar on stderr once writing takes 2 s (off with --quiet)."""
-    return progress_bar(range(n), desc=f"write {name}", unit="row", miniters=10_000)
-
-
 FORMATS = ("csv", "parquet", "dataset")
 
 
 def write_scenario(folder: Path | str, data: ScenarioData, *, format: str = "csv") -> None:
     """Write ``data`` as a scenario folder (the folder must not exist); it appears complete or not at all.
     ``format``: ``csv`` (the CSV files), ``parquet`` (a Parquet file per table) or ``dataset`` (Parquet, with
-    plots and ADS-B reports as datasets partitioned by hour and radar: :mod:`radartracker.io.arrowwrite`)."""
+    plots and ADS-B reports as datasets partitioned by hour and radar): the same tables either way
+    (:mod:`radartracker.io.arrowwrite`)."""
     if format not in FORMATS:
         raise ConfigurationError(f"format {format!r}: one of {', '.join(FORMATS)}")
     with atomic_folder(folder) as tmp:
-        if format == "csv":
-            _write_csv_files(tmp, data)
-        else:
-            write_tables(tmp, data, partitioned=format == "dataset")
+        write_tables(tmp, data, format)
         _write_meta(tmp, data)
-
-
-def _write_csv_files(folder: Path, data: ScenarioData) -> None:
-    _write(folder / "radars.csv", RADAR_COLUMNS, (
-        (r.id, f"{r.lat:.8f}", f"{r.lon:.8f}", f"{r.height_m:.2f}", f"{r.sigma_range_m:g}",
-         f"{math.degrees(r.sigma_azimuth_rad):.6g}", f"{r.period_s:g}", f"{r.max_range_m:g}") for r in data.radars))
-    p = data.plots
-    labelled = any(t is not None for t in p.target)
-    _write(folder / "plots.csv", PLOT_COLUMNS + (("target",) if labelled else ()), (
-        (f"{p.time[i]:.4f}", p.radar[i], f"{p.range_m[i]:.3f}", _azimuth_deg(p.azimuth_rad[i]),
-         _fmt(p.altitude_m[i], ".2f"), _fmt(p.mode_s[i], ""), _fmt(p.mode_3a[i], ""))
-        + ((_fmt(p.target[i], ""),) if labelled else ()) for i in _progress(len(p), "plots.csv")))
-    a = data.adsb
-    _write(folder / "adsb.csv", ADSB_COLUMNS, (
-        (f"{a.time[i]:.3f}", a.icao24[i], f"{a.lat[i]:.8f}", f"{a.lon[i]:.8f}", _fmt(a.altitude_m[i], ".2f"),
-         str(int(a.nacp[i]))) for i in _progress(len(a), "adsb.csv")))
-    if data.truth is not None:
-        tr = data.truth
-        _write(folder / "truth.csv", TRUTH_COLUMNS, (
-            (f"{tr.time[i]:.3f}", tr.target[i], f"{tr.lat[i]:.8f}", f"{tr.lon[i]:.8f}", f"{tr.altitude_m[i]:.2f}")
-            for i in _progress(len(tr), "truth.csv")))
-    if data.truth_biases is not None:
-        _write(folder / "truth_biases.csv", BIAS_COLUMNS, (
-            (rid, f"{b[0]:.4f}", f"{math.degrees(b[1]):.8f}") for rid, b in data.truth_biases.items()))
 
 
 def _write_meta(folder: Path, data: ScenarioData) -> None:

@@ -12,7 +12,7 @@ import textwrap
 
 import pytest
 
-import radartracker.io.scenario as scenario_io
+import radartracker.io.arrowwrite as arrowwrite
 from radartracker.cli import main
 from radartracker.io.asterix import write_asterix
 from radartracker.io.recording import write_recording
@@ -37,17 +37,17 @@ def _disk_full():
 
 @pytest.fixture
 def scenario_fails_on_third_file(monkeypatch):
-    """scenario._write writes two files, then half of the third and fails (the disk filled up)."""
-    real, calls = scenario_io._write, []
+    """The scenario's CSV writer writes two files, then half of the third and fails (the disk filled up)."""
+    real, calls = arrowwrite.pacsv.write_csv, []
 
-    def write(path, header, rows):
-        calls.append(path.name)
+    def write(table, f, options=None):
+        calls.append(f.name)
         if len(calls) < 3:
-            return real(path, header, rows)
-        path.write_text(",".join(header) + "\n1,2,")
+            return real(table, f, options)
+        f.write(b"1,2,")
         raise _disk_full()
 
-    monkeypatch.setattr(scenario_io, "_write", write)
+    monkeypatch.setattr(arrowwrite.pacsv, "write_csv", write)
     return calls
 
 
