@@ -8,7 +8,6 @@ per ``bias_log_interval_s``.
 
 from __future__ import annotations
 
-import itertools
 import math
 from typing import NamedTuple
 
@@ -17,6 +16,7 @@ import numpy as np
 
 from radartracker.domain import BiasState
 from radartracker.tracking.events import ENDS
+from radartracker.tracking.track import NO_COVARIANCE
 
 TRACK_KINDS = ("confirmed", "updated")
 
@@ -69,7 +69,6 @@ class BiasLog:
     cov: np.ndarray
 
 
-_NAN16 = np.full(16, math.nan).tobytes()  # the covariance of an event without one
 FLUSH_EVERY = 8192  # rows made columns (and handed to the sink) at a time
 
 
@@ -85,16 +84,15 @@ class _Head(NamedTuple):
 
 
 def _events_of(rows: list[tuple]) -> Events:
-    """Rows (event, covariance bytes, identity) as columns."""
-    heads, covs, idents = zip(*rows)
+    """Rows (event, covariance bytes, altitude, Mode S, Mode 3/A, target) as columns."""
+    heads, covs, altitude_m, mode_s, mode_3a, target = zip(*rows)
     time, track, kind, status, state = zip(*heads)
     n = len(time)
     cov = np.frombuffer(b"".join(covs), float)
     if len(cov) != 16 * n:
         raise ValueError("an event's covariance is not a 4×4 array of floats")
-    altitude_m, mode_s, mode_3a, target = zip(*idents)
     return Events(time=np.array(time, float), track=np.array(track, int), kind=_obj(kind), status=_obj(status),
-                  state=np.fromiter(itertools.chain.from_iterable(state), float, 4 * n).reshape(n, 4),
+                  state=np.column_stack([np.array(c, float) for c in zip(*state)]).reshape(n, 4),
                   cov=cov.reshape(n, 4, 4), altitude_m=np.array([math.nan if a is None else a for a in altitude_m], float),
                   mode_s=_obj(mode_s), mode_3a=_obj(mode_3a), target=_obj(target))
 
@@ -125,7 +123,7 @@ class Recorder:
                  flush_every: int | None = None) -> None:
         self.bias_log_interval_s = bias_log_interval_s
         self.sink, self.keep, self.flush_every = sink, keep or sink is None, flush_every or FLUSH_EVERY
-        self._rows: list[tuple] = []  # events not yet made columns: (head, covariance bytes, identity)
+        self._rows: list[tuple] = []  # events not yet made columns: (head, covariance bytes, *identity)
         self._chunks: list[Events] = []  # events made columns and kept
         self._bias: list[tuple] = []  # (time, radar, the bytes of ς̂ and P_ς: 6 floats)
         self._bias_last: dict[str, float] = {}
@@ -147,21 +145,20 @@ class Recorder:
         status and state of four floats, kept as it is: it is immutable) with ``cov``, the 4×4 float array of the
         track's estimate at the event's time or ``None``, copied now, and ``ident``, the track's
         (altitude_m, mode_s, mode_3a, target)."""
-        self._rows.append((ev, _NAN16 if cov is None else cov.tobytes(), ident))
+        self._rows.append((ev, NO_COVARIANCE if cov is None else cov.tobytes(), *ident))
         if len(self._rows) >= self.flush_every:
             self._columns()
 
     def listen(self, event, track) -> None:
         """Record a TrackManager's ``event`` of ``track`` (subscribe this method to the manager's
-        :class:`~radartracker.tracking.events.EventSink`): with the filter's covariance (a float64 4×4 array,
-        the motion-model contract) when the event's state is the track's estimate (not extrapolated; never
-        for a deletion), and the track's identity."""
-        cov = None
-        if event.kind not in ENDS:
-            t0, _, P = track.estimate()
-            if t0 == event.time:
-                cov = P
-        self.track_event(event, cov, (track.altitude_m, track.mode_s, track.mode_3a, track.target))
+        :class:`~radartracker.tracking.events.EventSink`), as :meth:`track_event` does: with the filter's
+        covariance (a float64 4×4 array, the motion-model contract) when the event's state is the track's
+        estimate (not extrapolated; never for a deletion), and the track's identity."""
+        cov = NO_COVARIANCE if event.kind in ENDS else track.covariance_bytes(event.time)
+        rows = self._rows
+        rows.append((event, cov, track.altitude_m, track.mode_s, track.mode_3a, track.target))
+        if len(rows) >= self.flush_every:
+            self._columns()
 
     def add_nis(self, values: np.ndarray) -> None:
         """Take the estimator's NIS values of a batch into the run's mean."""

@@ -107,7 +107,7 @@ class TrackLifecycle:
         screening = self.config.screening
         z, C, R = meas.z[u.row], meas.C[u.row], meas.R[u.row]
         if kind == "adsb" and screening.enabled:
-            why = self.adsb_check.check(src.icao24, src.time, z, float(np.sqrt(R[0, 0])), src.nacp)
+            why = self.adsb_check.check(src.icao24, src.time, z, math.sqrt(R[0, 0]), src.nacp)
             if why is not None:
                 self.counts[why] += 1
                 return
@@ -163,7 +163,12 @@ class TrackLifecycle:
             return ACCEPT, None, None, False
         except Exception as exc:
             raise self.failed(f"motion model {self.new_filter.name!r}", tr.id, t, exc) from exc
-        verdict, tr.rejected = judge(cfg, kind, d2, tr.rejected, tr.mode_s is not None, tentative, t, zc, Rc)
+        if gate is not None and d2 <= gate:  # accepted: a run of rejections ends (judge's first case)
+            verdict = ACCEPT
+            if tr.rejected:
+                tr.rejected = []
+        else:
+            verdict, tr.rejected = judge(cfg, kind, d2, tr.rejected, tr.mode_s is not None, tentative, t, zc, Rc)
         if verdict == REJECT:
             self.counts[f"{kind}_outlier"] += 1
         elif not tentative and d2 < math.inf:  # a confirmed track's innovation: what its gates are sized on

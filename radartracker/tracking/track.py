@@ -14,6 +14,7 @@ from radartracker.tracking.association import AltitudeTrack
 from radartracker.tracking.filters import TrackFilter
 
 TRACK_STATUSES = ("tentative", "confirmed", "coasting", "deleted")
+NO_COVARIANCE = np.full(16, np.nan).tobytes()  # the bytes of an unknown 4×4 covariance: 16 NaNs
 
 
 class Pending(NamedTuple):
@@ -84,6 +85,11 @@ class Track:
     def changed(self) -> None:
         """The filter changed: :meth:`estimate` reads it again."""
         self._estimate = None
+
+    def covariance_bytes(self, time: float) -> bytes:
+        """The bytes of the estimate's covariance P (16 float64) if the estimate is at ``time``, else 16 NaNs."""
+        t, _, P, _ = self._estimate or self._read()
+        return P.tobytes() if t == time else NO_COVARIANCE
 
     def state_at(self, time: float) -> tuple[float, float, float, float]:
         """[x, y, vx, vy] at ``time``, extrapolated in a straight line from the estimate (never backwards)."""
