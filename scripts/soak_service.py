@@ -333,7 +333,7 @@ def segment_d(feed: Feed, holder: dict, start: float, speed: float, load: int, o
     out["D_after_2_days"] = used_share(before, after, sum(len(d[2]) for d in sched[:half])) | {
         "stop_before_outage_s": round(took, 1), "corrupted": damaged, "resumed_from": resumed,
         "checkpoints_skipped_damaged": final["checkpoints"].get("skipped_damaged", 0)}
-    out["stop_under_load"] = {"seconds": round(stop_s, 1), "queue_depth_at_sigterm": backlog,
+    out["stop_under_load"] = {"seconds": round(stop_s, 1), "phases_s": final.get("stop_s"), "queue_depth_at_sigterm": backlog,
                               "final_checkpoint": final["last_checkpoint"],
                               "final_checkpoint_whole": (ck / "manager.snapshot").exists() and (ck / "service.json").exists(),
                               "datagrams_dropped_at_stop": final["datagrams"].get("dropped_at_stop", 0)}

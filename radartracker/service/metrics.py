@@ -18,7 +18,7 @@ radartracker_input_lateness_seconds        histo.   per record: the newest recor
                                                     − its time (how out of order the feed arrives: the
                                                     reorder window needed: only records later than
                                                     the window can be counted late)
-radartracker_checkpoints_total             counter  ``outcome``: written (since start), skipped_busy, failed
+radartracker_checkpoints_total             counter  ``outcome``: written (since start), skipped_busy, failed, superseded
 =========================================  =======  ==================================================
 """
 

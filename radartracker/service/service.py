@@ -19,10 +19,12 @@ between the last checkpoint and a crash is in neither (docs/service.md measures 
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 import os
 import queue
+import shutil
 import signal
 import threading
 import time
@@ -233,12 +235,18 @@ class Service:
                 self.base["datagrams_dropped_at_stop"] += unread
             for sock in self.sockets.values():
                 sock.close()
-        self._drain(time.monotonic() + STOP_DRAIN_S)
+        phases = [time.monotonic()]
+        self._drain(phases[0] + STOP_DRAIN_S)
+        phases.append(time.monotonic())
         # what the stream has reached; an input alone far ahead stays waiting, in the checkpoint
         self._collect(self.manager.flush(end=False))
         self._publish()  # a full publication at the stop, whatever the mode
+        phases.append(time.monotonic())
+        self._supersede_child()
         self._checkpoint(wait=True)
-        summary = self.summary()
+        phases.append(time.monotonic())
+        summary = self.summary() | {"stop_s": dict(zip(("drain", "flush_and_publish", "final_checkpoint"),
+                                                        (round(b - a, 3) for a, b in itertools.pairwise(phases))))}
         self._write_state("summary.json", summary)
         if self.http is not None:
             self.http.shutdown()
@@ -250,7 +258,7 @@ class Service:
         """At the stop: process what was received until ``deadline`` (monotonic), then count what is
         still queued as ``datagrams_dropped_at_stop``: a flood's backlog would otherwise keep the final
         checkpoint waiting past systemd's stop timeout (issue 33: 273 s after a 40 s flood)."""
-        while time.monotonic() < deadline and self._take(block=False):
+        while time.monotonic() < deadline and self._take(block=False, batch=1):  # the deadline after each datagram
             pass
         dropped = 0
         try:
@@ -397,6 +405,23 @@ class Service:
             self.base["checkpoints_failed"] += 1
             log.error("checkpoint %d failed (exit status %s); the previous one stands", self.checkpoint_seq, status)
         return True
+
+    def _supersede_child(self) -> None:
+        """At the stop: a periodic checkpoint still being written is ended (SIGKILL, counted
+        ``checkpoints_superseded``) rather than waited for, its ``.partial`` folder removed — the final
+        checkpoint supersedes it, and under load the wait could take longer than the stop may (systemd's
+        timeout). Until the final one is in place the previous complete checkpoint stands."""
+        if self._reap() or self._child is None:
+            return
+        os.kill(self._child, signal.SIGKILL)
+        pid, status = os.waitpid(self._child, 0)
+        self._child = None
+        if os.waitstatus_to_exitcode(status) == 0:  # it finished before the signal: a complete checkpoint
+            self.checkpoints_written += 1
+            return
+        self.base["checkpoints_superseded"] += 1
+        shutil.rmtree(self.config.state_dir / f".checkpoint-{self.checkpoint_seq:06d}.partial", ignore_errors=True)
+        log.info("stop: checkpoint %d, still being written, superseded by the final one", self.checkpoint_seq)
 
     def _counts(self, live: bool) -> Counter[str]:
         """All service counters (carried-over base + this run). Not ``live``: datagrams received are

@@ -318,6 +318,65 @@ def test_a_stop_drains_for_a_bounded_time_and_counts_the_rest(tmp_path, monkeypa
     assert (cfg.state_dir / summary["last_checkpoint"] / "manager.snapshot").is_file()
 
 
+def test_a_stop_looks_at_its_deadline_after_each_datagram(tmp_path, monkeypatch):
+    """The drain's deadline was looked at after batches of 64 datagrams: under a flood of new tracks one batch
+    took 16 s and the stop 33 s. Each datagram here takes 50 ms: a 0.3 s drain handles a handful, not 64."""
+    import threading
+
+    from radartracker.service import Service, ServiceConfig
+    from radartracker.service import service as service_module
+    from radartracker.simulation.scenarios import build_scenario
+
+    radars = build_scenario("tracking", seed=1, duration=60).run().radars
+    ep = parse_endpoint("udp://127.0.0.1:0")
+    cfg = ServiceConfig((ep,), parse_endpoint("udp://127.0.0.1:9"), tmp_path / "state", day_start=0.0)
+    svc = Service(cfg, radars, {(0, 1): radars[0].id}, manager={"reorder_window_s": 0.5})
+    block = next(datablocks(CAT048, [cat048_record(10.0, 0, 1, 50_000.0, 1.0)]))
+    for _ in range(200):
+        svc.queue.put((time.time(), time.monotonic(), ep, block))
+    handle = svc._handle
+    monkeypatch.setattr(svc, "_handle", lambda *entry: (time.sleep(0.05), handle(*entry)))
+    monkeypatch.setattr(service_module, "STOP_DRAIN_S", 0.3)
+    stop = threading.Event()
+    stop.set()
+    summary = svc.run(stop)
+    dg = summary["datagrams"]
+    assert 1 <= dg["decoded"] <= 10 and dg["decoded"] + dg["dropped_at_stop"] == 200
+    assert summary["stop_s"]["drain"] < 1.0
+
+
+def test_a_checkpoint_still_being_written_at_the_stop_is_superseded(tmp_path):
+    """The final checkpoint waited for the periodic one being written by a child process (seconds under
+    load, past systemd's stop timeout); that child is now ended, its partial folder removed and the
+    final checkpoint written whole."""
+    import os
+    import threading
+
+    from radartracker.service import Service, ServiceConfig
+    from radartracker.simulation.scenarios import build_scenario
+
+    radars = build_scenario("tracking", seed=1, duration=60).run().radars
+    ep = parse_endpoint("udp://127.0.0.1:0")
+    cfg = ServiceConfig((ep,), parse_endpoint("udp://127.0.0.1:9"), tmp_path / "state", day_start=0.0)
+    svc = Service(cfg, radars, {(0, 1): radars[0].id})
+    svc.checkpoint_seq += 1  # a periodic checkpoint being written: its partial folder and a child that takes long
+    partial = cfg.state_dir / f".checkpoint-{svc.checkpoint_seq:06d}.partial"
+    partial.mkdir(parents=True)
+    pid = os.fork()
+    if pid == 0:
+        time.sleep(60)
+        os._exit(0)
+    svc._child, svc._child_started = pid, time.monotonic()
+    stop = threading.Event()
+    stop.set()
+    started = time.monotonic()
+    summary = svc.run(stop)
+    assert time.monotonic() - started < 20.0
+    assert summary["checkpoints"].get("superseded") == 1 and not partial.exists()
+    assert (cfg.state_dir / summary["last_checkpoint"] / "manager.snapshot").is_file()
+    assert summary["last_checkpoint"] == f"checkpoint-{svc.checkpoint_seq:06d}"
+
+
 def test_a_full_disk_degrades_the_service_instead_of_stopping_it(tmp_path, monkeypatch):
     """Issue 33: the first publication's biases.json write raised on a full disk and the service exited.
     Now the write is counted as failed, /health says "degraded" with the reason, CAT062 goes on, and the
