@@ -5,7 +5,8 @@ rebuilds the manager: ``{"kind": "TrackManager", "schema": SCHEMA, "radars", "re
 "estimator": class, "motion_model": class}``. ``state`` is this document, never the manager's
 attributes::
 
-    counts      {reason: count}
+    counts      {reason: count};  track_counts: {what: count};  innovations: {"count", "sum"} of the
+                confirmed tracks' d² (:meth:`TrackManager.innovations`)
     admission   {"keys": [[tag, source, time, a, b]], "keys_limit", "clock": StreamClock state,
                  "held": [input] (the inputs of a run that may step the clock)}
     window      {"queue": [input], "heap": [[time, arrival, input]], "arrivals", "newest", "recent" (the
@@ -193,6 +194,7 @@ def state_document(mgr: Any) -> dict:
     """The state document of ``mgr`` (module docstring)."""
     adm, win = mgr.admission, mgr.window
     return {"counts": dict(mgr.counts), "track_counts": dict(mgr.life.track_counts),
+            "innovations": {"count": mgr.life.nis[0], "sum": mgr.life.nis[1]},
             "admission": {"keys": [list(k) for k in adm.keys], "keys_limit": adm.keys_limit,
                           "clock": adm.clock.state_dict(), "held": [input_doc(i) for _, i in adm.held]},
             "window": {"queue": [input_doc(i) for i in win.queue],
@@ -211,7 +213,8 @@ def load_document(mgr: Any, doc: Any) -> None:
     """Fill the new manager ``mgr`` from state document ``doc``, every field checked first."""
     keys = {"counts", "admission", "window", "frame", "gathered", "antennas", "adsb_check", "tracks", "next_track",
             "estimator", "coupling"}
-    _need(isinstance(doc, dict) and set(doc) - {"track_counts"} == keys, f"state: fields {sorted(keys)} expected")
+    _need(isinstance(doc, dict) and set(doc) - {"track_counts", "innovations"} == keys,
+          f"state: fields {sorted(keys)} expected")
     radars = frozenset(mgr.radars)
     counts, track_counts = doc["counts"], doc.get("track_counts")
     if track_counts is None and isinstance(counts, dict):  # schema 2 counted them among the inputs' reasons
@@ -220,6 +223,7 @@ def load_document(mgr: Any, doc: Any) -> None:
     for what, c in (("counts", counts), ("track_counts", track_counts)):
         _need(isinstance(c, dict) and all(isinstance(k, str) and type(v) is int and v >= 0 for k, v in c.items()),
               f"{what}: reason → count expected")
+    nis = _innovations(doc.get("innovations", {"count": 0, "sum": 0.0}))  # a snapshot before them: none yet
     tracks = [_track_of(t, mgr, f"track[{i}]") for i, t in enumerate(_list(doc["tracks"], "tracks"))]
     ids = [t.id for t in tracks]
     next_track = _integer(doc["next_track"], "next_track", 1)
@@ -238,11 +242,20 @@ def load_document(mgr: Any, doc: Any) -> None:
     _need(set(mgr.estimator.aircraft_keys) == live, "estimator: its aircraft are not the confirmed tracks")
     mgr.counts.update(counts)
     mgr.life.track_counts.update(track_counts)
+    mgr.life.nis = nis
     mgr.frame, mgr.gathered = frame, gathered
     mgr.life.tracks = {t.id: t for t in tracks}
     mgr.life.by_mode_s = {t.mode_s: t.id for t in tracks if t.mode_s is not None}
     mgr.life.by_target = {t.target: t.id for t in tracks if t.target is not None}
     mgr.life.next_id = next_track
+
+
+def _innovations(doc: Any) -> list:
+    """[count, sum] of the confirmed tracks' d² from ``{"count", "sum"}``."""
+    _need(isinstance(doc, dict) and set(doc) == {"count", "sum"}, "innovations: fields count, sum expected")
+    count, total = _integer(doc["count"], "innovations count"), _number(doc["sum"], "innovations sum")
+    _need(total >= 0.0 and (count > 0 or total == 0.0), "innovations: a sum of d² ≥ 0, 0 without a count")
+    return [count, total]
 
 
 def _list(v: Any, what: str) -> list:

@@ -38,7 +38,7 @@ def _state(mgr, events):
     biases = {r: (mgr.estimator.bias(r).bias.tolist(), mgr.estimator.bias(r).cov.tolist()) for r in mgr.estimator.radars}
     filters = {i: (t.filter.estimate()[0], t.filter.estimate()[1].tolist(), t.filter.estimate()[2].tolist())
                for i, t in mgr.tracks.items()}
-    return events, ests, biases, filters, mgr.accounting(), mgr.coupling.report()
+    return events, ests, biases, filters, mgr.accounting(), mgr.coupling.report(), mgr.innovations()
 
 
 @pytest.mark.parametrize("estimator,motion", [("decoupled", "cv"), ("coupled", "cv"), ("blom", "cv"),
@@ -123,7 +123,9 @@ def test_crafted_state_is_checked_field_by_field(saved):
     state = snapshot.decode(blob)
     for change, message in ((lambda d: d.update(update=1), "fields"), (lambda d: d.pop("counts"), "fields"),
                             (lambda d: d.update(frame="7"), "frame"), (lambda d: d.update(next_track=-1), "next_track"),
-                            (lambda d: d.update(counts={"x": -1}), "counts")):
+                            (lambda d: d.update(counts={"x": -1}), "counts"),
+                            (lambda d: d.update(innovations={"count": 3, "sum": -1.0}), "innovations"),
+                            (lambda d: d.update(innovations={"count": 3}), "innovations")):
         bad = dict(state)
         change(bad)
         _rewrite(path, snapshot.encode([meta, snapshot.encode(bad, "state")], "snap"))
