@@ -114,9 +114,17 @@ def markdown_table(scores: list[Score]) -> str:
 
 def run_comparison(data: ScenarioData, estimators: list[str] | tuple[str, ...] = DEFAULT_ESTIMATORS,
                    config: RunConfig | None = None, progress: bool = True) -> dict[str, RunResult]:
-    """Run ``data`` through each estimator with otherwise the same settings."""
-    config = config or RunConfig()
-    return {name: run(data, attrs.evolve(config, estimator=name), progress=progress) for name in estimators}
+    """Run ``data`` through each estimator with otherwise the same settings. Each is warmed up first
+    (:func:`~radartracker.pipeline.warmup.warm_up`: its kernels compiled or loaded from numba's cache), so
+    that its time per measurement is its own and not partly the first run's compiling."""
+    from radartracker.pipeline.warmup import warm_up
+
+    results = {}
+    for name in estimators:
+        cfg = attrs.evolve(config or RunConfig(), estimator=name)
+        warm_up(cfg, labelled=data.plots.has_truth_labels, notice=progress)
+        results[name] = run(data, cfg, progress=progress)
+    return results
 
 
 def _bias_error_series(result: RunResult, rid: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

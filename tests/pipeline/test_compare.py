@@ -103,3 +103,18 @@ def test_compare_overwrite_that_fails_keeps_the_earlier_comparison(tmp_path, dem
     assert main(args) == 0
     now = {p.name: p.read_bytes() for p in out.iterdir()}
     assert set(now) == set(earlier) and now["scores.json"] != earlier["scores.json"]
+
+
+def test_each_estimator_is_warmed_up_before_its_timed_run(demo_data, monkeypatch):
+    """The first estimator's time per measurement included numba's compiling (or loading) of its kernels;
+    each is now warmed up, with the run's settings, just before its own run."""
+    import radartracker.pipeline.compare as compare
+    import radartracker.pipeline.warmup as warmup
+
+    calls = []
+    monkeypatch.setattr(warmup, "warm_up", lambda cfg, **kw: calls.append(("warm", cfg.estimator)))
+    real_run = compare.run
+    monkeypatch.setattr(compare, "run", lambda data, cfg, **kw: calls.append(("run", cfg.estimator))
+                        or real_run(data, cfg, **kw))
+    run_comparison(demo_data, ["decoupled", "blom"], progress=False)
+    assert calls == [("warm", "decoupled"), ("run", "decoupled"), ("warm", "blom"), ("run", "blom")]
