@@ -23,6 +23,18 @@ from radartracker.service.receiver import Receiver
 from radartracker.service.service import build_manager
 
 
+def _local_service(tmp_path, **manager):
+    """A Service of the built-in tracking scenario's radars on a loopback port, its state under ``tmp_path``:
+    (service, config, endpoint)."""
+    from radartracker.service import Service, ServiceConfig
+    from radartracker.simulation.scenarios import build_scenario
+
+    radars = build_scenario("tracking", seed=1, duration=60).run().radars
+    ep = parse_endpoint("udp://127.0.0.1:0")
+    cfg = ServiceConfig((ep,), parse_endpoint("udp://127.0.0.1:9"), tmp_path / "state", day_start=0.0)
+    return Service(cfg, radars, {(0, 1): radars[0].id}, manager=manager or None), cfg, ep
+
+
 @pytest.mark.parametrize("received, tod, expected", [
     (10 * DAY + 3600.0, 3599.5, 10 * DAY + 3599.5),          # same day
     (10 * DAY + 0.4, DAY - 0.3, 10 * DAY - 0.3),              # record just before midnight, received after
@@ -203,13 +215,8 @@ def test_lateness_histogram_counts_how_out_of_order_records_arrive(tmp_path):
     """Records at 10, 12, 11, 13, 9.5 s arrive 0, 0, 1, 0, 3.5 s behind the newest before them; with a
     0.5 s window the tracker has released up to 10.5 s (the third newest time less the window) when 9.5
     arrives, so that one alone is late."""
-    from radartracker.service import Service, ServiceConfig
-    from radartracker.simulation.scenarios import build_scenario
 
-    radars = build_scenario("tracking", seed=1, duration=60).run().radars
-    ep = parse_endpoint("udp://127.0.0.1:0")
-    cfg = ServiceConfig((ep,), parse_endpoint("udp://127.0.0.1:9"), tmp_path / "state", day_start=0.0)
-    svc = Service(cfg, radars, {(0, 1): radars[0].id}, manager={"reorder_window_s": 0.5})
+    svc, cfg, ep = _local_service(tmp_path, reorder_window_s=0.5)
     try:
         for t in (10.0, 12.0, 11.0, 13.0, 9.5):
             svc._handle(time.time(), time.monotonic(), ep,
@@ -295,14 +302,9 @@ def test_a_stop_drains_for_a_bounded_time_and_counts_the_rest(tmp_path, monkeypa
     final checkpoint; the datagram accounting balances."""
     import threading
 
-    from radartracker.service import Service, ServiceConfig
     from radartracker.service import service as service_module
-    from radartracker.simulation.scenarios import build_scenario
 
-    radars = build_scenario("tracking", seed=1, duration=60).run().radars
-    ep = parse_endpoint("udp://127.0.0.1:0")
-    cfg = ServiceConfig((ep,), parse_endpoint("udp://127.0.0.1:9"), tmp_path / "state", day_start=0.0)
-    svc = Service(cfg, radars, {(0, 1): radars[0].id}, manager={"reorder_window_s": 0.5})
+    svc, cfg, ep = _local_service(tmp_path, reorder_window_s=0.5)
     block = next(datablocks(CAT048, [cat048_record(10.0, 0, 1, 50_000.0, 1.0)]))
     for _ in range(500):
         svc.queue.put((time.time(), time.monotonic(), ep, block))
@@ -323,14 +325,9 @@ def test_a_stop_looks_at_its_deadline_after_each_datagram(tmp_path, monkeypatch)
     took 16 s and the stop 33 s. Each datagram here takes 50 ms: a 0.3 s drain handles a handful, not 64."""
     import threading
 
-    from radartracker.service import Service, ServiceConfig
     from radartracker.service import service as service_module
-    from radartracker.simulation.scenarios import build_scenario
 
-    radars = build_scenario("tracking", seed=1, duration=60).run().radars
-    ep = parse_endpoint("udp://127.0.0.1:0")
-    cfg = ServiceConfig((ep,), parse_endpoint("udp://127.0.0.1:9"), tmp_path / "state", day_start=0.0)
-    svc = Service(cfg, radars, {(0, 1): radars[0].id}, manager={"reorder_window_s": 0.5})
+    svc, cfg, ep = _local_service(tmp_path, reorder_window_s=0.5)
     block = next(datablocks(CAT048, [cat048_record(10.0, 0, 1, 50_000.0, 1.0)]))
     for _ in range(200):
         svc.queue.put((time.time(), time.monotonic(), ep, block))
@@ -352,13 +349,8 @@ def test_a_checkpoint_still_being_written_at_the_stop_is_superseded(tmp_path):
     import os
     import threading
 
-    from radartracker.service import Service, ServiceConfig
-    from radartracker.simulation.scenarios import build_scenario
 
-    radars = build_scenario("tracking", seed=1, duration=60).run().radars
-    ep = parse_endpoint("udp://127.0.0.1:0")
-    cfg = ServiceConfig((ep,), parse_endpoint("udp://127.0.0.1:9"), tmp_path / "state", day_start=0.0)
-    svc = Service(cfg, radars, {(0, 1): radars[0].id})
+    svc, cfg, ep = _local_service(tmp_path)
     svc.checkpoint_seq += 1  # a periodic checkpoint being written: its partial folder and a child that takes long
     partial = cfg.state_dir / f".checkpoint-{svc.checkpoint_seq:06d}.partial"
     partial.mkdir(parents=True)
@@ -384,15 +376,10 @@ def test_a_full_disk_degrades_the_service_instead_of_stopping_it(tmp_path, monke
     previous one standing and the summary is still returned."""
     import threading
 
-    from radartracker.service import Service, ServiceConfig
     from radartracker.service import checkpoints as ck
     from radartracker.service import service as service_module
-    from radartracker.simulation.scenarios import build_scenario
 
-    radars = build_scenario("tracking", seed=1, duration=60).run().radars
-    ep = parse_endpoint("udp://127.0.0.1:0")
-    cfg = ServiceConfig((ep,), parse_endpoint("udp://127.0.0.1:9"), tmp_path / "state", day_start=0.0)
-    svc = Service(cfg, radars, {(0, 1): radars[0].id})
+    svc, cfg, ep = _local_service(tmp_path)
     write = service_module.write_json_atomic
 
     def full_disk(*_a, **_k):
@@ -590,13 +577,8 @@ def test_health_is_degraded_while_the_feed_is_refused_and_ok_again_after(tmp_pat
     """Issue 33: while every input was refused (a frozen clock) /health said "ok". Now a view in which most
     records were refused for their time stamps makes it "degraded" with the reason, and a view in which
     they are used again makes it "ok"."""
-    from radartracker.service import Service, ServiceConfig
-    from radartracker.simulation.scenarios import build_scenario
 
-    radars = build_scenario("tracking", seed=1, duration=60).run().radars
-    ep = parse_endpoint("udp://127.0.0.1:0")
-    cfg = ServiceConfig((ep,), parse_endpoint("udp://127.0.0.1:9"), tmp_path / "state", day_start=0.0)
-    svc = Service(cfg, radars, {(0, 1): radars[0].id})
+    svc, cfg, ep = _local_service(tmp_path)
 
     def feed(times) -> None:
         for t in times:
