@@ -53,6 +53,11 @@ class ArrowSource:
     batches: Batches
 
 
+#: what pyarrow raises on a damaged Parquet file: its own errors, the system's, and a ValueError where a name or
+#: metadata in the footer is not UTF-8 (pyarrow decodes them in Python: a UnicodeDecodeError)
+UNREADABLE = (pa.ArrowException, OSError, ValueError)
+
+
 def parquet_source(path: Path, name: str | None = None) -> ArrowSource:
     """A Parquet file (its footer read now, its rows batch by batch when asked for); ``name`` for messages
     (default: the file's)."""
@@ -60,7 +65,7 @@ def parquet_source(path: Path, name: str | None = None) -> ArrowSource:
     try:
         with pq.ParquetFile(regular_file(path)) as f:
             schema, rows = f.schema_arrow, f.metadata.num_rows
-    except (pa.ArrowException, OSError) as exc:
+    except UNREADABLE as exc:
         raise FormatError(label, None, None, f"not a readable Parquet file ({exc})") from None
 
     def batches(columns: list[str], batch_rows: int) -> Iterator[pa.RecordBatch]:
@@ -156,7 +161,7 @@ def _read(source: ArrowSource, columns: list[str], batch_rows: int) -> Iterator[
     """``source``'s batches; a file that breaks while it is read is a FormatError naming it."""
     try:
         yield from source.batches(columns, batch_rows)
-    except (pa.ArrowException, OSError) as exc:
+    except UNREADABLE as exc:
         raise FormatError(source.name, None, None, f"cannot be read ({exc})") from None
 
 

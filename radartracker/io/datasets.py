@@ -21,7 +21,7 @@ import pyarrow as pa
 import pyarrow.dataset as ds
 
 from radartracker.errors import FormatError, TableName
-from radartracker.io.arrowsource import ArrowSource, parquet_source
+from radartracker.io.arrowsource import UNREADABLE, ArrowSource, parquet_source
 
 #: the partition keys a scenario table is written with (:func:`write_partitioned`) and read by
 PARTITIONS = {"plots": ("hour", "radar"), "adsb": ("hour",)}
@@ -56,7 +56,7 @@ def hour_groups(folder: Path, root: Path) -> list[list[ArrowSource]]:
     try:
         dataset = ds.dataset(folder, format="parquet", partitioning=ds.partitioning(_KEYS, flavor="hive"))
         fragments = sorted(dataset.get_fragments(), key=lambda f: f.path)
-    except (pa.ArrowException, OSError) as exc:
+    except UNREADABLE as exc:
         raise FormatError(TableName(folder.relative_to(root).as_posix()), None, None,
                           f"not a readable Parquet dataset ({exc})") from None
     groups: dict[int, list[ArrowSource]] = {}

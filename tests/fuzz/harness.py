@@ -49,6 +49,7 @@ def _inputs(work: Path) -> dict[str, tuple[bytes, Callable[[Path, random.Random]
 
     data = build_scenario("demo", seed=3, duration=8.0).run()
     write_scenario(work / "scen", data)
+    write_scenario(work / "scenpq", data, format="parquet")
     write_asterix(work / "rec.ast", data)
     pts = TrackPoints(1.7e9 + np.arange(5.0), 56.0 + 0.01 * np.arange(5), 37.0 + 0.01 * np.arange(5),
                       np.array([1000.0, np.nan, 1020.0, 1030.0, 1040.0]))
@@ -60,12 +61,12 @@ def _inputs(work: Path) -> dict[str, tuple[bytes, Callable[[Path, random.Random]
                                                  np.random.default_rng(2)))
     (work / "config.json").write_text(RunConfig().to_json())
 
-    def scenario(name: str):
+    def scenario(name: str, source: str = "scen"):
         def read(path: Path, rng: random.Random):
             folder = path.parent / "s"
             if not folder.exists():
                 import shutil
-                shutil.copytree(work / "scen", folder)
+                shutil.copytree(work / source, folder)
             (folder / name).write_bytes(path.read_bytes())
             out = read_scenario(folder, skip_bad=rng.random() < 0.5)
             scenario_items(out)
@@ -81,6 +82,10 @@ def _inputs(work: Path) -> dict[str, tuple[bytes, Callable[[Path, random.Random]
         "radars.csv": ((work / "scen" / "radars.csv").read_bytes(), scenario("radars.csv"), "radars.csv"),
         "adsb.csv": ((work / "scen" / "adsb.csv").read_bytes(), scenario("adsb.csv"), "adsb.csv"),
         "scenario.json": ((work / "scen" / "scenario.json").read_bytes(), scenario("scenario.json"), "scenario.json"),
+        "plots.parquet": ((work / "scenpq" / "plots.parquet").read_bytes(), scenario("plots.parquet", "scenpq"),
+                          "plots.parquet"),
+        "adsb.parquet": ((work / "scenpq" / "adsb.parquet").read_bytes(), scenario("adsb.parquet", "scenpq"),
+                         "adsb.parquet"),
         "config.json": ((work / "config.json").read_bytes(), lambda p, r: read_config(p), "config.json"),
         "JSON (any)": ((work / "config.json").read_bytes(), lambda p, r: read_json(p), "any.json"),
         "ASTERIX (.ast)": ((work / "rec.ast").read_bytes(), asterix, "m.ast"),

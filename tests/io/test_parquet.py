@@ -163,6 +163,10 @@ BAD = {
     "quoted text": (lambda c, t: _set(c, t, "radar", pa.array(t["radar"].to_pylist()[:2] + ['A,"1'] +
                                                               t["radar"].to_pylist()[3:])),
                     "plots.parquet row 3, field 'radar': unknown radar 'A,\"1'"),
+    # a column name in the footer that is not UTF-8 (pyarrow decodes it in Python): found by the fuzzer
+    "name not utf-8": (lambda c, t: (c / "plots.parquet").write_bytes(
+                           (c / "plots.parquet").read_bytes().replace(b"range_m", b"range\xff\xfe")),
+                       "plots.parquet: not a readable Parquet file"),
     "two tables": (lambda c, t: shutil.copy(c / "plots.parquet", c / "plots.csv"),
                    "plots.csv and plots.parquet are the same table 'plots': keep one"),
 }
