@@ -47,13 +47,15 @@ class MatchConfig:
 class RadarMatch:
     """One radar's plots (by row of its plot table) matched to the reference.
 
-    ``aircraft``: the reference key of each plot ('' when none is in the gate); ``ref_range``,
+    ``aircraft``: the reference key of each plot ('' when none is in the gate), ``d2`` its gate distance
+    d² (inf when unmatched); ``ref_range``,
     ``ref_azimuth``, ``ref_altitude``: the reference's exact polar position and height at the plot's time
     (NaN when unmatched); ``scan``: each plot's antenna revolution. ``expected``: one row per reference
     crossing inside the coverage, as columns ``aircraft``, ``scan``, ``time``, ``range_m``,
     ``altitude_m``, ``x``, ``y`` (plane, m), ``detected``."""
 
     aircraft: np.ndarray
+    d2: np.ndarray
     ref_range: np.ndarray
     ref_azimuth: np.ndarray
     ref_altitude: np.ndarray
@@ -101,7 +103,7 @@ def match_radar(radar: Radar, frame: RadarFrame, t: np.ndarray, rho: np.ndarray,
     scan, _ = antenna_offsets(t, theta, radar.period_s, t_n)
     expected = _expected(radar, frame, reference, config, t_n, (float(t.min()), float(t.max())) if n else (0.0, 0.0))
     expected["detected"] = _detected(expected, key, t, radar.period_s)
-    return RadarMatch(key, ref[0], ref[1], ref[2], scan, t_n, expected)
+    return RadarMatch(key, best, ref[0], ref[1], ref[2], scan, t_n, expected)
 
 
 def _expected(radar: Radar, frame: RadarFrame, reference: Reference, config: MatchConfig, t_north: float,

@@ -43,7 +43,6 @@ INDICATORS: dict[str, tuple[str, str]] = {
     "mode_c_correctness": ("Mode C correctness", ""),
     "mode_s_correctness": ("Mode S address correctness", ""),
     "out_of_order_share": ("plots out of time order", ""),
-    "timestamp_offset_mean_s": ("time stamp − antenna time, mean", "s"),
     "timestamp_jitter_s": ("time stamp − antenna time, σ", "s"),
     "timestamp_lateness_s": ("time-stamp lateness", "s"),
     "position_rmse_m": ("system tracks: horizontal position RMS error", "m"),

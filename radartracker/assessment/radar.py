@@ -5,7 +5,8 @@ estimator's biases):
 
 * **Systematic errors**: the estimator's Δr̂ and Δθ̂ ± 1.96 σ (its own covariance), and, as a check, the
   mean raw residual against the reference, mean(ρ − ρ_ref) and mean(θ − θ_ref) (t interval).
-* **Random errors**: the standard deviations of e_ρ = ρ − ρ_ref − Δr̂ and e_θ = θ − θ_ref − Δθ̂ (χ²).
+* **Random errors**: the standard deviations of e_ρ = ρ − ρ_ref − Δr̂ and e_θ = θ − θ_ref − Δθ̂ (χ²), over
+  the plot nearest the reference in each sweep of an aircraft (a split plot is not noise).
 * **Pd**: detected crossings / crossings inside the coverage (Wilson), overall and by range and altitude bin.
 * **Plots per scan**: the mean of the plot counts of the revolutions from the first plot to the last (t).
 * **False plots per scan**: plots with no reference in the gate / revolutions (Poisson, Garwood) — only
@@ -16,9 +17,10 @@ estimator's biases):
   (an altitude present) and correctness (within :attr:`RadarConfig.mode_c_tolerance_ft` of the
   reference's height), Mode S address correctness — over the matched plots of aircraft that carry them.
 * **Time stamps**: the share of plots stamped earlier than a plot before them in the file (ordering), and
-  the mean and σ of each plot's offset from the time its antenna pointed at its azimuth
-  (:func:`radartracker.assessment.matching.antenna_offsets`). Lateness needs arrival times, which no
-  scenario format carries: not assessable.
+  the σ of the offsets of the plots used for the random errors from the time their antenna pointed at
+  their azimuth (:func:`radartracker.assessment.matching.antenna_offsets`; with an exact clock it is
+  σ_θ T/2π; its mean is taken up by the antenna phase t_N, so a constant time-stamp bias does not show
+  here). Lateness needs arrival times, which no scenario format carries: not assessable.
 """
 
 from __future__ import annotations
@@ -70,24 +72,25 @@ def assess_radar(radar: Radar, plots: PlotTable, match: RadarMatch, bias: BiasSt
     figures: dict[str, Estimate] = {}
     missing: dict[str, str] = {"timestamp_lateness_s": NOT_ASSESSABLE_LATENESS}
     matched = match.aircraft != ""
-    residuals = _errors(plots, match, bias, matched, figures)
-    _detection(radar, plots, match, config, figures, missing, reference_kind)
+    group, nearest = sweeps(plots.time, match, radar.period_s)
+    residuals = _errors(plots, match, bias, nearest, figures)
+    _detection(match, group, figures, missing, reference_kind)
     _codes(plots, match, matched, codes, config, figures, missing)
-    _timestamps(radar, plots, match, figures)
+    _timestamps(radar, plots, match, nearest, figures)
     return RadarAssessment(radar.id, kind, figures, missing, observability,
                            pd_bins(match.expected, config), residuals,
                            {k: match.expected[k] for k in ("x", "y", "range_m", "detected")})
 
 
-def _errors(plots: PlotTable, match: RadarMatch, bias: BiasState, matched: np.ndarray,
+def _errors(plots: PlotTable, match: RadarMatch, bias: BiasState, used: np.ndarray,
             figures: dict[str, Estimate]) -> dict[str, np.ndarray]:
     """Systematic and random errors (module docstring) into ``figures``; the residuals e_ρ (m), e_θ (deg)."""
-    n = int(matched.sum())
+    n = int(used.sum())
     figures["range_bias_m"] = stats.normal(bias.range_m, bias.sd_range_m, n)
     figures["azimuth_bias_deg"] = stats.scaled(stats.normal(bias.azimuth_rad, bias.sd_azimuth_rad, n),
                                                math.degrees(1.0))
-    raw_r = plots.range_m[matched] - match.ref_range[matched]
-    raw_a = wrap_angle(plots.azimuth_rad[matched] - match.ref_azimuth[matched])
+    raw_r = plots.range_m[used] - match.ref_range[used]
+    raw_a = wrap_angle(plots.azimuth_rad[used] - match.ref_azimuth[used])
     figures["range_bias_vs_reference_m"] = stats.mean(raw_r)
     figures["azimuth_bias_vs_reference_deg"] = stats.scaled(stats.mean(raw_a), math.degrees(1.0))
     e_r, e_a = raw_r - bias.range_m, np.degrees(wrap_angle(raw_a - bias.azimuth_rad))
@@ -96,8 +99,8 @@ def _errors(plots: PlotTable, match: RadarMatch, bias: BiasState, matched: np.nd
     return {"range_m": e_r, "azimuth_deg": e_a}
 
 
-def _detection(radar: Radar, plots: PlotTable, match: RadarMatch, config: RadarConfig,
-               figures: dict[str, Estimate], missing: dict[str, str], reference_kind: str) -> None:
+def _detection(match: RadarMatch, group: np.ndarray, figures: dict[str, Estimate],
+               missing: dict[str, str], reference_kind: str) -> None:
     """Pd, plots and false plots per scan, split plots (module docstring) into ``figures``."""
     ex = match.expected
     figures["pd"] = stats.proportion(int(ex["detected"].sum()), len(ex["detected"]))
@@ -114,12 +117,27 @@ def _detection(radar: Radar, plots: PlotTable, match: RadarMatch, config: RadarC
     else:
         missing["false_plots_per_scan"] = ("the ADS-B reference holds only the aircraft that broadcast: a plot "
                                            "far from all of them may be a non-equipped aircraft")
-    groups = splits = 0
-    for key in np.unique(match.aircraft[match.aircraft != ""]).tolist():
-        t = np.sort(plots.time[match.aircraft == key])
-        sizes = np.diff(np.flatnonzero(np.concatenate([[True], np.diff(t) > radar.period_s / 2, [True]])))
-        groups, splits = groups + len(sizes), splits + int((sizes > 1).sum())
-    figures["split_plot_share"] = stats.proportion(splits, groups)
+    sizes = np.bincount(group[group >= 0]) if (group >= 0).any() else np.zeros(0, np.int64)
+    figures["split_plot_share"] = stats.proportion(int((sizes > 1).sum()), len(sizes))
+
+
+def sweeps(t: np.ndarray, match: RadarMatch, period_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Each matched plot's sweep group (−1 unmatched): an aircraft's plots sorted by time, a new group after
+    a gap over T/2; and the mask of the plot of least d² in each group (the one the random errors use, so
+    that a split plot's offset does not count as noise)."""
+    group = np.full(len(t), -1, np.int64)
+    nearest = np.zeros(len(t), bool)
+    matched = np.flatnonzero(match.aircraft != "")
+    order = matched[np.lexsort((t[matched], match.aircraft[matched].astype(str)))]
+    if not len(order):
+        return group, nearest
+    new = np.concatenate([[True], (match.aircraft[order][1:] != match.aircraft[order][:-1])
+                          | (np.diff(t[order]) > period_s / 2)])
+    group[order] = np.cumsum(new) - 1
+    best = np.lexsort((match.d2[order], group[order]))  # by group, then by d²: each group's first is its nearest
+    first = np.concatenate([[True], np.diff(group[order][best]) != 0])
+    nearest[order[best[first]]] = True
+    return group, nearest
 
 
 def _codes(plots: PlotTable, match: RadarMatch, matched: np.ndarray, codes: dict[str, str], config: RadarConfig,
@@ -153,13 +171,14 @@ def _codes(plots: PlotTable, match: RadarMatch, matched: np.ndarray, codes: dict
         missing["mode_s_correctness"] = "no matched plot carries a Mode S address"
 
 
-def _timestamps(radar: Radar, plots: PlotTable, match: RadarMatch, figures: dict[str, Estimate]) -> None:
-    """Ordering and the time stamps' offsets from the antenna position (module docstring)."""
+def _timestamps(radar: Radar, plots: PlotTable, match: RadarMatch, used: np.ndarray,
+                figures: dict[str, Estimate]) -> None:
+    """Ordering, and the σ of the time stamps' offsets from the antenna position over the ``used`` plots
+    (module docstring)."""
     t = plots.time
     late = t[1:] < np.maximum.accumulate(t)[:-1] if len(t) > 1 else np.zeros(0, bool)
     figures["out_of_order_share"] = stats.proportion(int(late.sum()), len(t))
-    _, offset = antenna_offsets(t, plots.azimuth_rad, radar.period_s, match.north_time)
-    figures["timestamp_offset_mean_s"] = stats.mean(offset)
+    _, offset = antenna_offsets(t[used], plots.azimuth_rad[used], radar.period_s, match.north_time)
     figures["timestamp_jitter_s"] = stats.sigma(offset)
 
 
