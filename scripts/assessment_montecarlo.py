@@ -55,7 +55,8 @@ def table(rows: dict[str, list], runs: int, duration: float) -> str:
         x = np.array(r)
         inside = (x[:, 2] <= x[:, 0]) & (x[:, 0] <= x[:, 3])
         truths = "; ".join(f"{v:.4g}" for v in x[:2, 0])
-        lines.append(f"| {INDICATORS[name][0]} ({INDICATORS[name][1] or 'share'}) | {truths} | "
+        label, unit = INDICATORS[name]
+        lines.append(f"| {label}{f' ({unit})' if unit else ''} | {truths} | "
                      f"{np.mean(x[:, 1] - x[:, 0]):+.3g} | {np.mean(x[:, 3] - x[:, 2]):.3g} | "
                      f"{100 * inside.mean():.1f} % |")
     return "\n".join(lines)
