@@ -123,7 +123,7 @@ def assess(data: ScenarioData, profile: Profile, config: AssessmentConfig | None
     codes = reference_codes(data, reference, matches)
     observability = result.observability["radars"]
     radars = [assess_radar(radar, data.plots.take(matches[radar.id][0]), matches[radar.id][1],
-                           result.final_biases[radar.id], observability.get(radar.id, {}).get("status", "unobserved"),
+                           result.final_biases[radar.id], observability.get(radar.id, {}),
                            codes, reference.kind, config.radar)
               for radar in data.radars]
     return Assessment(data.name, reference.kind, profile, radars, system_figures(result, reference, matches, data),

@@ -51,7 +51,7 @@ class RadarMatch:
     d² (inf when unmatched); ``ref_range``,
     ``ref_azimuth``, ``ref_altitude``: the reference's exact polar position and height at the plot's time
     (NaN when unmatched); ``scan``: each plot's antenna revolution. ``expected``: one row per reference
-    crossing inside the coverage, as columns ``aircraft``, ``scan``, ``time``, ``range_m``,
+    crossing inside the coverage, as columns ``aircraft``, ``scan``, ``time``, ``range_m``, ``azimuth_deg``,
     ``altitude_m``, ``x``, ``y`` (plane, m), ``detected``."""
 
     aircraft: np.ndarray
@@ -112,7 +112,8 @@ def _expected(radar: Radar, frame: RadarFrame, reference: Reference, config: Mat
     T = radar.period_s
     dip = math.acos(_EARTH_RADIUS_M / (_EARTH_RADIUS_M + max(radar.height_m, 0.0)))
     cone = math.radians(config.cone_of_silence_deg)
-    cols: dict[str, list] = {k: [] for k in ("aircraft", "scan", "time", "range_m", "altitude_m", "x", "y")}
+    cols: dict[str, list] = {k: [] for k in ("aircraft", "scan", "time", "range_m", "azimuth_deg", "altitude_m",
+                                              "x", "y")}
     for name, track in reference.tracks.items():
         lo, hi = max(track.times[0], span[0]), min(track.times[-1], span[1])
         if hi <= lo:
@@ -127,11 +128,12 @@ def _expected(radar: Radar, frame: RadarFrame, reference: Reference, config: Mat
         rho, theta, elev = frame.polar(lat, lon, h)
         # labelled as a plot there would be: near north two revolutions' iterations can meet one crossing
         scans, first = np.unique(antenna_offsets(tc, theta, T, t_north)[0], return_index=True)
-        lat, lon, h, rho, elev, tc = (v[first] for v in (lat, lon, h, rho, elev, tc))
+        lat, lon, h, rho, theta, elev, tc = (v[first] for v in (lat, lon, h, rho, theta, elev, tc))
         inside = (rho <= radar.max_range_m) & (elev >= -dip) & (elev <= cone)
         x, y = reference.plane.to_plane(lat[inside], lon[inside])
         for k, v in (("aircraft", np.full(int(inside.sum()), name, dtype=object)), ("scan", scans[inside]),
-                     ("time", tc[inside]), ("range_m", rho[inside]), ("altitude_m", h[inside]), ("x", x), ("y", y)):
+                     ("time", tc[inside]), ("range_m", rho[inside]), ("azimuth_deg", np.degrees(theta[inside])),
+                     ("altitude_m", h[inside]), ("x", x), ("y", y)):
             cols[k].append(np.asarray(v))
     types = {"aircraft": object, "scan": np.int64}
     return {k: np.concatenate(v) if v else np.empty(0, types.get(k, float)) for k, v in cols.items()}

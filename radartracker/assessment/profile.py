@@ -25,7 +25,7 @@ import attrs
 from radartracker.assessment.stats import Estimate
 from radartracker.errors import ConfigurationError
 
-#: every figure of the assessment: name → (what it is, unit)
+#: every figure of the assessment: name → (what it is, unit; a share is a probability in [0, 1])
 INDICATORS: dict[str, tuple[str, str]] = {
     "range_bias_m": ("range bias (joint estimator)", "m"),
     "azimuth_bias_deg": ("azimuth bias (joint estimator)", "deg"),
@@ -33,23 +33,23 @@ INDICATORS: dict[str, tuple[str, str]] = {
     "azimuth_bias_vs_reference_deg": ("mean azimuth residual against the reference", "deg"),
     "range_sigma_m": ("random range error σ", "m"),
     "azimuth_sigma_deg": ("random azimuth error σ", "deg"),
-    "pd": ("probability of detection", ""),
-    "plots_per_scan": ("plots per scan", ""),
-    "false_plots_per_scan": ("false plots per scan", ""),
-    "split_plot_share": ("split plots (share of detections)", ""),
-    "mode_3a_validity": ("Mode 3/A validity", ""),
-    "mode_3a_correctness": ("Mode 3/A correctness", ""),
-    "mode_c_validity": ("Mode C validity", ""),
-    "mode_c_correctness": ("Mode C correctness", ""),
-    "mode_s_correctness": ("Mode S address correctness", ""),
-    "out_of_order_share": ("plots out of time order", ""),
+    "pd": ("probability of detection", "share"),
+    "plots_per_scan": ("plots per scan", "plots"),
+    "false_plots_per_scan": ("false plots per scan", "plots"),
+    "split_plot_share": ("split plots (share of detections)", "share"),
+    "mode_3a_validity": ("Mode 3/A validity", "share"),
+    "mode_3a_correctness": ("Mode 3/A correctness", "share"),
+    "mode_c_validity": ("Mode C validity", "share"),
+    "mode_c_correctness": ("Mode C correctness", "share"),
+    "mode_s_correctness": ("Mode S address correctness", "share"),
+    "out_of_order_share": ("plots out of time order", "share"),
     "timestamp_jitter_s": ("time stamp − antenna time, σ", "s"),
     "timestamp_lateness_s": ("time-stamp lateness", "s"),
     "position_rmse_m": ("system tracks: horizontal position RMS error", "m"),
-    "probability_of_update": ("system tracks: probability of update", ""),
-    "breaks_per_flight_hour": ("system tracks: breaks per flight hour", ""),
-    "multiple_share_of_time": ("system tracks: multiple tracks (share of time)", ""),
-    "false_tracks": ("system tracks: false tracks", ""),
+    "probability_of_update": ("system tracks: probability of update", "share"),
+    "breaks_per_flight_hour": ("system tracks: breaks per flight hour", "1/h"),
+    "multiple_share_of_time": ("system tracks: multiple tracks (share of time)", "share"),
+    "false_tracks": ("system tracks: false tracks", "tracks"),
     "initiation_delay_p95_s": ("system tracks: initiation delay, 95th percentile", "s"),
 }
 RULES = ("below", "abs_below", "above")

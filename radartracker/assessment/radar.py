@@ -7,7 +7,8 @@ estimator's biases):
   mean raw residual against the reference, mean(ρ − ρ_ref) and mean(θ − θ_ref) (t interval).
 * **Random errors**: the standard deviations of e_ρ = ρ − ρ_ref − Δr̂ and e_θ = θ − θ_ref − Δθ̂ (χ²), over
   the plot nearest the reference in each sweep of an aircraft (a split plot is not noise).
-* **Pd**: detected crossings / crossings inside the coverage (Wilson), overall and by range and altitude bin.
+* **Pd**: detected crossings / crossings inside the coverage (Wilson), overall and by range, azimuth and
+  altitude bin.
 * **Plots per scan**: the mean of the plot counts of the revolutions from the first plot to the last (t).
 * **False plots per scan**: plots with no reference in the gate / revolutions (Poisson, Garwood) — only
   against the truth: an ADS-B reference lacks the aircraft that do not broadcast.
@@ -41,9 +42,10 @@ NOT_ASSESSABLE_LATENESS = "the recording carries no arrival times"
 
 @attrs.frozen
 class RadarConfig:
-    """The bins of Pd by range and altitude, and the Mode C tolerance."""
+    """The bins of Pd by range, azimuth and altitude, and the Mode C tolerance."""
 
     range_bin_km: float = attrs.field(default=25.0, validator=attrs.validators.gt(0.0))
+    azimuth_bin_deg: float = attrs.field(default=30.0, validator=attrs.validators.gt(0.0))
     altitude_bin_m: float = attrs.field(default=1500.0, validator=attrs.validators.gt(0.0))
     mode_c_tolerance_ft: float = attrs.field(default=300.0, validator=attrs.validators.gt(0.0))
 
@@ -63,31 +65,32 @@ class RadarAssessment:
     expected: dict[str, np.ndarray]
 
 
-def assess_radar(radar: Radar, plots: PlotTable, match: RadarMatch, bias: BiasState, observability: str,
+def assess_radar(radar: Radar, plots: PlotTable, match: RadarMatch, bias: BiasState, observability: dict,
                  codes: dict[str, str], reference_kind: str, config: RadarConfig) -> RadarAssessment:
     """The figures of the module docstring for ``radar``'s ``plots`` (file order) matched in ``match``;
-    ``codes``: each reference aircraft's Mode 3/A code."""
+    ``observability``: the coupling graph's report of the radar (:meth:`CouplingGraph.report`: ``status``, the
+    estimator's ``measurements``); ``codes``: each reference aircraft's Mode 3/A code."""
     kind = "ssr" if (np.isfinite(plots.altitude_m).any() or any(c is not None for c in plots.mode_3a)
                      or any(c is not None for c in plots.mode_s)) else "psr"
     figures: dict[str, Estimate] = {}
     missing: dict[str, str] = {"timestamp_lateness_s": NOT_ASSESSABLE_LATENESS}
     matched = match.aircraft != ""
     group, nearest = sweeps(plots.time, match, radar.period_s)
-    residuals = _errors(plots, match, bias, nearest, figures)
+    residuals = _errors(plots, match, bias, int(observability.get("measurements", 0)), nearest, figures)
     _detection(match, group, figures, missing, reference_kind)
     _codes(plots, match, matched, codes, config, figures, missing)
     _timestamps(radar, plots, match, nearest, figures)
-    return RadarAssessment(radar.id, kind, figures, missing, observability,
+    return RadarAssessment(radar.id, kind, figures, missing, observability.get("status", "unobserved"),
                            pd_bins(match.expected, config), residuals,
                            {k: match.expected[k] for k in ("x", "y", "range_m", "detected")})
 
 
-def _errors(plots: PlotTable, match: RadarMatch, bias: BiasState, used: np.ndarray,
+def _errors(plots: PlotTable, match: RadarMatch, bias: BiasState, measured: int, used: np.ndarray,
             figures: dict[str, Estimate]) -> dict[str, np.ndarray]:
-    """Systematic and random errors (module docstring) into ``figures``; the residuals e_ρ (m), e_θ (deg)."""
-    n = int(used.sum())
-    figures["range_bias_m"] = stats.normal(bias.range_m, bias.sd_range_m, n)
-    figures["azimuth_bias_deg"] = stats.scaled(stats.normal(bias.azimuth_rad, bias.sd_azimuth_rad, n),
+    """Systematic and random errors (module docstring) into ``figures`` (``measured``: the measurements the
+    estimator took of the radar); the residuals e_ρ (m), e_θ (deg)."""
+    figures["range_bias_m"] = stats.normal(bias.range_m, bias.sd_range_m, measured)
+    figures["azimuth_bias_deg"] = stats.scaled(stats.normal(bias.azimuth_rad, bias.sd_azimuth_rad, measured),
                                                math.degrees(1.0))
     raw_r = plots.range_m[used] - match.ref_range[used]
     raw_a = wrap_angle(plots.azimuth_rad[used] - match.ref_azimuth[used])
@@ -183,10 +186,11 @@ def _timestamps(radar: Radar, plots: PlotTable, match: RadarMatch, used: np.ndar
 
 
 def pd_bins(expected: dict[str, np.ndarray], config: RadarConfig) -> list[dict]:
-    """Pd by slant-range bin and by altitude bin: rows of variable, bin bounds, crossings, detections, Pd and
+    """Pd by slant-range, azimuth and altitude bin: rows of variable, bin bounds, crossings, detections, Pd and
     its Wilson interval (bins without a crossing left out)."""
     rows = []
     for variable, values, width in (("range_km", expected["range_m"] / 1000.0, config.range_bin_km),
+                                    ("azimuth_deg", expected["azimuth_deg"], config.azimuth_bin_deg),
                                     ("altitude_m", expected["altitude_m"], config.altitude_bin_m)):
         if not len(values):
             continue

@@ -1,7 +1,7 @@
 """``report.html``: one self-contained page a person reads — the verdicts against the profile, every
 radar's figures with their 95 % intervals, and the figures drawn (matplotlib, Agg), each embedded as a
 base64 PNG: the bias estimates with ±1.96 σ against the profile's limits, the biases over the run, and per
-radar its Pd by range and altitude, its Pd map and its error histograms with the normal density of the
+radar its Pd by range, azimuth and altitude, its Pd map and its error histograms with the normal density of the
 measured σ."""
 
 from __future__ import annotations
@@ -75,10 +75,12 @@ def bias_figure(a: Assessment, plt) -> str:
 
 
 def bias_history_figure(a: Assessment, plt) -> str:
-    """The joint estimator's biases over the replay with their ±1.96 σ bands."""
+    """The joint estimator's biases over the replay with their ±1.96 σ bands (the axes fitted to the run's second
+    half: the prior's σ of the first seconds would flatten the rest)."""
     b = a.result.biases
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.2))
     t0 = float(b.time.min()) if len(b.time) else 0.0
+    settled: list[list[float]] = [[], []]  # the second half's values: the limits of the axes, not the prior's σ
     for rid in np.unique(b.radar.astype(str)).tolist():
         sel = b.radar.astype(str) == rid
         t = b.time[sel] - t0
@@ -86,6 +88,12 @@ def bias_history_figure(a: Assessment, plt) -> str:
             v, sd = b.value[sel, j] * scale, np.sqrt(np.abs(b.cov[sel, j, j])) * scale
             ax.plot(t, v, label=rid)
             ax.fill_between(t, v - 1.96 * sd, v + 1.96 * sd, alpha=0.2)
+            settled[j] += (v[len(v) // 2:] - 1.96 * sd[len(v) // 2:]).tolist() + (v[len(v) // 2:]
+                                                                                + 1.96 * sd[len(v) // 2:]).tolist()
+    for ax, values in zip(axes, settled):
+        if values:
+            lo, hi = min(values + [0.0]), max(values + [0.0])
+            ax.set_ylim(lo - 0.3 * (hi - lo), hi + 0.3 * (hi - lo))
     axes[0].set_title("range bias over the replay (m)")
     axes[1].set_title("azimuth bias over the replay (deg)")
     for ax in axes:
@@ -95,9 +103,11 @@ def bias_history_figure(a: Assessment, plt) -> str:
 
 
 def radar_figures(r: RadarAssessment, plt) -> str:
-    """Pd by range and altitude (Wilson 95 %), the Pd map, and the error histograms of one radar."""
-    fig, axes = plt.subplots(1, 5, figsize=(20, 3.4))
-    for ax, variable, label in ((axes[0], "range_km", "slant range (km)"), (axes[1], "altitude_m", "altitude (m)")):
+    """Pd by range, azimuth and altitude (Wilson 95 %), the Pd map, and the error histograms of one radar."""
+    fig, axes = plt.subplots(2, 3, figsize=(15, 7.5))
+    axes = axes.ravel()
+    for ax, variable, label in ((axes[0], "range_km", "slant range (km)"), (axes[1], "azimuth_deg", "azimuth (deg)"),
+                                (axes[2], "altitude_m", "altitude (m)")):
         rows = [b for b in r.pd_bins if b["variable"] == variable]
         mid = np.array([(b["bin_low"] + b["bin_high"]) / 2 for b in rows])
         pd = np.array([b["pd"] for b in rows])
@@ -109,18 +119,20 @@ def radar_figures(r: RadarAssessment, plt) -> str:
         ax.set_title(f"{r.radar}: Pd by {label.split(' (')[0]}")
     ex = r.expected
     if len(ex["x"]):
-        hb = axes[2].hexbin(ex["x"] / 1e3, ex["y"] / 1e3, C=ex["detected"].astype(float), gridsize=20,
+        hb = axes[3].hexbin(ex["x"] / 1e3, ex["y"] / 1e3, C=ex["detected"].astype(float), gridsize=20,
                             reduce_C_function=np.mean, vmin=0, vmax=1, cmap="RdYlGn")
-        fig.colorbar(hb, ax=axes[2])
-    axes[2].set_title(f"{r.radar}: Pd map (x, y km)")
-    for ax, key, unit in ((axes[3], "range_m", "m"), (axes[4], "azimuth_deg", "deg")):
+        fig.colorbar(hb, ax=axes[3])
+    axes[3].set_title(f"{r.radar}: Pd map (system plane x, y km)")
+    axes[3].set_aspect("equal")
+    for ax, key, unit in ((axes[4], "range_m", "m"), (axes[5], "azimuth_deg", "deg")):
         e = r.residuals[key]
         if len(e) > 1:
             ax.hist(e, bins=40, density=True)
             m, s = float(np.mean(e)), float(np.std(e, ddof=1))
             x = np.linspace(m - 4 * s, m + 4 * s, 200)
             ax.plot(x, np.exp(-0.5 * ((x - m) / s) ** 2) / (s * math.sqrt(2 * math.pi)), "r")
-        ax.set_title(f"{r.radar}: {key.split('_')[0]} error, bias removed ({unit})", fontsize=9)
+        ax.set_title(f"{r.radar}: {key.split('_')[0]} error, bias removed ({unit})")
+    fig.tight_layout()
     return _png(fig)
 
 

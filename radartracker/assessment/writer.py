@@ -1,6 +1,6 @@
 """The files of an assessment (docs/assessment.md, "What it writes"): ``report.html``, ``indicators.csv``
 (every figure with its interval), ``verdicts.csv`` (each figure against its criterion), ``pd_bins.csv`` (Pd by
-range and altitude bin) and ``assessment.json``; the tables written by pyarrow's CSV writer, every file
+range, azimuth and altitude bin) and ``assessment.json``; the tables written by pyarrow's CSV writer, every file
 atomically (a run that fails keeps an earlier run's files)."""
 
 from __future__ import annotations

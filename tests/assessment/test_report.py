@@ -79,7 +79,7 @@ def test_tables_and_summary(paris_assessment):
     indicators = pacsv.read_csv(paris_assessment / "indicators.csv").to_pylist()
     assert {"radar", "indicator", "value", "ci_low", "ci_high", "method", "reference"} <= set(indicators[0])
     pd_bins = pacsv.read_csv(paris_assessment / "pd_bins.csv").to_pylist()
-    assert {b["variable"] for b in pd_bins} == {"range_km", "altitude_m"}
+    assert {b["variable"] for b in pd_bins} == {"range_km", "azimuth_deg", "altitude_m"}
     assert all(0 <= b["ci_low"] <= b["pd"] <= b["ci_high"] <= 1 for b in pd_bins)
 
 
@@ -104,3 +104,17 @@ def test_a_replaced_profile_judges_by_its_own_figures(tmp_path, paris_assessment
     assert summary["profile"]["name"] == "strict"
     assert {r["verdicts"]["range_sigma_m"] for r in summary["radars"].values()} == {"fail"}
     assert summary["system"]["verdicts"] == {}
+
+
+def test_an_asterix_recording_is_judged_against_its_adsb(tmp_path, paris_assessment):
+    """A CAT048/CAT021 recording has no truth: the reference is the validated ADS-B, and false plots and false
+    tracks are said to be not assessable."""
+    recording = tmp_path / "paris.ast"
+    assert main(["asterix-export", str(paris_assessment.parent / "paris"), "--out", str(recording), "--quiet"]) == 0
+    assert main(["--quiet", "assess", str(recording), "--out", str(tmp_path / "o")]) == 0
+    summary = json.loads((tmp_path / "o" / "assessment.json").read_text())
+    assert summary["reference"] == "adsb"
+    for r in summary["radars"].values():
+        assert "false_plots_per_scan" in r["not_assessable"]
+        assert 0.8 < r["figures"]["pd"]["value"] < 1.0
+    assert "false_tracks" not in summary["system"]["figures"]
