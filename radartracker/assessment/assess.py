@@ -124,7 +124,7 @@ def assess(data: ScenarioData, profile: Profile, config: AssessmentConfig | None
     observability = result.observability["radars"]
     radars = [assess_radar(radar, data.plots.take(matches[radar.id][0]), matches[radar.id][1],
                            result.final_biases[radar.id], observability.get(radar.id, {}),
-                           codes, reference.kind, config.radar)
+                           codes, {k: t.icao24 for k, t in reference.tracks.items()}, reference.kind, config.radar)
               for radar in data.radars]
     return Assessment(data.name, reference.kind, profile, radars, system_figures(result, reference, matches, data),
                       result)

@@ -66,10 +66,12 @@ class RadarAssessment:
 
 
 def assess_radar(radar: Radar, plots: PlotTable, match: RadarMatch, bias: BiasState, observability: dict,
-                 codes: dict[str, str], reference_kind: str, config: RadarConfig) -> RadarAssessment:
+                 codes: dict[str, str], addresses: dict[str, str | None], reference_kind: str,
+                 config: RadarConfig) -> RadarAssessment:
     """The figures of the module docstring for ``radar``'s ``plots`` (file order) matched in ``match``;
     ``observability``: the coupling graph's report of the radar (:meth:`CouplingGraph.report`: ``status``, the
-    estimator's ``measurements``); ``codes``: each reference aircraft's Mode 3/A code."""
+    estimator's ``measurements``); ``codes`` and ``addresses``: each reference aircraft's Mode 3/A code and
+    Mode S address (``None``: not known)."""
     kind = "ssr" if (np.isfinite(plots.altitude_m).any() or any(c is not None for c in plots.mode_3a)
                      or any(c is not None for c in plots.mode_s)) else "psr"
     figures: dict[str, Estimate] = {}
@@ -78,7 +80,7 @@ def assess_radar(radar: Radar, plots: PlotTable, match: RadarMatch, bias: BiasSt
     group, nearest = sweeps(plots.time, match, radar.period_s)
     residuals = _errors(plots, match, bias, int(observability.get("measurements", 0)), nearest, figures)
     _detection(match, group, figures, missing, reference_kind)
-    _codes(plots, match, matched, codes, config, figures, missing)
+    _codes(plots, match, matched, (codes, addresses), config, figures, missing)
     _timestamps(radar, plots, match, nearest, figures)
     return RadarAssessment(radar.id, kind, figures, missing, observability.get("status", "unobserved"),
                            pd_bins(match.expected, config), residuals,
@@ -143,9 +145,11 @@ def sweeps(t: np.ndarray, match: RadarMatch, period_s: float) -> tuple[np.ndarra
     return group, nearest
 
 
-def _codes(plots: PlotTable, match: RadarMatch, matched: np.ndarray, codes: dict[str, str], config: RadarConfig,
+def _codes(plots: PlotTable, match: RadarMatch, matched: np.ndarray, identity: tuple[dict, dict], config: RadarConfig,
            figures: dict[str, Estimate], missing: dict[str, str]) -> None:
-    """Mode 3/A, Mode C and Mode S validity and correctness (module docstring) into ``figures``."""
+    """Mode 3/A, Mode C and Mode S validity and correctness (module docstring) into ``figures``; ``identity``:
+    the reference aircraft's Mode 3/A codes and Mode S addresses."""
+    codes, addresses = identity
     keys = match.aircraft[matched]
     a3 = plots.mode_3a[matched]
     alt = plots.altitude_m[matched]
@@ -166,12 +170,12 @@ def _codes(plots: PlotTable, match: RadarMatch, matched: np.ndarray, codes: dict
         figures["mode_c_correctness"] = stats.proportion(int((close & valid).sum()), int(valid.sum()))
     else:
         missing["mode_c_validity"] = missing["mode_c_correctness"] = "no matched plot carries a Mode C altitude"
-    present = np.array([c is not None for c in ms], bool)
+    present = np.array([c is not None and addresses.get(k) is not None for c, k in zip(ms, keys)], bool)
     if present.any():
-        right = np.array([c == k for c, k in zip(ms, keys)], bool)
+        right = np.array([c == addresses.get(k) for c, k in zip(ms, keys)], bool)
         figures["mode_s_correctness"] = stats.proportion(int((right & present).sum()), int(present.sum()))
     else:
-        missing["mode_s_correctness"] = "no matched plot carries a Mode S address"
+        missing["mode_s_correctness"] = "no matched plot of an aircraft of known address carries a Mode S address"
 
 
 def _timestamps(radar: Radar, plots: PlotTable, match: RadarMatch, used: np.ndarray,

@@ -46,7 +46,7 @@ class _Page(HTMLParser):
 @pytest.fixture(scope="module")
 def paris_assessment(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("assess")
-    assert main(["--quiet", "simulate", str(root / "paris"), "--scenario", "paris", "--duration", "600"]) == 0
+    assert main(["--quiet", "simulate", str(root / "paris"), "--scenario", "paris", "--duration", "300"]) == 0
     assert main(["--quiet", "assess", str(root / "paris"), "--out", str(root / "out")]) == 0
     return root / "out"
 
@@ -118,3 +118,19 @@ def test_an_asterix_recording_is_judged_against_its_adsb(tmp_path, paris_assessm
         assert "false_plots_per_scan" in r["not_assessable"]
         assert 0.8 < r["figures"]["pd"]["value"] < 1.0
     assert "false_tracks" not in summary["system"]["figures"]
+
+
+def test_a_bad_plot_row_is_one_line_naming_file_line_and_field(tmp_path, capsys, paris_assessment):
+    import shutil
+
+    scenario = tmp_path / "bad"
+    shutil.copytree(paris_assessment.parent / "paris", scenario)
+    lines = (scenario / "plots.csv").read_text().splitlines()
+    fields = lines[5].split(",")
+    fields[2] = "far"  # range_m
+    lines[5] = ",".join(fields)
+    (scenario / "plots.csv").write_text("\n".join(lines) + "\n")
+    assert main(["assess", str(scenario), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "plots.csv" in err and "line 6" in err and "range_m" in err, err
+    assert not (tmp_path / "o").exists()
