@@ -103,3 +103,14 @@ def test_sigma_rate_and_mean_intervals():
 def test_verdict_is_decided_by_the_interval(rule, low, high, verdict):
     c = Criterion("range_bias_m", rule, 3.0, "any", "a standard")
     assert c.judge(stats.Estimate((low + high) / 2, low, high, 10, "t")) == verdict
+
+
+def test_codes_by_majority_without_an_aircraft_list(planted):
+    """Without the scenario's aircraft list each aircraft's Mode 3/A code is the one most of its plots carry:
+    the planted 3 % of wrong codes are still found wrong."""
+    import attrs
+
+    _, data, a = planted
+    b = assess(attrs.evolve(data, aircraft=[]), load_profile(), progress=False)
+    for ra, rb in zip(a.radars, b.radars):
+        assert rb.figures["mode_3a_correctness"] == ra.figures["mode_3a_correctness"]
