@@ -1,0 +1,171 @@
+"""The assessment of a scenario: every radar's figures and the system tracks' indicators, judged by a profile.
+
+1. The reference (:func:`radartracker.assessment.reference.build_reference`): truth, else validated ADS-B.
+2. The replay the project already has (:func:`radartracker.pipeline.run.run`): its joint bias estimator
+   gives each radar's Δr̂, Δθ̂ with their σ, and its coupling graph their observability; its tracks are the
+   system tracks.
+3. Each radar's plots matched to the reference (:mod:`radartracker.assessment.matching`) and its figures
+   (:mod:`radartracker.assessment.radar`).
+4. The system tracks against the same reference: the ESASSP indicators of
+   :func:`radartracker.pipeline.evaluate.track_metrics` (:mod:`radartracker.pipeline.indicators`), an
+   aircraft being observed from its first matched plot plus the confirmation grace to its last.
+5. Every figure judged by the profile's criteria (:meth:`Criterion.judge`).
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import attrs
+import numpy as np
+
+from radartracker.assessment import stats
+from radartracker.assessment.matching import MatchConfig, RadarMatch, match_radar
+from radartracker.assessment.profile import INDICATORS, Profile
+from radartracker.assessment.radar import RadarAssessment, RadarConfig, assess_radar
+from radartracker.assessment.reference import Reference, ReferenceConfig, build_reference
+from radartracker.assessment.stats import Estimate
+from radartracker.geometry.plane import RadarFrame
+from radartracker.io.tables import ScenarioData
+from radartracker.pipeline.config import RunConfig
+from radartracker.pipeline.evaluate import GridSpec, track_metrics
+from radartracker.pipeline.result import GRACE_S, RunResult, strict
+from radartracker.pipeline.run import run
+from radartracker.progress import progress_bar
+
+SYSTEM_FIGURES = ("position_rmse_m", "probability_of_update", "breaks_per_flight_hour", "multiple_share_of_time",
+                  "false_tracks", "initiation_delay_p95_s")
+
+
+@attrs.frozen
+class AssessmentConfig:
+    """The settings of an assessment: the replay's, the reference's, the gate's and the radar figures'."""
+
+    run: RunConfig = attrs.field(factory=RunConfig)
+    reference: ReferenceConfig = attrs.field(factory=ReferenceConfig)
+    match: MatchConfig = attrs.field(factory=MatchConfig)
+    radar: RadarConfig = attrs.field(factory=RadarConfig)
+
+
+@attrs.define
+class Assessment:
+    """What :func:`assess` found: per radar, the system tracks, the profile and the replay it used."""
+
+    scenario: str
+    reference: str
+    profile: Profile
+    radars: list[RadarAssessment]
+    system: dict[str, Estimate]
+    result: RunResult
+
+    def verdicts(self) -> list[dict]:
+        """One row per (radar or ``system``, criterion that applies): the figure, its interval, the rule, the
+        verdict and the standard."""
+        rows = []
+        subjects = [(r.radar, r.kind, r.figures) for r in self.radars] + [("system", "system", self.system)]
+        for name, kind, figures in subjects:
+            for c in self.profile.for_kind(kind):
+                e = figures.get(c.indicator, stats.missing(""))
+                rows.append({"radar": name, "indicator": c.indicator, "value": e.value, "ci_low": e.low,
+                             "ci_high": e.high, "rule": c.text(), "verdict": c.judge(e), "standard": c.standard,
+                             "note": c.note})
+        return rows
+
+    def indicator_rows(self) -> list[dict]:
+        """Every figure of every radar and of the system tracks, one row each (``indicators.csv``)."""
+        rows = []
+        for r in self.radars:
+            for name, e in r.figures.items():
+                rows.append({"radar": r.radar, "indicator": name, **e.as_dict(), "reference": self.reference,
+                             "note": ""})
+            for name, why in r.not_assessable.items():
+                rows.append({"radar": r.radar, "indicator": name, **stats.missing("").as_dict(),
+                             "reference": self.reference, "note": f"not assessable: {why}"})
+        for name, e in self.system.items():
+            rows.append({"radar": "system", "indicator": name, **e.as_dict(), "reference": self.reference,
+                         "note": "ESASSP indicators of radartracker.pipeline.indicators"})
+        return rows
+
+    def summary(self) -> dict:
+        """``assessment.json``: strict JSON (NaN as null)."""
+        verdicts = self.verdicts()
+        return strict({
+            "scenario": self.scenario, "reference": self.reference, "estimator": self.result.estimator_name,
+            "profile": {"name": self.profile.name, "source": self.profile.source},
+            "confidence_level": stats.LEVEL,
+            "units": {k: u for k, (_, u) in INDICATORS.items()},
+            "radars": {r.radar: {"kind": r.kind, "observability": r.observability,
+                                 "figures": {k: e.as_dict() for k, e in r.figures.items()},
+                                 "not_assessable": r.not_assessable,
+                                 "verdicts": {v["indicator"]: v["verdict"] for v in verdicts if v["radar"] == r.radar}}
+                       for r in self.radars},
+            "system": {"figures": {k: e.as_dict() for k, e in self.system.items()},
+                       "verdicts": {v["indicator"]: v["verdict"] for v in verdicts if v["radar"] == "system"}},
+            "verdict_counts": dict(Counter(v["verdict"] for v in verdicts)),
+        })
+
+
+def assess(data: ScenarioData, profile: Profile, config: AssessmentConfig | None = None, *,
+           progress: bool = True) -> Assessment:
+    """The assessment of ``data`` (module docstring)."""
+    config = config or AssessmentConfig()
+    reference = build_reference(data, config.reference)
+    result = run(data, config.run, progress=progress)
+    plane = reference.plane
+    matches: dict[str, tuple[np.ndarray, RadarMatch]] = {}
+    for radar in progress_bar(data.radars, desc="matching plots", unit="radar", disable=not progress):
+        idx = np.flatnonzero(data.plots.radar == radar.id)
+        b = result.final_biases[radar.id]
+        frame = RadarFrame(radar.lat, radar.lon, radar.height_m, plane)
+        matches[radar.id] = idx, match_radar(radar, frame, data.plots.time[idx], data.plots.range_m[idx],
+                                             data.plots.azimuth_rad[idx], (b.range_m, b.azimuth_rad),
+                                             reference, config.match)
+    codes = reference_codes(data, reference, matches)
+    observability = result.observability["radars"]
+    radars = [assess_radar(radar, data.plots.take(matches[radar.id][0]), matches[radar.id][1],
+                           result.final_biases[radar.id], observability.get(radar.id, {}),
+                           codes, {k: t.icao24 for k, t in reference.tracks.items()}, reference.kind, config.radar)
+              for radar in data.radars]
+    return Assessment(data.name, reference.kind, profile, radars, system_figures(result, reference, matches, data),
+                      result)
+
+
+def reference_codes(data: ScenarioData, reference: Reference, matches: dict[str, tuple[np.ndarray, RadarMatch]]
+                    ) -> dict[str, str]:
+    """Each reference aircraft's Mode 3/A code: the scenario's aircraft list's, else the code most of its
+    matched plots (all radars) carry."""
+    votes: dict[str, Counter] = {}
+    for idx, m in matches.values():
+        for key, code in zip(m.aircraft.tolist(), data.plots.mode_3a[idx].tolist()):
+            if key and code is not None:
+                votes.setdefault(key, Counter())[code] += 1
+    out = {k: v.most_common(1)[0][0] for k, v in votes.items()}
+    out.update({k: t.mode_3a for k, t in reference.tracks.items() if t.mode_3a is not None})
+    return out
+
+
+def system_figures(result: RunResult, reference: Reference, matches: dict[str, tuple[np.ndarray, RadarMatch]],
+                   data: ScenarioData) -> dict[str, Estimate]:
+    """The replay's tracks against the reference (module docstring, step 4): point values (consecutive
+    samples of a track are correlated: no interval is claimed); false tracks only against the truth."""
+    spans: dict[str, tuple[float, float]] = {}
+    for idx, m in matches.values():
+        t = data.plots.time[idx]
+        for key in np.unique(m.aircraft[m.aircraft != ""]).tolist():
+            tk = t[m.aircraft == key]
+            lo, hi = spans.get(key, (np.inf, -np.inf))
+            spans[key] = (min(lo, float(tk.min())), max(hi, float(tk.max())))
+    observed = {k: (lo + GRACE_S, hi) for k, (lo, hi) in spans.items() if hi - lo > GRACE_S}
+    histories = result.histories()
+    if not observed or not histories:
+        return {name: stats.missing("point") for name in SYSTEM_FIGURES}
+    grid = GridSpec(min(lo for lo, _ in observed.values()), max(hi for _, hi in observed.values()), 2.0)
+    metrics = track_metrics(histories, reference.paths(), observed, grid,
+                            first_seen={k: lo for k, (lo, _) in spans.items()})
+    q = metrics["indicators"]
+    values = {"position_rmse_m": metrics["position_rmse_m"],
+              **{k: q[k] for k in ("probability_of_update", "breaks_per_flight_hour", "multiple_share_of_time",
+                                   "initiation_delay_p95_s")}}
+    if reference.kind == "truth":  # against ADS-B, a track on an aircraft that does not broadcast looks false
+        values["false_tracks"] = float(metrics["false_tracks"])
+    return {k: Estimate(float(v), float(v), float(v), len(observed), "point") for k, v in values.items()}

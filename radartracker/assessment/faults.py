@@ -1,0 +1,95 @@
+"""Known faults planted in a scenario, so that the assessment can be checked against a known truth
+(tests/assessment, scripts/assessment_montecarlo.py). The simulator (radartracker.simulation) makes
+biases, noise, Pd < 1 and false plots but no wrong codes, split plots or disordered time stamps; these are
+planted here, each plot independently with its stated probability:
+
+* a wrong Mode 3/A code (the last octal digit changed), a wrong Mode C altitude (+1000 ft) or a wrong Mode S
+  address (the last hex digit changed), among the plots that carry one;
+* a split plot: a second plot of the same sweep, 1 ms later and ``split_offset_m`` farther in range;
+* a plot out of time order: of two consecutive plots of a radar (pairs taken without overlap) the two rows
+  exchanged, with probability 2 × ``out_of_order`` per pair, so that this share of the plots is stamped
+  earlier than the plot before it in the file.
+"""
+
+from __future__ import annotations
+
+import math
+
+import attrs
+import numpy as np
+
+from radartracker.io.tables import PlotTable, ScenarioData
+from radartracker.simulation.simulator import SimRadar
+
+_FT = 0.3048
+
+
+@attrs.frozen
+class Faults:
+    """The probabilities of the module docstring (each in [0, 0.5])."""
+
+    wrong_mode_3a: float = 0.0
+    wrong_mode_c: float = 0.0
+    wrong_mode_s: float = 0.0
+    split: float = 0.0
+    out_of_order: float = 0.0
+    split_offset_m: float = 300.0
+
+
+def plant(data: ScenarioData, faults: Faults, seed: int = 0) -> ScenarioData:
+    """``data`` with ``faults`` planted in its plots (module docstring); the rest unchanged."""
+    rng = np.random.default_rng([seed, 31])
+    p = data.plots.take(np.arange(len(data.plots)))  # a copy: the columns are changed in place
+    hit = rng.random((3, len(p)))
+    for col, rate, change in ((p.mode_3a, faults.wrong_mode_3a, lambda c: c[:3] + str((int(c[3]) + 1) % 8)),
+                              (p.mode_s, faults.wrong_mode_s, lambda c: c[:5] + f"{(int(c[5], 16) + 1) % 16:x}")):
+        rows = np.flatnonzero((hit[0 if col is p.mode_3a else 2] < rate) & np.array([c is not None for c in col]))
+        col[rows] = [change(c) for c in col[rows]]
+    alt = np.isfinite(p.altitude_m) & (hit[1] < faults.wrong_mode_c)
+    p.altitude_m[alt] += 1000 * _FT
+    labelled = np.array([t is not None for t in p.target], bool)
+    split = np.flatnonzero(labelled & (rng.random(len(p)) < faults.split))
+    extra = p.take(split)
+    extra.time = extra.time + 1e-3
+    extra.range_m = extra.range_m + faults.split_offset_m
+    merged = _concat(p, extra)
+    order = np.argsort(merged.time, kind="stable")
+    plots = merged.take(_disorder(merged.radar[order], order, faults.out_of_order, rng))
+    return attrs.evolve(data, plots=plots)
+
+
+def _concat(a: PlotTable, b: PlotTable) -> PlotTable:
+    return PlotTable(**{f.name: np.concatenate([getattr(a, f.name), getattr(b, f.name)])
+                        for f in attrs.fields(PlotTable)})
+
+
+def _disorder(radar: np.ndarray, order: np.ndarray, share: float, rng: np.random.Generator) -> np.ndarray:
+    """``order`` (row indices in time order) with, per radar, pairs of consecutive plots (0-1, 2-3, …) swapped
+    with probability 2 × ``share``."""
+    out = order.copy()
+    for rid in np.unique(radar.astype(str)).tolist():
+        pos = np.flatnonzero(radar == rid)
+        pairs = pos[: len(pos) // 2 * 2].reshape(-1, 2)
+        swap = pairs[rng.random(len(pairs)) < 2 * share]
+        out[swap[:, 0]], out[swap[:, 1]] = order[swap[:, 1]], order[swap[:, 0]]
+    return out
+
+
+def known_figures(radars: list[SimRadar], truth_biases: dict[str, tuple[float, float]], faults: Faults
+                  ) -> dict[str, dict[str, float]]:
+    """The true value of each figure a simulation with ``faults`` planted should give, per radar id: the
+    simulated biases (``truth_biases``: Δr m, Δθ rad), noise, Pd and false plot rate (``radars``), the planted
+    rates, and the time-stamp jitter σ_θ T/2π of an exact clock."""
+    out = {}
+    for sr in radars:
+        r = sr.radar
+        bias_r, bias_a = truth_biases[r.id]
+        out[r.id] = {"range_bias_m": bias_r, "azimuth_bias_deg": math.degrees(bias_a),
+                     "range_bias_vs_reference_m": bias_r, "azimuth_bias_vs_reference_deg": math.degrees(bias_a),
+                     "range_sigma_m": r.sigma_range_m, "azimuth_sigma_deg": math.degrees(r.sigma_azimuth_rad),
+                     "pd": sr.pd, "false_plots_per_scan": sr.false_per_scan, "split_plot_share": faults.split,
+                     "mode_3a_validity": 1.0, "mode_3a_correctness": 1.0 - faults.wrong_mode_3a,
+                     "mode_c_validity": 1.0, "mode_c_correctness": 1.0 - faults.wrong_mode_c,
+                     "mode_s_correctness": 1.0 - faults.wrong_mode_s, "out_of_order_share": faults.out_of_order,
+                     "timestamp_jitter_s": r.sigma_azimuth_rad * r.period_s / (2 * math.pi)}
+    return out

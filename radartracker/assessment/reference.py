@@ -1,0 +1,128 @@
+"""The reference trajectories the sensors are judged against: the truth where the scenario has it, else
+each aircraft's validated ADS-B.
+
+* **truth** (``truth.csv``): each target's positions, joined by straight lines in the system plane
+  (a conformal projection: over the truth's 1 s steps the chord differs from the path by millimetres).
+* **adsb**: each address's reports of NACp ≥ :attr:`ReferenceConfig.min_nacp` (the accuracy bound, EPU,
+  of NACp 7 is 0.1 NM), smoothed by the robust cubic smoothing spline of
+  :class:`radartracker.simulation.simulator.RecordedTrajectory` (λ = σ²/q: 20 m noise, 4 m²/s³ manoeuvres;
+  reports more than 5 σ̂ off it are left out). A reference position exists only at times no farther than
+  :attr:`ReferenceConfig.max_gap_s` from a report: a plot in a longer gap has no reference. The smoothed
+  ADS-B carries its own error (about 10–20 m at NACp 8): a radar's random error measured against it is
+  √(σ_radar² + σ_ref²), which the report says.
+
+Positions come back geodetic (lat, lon, height), so that every comparison with a radar goes through the
+radar's exact polar geometry (:class:`radartracker.geometry.plane.RadarFrame`).
+"""
+
+from __future__ import annotations
+
+import re
+
+import attrs
+import numpy as np
+
+from radartracker.errors import InputError
+from radartracker.geometry.plane import SystemPlane
+from radartracker.io.tables import ScenarioData
+from radartracker.pipeline.evaluate import TruthPaths
+from radartracker.simulation.simulator import RecordedTrajectory
+
+_ADDRESS = re.compile(r"^[0-9a-f]{6}$")
+
+
+@attrs.frozen
+class ReferenceConfig:
+    """How the ADS-B reference is validated: the least NACp kept, the longest gap between reports across
+    which a position is interpolated, and the fewest reports an aircraft needs."""
+
+    min_nacp: int = attrs.field(default=7, validator=[attrs.validators.ge(1), attrs.validators.le(11)])
+    max_gap_s: float = attrs.field(default=20.0, validator=attrs.validators.gt(0.0))
+    min_reports: int = attrs.field(default=10, validator=attrs.validators.ge(2))
+
+
+@attrs.frozen
+class ReferenceTrack:
+    """One aircraft's reference: its sample times, a plane trajectory through them, and its identity
+    (Mode S address where its key is one; Mode 3/A code where the scenario's aircraft list gives it)."""
+
+    key: str
+    times: np.ndarray
+    trajectory: RecordedTrajectory
+    icao24: str | None
+    mode_3a: str | None
+    max_gap_s: float
+
+    def covered(self, t: np.ndarray) -> np.ndarray:
+        """Whether each time lies within the span and at most ``max_gap_s`` from a sample."""
+        t = np.asarray(t, float)
+        i = np.clip(np.searchsorted(self.times, t), 1, len(self.times) - 1)
+        gap = np.minimum(np.abs(t - self.times[i - 1]), np.abs(self.times[i] - t))
+        return (t >= self.times[0]) & (t <= self.times[-1]) & (gap <= self.max_gap_s)
+
+
+@attrs.frozen
+class Reference:
+    """Every aircraft's reference trajectory (``kind``: ``"truth"`` or ``"adsb"``) in ``plane``."""
+
+    kind: str
+    plane: SystemPlane
+    tracks: dict[str, ReferenceTrack]
+
+    def geodetic(self, key: str, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """WGS84 (lat, lon, height m) of aircraft ``key`` at times ``t`` (inside its span)."""
+        x, y, h = self.tracks[key].trajectory.position(np.asarray(t, float))
+        lat, lon = self.plane.to_geodetic(x, y)
+        return lat, lon, h
+
+    def paths(self, step_s: float = 1.0) -> TruthPaths:
+        """The reference as :class:`TruthPaths` (plane positions and velocities every ``step_s``), for the
+        track indicators of :func:`radartracker.pipeline.evaluate.track_metrics`."""
+        out = {}
+        for key, tr in self.tracks.items():
+            t = np.append(np.arange(tr.times[0], tr.times[-1], step_s), tr.times[-1])
+            x, y, _ = tr.trajectory.position(t)
+            p = np.stack([x, y], axis=-1)
+            out[key] = (t, p, np.gradient(p, t, axis=0) if len(t) > 1 else np.zeros_like(p))
+        return TruthPaths(out)
+
+
+def build_reference(data: ScenarioData, config: ReferenceConfig | None = None) -> Reference:
+    """The truth of ``data`` where it has one, else its validated ADS-B (module docstring); an InputError
+    when it has neither."""
+    config = config or ReferenceConfig()
+    plane = SystemPlane(*data.reference)
+    codes = {a.icao24: a.mode_3a for a in data.aircraft}
+    if data.truth is not None and len(data.truth):
+        tr = data.truth
+        x, y = plane.to_plane(tr.lat, tr.lon)
+        tracks = _tracks(tr.target.astype(str), tr.time, x, y, tr.altitude_m, codes, np.inf, smooth=False)
+        return Reference("truth", plane, tracks)
+    a = data.adsb
+    keep = (a.nacp >= config.min_nacp) & np.isfinite(a.altitude_m)
+    if not keep.any():
+        raise InputError(f"scenario {data.name!r}: no truth.csv and no ADS-B report of NACp ≥ {config.min_nacp} "
+                         "with an altitude: nothing to judge the radars against")
+    x, y = plane.to_plane(a.lat[keep], a.lon[keep])
+    tracks = _tracks(a.icao24[keep].astype(str), a.time[keep], x, y, a.altitude_m[keep], codes, config.max_gap_s,
+                     smooth=True, min_reports=config.min_reports)
+    return Reference("adsb", plane, tracks)
+
+
+def _tracks(keys: np.ndarray, t: np.ndarray, x: np.ndarray, y: np.ndarray, h: np.ndarray, codes: dict,
+            max_gap_s: float, *, smooth: bool, min_reports: int = 2) -> dict[str, ReferenceTrack]:
+    """One :class:`ReferenceTrack` per key with at least ``min_reports`` samples at distinct times."""
+    out = {}
+    order = np.lexsort((t, keys))
+    keys, t, x, y, h = keys[order], t[order], x[order], y[order], h[order]
+    names, first = np.unique(keys, return_index=True)
+    for name, idx in zip(names.tolist(), np.split(np.arange(len(keys)), first[1:])):
+        ti = t[idx]
+        distinct = np.concatenate([[True], np.diff(ti) > 0])
+        idx = idx[distinct]
+        if len(idx) < min_reports:
+            continue
+        traj = RecordedTrajectory(t[idx], x[idx], y[idx], h[idx], smooth=smooth)
+        address = name if _ADDRESS.match(name) else None
+        out[name] = ReferenceTrack(name, t[idx], traj, address, codes.get(address), max_gap_s)
+    return out

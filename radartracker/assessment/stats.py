@@ -1,0 +1,111 @@
+"""Estimates with their 95 % confidence intervals, each computed from its own sample.
+
+Every figure of the assessment is an :class:`Estimate`: the value, the interval [low, high] at
+:data:`LEVEL`, the sample size and the method that made the interval:
+
+* a probability k/n (Pd, a code's correctness): **Wilson** score interval
+  (p̂ + z²/2n ± z √(p̂(1−p̂)/n + z²/4n²)) / (1 + z²/n); for rare events (splits, wrong codes, k ≤ 5 or
+  n − k ≤ 5) the exact **Clopper–Pearson** interval [B(α/2; k, n−k+1), B(1−α/2; k+1, n−k)];
+* a standard deviation s of n residuals: **χ²**, [s √((n−1)/χ²_{1−α/2, n−1}), s √((n−1)/χ²_{α/2, n−1})];
+* a mean of n values: Student's **t**, x̄ ± t_{1−α/2, n−1} s/√n;
+* a rate of N events in S scans (false plots per scan): the exact Poisson (**Garwood**) interval
+  [χ²_{α/2, 2N}/2, χ²_{1−α/2, 2N+2}/2] / S;
+* an estimator's own estimate with its σ (a bias): **normal**, x̂ ± z σ.
+"""
+
+from __future__ import annotations
+
+import math
+
+import attrs
+import numpy as np
+from scipy import stats
+
+LEVEL = 0.95
+_Z = float(stats.norm.ppf(0.5 + LEVEL / 2))
+
+
+@attrs.frozen
+class Estimate:
+    """A figure, its interval at :data:`LEVEL`, the sample it came from and how the interval was made."""
+
+    value: float
+    low: float
+    high: float
+    n: int
+    method: str
+
+    def contains(self, x: float) -> bool:
+        """Whether ``x`` lies in [low, high]."""
+        return self.low <= x <= self.high
+
+    def as_dict(self) -> dict:
+        return {"value": self.value, "ci_low": self.low, "ci_high": self.high, "n": self.n, "method": self.method}
+
+
+def missing(method: str) -> Estimate:
+    """An estimate of an empty sample: NaN with the method it would have used."""
+    return Estimate(math.nan, math.nan, math.nan, 0, method)
+
+
+def proportion(k: int, n: int) -> Estimate:
+    """k successes in n trials: Wilson's interval, or Clopper–Pearson's when k or n − k is 5 or less
+    (where Wilson's coverage falls below its level)."""
+    if n <= 0:
+        return missing("wilson")
+    p = k / n
+    if min(k, n - k) <= 5:
+        a = 1 - LEVEL
+        lo = float(stats.beta.ppf(a / 2, k, n - k + 1)) if k > 0 else 0.0
+        hi = float(stats.beta.ppf(1 - a / 2, k + 1, n - k)) if k < n else 1.0
+        return Estimate(p, lo, hi, n, "clopper-pearson")
+    z2 = _Z * _Z
+    centre = (p + z2 / (2 * n)) / (1 + z2 / n)
+    half = _Z * math.sqrt(p * (1 - p) / n + z2 / (4 * n * n)) / (1 + z2 / n)
+    return Estimate(p, centre - half, centre + half, n, "wilson")
+
+
+def sigma(residuals: np.ndarray) -> Estimate:
+    """The sample standard deviation of ``residuals`` (about their mean, n − 1) with its χ² interval."""
+    x = np.asarray(residuals, float)
+    n = len(x)
+    if n < 3:
+        return missing("chi2")
+    s = float(np.std(x, ddof=1))
+    a = 1 - LEVEL
+    lo = s * math.sqrt((n - 1) / stats.chi2.ppf(1 - a / 2, n - 1))
+    hi = s * math.sqrt((n - 1) / stats.chi2.ppf(a / 2, n - 1))
+    return Estimate(s, lo, hi, n, "chi2")
+
+
+def mean(values: np.ndarray) -> Estimate:
+    """The sample mean with Student's t interval."""
+    x = np.asarray(values, float)
+    n = len(x)
+    if n < 2:
+        return missing("t")
+    m, s = float(np.mean(x)), float(np.std(x, ddof=1))
+    half = float(stats.t.ppf(0.5 + LEVEL / 2, n - 1)) * s / math.sqrt(n)
+    return Estimate(m, m - half, m + half, n, "t")
+
+
+def rate(events: int, exposures: int) -> Estimate:
+    """``events`` in ``exposures`` (scans): the Poisson rate with Garwood's exact interval."""
+    if exposures <= 0:
+        return missing("poisson-garwood")
+    a = 1 - LEVEL
+    lo = float(stats.chi2.ppf(a / 2, 2 * events)) / 2 if events > 0 else 0.0
+    hi = float(stats.chi2.ppf(1 - a / 2, 2 * events + 2)) / 2
+    return Estimate(events / exposures, lo / exposures, hi / exposures, exposures, "poisson-garwood")
+
+
+def normal(value: float, sd: float, n: int) -> Estimate:
+    """An estimator's estimate ``value`` with its stated σ: value ± z σ (``n``: the measurements it used)."""
+    if not (math.isfinite(value) and math.isfinite(sd)):
+        return missing("normal")
+    return Estimate(value, value - _Z * sd, value + _Z * sd, n, "normal")
+
+
+def scaled(e: Estimate, factor: float) -> Estimate:
+    """``e`` in other units (every bound times ``factor`` > 0)."""
+    return attrs.evolve(e, value=e.value * factor, low=e.low * factor, high=e.high * factor)

@@ -1,0 +1,44 @@
+"""``radartracker assess``: a per-radar surveillance assessment of a scenario (radartracker.assessment)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register_assess(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("assess", help="assess each radar (biases, errors, Pd, codes, time stamps) and the system "
+                                      "tracks against the truth or ADS-B; writes report.html (docs/assessment.md)")
+    p.add_argument("scenario", type=Path, help="scenario folder or ASTERIX recording (see docs/formats.md)")
+    p.add_argument("--out", type=Path, required=True, help="output folder (new or empty; see --overwrite)")
+    p.add_argument("--profile", type=Path, default=None,
+                   help="thresholds and standards, a TOML or JSON file (default: the 1997 EUROCONTROL radar "
+                        "standard and ESASSP 5 NM, radartracker/data/assessment-eurocontrol-1997.toml)")
+    p.add_argument("--estimator", default=None, help="the joint bias estimator (default: the best installed)")
+    p.add_argument("--skip-bad", action="store_true", help="skip (and count) malformed input rows instead of stopping")
+    p.add_argument("--overwrite", action="store_true", help="replace an earlier assessment's files in --out")
+    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS, help="no progress bars, no library logs")
+    p.set_defaults(func=_cmd_assess)
+
+
+def _cmd_assess(args: argparse.Namespace) -> int:
+    from radartracker.assessment.assess import AssessmentConfig, assess
+    from radartracker.assessment.profile import load_profile
+    from radartracker.assessment.writer import ASSESSMENT_FILES, write_assessment
+    from radartracker.io.atomic import prepare_output_folder, removed_if_failed
+    from radartracker.io.sources import read_source
+    from radartracker.pipeline.config import RunConfig
+
+    profile = load_profile(args.profile)  # a bad profile is refused before the work
+    progress = not getattr(args, "quiet", False)
+    with removed_if_failed(args.out):
+        out = prepare_output_folder(args.out, ASSESSMENT_FILES, overwrite=args.overwrite, keep_earlier=True)
+        data = read_source(args.scenario, skip_bad=args.skip_bad)
+        config = AssessmentConfig(run=RunConfig(estimator=args.estimator, skip_bad=args.skip_bad))
+        a = assess(data, profile, config, progress=progress)
+        write_assessment(a, out, progress=progress)
+    counts = a.summary()["verdict_counts"]
+    print(f"assessed {len(a.radars)} radars of {data.name or args.scenario} against the {a.reference}; "
+          f"profile {profile.name!r}: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
+    print(f"outputs in {out} (report.html)")
+    return 0
