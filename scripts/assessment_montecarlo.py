@@ -2,7 +2,7 @@
 
 Each run simulates the ``tracking`` scenario (two radars with known range and azimuth biases, σ, Pd 0.9 and
 two false plots per revolution) with its own seed, plants wrong Mode 3/A, Mode C and Mode S codes, split
-plots and disordered time stamps at known rates (radartracker.assessment.faults), assesses it against the
+plots and disordered time stamps at known rates (radartracker.simulation.faults), assesses it against the
 truth and checks, per radar and figure, whether the 95 % interval holds the true value. Prints one row per
 figure: the runs × radars, how often the interval held the truth (coverage; 95 % expected), the mean
 estimate against the truth and the mean interval width.
@@ -19,7 +19,7 @@ import numpy as np
 from scipy import stats
 
 from radartracker.assessment.assess import assess
-from radartracker.assessment.faults import Faults, known_figures, plant
+from radartracker.simulation.faults import Faults, known_figures, plant
 from radartracker.assessment.profile import INDICATORS, load_profile
 from radartracker.progress import progress_bar
 from radartracker.simulation.scenarios import build_scenario

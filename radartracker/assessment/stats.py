@@ -5,7 +5,8 @@ Every figure of the assessment is an :class:`Estimate`: the value, the interval 
 
 * a probability k/n (Pd, a code's correctness): **Wilson** score interval
   (p̂ + z²/2n ± z √(p̂(1−p̂)/n + z²/4n²)) / (1 + z²/n); for rare events (splits, wrong codes, k ≤ 5 or
-  n − k ≤ 5) the exact **Clopper–Pearson** interval [B(α/2; k, n−k+1), B(1−α/2; k+1, n−k)];
+  n − k ≤ 5) the exact **Clopper–Pearson** interval [B(α/2; k, n−k+1), B(1−α/2; k+1, n−k)]; both as
+  ``scipy.stats.binomtest`` computes them;
 * a standard deviation s of n residuals: **χ²**, [s √((n−1)/χ²_{1−α/2, n−1}), s √((n−1)/χ²_{α/2, n−1})];
 * a mean of n values: Student's **t**, x̄ ± t_{1−α/2, n−1} s/√n;
 * a rate of N events in S scans (false plots per scan): the exact Poisson (**Garwood**) interval
@@ -50,19 +51,12 @@ def missing(method: str) -> Estimate:
 
 def proportion(k: int, n: int) -> Estimate:
     """k successes in n trials: Wilson's interval, or Clopper–Pearson's when k or n − k is 5 or less
-    (where Wilson's coverage falls below its level)."""
+    (where Wilson's coverage falls below its level); both by ``scipy.stats.binomtest``."""
     if n <= 0:
         return missing("wilson")
-    p = k / n
-    if min(k, n - k) <= 5:
-        a = 1 - LEVEL
-        lo = float(stats.beta.ppf(a / 2, k, n - k + 1)) if k > 0 else 0.0
-        hi = float(stats.beta.ppf(1 - a / 2, k + 1, n - k)) if k < n else 1.0
-        return Estimate(p, lo, hi, n, "clopper-pearson")
-    z2 = _Z * _Z
-    centre = (p + z2 / (2 * n)) / (1 + z2 / n)
-    half = _Z * math.sqrt(p * (1 - p) / n + z2 / (4 * n * n)) / (1 + z2 / n)
-    return Estimate(p, centre - half, centre + half, n, "wilson")
+    exact = min(k, n - k) <= 5
+    ci = stats.binomtest(k, n).proportion_ci(LEVEL, method="exact" if exact else "wilson")
+    return Estimate(k / n, float(ci.low), float(ci.high), n, "clopper-pearson" if exact else "wilson")
 
 
 def sigma(residuals: np.ndarray) -> Estimate:

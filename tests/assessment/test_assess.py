@@ -8,11 +8,11 @@ import math
 
 import numpy as np
 import pytest
-from scipy.stats import binom, binomtest
+from scipy.stats import binom
 
 from radartracker.assessment import stats
 from radartracker.assessment.assess import assess
-from radartracker.assessment.faults import Faults, known_figures, plant
+from radartracker.simulation.faults import Faults, known_figures, plant
 from radartracker.assessment.profile import Criterion, load_profile
 from radartracker.simulation.scenarios import build_scenario
 
@@ -79,11 +79,18 @@ def test_adsb_reference_without_truth(demo_data):
 
 
 @pytest.mark.parametrize("k, n", [(0, 40), (3, 200), (57, 60), (450, 500), (30, 100)])
-def test_proportion_intervals_are_scipys(k, n):
+def test_proportion_intervals_by_their_definitions(k, n):
+    """Wilson's bounds from its formula; Clopper–Pearson's as the p whose binomial tails at k are α/2."""
     e = stats.proportion(k, n)
-    method = "exact" if e.method == "clopper-pearson" else "wilson"
-    ci = binomtest(k, n).proportion_ci(0.95, method=method)
-    assert (e.low, e.high) == pytest.approx((ci.low, ci.high), abs=1e-9)
+    if e.method == "wilson":
+        z, p = 1.959963984540054, k / n
+        centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+        half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+        assert (e.low, e.high) == pytest.approx((centre - half, centre + half), abs=1e-12)
+    else:
+        assert e.method == "clopper-pearson"
+        assert e.low == 0.0 if k == 0 else binom.sf(k - 1, n, e.low) == pytest.approx(0.025, abs=1e-9)
+        assert e.high == 1.0 if k == n else binom.cdf(k, n, e.high) == pytest.approx(0.025, abs=1e-9)
 
 
 def test_sigma_rate_and_mean_intervals():

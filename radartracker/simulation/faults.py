@@ -1,5 +1,5 @@
 """Known faults planted in a scenario, so that the assessment can be checked against a known truth
-(tests/assessment, scripts/assessment_montecarlo.py). The simulator (radartracker.simulation) makes
+(tests/assessment, scripts/assessment_montecarlo.py). The simulator (:mod:`radartracker.simulation.simulator`) makes
 biases, noise, Pd < 1 and false plots but no wrong codes, split plots or disordered time stamps; these are
 planted here, each plot independently with its stated probability:
 
