@@ -12,9 +12,11 @@ started from the priors (the same priors the estimator is given). With q = 0 and
 the inverse of the batch Fisher information Σ Hᵀ R⁻¹ H + priors, the bound of any unbiased estimate
 from the recording. An aircraft is marginalised after its last measurement, as the estimator does.
 
-A component whose bound is not below ``UNOBSERVABLE_RATIO`` of its prior variance gets its information
-from the prior alone: it is reported ``unobservable`` (a time offset seen only on hovering traffic,
-whose column −v is zero; a range offset on a lone radar without ADS-B), never as a small σ.
+A component's status compares its bound with its prior variance σ₀²: ``unobservable`` when CRLB ≥
+``UNOBSERVABLE_RATIO``·σ₀² (the plots add less than 11 % of the prior's information: a time offset
+seen only on hovering traffic, whose column −v is zero; a range gain on a lone radar without ADS-B), never
+reported as a small σ; ``weak`` when CRLB ≥ ``WEAK_RATIO``·σ₀² (the prior still holds a tenth or more of
+the information, so the estimate leans on it); ``observable`` otherwise.
 """
 
 from __future__ import annotations
@@ -26,14 +28,13 @@ import numpy as np
 
 from radartracker.estimation.base import EstimatorConfig
 
-#: the bound of an observable component is below this fraction of its prior variance (the plots removed
-#: at least 10 % of it)
-UNOBSERVABLE_RATIO = 0.9
+#: CRLB / prior variance at and above which a component is unobservable, and weak
+UNOBSERVABLE_RATIO, WEAK_RATIO = 0.9, 0.1
 
 
 @attrs.frozen
 class ComponentBound:
-    """One bias component's √CRLB (``sd``), prior σ and ``status`` (``observable`` or ``unobservable``)."""
+    """One bias component's √CRLB (``sd``), prior σ and ``status``: ``observable``, ``weak`` or ``unobservable``."""
 
     radar: str
     component: str
@@ -42,8 +43,8 @@ class ComponentBound:
 
     @property
     def status(self) -> str:
-        observable = self.prior_sd > 0.0 and self.sd**2 < UNOBSERVABLE_RATIO * self.prior_sd**2
-        return "observable" if observable else "unobservable"
+        ratio = self.sd**2 / self.prior_sd**2 if self.prior_sd > 0.0 else 1.0
+        return "unobservable" if ratio >= UNOBSERVABLE_RATIO else "weak" if ratio >= WEAK_RATIO else "observable"
 
 
 @attrs.frozen

@@ -246,3 +246,52 @@ def test_sensor_model_configuration_errors():
         SensorModel.default(1.0, 1.0).with_components(BiasComponent("range_offset", 1.0))
     with pytest.raises(ConfigurationError, match="drift must be finite and >= 0"):
         BiasComponent("time_offset", 0.1, -1.0)
+
+
+def test_coupled_with_drifting_gain_equals_filterpy():
+    """Process noise and drifting range gains and offsets: FilterPy's KF on the stacked state, predicting every
+    block to every measurement, is the oracle (the coupled filter predicts only the measured aircraft)."""
+    from filterpy.kalman import KalmanFilter
+
+    x0, meas = _toy(np.random.default_rng(9), {"A": {"range_gain": 2e-4}}, n_aircraft=2, duration=120.0)
+    base = EstimatorConfig(motion=MotionModel(0.5))
+    model = SensorModel((BiasComponent("range_offset", 300.0, 2.0), BiasComponent("azimuth_offset", 0.01),
+                         BiasComponent("range_gain", 1e-3, 1e-10)))
+    cfg = EstimatorConfig(motion=base.motion, sensors={r: model for r in SITES})
+    est = _filter(cfg, x0, meas)
+    keys, dim = list(x0), 8 + 9
+    kf = KalmanFilter(dim_x=dim, dim_z=2)
+    kf.x = np.concatenate([x0[k] + np.array([200.0, -150.0, 20.0, -10.0]) for k in keys] + [np.zeros(9)])
+    kf.P = np.zeros((dim, dim))
+    kf.P[:4, :4] = kf.P[4:8, 4:8] = P0
+    for j in range(3):
+        kf.P[8 + 3 * j:11 + 3 * j, 8 + 3 * j:11 + 3 * j] = model.prior()
+    t = 0.0
+    for m in meas:
+        A, Q = cfg.motion.transition(m.time - t)
+        F, Qf = np.eye(dim), np.zeros((dim, dim))
+        for i in range(2):
+            F[4 * i:4 * i + 4, 4 * i:4 * i + 4], Qf[4 * i:4 * i + 4, 4 * i:4 * i + 4] = A, Q
+        if t > 0.0:  # the filter's bias epoch starts at its first measurement
+            for j in range(3):
+                Qf[8 + 3 * j:11 + 3 * j, 8 + 3 * j:11 + 3 * j] = model.drift(m.time - t)
+        kf.predict(F=F, Q=Qf)
+        t = m.time
+        H = np.zeros((2, dim))
+        i = keys.index(m.aircraft)
+        H[:, 4 * i:4 * i + 2] = np.eye(2)
+        if m.radar is not None:
+            j = list(SITES).index(m.radar)
+            H[:, 8 + 3 * j:11 + 3 * j] = np.column_stack([m.C[:, 0], m.C[:, 1], m.rho * m.C[:, 0]])
+        kf.update(m.z, R=m.R, H=H)
+    x, P = est.joint(keys)
+    sd = np.sqrt(np.diag(kf.P))
+    np.testing.assert_allclose(x / sd, kf.x / sd, atol=1e-9 * np.abs(kf.x / sd).max())
+    np.testing.assert_allclose(P / np.outer(sd, sd), kf.P / np.outer(sd, sd), atol=1e-9)
+
+
+def test_status_from_the_bound_and_the_prior():
+    from radartracker.estimation.bound import ComponentBound
+
+    statuses = [ComponentBound("A", "range_gain", sd, 1e-3).status for sd in (1e-3, 0.95e-3, 0.5e-3, 0.2e-3)]
+    assert statuses == ["unobservable", "unobservable", "weak", "observable"]
