@@ -148,6 +148,9 @@ class CoupledEstimator(Estimator):
 
     def update(self, m: PlaneMeasurement) -> Innovation:
         _check_finite(m)
+        if m.radar is not None and not np.isfinite(m.rho) and "range_gain" in self._models[m.radar].names:
+            raise ValueError(f"measurement of {m.aircraft!r} at t={m.time}: radar {m.radar!r} has a range gain, "
+                             "which needs the plot's slant range (PlaneMeasurement.rho)")
         ac = self._ac[m.aircraft]
         k = ac[0]
         self._predict_aircraft(k, m.time - ac[1])

@@ -295,3 +295,15 @@ def test_status_from_the_bound_and_the_prior():
 
     statuses = [ComponentBound("A", "range_gain", sd, 1e-3).status for sd in (1e-3, 0.95e-3, 0.5e-3, 0.2e-3)]
     assert statuses == ["unobservable", "unobservable", "weak", "observable"]
+
+
+def test_a_range_gain_without_the_slant_range_is_refused_before_anything_changes():
+    x0, meas = _toy(np.random.default_rng(10), {}, n_aircraft=1, duration=20.0)
+    est = _filter(_config(("range_gain",)), x0, meas[:3])
+    before = est.state_dict()
+    m = next(m for m in meas[3:] if m.radar is not None)
+    with pytest.raises(ValueError, match="radar 'A' has a range gain, which needs the plot's slant range"):
+        est.update(PlaneMeasurement(m.time, m.aircraft, m.radar, m.z, m.C, m.R))
+    after = est.state_dict()
+    np.testing.assert_array_equal(before["P"], after["P"])
+    assert before["aircraft"] == after["aircraft"]
