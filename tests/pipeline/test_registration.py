@@ -63,16 +63,24 @@ def test_short_monte_carlo_every_component_at_the_bound():
 
 @pytest.mark.slow
 def test_monte_carlo_200_runs_each_component_at_the_bound():
-    """200 runs: each component's RMSE ≤ 1.1 √CRLB (mean bound over runs) and its NEES in the 95 % χ² band."""
+    """200 runs, 12 components. Pooled: (e/√CRLB)² and (e/σ)² inside their 95 % χ² bands (2,400 dof). Per
+    component, at a family-wise 5 %: RMSE ≤ 1.133 √CRLB and NEES in [0.737, 1.311] (Bonferroni over 12).
+
+    Why not the issue's "RMSE ≤ 1.1 √CRLB" per component: with 200 runs an estimator exactly at the bound
+    exceeds 1.1 on a given component with probability 2.3 %, on one of 12 with 24 %; 1.133 is the family-wise
+    5 % point, (χ²_200(1 − 0.05/12)/200)^½."""
     mc = _monte_carlo(200, None)
-    lo, hi = chi2.ppf([0.025, 0.975], 200) / 200
+    e, sd, crlb = (np.concatenate([v[:, i] for v in mc.values()]) for i in range(3))
+    lo, hi = chi2.ppf([0.025, 0.975], len(e)) / len(e)
+    assert lo < np.mean((e / crlb) ** 2) < hi and lo < np.mean((e / sd) ** 2) < hi
+    ratio_max = np.sqrt(chi2.ppf(1 - 0.05 / 12, 200) / 200)
+    nees_lo, nees_hi = chi2.ppf([0.05 / 24, 1 - 0.05 / 24], 200) / 200
     for key, v in mc.items():
         rmse, bound = np.sqrt(np.mean(v[:, 0] ** 2)), np.sqrt(np.mean(v[:, 2] ** 2))
         nees = np.mean((v[:, 0] / v[:, 1]) ** 2)
-        print(key, f"RMSE {rmse:.4g}  sqrt(CRLB) {bound:.4g}  ratio {rmse / bound:.3f}  NEES {nees:.2f}")
-        assert rmse <= 1.1 * bound, key
-        assert lo < nees < hi, key
-
+        print(key, f"RMSE {rmse:.4g}  sqrt(CRLB) {bound:.4g}  ratio {rmse / bound:.3f}  NEES {nees:.3f}")
+        assert rmse <= ratio_max * bound, key
+        assert nees_lo < nees < nees_hi, key
 
 def test_a_lone_radar_without_adsb_keeps_its_unobservable_components_at_the_prior():
     """R1 alone, no ADS-B: its range gain and time offset carry no information; they are reported unobservable
