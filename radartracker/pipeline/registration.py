@@ -4,7 +4,9 @@ estimate (issue 30; docs/estimators.md, "Sensor error model").
 Every plot of a labelled aircraft (its truth label) and every ADS-B report goes, in time order, to the
 estimator as a :class:`PlaneMeasurement` with its slant range (for a range gain's column ρ·∂z/∂ρ). An
 aircraft starts at its first measurement from N([z, 0, 0], diag(σ_p², σ_p², σ_v², σ_v²)) and is
-marginalised after its last. The TrackManager does not carry the new components yet (it refuses them), so
+marginalised after its last. From its third measurement on, a plot's Jacobian C, noise R and slant range
+are evaluated at the track's prediction rather than at the plot, whose own noise they would otherwise
+carry (docs/design-notes.md). The TrackManager does not carry the new components yet (it refuses them), so
 this is the path that estimates them end to end. The bound (:mod:`radartracker.estimation.bound`) is
 evaluated on the same measurements with the truth's velocities where the scenario has a truth, else with
 the estimator's own.
@@ -21,11 +23,12 @@ from radartracker.estimation.base import Estimator, EstimatorConfig, PlaneMeasur
 from radartracker.estimation.bound import BoundInput, ComponentBound, bias_bound
 from radartracker.estimation.measurement import convert_adsb, convert_plots, fill_altitudes, merge, plot_keys
 from radartracker.estimation.sensor import SensorModel
-from radartracker.geometry.plane import SystemPlane
+from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.evaluate import TruthPaths
 from radartracker.registry import make_estimator
 
+PREDICT_AFTER = 2  # measurements of an aircraft before its plots' Jacobians are taken at its prediction
 SETTLE_S = 120.0  # position RMSE counts an aircraft's estimates after this much of its track (its start settles)
 
 
@@ -64,20 +67,47 @@ def true_components(data: ScenarioData) -> dict[str, dict[str, float]]:
     return out
 
 
-def _columns(data: ScenarioData, plane: SystemPlane) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """Valid labelled plots and ADS-B reports, in time order, as columns; and each one's slant range (NaN for
-    ADS-B)."""
+def _columns(data: ScenarioData, plane: SystemPlane) -> dict[str, np.ndarray]:
+    """Valid labelled plots and ADS-B reports, in time order, as columns, with each one's slant range ``rho``
+    and altitude ``alt`` (NaN for ADS-B)."""
     keys = plot_keys(data.plots, use_truth=True)
     alt, _ = fill_altitudes(data.plots, keys, 10_000.0)
     plots = convert_plots(data.plots, data.radars, plane, keys, alt)
     adsb = convert_adsb(data.adsb, plane)
     both = merge(plots, adsb)
-    rho = np.concatenate([data.plots.range_m, np.full(len(adsb), np.nan)])
     order = np.argsort(np.concatenate([plots.time, adsb.time]), kind="stable")
-    rho = rho[order]
     keep = both.valid & np.array([k is not None for k in both.key], bool)
     cols = {f.name: getattr(both, f.name)[keep] for f in attrs.fields(type(both))}
-    return cols, rho[keep]
+    nan = np.full(len(adsb), np.nan)
+    cols["rho"] = np.concatenate([data.plots.range_m, nan])[order][keep]
+    cols["alt"] = np.concatenate([alt, nan])[order][keep]
+    return cols
+
+
+class _Geometry:
+    """C = ∂p/∂(ρ, θ), R = C W Cᵀ and the slant range ρ of radar plots evaluated at given plane positions (the
+    truth's, or a track's prediction) instead of at the noisy plot (docs/design-notes.md: why)."""
+
+    def __init__(self, data: ScenarioData, plane: SystemPlane) -> None:
+        self.plane = plane
+        self.frames = {r.id: RadarFrame(r.lat, r.lon, r.height_m, plane) for r in data.radars}
+        self.W = {r.id: r.W for r in data.radars}
+
+    def at(self, radar: str, p: np.ndarray, alt: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        frame = self.frames[radar]
+        lat, lon = self.plane.to_geodetic(p[..., 0], p[..., 1])
+        rho = frame.polar(lat, lon, alt)[0]
+        C = frame.bias_jacobian(p, rho, alt)
+        return C, C @ self.W[radar] @ np.swapaxes(C, -1, -2), rho
+
+    def at_truth(self, cols: dict[str, np.ndarray], true_xy: np.ndarray) -> dict[str, np.ndarray]:
+        """``cols`` with every radar plot's C, R and ρ at its true position where the truth has one."""
+        out = {k: v.copy() for k, v in cols.items()}
+        for radar in self.frames:
+            idx = np.flatnonzero((cols["radar"] == radar) & np.isfinite(true_xy[:, 0]))
+            if len(idx):
+                out["C"][idx], out["R"][idx], out["rho"][idx] = self.at(radar, true_xy[idx], cols["alt"][idx])
+        return out
 
 
 def register(data: ScenarioData, config: EstimatorConfig, estimator: str = "coupled",
@@ -86,43 +116,52 @@ def register(data: ScenarioData, config: EstimatorConfig, estimator: str = "coup
     report each component beside its bound (module docstring). A range gain or time offset the bound calls
     unobservable is left out of the estimated model (held at its prior mean, reported with its prior σ)."""
     plane = SystemPlane(*data.reference)
-    cols, rho = _columns(data, plane)
+    cols = _columns(data, plane)
+    geometry = _Geometry(data, plane)
     radar_ids = [r.id for r in data.radars]
     P0 = np.diag([aircraft_sd[0] ** 2] * 2 + [aircraft_sd[1] ** 2] * 2)
     truth = true_components(data)
     true_states = (_truth_states(TruthPaths.from_table(data.truth, plane), cols["key"], cols["time"])
                    if data.truth is not None else np.full((len(cols["time"]), 4), np.nan))
     run = None
-    if not np.isfinite(true_states[:, 2:]).all():  # the geometry needs velocities: the estimator's where no truth
-        run = _feed(make_estimator(estimator, config, radar_ids), cols, rho, P0)
-    velocity = np.where(np.isfinite(true_states[:, 2:]), true_states[:, 2:], run[1][:, 2:] if run else 0.0)
-    geometry = BoundInput(cols["time"], cols["key"], cols["radar"], cols["C"], cols["R"], rho, velocity,
-                          {k: P0 for k in set(cols["key"].tolist())})
-    bound = bias_bound(geometry, config, radar_ids, {r: v.get("time_offset", 0.0) for r, v in truth.items()})
+    if not np.isfinite(true_states).all():  # the bound needs states: the estimator's where there is no truth
+        run = _feed(make_estimator(estimator, config, radar_ids), cols, geometry, P0)
+    states = np.where(np.isfinite(true_states), true_states, run[1] if run else 0.0)
+    at = geometry.at_truth(cols, states[:, :2])
+    bound = bias_bound(BoundInput(at["time"], at["key"], at["radar"], at["C"], at["R"], at["rho"], states[:, 2:],
+                                  {k: P0 for k in set(cols["key"].tolist())}),
+                       config, radar_ids, {r: v.get("time_offset", 0.0) for r, v in truth.items()})
     reduced = _observable_only(config, bound, radar_ids)
     if run is None or reduced != config:
-        run = _feed(make_estimator(estimator, reduced, radar_ids), cols, rho, P0)
-    est, states = run
+        run = _feed(make_estimator(estimator, reduced, radar_ids), cols, geometry, P0)
+    est, estimates = run
     rmse = math.nan
     if data.truth is not None:
         first = {k: float(cols["time"][i]) for i, k in reversed(list(enumerate(cols["key"])))}
         late = (cols["time"] >= np.array([first[k] for k in cols["key"]]) + SETTLE_S) & np.isfinite(true_states[:, 0])
-        rmse = float(np.sqrt(np.mean(np.sum((states[late, :2] - true_states[late, :2]) ** 2, axis=1))))
+        rmse = float(np.sqrt(np.mean(np.sum((estimates[late, :2] - true_states[late, :2]) ** 2, axis=1))))
     biases = {r: est.bias(r) for r in radar_ids}
     return Registration(biases, _report(biases, bound, truth), rmse)
 
 
-def _feed(est: Estimator, cols: dict[str, np.ndarray], rho: np.ndarray, P0: np.ndarray) -> tuple[Estimator, np.ndarray]:
+def _feed(est: Estimator, cols: dict[str, np.ndarray], geometry: _Geometry, P0: np.ndarray
+          ) -> tuple[Estimator, np.ndarray]:
     """Every measurement to ``est`` in turn (an aircraft added at its first, removed after its last); the
-    estimator and its estimate [x, y, vx, vy] of the measured aircraft after each."""
+    estimator and its estimate [x, y, vx, vy] of the measured aircraft after each. From an aircraft's
+    :data:`PREDICT_AFTER`-th measurement on, a plot's C, R and ρ are those of the track's prediction."""
     n = len(cols["time"])
     last = {k: i for i, k in enumerate(cols["key"])}
+    seen: dict = {}
     states = np.zeros((n, 4))
     for i in range(n):
         t, key, radar = float(cols["time"][i]), cols["key"][i], cols["radar"][i]
         if key not in est.aircraft_keys:
             est.add_aircraft(key, t, np.concatenate([cols["z"][i], [0.0, 0.0]]), P0)
-        est.update(PlaneMeasurement(t, key, radar, cols["z"][i], cols["C"][i], cols["R"][i], float(rho[i])))
+        C, R, rho = cols["C"][i], cols["R"][i], float(cols["rho"][i])
+        if radar is not None and seen.get(key, 0) >= PREDICT_AFTER:
+            C, R, rho = geometry.at(radar, est.predict(key, t).state[:2], cols["alt"][i])
+        est.update(PlaneMeasurement(t, key, radar, cols["z"][i], C, R, float(rho)))
+        seen[key] = seen.get(key, 0) + 1
         states[i] = est.aircraft(key).state
         if last[key] == i:
             est.remove_aircraft(key)

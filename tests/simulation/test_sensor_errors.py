@@ -89,3 +89,14 @@ def test_simulate_refuses_a_malformed_sensor_error(tmp_path, capsys, spec, messa
     assert main(["simulate", str(tmp_path / "s"), "--scenario", "demo", "--sensor-error", spec]) == 2
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1 and not (tmp_path / "s").exists()
+
+
+def test_the_parquet_truth_file_carries_the_new_columns_with_their_units(tmp_path):
+    import pyarrow.parquet as pq
+
+    data = with_sensor_errors(build_scenario("demo", duration=60.0), {"R3": {"range_gain": 1e-4}}).run()
+    write_scenario(tmp_path / "pq", data, format="parquet")
+    schema = pq.read_schema(tmp_path / "pq" / "truth_biases.parquet")
+    assert {f.name: f.metadata[b"unit"].decode() for f in schema} == {
+        "radar": "", "range_bias_m": "m", "azimuth_bias_deg": "deg", "range_gain": "1", "time_offset_s": "s"}
+    assert read_scenario(tmp_path / "pq").truth_sensor["R3"] == {"range_gain": 1e-4, "time_offset": 0.0}
