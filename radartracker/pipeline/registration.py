@@ -23,7 +23,7 @@ from radartracker.estimation.base import Estimator, EstimatorConfig, PlaneMeasur
 from radartracker.estimation.bound import BoundInput, ComponentBound, bias_bound
 from radartracker.estimation.measurement import convert_adsb, convert_plots, fill_altitudes, merge, plot_keys
 from radartracker.estimation.sensor import SensorModel
-from radartracker.geometry.plane import RadarFrame, SystemPlane
+from radartracker.geometry.plane import RadarFrame, SystemPlane, bias_jacobian
 from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.evaluate import TruthPaths
 from radartracker.registry import make_estimator
@@ -100,6 +100,17 @@ class _Geometry:
         C = frame.bias_jacobian(p, rho, alt)
         return C, C @ self.W[radar] @ np.swapaxes(C, -1, -2), rho
 
+    def at_prediction(self, radar: str, p: np.ndarray, z: np.ndarray, rho: float, C: np.ndarray, alt: float
+                      ) -> tuple[np.ndarray, np.ndarray, float]:
+        """C, R, ρ at the predicted position ``p`` of a plot ``z`` (slant range ``rho``, Jacobian ``C``), without
+        geodesy: ρ̄ = ρ + (d̄ − d)/|c_ρ| (d the plane distance from the radar, |c_ρ| = ∂d/∂ρ at the plot), exact
+        to second order in p − z, then the spherical Jacobian of :meth:`RadarFrame.bias_jacobian` at (p, ρ̄)."""
+        frame = self.frames[radar]
+        d_bar, d = np.linalg.norm(p - frame.xy), np.linalg.norm(z - frame.xy)
+        rho_bar = rho + (d_bar - d) / np.linalg.norm(C[:, 0])
+        Cp = bias_jacobian(frame.xy, frame.height_m, p, np.asarray(rho_bar), np.asarray(alt))
+        return Cp, Cp @ self.W[radar] @ Cp.T, float(rho_bar)
+
     def at_truth(self, cols: dict[str, np.ndarray], true_xy: np.ndarray) -> dict[str, np.ndarray]:
         """``cols`` with every radar plot's C, R and ρ at its true position where the truth has one."""
         out = {k: v.copy() for k, v in cols.items()}
@@ -159,7 +170,8 @@ def _feed(est: Estimator, cols: dict[str, np.ndarray], geometry: _Geometry, P0: 
             est.add_aircraft(key, t, np.concatenate([cols["z"][i], [0.0, 0.0]]), P0)
         C, R, rho = cols["C"][i], cols["R"][i], float(cols["rho"][i])
         if radar is not None and seen.get(key, 0) >= PREDICT_AFTER:
-            C, R, rho = geometry.at(radar, est.predict(key, t).state[:2], cols["alt"][i])
+            C, R, rho = geometry.at_prediction(radar, est.predict(key, t).state[:2], cols["z"][i], rho, C,
+                                               float(cols["alt"][i]))
         est.update(PlaneMeasurement(t, key, radar, cols["z"][i], C, R, float(rho)))
         seen[key] = seen.get(key, 0) + 1
         states[i] = est.aircraft(key).state

@@ -117,3 +117,22 @@ def test_a_weakly_observable_offset_is_not_pulled_by_the_plots_own_noise():
     rows = {c.component: c for c in register(alone, EstimatorConfig(motion=MotionModel(5.0))).components}
     assert rows["range_offset"].status == "weak" and abs(rows["range_offset"].z) < 3.0
     assert rows["azimuth_offset"].status == "unobservable"
+
+
+def test_the_jacobian_at_a_prediction_agrees_with_the_exact_geometry():
+    """The registration's Jacobian at a track's prediction (no geodesy: ρ moved by the plane distance) against
+    the exact one (pyproj) at the same point, 50–300 m from the plot."""
+    from radartracker.geometry.plane import SystemPlane
+    from radartracker.pipeline.registration import _columns, _Geometry
+
+    data = build_scenario("demo", seed=2, duration=120.0).run()
+    plane = SystemPlane(*data.reference)
+    cols, geometry = _columns(data, plane), _Geometry(data, plane)
+    rng = np.random.default_rng(1)
+    for i in np.flatnonzero([r is not None for r in cols["radar"]])[::25]:
+        p = cols["z"][i] + rng.uniform(-300.0, 300.0, 2)
+        C, R, rho = geometry.at_prediction(cols["radar"][i], p, cols["z"][i], float(cols["rho"][i]), cols["C"][i],
+                                           float(cols["alt"][i]))
+        Ce, Re, rhoe = geometry.at(cols["radar"][i], p, np.asarray(cols["alt"][i]))
+        assert abs(rho - float(rhoe)) < 0.5
+        np.testing.assert_allclose(C, Ce, rtol=1e-3, atol=1e-3 * np.abs(Ce).max())
