@@ -13,8 +13,8 @@ Prints Markdown tables:
    χ² band;
 3. a lone radar without ADS-B (``demo``'s R1 plots alone, no ADS-B report): the components the bound
    calls unobservable, and what the filter reports for them;
-4. the same case on manoeuvring ``traffic`` (5 radars 100 km apart, flights that turn at 1–3 °/s, q = 20):
-   what the constant-velocity model does to the time offsets.
+4. the same case on manoeuvring ``traffic`` (5 radars 100 km apart, flights that turn at 1–3 °/s, q = 20,
+   then the time offsets at q = 5 and 100): what the constant-velocity model does to the time offsets.
 """
 
 from __future__ import annotations
@@ -102,6 +102,10 @@ def manoeuvring(seed: int) -> None:
     report_table(f"`traffic` seed {seed} (turns), before: two components, q = 20",
                  register(data, EstimatorConfig(motion=MotionModel(20.0))), {"R00"})
     report_table(f"`traffic` seed {seed} (turns), after: every component, q = 20", register(data, full(data, 20.0)))
+    for q in (5.0, 100.0):
+        offsets = [_fmt(c.component, c.estimate) for c in register(data, full(data, q)).components
+                   if c.component == "time_offset"]
+        print(f"\n`traffic` seed {seed}, q = {q:g}: time offsets {', '.join(offsets)}")
 
 
 def main() -> None:
