@@ -20,8 +20,9 @@ random walk, all biases are predicted together to a global bias epoch. Cost O((4
 A radar's bias vector is its sensor model's components (``EstimatorConfig.sensor``; docs/design-notes.md):
 the plot's row of C is [I, −τ̄ I] in the aircraft's columns and B = ∂z/∂ς_j in the radar's (range
 offset c_ρ, azimuth offset c_θ, range gain ρ c_ρ, time offset −v̄), and ẑ = p̄ + B ς̄_j: the extended
-Kalman step of z = p − τ v + …, linearised at the predicted velocity v̄ and time offset τ̄. Without a
-time offset this is the linear filter above, unchanged.
+Kalman step of z = p − τ v + …, linearised at the predicted velocity v̄ and time offset τ̄, with the
+second-order terms of the product τ v (ẑ −= P_vτ, Λ += P_ττ P_vv + P_vτ P_vτᵀ). Without a time offset
+this is the linear filter above, unchanged.
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ class CoupledEstimator(Estimator):
         self._free: list[int] = []  # start indices of free aircraft slots (4 entries each)
         self._ac: dict[Hashable, list] = {}  # key -> [start index, epoch]
         self._rad: dict[str, int] = {}  # radar -> start index (its sensor model's size of entries)
-        self._models: dict = {}  # radar -> its SensorModel
+        self._models: dict[str, SensorModel] = {}  # radar -> its sensor model
         self._bias_time: float | None = None
 
     # --- state layout ----------------------------------------------------------------------------
@@ -100,8 +101,8 @@ class CoupledEstimator(Estimator):
 
     def load_state_dict(self, state: dict) -> None:
         """Take back a :meth:`state_dict`, checked first: ``size`` the length of ξ̂ (never allocated from the
-        number alone), the radars this estimator's, every radar block (its sensor model's size), aircraft and free slot (4)
-        inside it, disjoint and covering it, values finite, P̂ symmetric and positive semi-definite over the
+        number alone), the radars this estimator's, every radar block (its sensor model's size), aircraft and free
+        slot (4) inside it, disjoint and covering it, values finite, P̂ symmetric and positive semi-definite over the
         radars and aircraft."""
         c = StateCheck("coupled", state, ("size", "x", "P", "radars", "aircraft", "free", "bias_time"))
         x = c.array("x", (None,))

@@ -307,3 +307,21 @@ def test_a_range_gain_without_the_slant_range_is_refused_before_anything_changes
     after = est.state_dict()
     np.testing.assert_array_equal(before["P"], after["P"])
     assert before["aircraft"] == after["aircraft"]
+
+
+def test_a_coupled_state_with_four_components_reloads_and_continues_the_same():
+    x0, meas = _toy(np.random.default_rng(11), {"A": {"time_offset": 0.1}}, n_aircraft=2, duration=60.0)
+    cfg = _config()
+    half = len(meas) // 2
+    est = _filter(cfg, x0, meas[:half])
+    again = make_estimator("coupled", cfg, list(SITES))
+    again.load_state_dict(est.state_dict())
+    for m in meas[half:]:
+        est.update(m), again.update(m)
+    for r in SITES:
+        np.testing.assert_array_equal(est.bias(r).bias, again.bias(r).bias)
+        assert est.bias(r).components == ("range_offset", "azimuth_offset", "range_gain", "time_offset")
+    bad = est.state_dict()
+    bad["radars"] = {r: 0 for r in SITES}
+    with pytest.raises(ValueError, match="overlap or leave gaps"):
+        again.load_state_dict(bad)
