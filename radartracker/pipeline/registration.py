@@ -8,13 +8,14 @@ marginalised after its last. From its third measurement on, a plot's Jacobian C,
 are evaluated at the track's prediction rather than at the plot, whose own noise they would otherwise
 carry (docs/design-notes.md). The TrackManager does not carry the new components yet (it refuses them), so
 this is the path that estimates them end to end. The bound (:mod:`radartracker.estimation.bound`) is
-evaluated on the same measurements with the truth's velocities where the scenario has a truth, else with
-the estimator's own.
+evaluated on the same measurements at the truth's positions and velocities where the scenario has a
+truth, else at the estimator's own estimates.
 """
 
 from __future__ import annotations
 
 import math
+
 import attrs
 import numpy as np
 
