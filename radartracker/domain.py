@@ -321,12 +321,22 @@ def nacp_sigma_m(nacp: int) -> float:
 
 @attrs.frozen
 class BiasState:
-    """One radar's bias estimate ς = [Δr (m), Δθ (rad)] and its 2×2 covariance at ``time``."""
+    """One radar's bias estimate ς = [Δr (m), Δθ (rad), …] and its covariance at ``time``.
+
+    ``components`` names the entries of ``bias`` (:mod:`radartracker.estimation.sensor`): the range and
+    azimuth offsets first, then any range gain (dimensionless) and time offset (s) the radar's model has.
+    """
 
     radar: str
     time: float
     bias: np.ndarray = attrs.field(converter=np.asarray)
     cov: np.ndarray = attrs.field(converter=np.asarray)
+    components: tuple[str, ...] = ("range_offset", "azimuth_offset")
+
+    def component(self, name: str) -> tuple[float, float]:
+        """(estimate, σ) of the component ``name``."""
+        k = self.components.index(name)
+        return float(self.bias[k]), float(math.sqrt(max(self.cov[k, k], 0.0)))
 
     @property
     def range_m(self) -> float:

@@ -59,6 +59,7 @@ class BlomEstimator(Estimator):
     def add_radar(self, radar: str) -> None:
         if radar in self._rad:
             raise ValueError(f"radar {radar!r} already added")
+        self.config.require_two_components(self.name, radar)
         k = self._s.size
         self._rad[radar] = k
         self._s = np.append(self._s, [0.0, 0.0])

@@ -16,6 +16,13 @@ corrects the biases through the cross-covariances: that is how ADS-B anchors the
 Adding an aircraft augments ξ with its prior (zero cross-covariance); removing it marginalises
 it (drops its rows and columns), which keeps exactly what it taught about the biases. With a bias
 random walk, all biases are predicted together to a global bias epoch. Cost O((4n + 2m)²) per plot.
+
+A radar's bias vector is its sensor model's components (``EstimatorConfig.sensor``; docs/design-notes.md):
+the plot's row of C is [I, −τ̄ I] in the aircraft's columns and B = ∂z/∂ς_j in the radar's (range
+offset c_ρ, azimuth offset c_θ, range gain ρ c_ρ, time offset −v̄), and ẑ = p̄ + B ς̄_j: the extended
+Kalman step of z = p − τ v + …, linearised at the predicted velocity v̄ and time offset τ̄, with the
+second-order terms of the product τ v (ẑ −= P_vτ, Λ += P_ττ P_vv + P_vτ P_vτᵀ). Without a time offset
+this is the linear filter above, unchanged.
 """
 
 from __future__ import annotations
@@ -24,8 +31,8 @@ from collections.abc import Hashable
 
 import numpy as np
 
-from radartracker.api import (AircraftEstimate, BiasState, Estimator, Innovation, PlaneMeasurement, SingularInnovation,
-                              StateCheck, validated_prior)
+from radartracker.api import (AircraftEstimate, BiasState, Estimator, Innovation, PlaneMeasurement, SensorModel,
+                              SingularInnovation, StateCheck, validated_prior)
 
 
 class CoupledEstimator(Estimator):
@@ -40,7 +47,8 @@ class CoupledEstimator(Estimator):
         self._size = 0  # high-water mark of used entries
         self._free: list[int] = []  # start indices of free aircraft slots (4 entries each)
         self._ac: dict[Hashable, list] = {}  # key -> [start index, epoch]
-        self._rad: dict[str, int] = {}  # radar -> start index (2 entries)
+        self._rad: dict[str, int] = {}  # radar -> start index (its sensor model's size of entries)
+        self._models: dict[str, SensorModel] = {}  # radar -> its sensor model
         self._bias_time: float | None = None
 
     # --- state layout ----------------------------------------------------------------------------
@@ -57,9 +65,11 @@ class CoupledEstimator(Estimator):
     def add_radar(self, radar: str) -> None:
         if radar in self._rad:
             raise ValueError(f"radar {radar!r} already added")
-        k = self._alloc(2)
-        self._P[k:k + 2, k:k + 2] = self.config.bias_prior()
+        model = self.config.sensor(radar)
+        k = self._alloc(model.size)
+        self._P[k:k + model.size, k:k + model.size] = model.prior()
         self._rad[radar] = k
+        self._models[radar] = model
 
     def add_aircraft(self, key: Hashable, time: float, state: np.ndarray, cov: np.ndarray) -> None:
         if key in self._ac:
@@ -91,26 +101,27 @@ class CoupledEstimator(Estimator):
 
     def load_state_dict(self, state: dict) -> None:
         """Take back a :meth:`state_dict`, checked first: ``size`` the length of ξ̂ (never allocated from the
-        number alone), the radars this estimator's, every radar block (2 entries), aircraft and free slot (4)
-        inside it, disjoint and covering it, values finite, P̂ symmetric and positive semi-definite over the
+        number alone), the radars this estimator's, every radar block (its sensor model's size), aircraft and free
+        slot (4) inside it, disjoint and covering it, values finite, P̂ symmetric and positive semi-definite over the
         radars and aircraft."""
         c = StateCheck("coupled", state, ("size", "x", "P", "radars", "aircraft", "free", "bias_time"))
         x = c.array("x", (None,))
         n = c.integer("size", state["size"], len(x), len(x))
         P = c.array("P", (n, n))
         c.names("radars", self.radars, c.mapping("radars"))
-        rad = {r: c.integer(f"start of radar {r!r}", k, 0, n - 2) for r, k in state["radars"].items()}
+        width = {r: m.size for r, m in self._models.items()}
+        rad = {r: c.integer(f"start of radar {r!r}", k, 0, n - width[r]) for r, k in state["radars"].items()}
         ac = {}
         for key, entry in c.mapping("aircraft").items():
             start, epoch = c.sequence(f"aircraft {key!r}", entry, length=2)
             ac[key] = [c.integer(f"start of aircraft {key!r}", start, 0, n - 4), c.number(f"epoch of {key!r}", epoch)]
         free = [c.integer("a free slot's start", k, 0, n - 4) for k in c.sequence("free", max_len=n)]
         used = np.zeros(n, np.int64)
-        for k, width in [(k, 2) for k in rad.values()] + [(v[0], 4) for v in ac.values()] + [(k, 4) for k in free]:
-            used[k:k + width] += 1
+        for k, w in [(k, width[r]) for r, k in rad.items()] + [(v[0], 4) for v in ac.values()] + [(k, 4) for k in free]:
+            used[k:k + w] += 1
         if np.any(used != 1):
             raise c.fail(f"radar, aircraft and free blocks overlap or leave gaps (entry {int(np.argmax(used != 1))})")
-        live = [k + i for k in rad.values() for i in range(2)] + [v[0] + i for v in ac.values() for i in range(4)]
+        live = [k + i for r, k in rad.items() for i in range(width[r])] + [v[0] + i for v in ac.values() for i in range(4)]
         c.covariance("P over the radars and aircraft", P[np.ix_(live, live)])
         bias_time = c.number("bias_time", state["bias_time"], none=True)
         self._x, self._P, self._size, self._rad, self._ac, self._free = x, P, n, rad, ac, free
@@ -131,13 +142,16 @@ class CoupledEstimator(Estimator):
     def _predict_biases(self, time: float) -> None:
         """Random-walk biases: add the drift since the global bias epoch to every radar."""
         if self._bias_time is not None and self.config.bias_drifts:
-            D = self.config.bias_drift(time - self._bias_time)
-            for k in self._rad.values():
-                self._P[k:k + 2, k:k + 2] += D
+            for r, k in self._rad.items():
+                model = self._models[r]
+                self._P[k:k + model.size, k:k + model.size] += model.drift(time - self._bias_time)
         self._bias_time = time if self._bias_time is None else max(self._bias_time, time)
 
     def update(self, m: PlaneMeasurement) -> Innovation:
         _check_finite(m)
+        if m.radar is not None and not np.isfinite(m.rho) and "range_gain" in self._models[m.radar].names:
+            raise ValueError(f"measurement of {m.aircraft!r} at t={m.time}: radar {m.radar!r} has a range gain, "
+                             "which needs the plot's slant range (PlaneMeasurement.rho)")
         ac = self._ac[m.aircraft]
         k = ac[0]
         self._predict_aircraft(k, m.time - ac[1])
@@ -149,22 +163,40 @@ class CoupledEstimator(Estimator):
         K = P[:, k:k + 2].copy()
         zhat = x[k:k + 2].copy()
         if m.radar is not None:
-            b = self._rad[m.radar]
-            K += P[:, b:b + 2] @ m.C.T
-            zhat += m.C @ x[b:b + 2]
-        nu = m.z - zhat
+            b, model, tau = self._bias_row(m)
+            w = model.size
+            B = model.jacobian(m.C, m.rho, x[k + 2:k + 4])
+            if tau != 0.0:  # ∂z/∂v = −τ̄ I
+                K -= tau * P[:, k + 2:k + 4]
+            K += P[:, b:b + w] @ B.T
+            zhat += B @ x[b:b + w]
         S = K[k:k + 2] + m.R
         if m.radar is not None:
-            S += m.C @ K[b:b + 2]
+            if tau != 0.0:
+                S -= tau * K[k + 2:k + 4]
+            S += B @ K[b:b + w]
+            if "time_offset" in model.names:  # the second-order terms of −τ v (Gaussian second-order filter)
+                t = b + model.index("time_offset")
+                c = P[k + 2:k + 4, t]
+                zhat -= c
+                S += P[t, t] * P[k + 2:k + 4, k + 2:k + 4] + np.outer(c, c)
+        nu = m.z - zhat
         S = 0.5 * (S + S.T)
         Linv = _inverse_cholesky_2x2(S)
         U = K @ Linv.T  # U = K L⁻ᵀ, so K Λ⁻¹ Kᵀ = U Uᵀ
-        w = Linv @ nu  # L⁻¹ ν
-        x[:n] += U @ w
+        e = Linv @ nu  # L⁻¹ ν
+        x[:n] += U @ e
         rows = max(16, 2**17 // n)  # in place, by row blocks: no n×n temporary
         for i in range(0, n, rows):
             P[i:i + rows] -= U[i:i + rows] @ U.T
-        return Innovation(nu, S, float(w @ w))
+        return Innovation(nu, S, float(e @ e))
+
+    def _bias_row(self, m: PlaneMeasurement) -> tuple[int, SensorModel, float]:
+        """(start of the radar's block, its sensor model, τ̄ its predicted time offset or 0)."""
+        b = self._rad[m.radar]
+        model = self._models[m.radar]
+        tau = float(self._x[b + model.index("time_offset")]) if "time_offset" in model.names else 0.0
+        return b, model, tau
 
     # --- reads -----------------------------------------------------------------------------------
     def aircraft(self, key: Hashable) -> AircraftEstimate:
@@ -172,15 +204,16 @@ class CoupledEstimator(Estimator):
         return AircraftEstimate(t, self._x[k:k + 4].copy(), self._P[k:k + 4, k:k + 4].copy())
 
     def bias(self, radar: str) -> BiasState:
-        b = self._rad[radar]
+        b, model = self._rad[radar], self._models[radar]
+        w = model.size
         t = float("nan") if self._bias_time is None else self._bias_time
-        return BiasState(radar, t, self._x[b:b + 2].copy(), self._P[b:b + 2, b:b + 2].copy())
+        return BiasState(radar, t, self._x[b:b + w].copy(), self._P[b:b + w, b:b + w].copy(), model.names)
 
     def joint(self, keys: list[Hashable] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(ξ̂, P̂) over ``keys`` (default: all aircraft, in insertion order) then all radars."""
         keys = list(self._ac) if keys is None else keys
         idx = [self._ac[a][0] + i for a in keys for i in range(4)]
-        idx += [b + i for b in self._rad.values() for i in range(2)]
+        idx += [b + i for r, b in self._rad.items() for i in range(self._models[r].size)]
         return self._x[idx].copy(), self._P[np.ix_(idx, idx)].copy()
 
     @property

@@ -162,6 +162,7 @@ class CoupledSparseEstimator(Estimator):
     def add_radar(self, radar: str) -> None:
         if radar in self._rad:
             raise ValueError(f"radar {radar!r} already added")
+        self.config.require_two_components(self.name, radar)
         j = len(self._rad)
         self._alloc(self._Yxx.shape[0], j + 1)
         P0 = self.config.bias_prior()

@@ -34,6 +34,7 @@ class DecoupledEstimator(Estimator):
     def add_radar(self, radar: str) -> None:
         if radar in self._s:
             raise ValueError(f"radar {radar!r} already added")
+        self.config.require_two_components(self.name, radar)
         self._s[radar] = [None, np.zeros(2), self.config.bias_prior()]
 
     def add_aircraft(self, key: Hashable, time: float, state: np.ndarray, cov: np.ndarray) -> None:

@@ -163,12 +163,34 @@ def register_simulate(sub: argparse._SubParsersAction) -> None:
                          help="ground speeds drawn from [LO, HI] (default 200 250)")
     traffic.add_argument("--transponder", choices=("mode_s", "mode_c", "none"),
                          help="what plots carry: Mode S + 3/A + C, Mode C altitude alone, or nothing (default mode_s)")
+    p.add_argument("--sensor-error", action="append", default=[], metavar="RADAR:KEY=VALUE[,KEY=VALUE]",
+                   help="give RADAR a range gain, time-stamp offset or drift (keys range_gain, time_offset_s, "
+                        "drift_gain, drift_time; any scenario kind); repeatable")
     p.set_defaults(func=_cmd_simulate)
+
+
+def _sensor_errors(specs: list[str]) -> dict[str, dict[str, float]]:
+    """``--sensor-error`` values as {radar: {key: value}}; a malformed one is a ConfigurationError naming it."""
+    from radartracker.settings import check_number
+
+    out: dict[str, dict[str, float]] = {}
+    for spec in specs:
+        rid, sep, pairs = spec.partition(":")
+        items = [p.partition("=") for p in pairs.split(",")] if sep else []
+        if not rid or not items or any(not k or not eq for k, eq, _ in items):
+            raise ConfigurationError(f"--sensor-error {spec!r}: expected RADAR:KEY=VALUE[,KEY=VALUE]")
+        for key, _, text in items:
+            try:
+                value = float(text)
+            except ValueError:
+                raise ConfigurationError(f"--sensor-error {spec!r}: {text!r} is not a number") from None
+            out.setdefault(rid, {})[key] = check_number(f"--sensor-error {rid}:{key}", value, lo=-1.0, hi=1e3)
+    return out
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from radartracker.io.scenario import write_scenario
-    from radartracker.simulation.scenarios import build_scenario
+    from radartracker.simulation.scenarios import build_scenario, with_sensor_errors
 
     from radartracker.settings import check_number
 
@@ -194,7 +216,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         raise ConfigurationError(f"--{next(iter(options)).replace('_', '-')} applies to --scenario traffic only")
     else:
         scenario = build_scenario(args.scenario, seed=args.seed, duration=args.duration)
-    data = scenario.run()
+    data = with_sensor_errors(scenario, _sensor_errors(args.sensor_error)).run()
     if len(data.plots) == 0:  # nothing useful: say so instead of writing a scenario no command can read
         raise ConfigurationError(f"the simulation produced no plots (--duration {args.duration} s is shorter than "
                                  "a radar scan?); nothing written")

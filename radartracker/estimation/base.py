@@ -24,6 +24,7 @@ import numpy as np
 from radartracker.domain import BiasState
 from radartracker.errors import ConfigurationError
 from radartracker.estimation.motion import MotionModel
+from radartracker.estimation.sensor import SensorModel
 from radartracker.estimation.state import default_load_state_dict, default_state_dict
 
 
@@ -35,6 +36,10 @@ class EstimatorConfig:
     noise, seed 000 eq. 1.4). Bias priors are zero-mean with the given standard deviations
     (seed eq. 1.7: constant biases); ``bias_drift_*`` are random-walk spectral densities
     (m²/s and rad²/s) for slowly drifting biases — zero by default, as in the seed.
+
+    ``sensors`` maps a radar id to its :class:`~radartracker.estimation.sensor.SensorModel` (range gain,
+    time offset, per-component priors and drifts); a radar not named there has the two-component model
+    built from the four numbers above (:meth:`sensor`).
     """
 
     motion: MotionModel = attrs.field(factory=MotionModel)
@@ -42,6 +47,29 @@ class EstimatorConfig:
     bias_sd_azimuth_rad: float = float(np.radians(0.5))
     bias_drift_range: float = 0.0
     bias_drift_azimuth: float = 0.0
+    sensors: dict[str, SensorModel] = attrs.field(factory=dict, converter=dict, hash=False,
+                                                  validator=attrs.validators.deep_mapping(
+                                                      attrs.validators.instance_of(str),
+                                                      attrs.validators.instance_of(SensorModel)))
+
+    def sensor(self, radar: str) -> SensorModel:
+        """The sensor error model of ``radar``: its entry in ``sensors``, else seed 000's two components."""
+        if radar in self.sensors:
+            return self.sensors[radar]
+        return SensorModel.default(self.bias_sd_range_m, self.bias_sd_azimuth_rad, self.bias_drift_range,
+                                   self.bias_drift_azimuth)
+
+    def require_two_components(self, estimator: str, radar: str) -> None:
+        """For an estimator that carries seed 000's model only: a one-line ConfigurationError if ``radar`` has a
+        component beyond the range and azimuth offsets, or priors and drifts other than this config's numbers."""
+        model = self.sensor(radar)
+        if model.extra:
+            raise ConfigurationError(f"estimator {estimator!r} does not support bias component {model.extra[0]!r} "
+                                     f"(radar {radar!r}): use 'coupled'")
+        if model != SensorModel.default(self.bias_sd_range_m, self.bias_sd_azimuth_rad, self.bias_drift_range,
+                                        self.bias_drift_azimuth):
+            raise ConfigurationError(f"estimator {estimator!r} takes the bias priors and drifts of EstimatorConfig, "
+                                     f"not radar {radar!r}'s own sensor model: use 'coupled'")
 
     def bias_prior(self) -> np.ndarray:
         """Prior covariance of one radar's bias [Δr, Δθ]."""
@@ -53,7 +81,8 @@ class EstimatorConfig:
 
     @property
     def bias_drifts(self) -> bool:
-        return self.bias_drift_range > 0.0 or self.bias_drift_azimuth > 0.0
+        return self.bias_drift_range > 0.0 or self.bias_drift_azimuth > 0.0 or any(
+            m.drifts for m in self.sensors.values())
 
 
 @attrs.frozen(slots=True)
@@ -61,7 +90,8 @@ class PlaneMeasurement:
     """One associated measurement in the system plane.
 
     ``radar`` is the radar id, or ``None`` for an unbiased position (ADS-B, triangulation);
-    ``C`` is the bias Jacobian C_s (2×2, ∂z/∂[Δr, Δθ]) and ``R`` the noise covariance D W Dᵀ.
+    ``C`` is the bias Jacobian C_s (2×2, ∂z/∂[Δr, Δθ]) and ``R`` the noise covariance D W Dᵀ; ``rho`` the
+    plot's slant range (m), which a radar with a range gain needs (its column is ρ·∂z/∂ρ).
     """
 
     time: float
@@ -70,6 +100,7 @@ class PlaneMeasurement:
     z: np.ndarray
     C: np.ndarray
     R: np.ndarray
+    rho: float = float("nan")
 
 
 class Innovation(NamedTuple):

@@ -87,9 +87,12 @@ def scenario_tables(data: ScenarioData) -> dict[str, pa.Table]:
                                         "altitude_m": t.altitude_m})
     if data.truth_biases is not None:
         b = data.truth_biases
-        out["truth_biases"] = _table("truth_biases", {
-            "radar": list(b), "range_bias_m": [v[0] for v in b.values()],
-            "azimuth_bias_deg": np.degrees([v[1] for v in b.values()])})
+        cols = {"radar": list(b), "range_bias_m": [v[0] for v in b.values()],
+                "azimuth_bias_deg": np.degrees([v[1] for v in b.values()])}
+        if data.truth_sensor:  # the further components only where a scenario has them
+            cols["range_gain"] = [data.truth_sensor.get(r, {}).get("range_gain", 0.0) for r in b]
+            cols["time_offset_s"] = [data.truth_sensor.get(r, {}).get("time_offset", 0.0) for r in b]
+        out["truth_biases"] = _table("truth_biases", cols)
     return out
 
 

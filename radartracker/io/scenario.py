@@ -157,9 +157,13 @@ def read_truth(path: Table, skip: Skipper) -> TruthTable:
     return TruthTable.from_columns(**cols)
 
 
-def read_truth_biases(path: Table, radar_ids: set[str]) -> dict[str, tuple[float, float]]:
+def read_truth_biases(path: Table, radar_ids: set[str]) -> tuple[dict[str, tuple[float, float]],
+                                                                  dict[str, dict[str, float]] | None]:
+    """The true (Δr, Δθ) of each radar and, where the optional columns ``range_gain`` and ``time_offset_s``
+    are present, its further components (``None`` where no row has them)."""
     rows = open_rows(as_source(path), "truth_biases")
     out: dict[str, tuple[float, float]] = {}
+    extra: dict[str, dict[str, float]] = {}
     first: dict[str, int] = {}
     for line, row in rows:
         rid = rows.text(row, "radar")
@@ -170,7 +174,11 @@ def read_truth_biases(path: Table, radar_ids: set[str]) -> dict[str, tuple[float
         first[rid] = line
         out[rid] = (rows.number(row, line, "range_bias_m"),
                     math.radians(rows.number(row, line, "azimuth_bias_deg")))
-    return out
+        more = {name: rows.number(row, line, field, optional=True)
+                for name, field in (("range_gain", "range_gain"), ("time_offset", "time_offset_s"))}
+        if more := {k: v for k, v in more.items() if not math.isnan(v)}:
+            extra[rid] = more
+    return out, (extra or None)
 
 
 def _json_number(file: str, obj: dict, field: str, lo: float, hi: float) -> float:
@@ -241,12 +249,12 @@ def _scenario(tables: dict[str, Table | None], meta: dict, radars: list[Radar], 
               skips: dict[str, Skipper], name: str) -> ScenarioData:
     ids = {r.id for r in radars}
     truth = read_truth(tables["truth"], skips["truth"]) if tables.get("truth") is not None else None
-    tb = read_truth_biases(tables["truth_biases"], ids) if tables.get("truth_biases") is not None else None
+    tb, ts = read_truth_biases(tables["truth_biases"], ids) if tables.get("truth_biases") is not None else (None, None)
     # documented default reference: the centroid of the radar sites
     reference = meta.get("reference") or (float(np.mean([r.lat for r in radars])),
                                            float(np.mean([r.lon for r in radars])))
     return ScenarioData(reference=reference, radars=radars, plots=plots, adsb=adsb, truth=truth,
-                        truth_biases=tb, aircraft=meta.get("aircraft", []), name=meta.get("name", name),
+                        truth_biases=tb, truth_sensor=ts, aircraft=meta.get("aircraft", []), name=meta.get("name", name),
                         skipped=_skipped(skips))
 
 

@@ -40,9 +40,10 @@ SCHEMAS: dict[str, tuple[Column, ...]] = {
              *_numbers("m", "altitude_m"), Column("nacp", pa.int64())),
     "truth": (*_numbers("s", "time"), Column("target", _TEXT), *_numbers("deg", "lat", "lon"),
               *_numbers("m", "altitude_m")),
-    "truth_biases": (Column("radar", _TEXT), *_numbers("m", "range_bias_m"), *_numbers("deg", "azimuth_bias_deg")),
+    "truth_biases": (Column("radar", _TEXT), *_numbers("m", "range_bias_m"), *_numbers("deg", "azimuth_bias_deg"),
+                     *_numbers("1", "range_gain"), *_numbers("s", "time_offset_s")),
 }
-OPTIONAL_COLUMNS = {"plots": ("target",)}
+OPTIONAL_COLUMNS = {"plots": ("target",), "truth_biases": ("range_gain", "time_offset_s")}
 
 
 def required_columns(table: str) -> tuple[str, ...]:
@@ -152,7 +153,8 @@ class ScenarioData:
     """Everything a scenario folder holds, validated.
 
     ``reference`` is the system plane's centre (lat, lon in degrees); ``truth_biases`` maps a
-    radar id to its true (Δr m, Δθ rad); ``skipped`` counts rows skipped by reason.
+    radar id to its true (Δr m, Δθ rad); ``truth_sensor`` (where a radar has them) to its true further
+    components, ``{"range_gain": g, "time_offset": τ (s)}``; ``skipped`` counts rows skipped by reason.
     """
 
     reference: tuple[float, float]
@@ -161,6 +163,7 @@ class ScenarioData:
     adsb: AdsbTable
     truth: TruthTable | None = None
     truth_biases: dict[str, tuple[float, float]] | None = None
+    truth_sensor: dict[str, dict[str, float]] | None = None
     aircraft: list[Aircraft] = attrs.field(factory=list)
     name: str = ""
     skipped: dict[str, int] = attrs.field(factory=dict)

@@ -14,11 +14,13 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
+import attrs
 import numpy as np
 
 from radartracker.domain import Aircraft, Radar
+from radartracker.errors import ConfigurationError
 from radartracker.simulation.flights import load_flights
 from radartracker.geometry.plane import SystemPlane
 from radartracker.simulation.simulator import (KinematicTrajectory, Leg, RecordedTrajectory, SimAircraft, SimRadar, Simulator)
@@ -161,3 +163,25 @@ def build_scenario(name: str, seed: int = 1, duration: float | None = None) -> S
     if name not in STANDARD_SCENARIOS:
         raise ValueError(f"unknown scenario {name!r}; built-in: {', '.join(sorted(STANDARD_SCENARIOS))}")
     return STANDARD_SCENARIOS[name](seed=seed, duration=duration)
+
+
+#: the sensor errors a simulated radar can be given beyond its range and azimuth biases (:class:`SimRadar`)
+SENSOR_ERRORS = ("range_gain", "time_offset_s", "drift_gain", "drift_time")
+
+
+def with_sensor_errors(scenario, errors: Mapping[str, Mapping[str, float]]):
+    """``scenario`` (a :class:`Simulator` or a ``TrafficSimulator``: anything with ``radars``) with radar ``id``'s
+    range gain, time-stamp offset and their drifts set from ``errors[id]`` (keys of :data:`SENSOR_ERRORS`); the
+    truth file then holds them (``truth_biases.csv``'s ``range_gain`` and ``time_offset_s``)."""
+    ids = {sr.radar.id for sr in scenario.radars}
+    if unknown := sorted(set(errors) - ids):
+        raise ConfigurationError(f"sensor errors: unknown radar {unknown[0]!r}; the scenario has {', '.join(sorted(ids))}")
+    for rid, values in errors.items():
+        if bad := sorted(set(values) - set(SENSOR_ERRORS)):
+            raise ConfigurationError(f"sensor errors of radar {rid!r}: unknown {bad[0]!r}; known: {', '.join(SENSOR_ERRORS)}")
+    try:
+        scenario.radars = [attrs.evolve(sr, **{k: float(v) for k, v in errors.get(sr.radar.id, {}).items()})
+                           for sr in scenario.radars]
+    except ValueError as exc:  # a negative drift
+        raise ConfigurationError(f"sensor errors: {exc}") from None
+    return scenario

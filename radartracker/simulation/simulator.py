@@ -8,8 +8,10 @@
   iteration on the exact azimuth), so plot times are asynchronous across aircraft and radars.
 * Visibility: slant range ≤ max range, elevation above the geometric radar horizon (−arccos(R/(R+h)))
   and below a 45° cone of silence. Detection with probability Pd.
-* Measured ρ = ρ_true + Δr(t) + σ_r n, θ = θ_true + Δθ(t) + σ_θ n (exact 3-D geometry with pyproj);
-  biases are constant or drift as a random walk. Altitude reported as Mode C (25 ft steps).
+* Measured ρ = ρ_true (1 + g(t)) + Δr(t) + σ_r n, θ = θ_true + Δθ(t) + σ_θ n (exact 3-D geometry with
+  pyproj), stamped t + τ(t) for a plot measured at t: range offset Δr, azimuth offset Δθ, range gain g
+  and time-stamp offset τ (docs/design-notes.md, the sensor error model), each constant or drifting as
+  a random walk. Altitude reported as Mode C (25 ft steps).
 * False plots: Poisson per antenna revolution, uniform over the coverage disc, no codes.
 * ADS-B: equipped aircraft report every ``adsb_period_s`` with per-axis σ from NACp.
 
@@ -160,8 +162,9 @@ def _robust_spline(t: np.ndarray, v: np.ndarray, floor: float):
 class SimRadar:
     """A simulated radar: its public description plus what only the simulator knows.
 
-    Biases are [Δr (m), Δθ (rad)]; drifts are random-walk densities (m²/s, rad²/s);
-    ``false_per_scan`` is the mean number of false plots per antenna revolution.
+    Biases are [Δr (m), Δθ (rad)], the range gain g (dimensionless: ρ_meas = ρ (1 + g) + …) and the
+    time-stamp offset τ (s: a plot measured at t is stamped t + τ); drifts are random-walk densities
+    (m²/s, rad²/s, 1/s, s); ``false_per_scan`` is the mean number of false plots per antenna revolution.
     """
 
     radar: Radar
@@ -169,9 +172,39 @@ class SimRadar:
     azimuth_bias_rad: float = 0.0
     drift_range: float = attrs.field(default=0.0, validator=attrs.validators.ge(0.0))
     drift_azimuth: float = attrs.field(default=0.0, validator=attrs.validators.ge(0.0))
+    range_gain: float = attrs.field(default=0.0, kw_only=True)
+    time_offset_s: float = attrs.field(default=0.0, kw_only=True)
+    drift_gain: float = attrs.field(default=0.0, validator=attrs.validators.ge(0.0), kw_only=True)
+    drift_time: float = attrs.field(default=0.0, validator=attrs.validators.ge(0.0), kw_only=True)
     pd: float = attrs.field(default=1.0, validator=[attrs.validators.ge(0.0), attrs.validators.le(1.0)])
     false_per_scan: float = attrs.field(default=0.0, validator=attrs.validators.ge(0.0))
     phase_rad: float = 0.0
+
+    @property
+    def has_gain_or_time(self) -> bool:
+        """Whether this radar has a range gain or a time-stamp offset (constant or drifting)."""
+        return any(v != 0.0 for v in (self.range_gain, self.time_offset_s, self.drift_gain, self.drift_time))
+
+
+def apply_sensor_errors(cols: dict[str, np.ndarray], sr: SimRadar, seed: int, j: int, t0: float,
+                        t1: float) -> dict[str, float]:
+    """Add radar ``j``'s range gain and time-stamp offset to its plot columns in place (ρ += g ρ, time += τ),
+    each a random walk from its initial value sampled at the sorted plot times (generator ``[seed, 4, j]``);
+    their values at ``t1`` (the truth file's). Without either, the columns are left as they are."""
+    if not sr.has_gain_or_time:
+        return {"range_gain": 0.0, "time_offset": 0.0}
+    t = cols["time"]
+    order = np.argsort(t, kind="stable")
+    tt = np.append(t[order], t1)
+    dt = np.diff(np.concatenate([[t0], tt]))
+    rng = np.random.default_rng([seed, 4, j])
+    g = sr.range_gain + np.cumsum(rng.normal(0.0, 1.0, len(tt)) * np.sqrt(sr.drift_gain * dt))
+    tau = sr.time_offset_s + np.cumsum(rng.normal(0.0, 1.0, len(tt)) * np.sqrt(sr.drift_time * dt))
+    gain, shift = np.empty_like(t), np.empty_like(t)
+    gain[order], shift[order] = g[:-1], tau[:-1]
+    cols["range_m"] = cols["range_m"] + gain * cols["range_m"]
+    cols["time"] = t + shift
+    return {"range_gain": float(g[-1]), "time_offset": float(tau[-1])}
 
 
 @attrs.frozen
@@ -210,14 +243,15 @@ class Simulator:
             raise ValueError(f"t1 ({self.t1}) must be after t0 ({self.t0})")
 
     def run(self) -> ScenarioData:
-        plots, truth_biases = [], {}
+        plots, truth_biases, truth_sensor = [], {}, {}
         for j, sr in enumerate(self.radars):
-            cols, truth_biases[sr.radar.id] = self._radar_plots(j, sr)
+            cols, truth_biases[sr.radar.id], truth_sensor[sr.radar.id] = self._radar_plots(j, sr)
             plots.append(cols)
         table = PlotTable.from_columns(**time_ordered(plots))
         return ScenarioData(
             reference=self.reference, radars=[sr.radar for sr in self.radars], plots=table,
             adsb=self._adsb(), truth=self._truth(), truth_biases=truth_biases,
+            truth_sensor=truth_sensor if any(sr.has_gain_or_time for sr in self.radars) else None,
             aircraft=[sa.aircraft for sa in self.aircraft], name=self.name,
         )
 
@@ -248,8 +282,8 @@ class Simulator:
         # adjacent scans can converge to the same crossing near the antenna's start azimuth
         return t[np.concatenate([[True], np.diff(t) > 0.5 * T])] if len(t) else t
 
-    def _radar_plots(self, j: int, sr: SimRadar) -> tuple[dict[str, np.ndarray], tuple[float, float]]:
-        """One radar's plots as columns, and its true bias at t1."""
+    def _radar_plots(self, j: int, sr: SimRadar) -> tuple[dict[str, np.ndarray], tuple[float, float], dict[str, float]]:
+        """One radar's plots as columns, its true bias at t1 and its true range gain and time offset at t1."""
         rng = np.random.default_rng([self.seed, 1, j])
         radar = sr.radar
         frame = RadarFrame(radar.lat, radar.lon, radar.height_m, self.plane)
@@ -286,10 +320,11 @@ class Simulator:
         br, ba = self._bias_walk(j, sr, np.append(t[order], self.t1))
         bias_r, bias_a = np.empty_like(t), np.empty_like(t)
         bias_r[order], bias_a[order] = br[:-1], ba[:-1]
+        extra = apply_sensor_errors(cols, sr, self.seed, j, self.t0, self.t1)
         cols["range_m"] = np.maximum(cols["range_m"] + bias_r, 0.0)
         cols["azimuth_rad"] = np.mod(cols["azimuth_rad"] + bias_a, 2 * np.pi)
         cols["radar"] = np.full(len(t), radar.id, dtype=object)
-        return cols, (float(br[-1]), float(ba[-1]))
+        return cols, (float(br[-1]), float(ba[-1])), extra
 
     def _false_plots(self, sr: SimRadar, rng: np.random.Generator, out: dict[str, list]) -> None:
         if sr.false_per_scan <= 0:

@@ -32,7 +32,7 @@ from radartracker.io.tables import AdsbTable, PlotTable, ScenarioData, TruthTabl
 from radartracker.simulation.memory import check_fits, traffic_bytes
 from radartracker.simulation.simulator import (_CONE_OF_SILENCE_RAD, _EARTH_RADIUS_M, _MODE_C_STEP_M,
                                                KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator,
-                                               time_ordered)
+                                               apply_sensor_errors, time_ordered)
 
 _U_EPS = 1e-9  # as radartracker.geometry.kinematics: below this |u| a leg is straight
 _N_LEGS = 36  # enough alternating straight/turn legs for the longest flight (90 min)
@@ -244,13 +244,14 @@ class TrafficSimulator:
     # --- simulation -------------------------------------------------------------------------------
     def run(self) -> ScenarioData:
         """The scenario, radar by radar (a progress bar on stderr after 2 s, off with TQDM_DISABLE / --quiet)."""
-        parts, truth_biases = [], {}
+        parts, truth_biases, truth_sensor = [], {}, {}
         for j, sr in enumerate(tqdm(self.radars, desc="simulate", unit="radar", delay=2.0, mininterval=1.0)):
-            cols, truth_biases[sr.radar.id] = self._radar_plots(j, sr)
+            cols, truth_biases[sr.radar.id], truth_sensor[sr.radar.id] = self._radar_plots(j, sr)
             parts.append(cols)
         plots = PlotTable(**time_ordered(parts))
         return ScenarioData(reference=self.config.reference, radars=[sr.radar for sr in self.radars], plots=plots,
                             adsb=self._adsb(), truth=self._truth(), truth_biases=truth_biases,
+                            truth_sensor=truth_sensor if any(sr.has_gain_or_time for sr in self.radars) else None,
                             aircraft=self.aircraft, name="traffic")
 
     def _span(self) -> tuple[np.ndarray, np.ndarray]:
@@ -291,7 +292,7 @@ class TrafficSimulator:
         first = np.concatenate([[True], (ac[1:] != ac[:-1]) | (np.diff(t) > 0.5 * T)]) if len(t) else np.empty(0, bool)
         return ac[first], t[first]
 
-    def _radar_plots(self, j: int, sr: SimRadar) -> tuple[dict[str, np.ndarray], tuple[float, float]]:
+    def _radar_plots(self, j: int, sr: SimRadar) -> tuple[dict[str, np.ndarray], tuple[float, float], dict[str, float]]:
         rng = np.random.default_rng([self.config.seed, 1, j])
         radar = sr.radar
         frame = RadarFrame(radar.lat, radar.lon, radar.height_m, self.plane)
@@ -323,10 +324,11 @@ class TrafficSimulator:
         ba = sr.azimuth_bias_rad + np.cumsum(rng_b.normal(0.0, 1.0, len(tt)) * np.sqrt(sr.drift_azimuth * dt))
         bias_r, bias_a = np.empty_like(t), np.empty_like(t)
         bias_r[order], bias_a[order] = br[:-1], ba[:-1]
+        extra = apply_sensor_errors(cols, sr, self.config.seed, j, self.t0, self.t1)
         cols["range_m"] = np.maximum(cols["range_m"] + bias_r, 0.0)
         cols["azimuth_rad"] = np.mod(cols["azimuth_rad"] + bias_a, 2 * np.pi)
         cols["radar"] = np.full(len(t), radar.id, dtype=object)
-        return cols, (float(br[-1]), float(ba[-1]))
+        return cols, (float(br[-1]), float(ba[-1])), extra
 
     def _false_plots(self, sr: SimRadar, rng: np.random.Generator) -> dict[str, np.ndarray]:
         T = sr.radar.period_s
