@@ -69,7 +69,7 @@ class HeightConfig:
 
     enabled: bool = True
     q: float = attrs.field(default=5.0, validator=attrs.validators.ge(0.0))
-    q_height: float = attrs.field(default=4.0, validator=attrs.validators.ge(0.0))
+    q_height: float = attrs.field(default=100.0, validator=attrs.validators.ge(0.0))
     range_bias_sd_m: float = attrs.field(default=500.0, validator=attrs.validators.gt(0.0))
     observable_sd_m: float = attrs.field(default=1000.0, validator=attrs.validators.gt(0.0))
     solve_every_s: float = attrs.field(default=10.0, validator=attrs.validators.gt(0.0))
