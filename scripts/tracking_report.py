@@ -8,7 +8,9 @@ then a Markdown table. Metrics (:func:`radartracker.pipeline.evaluate.track_metr
 c = 2 km): continuity (min over aircraft), breaks (also in % of flights; ``coverage_gaps`` counts
 the gaps longer than ``delete_after_s`` in an aircraft's plots, each an unavoidable break), swaps,
 RMSE and GOSPA;
-here also the p95 position error of each aircraft's own track (overall, flying straight and turning
+the height estimate of tracks whose plots carry no altitude (RMSE against the truth's altitude, mean NEES of
+χ²₁, median σ_h and the share of the aircraft's own tracks' estimates with an observable height); here also
+the p95 position error of each aircraft's own track (overall, flying straight and turning
 faster than 1°/s, and above 7000 m, where the en-route flights have left their climb-out), and
 *false confirmed tracks* (track_metrics' ``false_tracks``: tracks that, for half their life, follow
 no aircraft any plot or report saw).
@@ -44,7 +46,10 @@ from radartracker.tracking.events import ENDS  # noqa: E402
 from radartracker.tracking.manager import TrackManager  # noqa: E402
 
 GRID_S, GRACE_S, C_M, HIGH_M = 2.0, 20.0, 2000.0, 7000.0
+# each set without altitude and the same flights with Mode C (issue 29, item 4)
+TWINS = {"cruise-no-mode-c": "cruise", "cruise-real-no-mode-c": "cruise-real", "national-primary": "national-mode-c"}
 COVS: dict[tuple[int, float], np.ndarray] = {}  # (track, time) → covariance of the estimate, of the last run
+HEIGHTS: dict[tuple[int, float], tuple[float, float]] = {}  # (track, time) → estimated height and its σ (m)
 
 
 def run_manager(data: ScenarioData, config: ManagerConfig) -> tuple[dict[int, TrackHistory], dict, float]:
@@ -53,12 +58,18 @@ def run_manager(data: ScenarioData, config: ManagerConfig) -> tuple[dict[int, Tr
     filters' mean NIS, and wall seconds."""
     mgr = make_manager(data.radars, data.reference, config)
     COVS.clear()
+    HEIGHTS.clear()
+    observable = config.height.observable_sd_m
 
     def keep_cov(ev, tr) -> None:
         if ev.kind in ("confirmed", "updated"):
             t0, _, P = tr.estimate()
             if t0 == ev.time:
                 COVS[ev.track, ev.time] = P
+            if tr.height is not None:
+                h, sd = tr.height.height(ev.time)
+                if sd <= observable:
+                    HEIGHTS[ev.track, ev.time] = (h, sd)
 
     mgr.events.subscribe(keep_cov)
     started = time.perf_counter()
@@ -97,13 +108,15 @@ def evaluate(data: ScenarioData, tracks: dict[int, TrackHistory]) -> dict:
     first = {tg: lo - GRACE_S for tg, (lo, _) in observed.items()}
     m = track_metrics(tracks, paths, observed, grid, C_M, sensed=sensed, first_seen=first)
     q = m["indicators"]
-    err, turning, high, nees4, nees2 = [], [], [], [], []
+    err, turning, high, nees4, nees2, dh, sdh, n_est = [], [], [], [], [], [], [], 0
     for tg, v in m["per_target"].items():
         if v["right_track"] < 0:
             continue
         h = tracks[v["right_track"]]
         nees4 += _nees(h, v["right_track"], paths.state_at(tg, h.times), slice(0, 4))
         nees2 += _nees(h, v["right_track"], paths.state_at(tg, h.times), slice(0, 2))
+        n_est += len(h.times)
+        _height_errors(data, tg, v["right_track"], h, dh, sdh)
         g = grid[(grid >= max(observed[tg][0], h.start)) & (grid <= min(observed[tg][1], h.end))]
         pos, alive = h.at(g)
         truth, inside = paths.state_at(tg, g)
@@ -128,6 +141,7 @@ def evaluate(data: ScenarioData, tracks: dict[int, TrackHistory]) -> dict:
             "pu_pct": 100.0 * q["probability_of_update"], "init_delay_p95_s": q["initiation_delay_p95_s"],
             "nees": float(np.mean(nees4)) if nees4 else float("nan"),
             "nees_position": float(np.mean(nees2)) if nees2 else float("nan"),
+            **_height_summary(np.array(dh), np.array(sdh), n_est),
             **_split(e, np.array(turning, bool))}
 
 
@@ -142,6 +156,27 @@ def _nees(h: TrackHistory, tid: int, truth: tuple[np.ndarray, np.ndarray], part:
             e = h.states[k, part] - state[k, part]
             out.append(float(e @ np.linalg.solve(P[part, part], e)))
     return out
+
+
+def _height_errors(data: ScenarioData, tg: str, tid: int, h: TrackHistory, dh: list, sdh: list) -> None:
+    """The errors against the truth's altitude, and σ, of the heights estimated (HEIGHTS) for track ``tid``'s
+    estimates, appended to ``dh`` and ``sdh``."""
+    ti = np.flatnonzero(data.truth.target == tg)
+    for t in h.times.tolist():
+        est = HEIGHTS.get((tid, t))
+        if est is not None and data.truth.time[ti[0]] <= t <= data.truth.time[ti[-1]]:
+            dh.append(est[0] - float(np.interp(t, data.truth.time[ti], data.truth.altitude_m[ti])))
+            sdh.append(est[1])
+
+
+def _height_summary(dh: np.ndarray, sd: np.ndarray, n_est: int) -> dict:
+    """Height RMSE, mean height NEES (χ²₁, mean 1), median σ_h and the share of the aircraft's own tracks'
+    estimates with an observable height."""
+    if not len(dh):
+        return {"height_rmse_m": float("nan"), "height_nees": float("nan"), "height_sd_median_m": float("nan"),
+                "height_share_pct": 0.0}
+    return {"height_rmse_m": float(np.sqrt(np.mean(dh**2))), "height_nees": float(np.mean((dh / sd) ** 2)),
+            "height_sd_median_m": float(np.median(sd)), "height_share_pct": 100.0 * len(dh) / max(n_est, 1)}
 
 
 def _split(err: np.ndarray, turning: np.ndarray) -> dict:
@@ -162,8 +197,8 @@ def build(name: str, args: argparse.Namespace, mode_s: bool = False) -> Scenario
         return scenarios.cruise(args.seed, args.cruise_s, mode_c=name == "cruise")
     if name in ("cruise-real", "cruise-real-no-mode-c"):
         return scenarios.cruise_real(args.seed, mode_c=name == "cruise-real")
-    if name == "national-primary":
-        return scenarios.national_primary(args.seed, args.national_s)
+    if name in ("national-primary", "national-mode-c"):
+        return scenarios.national_primary(args.seed, args.national_s, mode_c=name == "national-mode-c")
     return build_scenario(name, seed=args.seed).run()
 
 
@@ -209,6 +244,7 @@ def main() -> None:
                 if args.stonesoup_save:
                     save_tracks(args.stonesoup_save / f"{name}.npz", tracks, plots_digest(data), wall)
             COVS.clear()  # Stone Soup's tracks have no covariance here: no NEES
+            HEIGHTS.clear()
             emit({"set": name, "tracker": tracker, **evaluate(data, tracks), "plots": n_plots,
                   "ms_per_plot": 1e3 * wall / n_plots, "plots_digest": plots_digest(data)[:12]})
     if args.mode_s:  # the en-route set again with Mode S, for each motion model (the default among them)
@@ -220,14 +256,16 @@ def main() -> None:
     print()
     print("| set | tracker | flights | tracks | breaks (% flights) | multiple tracks (% time, % flights) | swaps | "
           "false | P_u (%) | RMSE (m) | p95 (m) | NEES (4) | NEES pos. (2) | track NIS (2) | init. delay p95 (s) | "
-          "ms/plot |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "ms/plot | height RMSE (m) | height NEES (1) | height σ median (m) | height observable (%) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r['set']} | {r['tracker']} | {r['flights']} | {r['confirmed_tracks']} | {r['breaks']} "
               f"({r['breaks_pct']:.1f} %) | {r['multiple_tracks']} ({r['multiple_pct_time']:.2f} %, "
               f"{r['multiple_pct_flights']:.1f} %) | {r['swaps']} | {r['false_confirmed']} | {r['pu_pct']:.1f} | "
               f"{r['rmse_m']:.1f} | {r['p95_m']:.1f} | {r['nees']:.2f} | {r['nees_position']:.2f} | "
-              f"{r.get('track_nis', float('nan')):.2f} | {r['init_delay_p95_s']:.1f} | {r['ms_per_plot']:.2f} |")
+              f"{r.get('track_nis', float('nan')):.2f} | {r['init_delay_p95_s']:.1f} | {r['ms_per_plot']:.2f} | "
+              f"{r['height_rmse_m']:.1f} | {r['height_nees']:.2f} | {r['height_sd_median_m']:.1f} | "
+              f"{r['height_share_pct']:.1f} |")
     done_when(rows, ManagerConfig().motion_model)
 
 
@@ -245,6 +283,12 @@ def done_when(rows: list[dict], default: str) -> None:
         if peer is not None:
             checks.append(("RMSE below Stone Soup GNN's", f"{r['rmse_m']:.1f} vs {peer['rmse_m']:.1f} m",
                            r["rmse_m"] < peer["rmse_m"]))
+        twin = next((p for p in rows if p["tracker"] == r["tracker"] and p["set"] == TWINS.get(r["set"])), None)
+        if twin is not None:  # issue 29, item 4: heights from the slant ranges
+            more = 100.0 * (r["rmse_m"] / twin["rmse_m"] - 1.0)
+            checks.append(("RMSE within 25 % of the same run with Mode C",
+                           f"{r['rmse_m']:.1f} vs {twin['rmse_m']:.1f} m ({more:+.0f} %); height RMSE "
+                           f"{r['height_rmse_m']:.0f} m, NEES {r['height_nees']:.2f}", more <= 25.0))
         for what, value, ok in checks:
             print(f"done-when {r['set']} ({default}): {what}: {value}: {'yes' if ok else 'NO'}")
 

@@ -131,10 +131,12 @@ def cruise_real(seed: int = 1, mode_c: bool = True, path: Path | None = None) ->
     return data
 
 
-def national_primary(seed: int = 1, duration: float = 600.0, aircraft: int = 200) -> ScenarioData:
-    """The built-in national traffic (28 radars 200 km apart, periods 4–12 s), every aircraft primary-only."""
-    data = traffic_scenario(seed=seed, duration=duration, aircraft=aircraft, primary_share=1.0, adsb_share=0.0).run()
-    data.name = "national-primary"
+def national_primary(seed: int = 1, duration: float = 600.0, aircraft: int = 200, mode_c: bool = False) -> ScenarioData:
+    """The built-in national traffic (28 radars 200 km apart, periods 4–12 s), every aircraft primary-only
+    (``mode_c``: the same flights with Mode C altitude and no identity, the twin of the comparison)."""
+    twin = {"primary_share": 0.0, "transponder": "mode_c"} if mode_c else {"primary_share": 1.0}
+    data = traffic_scenario(seed=seed, duration=duration, aircraft=aircraft, adsb_share=0.0, **twin).run()
+    data.name = "national-mode-c" if mode_c else "national-primary"
     return data
 
 

@@ -11,6 +11,8 @@
   y north, θ clockwise), the range column is u·∂d/∂ρ where u is the plane line of sight and
   ∂d/∂ρ the change of plane distance with slant range at constant altitude (spherical earth,
   scaled by the local projection scale). Tests hold it to finite differences of the exact model.
+* :func:`height_gradient` — g = ∂z/∂h of a plot's plane position at fixed (ρ, θ): how far, and along
+  which line, a wrong conversion height moves a plot; also held to finite differences.
 """
 
 from __future__ import annotations
@@ -179,3 +181,19 @@ def bias_jacobian(radar_xy: np.ndarray, radar_height_m, p: np.ndarray, rho: np.n
     J[..., :, 0] = u * dd_drho[..., None]
     J[..., :, 1] = dp @ _OMEGA.T
     return J
+
+
+def height_gradient(C: np.ndarray, rho: np.ndarray, alt: np.ndarray, radar_height_m) -> np.ndarray:
+    """g = ∂z/∂h (n, 2): the move of plots' plane positions z per metre of the height ``alt`` they were
+    converted at, at fixed slant range ρ and azimuth (radars at heights ``radar_height_m``, one or one per plot).
+
+    At fixed ρ, cos c = (a² + b² − ρ²)/(2ab) (c the central angle, a and b the geocentric radii of radar and
+    aircraft) gives ∂c/∂b = −(b − a cos c)/(ab sin c); with C_s's range column u·(d/c)·ρ/(ab sin c)
+    (:func:`bias_jacobian`), g = −(range column of C_s)·(b − a cos c)/ρ: along the line of sight, towards the
+    radar when the height grows.
+    """
+    a = _EARTH_RADIUS_M + np.asarray(radar_height_m, float)
+    b = _EARTH_RADIUS_M + np.asarray(alt, float)
+    rho = np.asarray(rho, float)
+    cos_c = np.clip((a * a + b * b - rho * rho) / (2 * a * b), -1.0, 1.0)
+    return -C[:, :, 0] * ((b - a * cos_c) / np.maximum(rho, 1.0))[:, None]

@@ -19,6 +19,8 @@ from __future__ import annotations
 import attrs
 import numpy as np
 
+from radartracker.geometry.plane import height_gradient
+
 _INADMISSIBLE = 1e12
 
 
@@ -171,19 +173,8 @@ def altitude_d2(h_plot: np.ndarray, tracks: list[AltitudeTrack | None], times: n
     return out
 
 
-def altitude_spread(C: np.ndarray, rho: np.ndarray, alt: np.ndarray, radar_height_m: float, sd_m: float) -> np.ndarray:
-    """Covariance added to a plot converted at an *assumed* altitude (σ_h = ``sd_m``): g gᵀ σ_h².
-
-    At fixed slant range ρ, cos c = (a² + b² − ρ²)/(2ab) (c the central angle, a and b the
-    geocentric radii of radar and aircraft) gives ∂c/∂b = −(b − a cos c)/(ab sin c), so
-    g = ∂z/∂h = −(range column of C_s)·(b − a cos c)/ρ, C_s's range column being u·(d/c)·ρ/(ab sin c).
-    """
-    a = EARTH_RADIUS_M + radar_height_m
-    b = EARTH_RADIUS_M + np.asarray(alt, float)
-    rho = np.asarray(rho, float)
-    cos_c = np.clip((a * a + b * b - rho * rho) / (2 * a * b), -1.0, 1.0)
-    g = -C[:, :, 0] * ((b - a * cos_c) / np.maximum(rho, 1.0))[:, None]
-    return sd_m**2 * g[:, :, None] * g[:, None, :]
-
-
-EARTH_RADIUS_M = 6_371_008.8  # as radartracker.geometry.plane
+def altitude_spread(C: np.ndarray, rho: np.ndarray, alt: np.ndarray, radar_height_m, sd_m) -> np.ndarray:
+    """Covariance added to a plot converted at an *uncertain* altitude (σ_h = ``sd_m``, one or one per plot):
+    g gᵀ σ_h², g = ∂z/∂h (:func:`~radartracker.geometry.plane.height_gradient`)."""
+    g = height_gradient(C, rho, alt, radar_height_m)
+    return np.reshape(np.asarray(sd_m, float) ** 2, (-1, 1, 1)) * g[:, :, None] * g[:, None, :]

@@ -9,6 +9,7 @@ from radartracker.estimation.motion import MotionModel
 from radartracker.estimation.screening import ScreeningConfig
 from radartracker.clock import ClockConfig
 from radartracker.tracking.filters import MotionConfig
+from radartracker.tracking.height import HeightConfig
 
 @attrs.frozen
 class ManagerConfig:
@@ -18,7 +19,8 @@ class ManagerConfig:
     ``associator`` (a ``radartracker.associators`` plugin), ``gate`` (χ²₂ 99.9 %), ``search_radius_m``,
     ``new_track_exclusion`` (χ²₂ 1 − 10⁻⁶: no tentative track this close to a confirmed one),
     ``primary_altitude_m`` and its spread ``primary_altitude_sd_m`` (the height a plot without Mode C is
-    converted at). Life cycle: ``confirm_m`` of ``confirm_n``, ``delete_after_s``, ``max_tracks``,
+    converted at) and ``height`` (the height of tracks without altitude, estimated from the slant ranges:
+    :mod:`radartracker.tracking.height`). Life cycle: ``confirm_m`` of ``confirm_n``, ``delete_after_s``, ``max_tracks``,
     ``merge_distance_m`` (tracks on one aircraft: :mod:`radartracker.tracking.duplicates`).
     Screening: ``screening``.
     Plugins: ``estimator`` with ``estimator_config`` / ``estimator_options``, ``motion_model`` with
@@ -49,6 +51,7 @@ class ManagerConfig:
     frame_s: float = 0.5
     primary_altitude_m: float = 6000.0
     primary_altitude_sd_m: float = 3500.0
+    height: HeightConfig = attrs.field(factory=HeightConfig)
     search_radius_m: float = 25_000.0
     new_track_exclusion: float = 27.63
     # a lost (coasting) track this close to a track being confirmed, with a velocity that agrees, is the

@@ -34,7 +34,8 @@ def _identities_agree(a: Track, b: Track) -> bool:
     for x, y in ((a.mode_s, b.mode_s), (a.mode_3a, b.mode_3a)):
         if x is not None and y is not None and x != y:
             return False
-    return a.altitude_m is None or b.altitude_m is None or abs(a.altitude_m - b.altitude_m) <= ALTITUDE_M
+    ha, hb = a.reported_altitude_m, b.reported_altitude_m  # an estimated height tells nothing apart
+    return ha is None or hb is None or abs(ha - hb) <= ALTITUDE_M
 
 
 def relation(old: Track, new: Track, distance_m: float) -> str | None:

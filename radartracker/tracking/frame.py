@@ -49,7 +49,8 @@ class FrameMeasurements(NamedTuple):
 class Frame:
     """The inputs of [``start``, ``end``) and their measurements: rows ``radar_rows[rid]`` are radar
     ``rid``'s plots in arrival order, then come the ADS-B reports, then the unbiased positions.
-    ``valid``: which plots have a possible geometry; ``azimuth``: the plots' azimuths (rad)."""
+    ``valid``: which plots have a possible geometry; ``azimuth``: the plots' azimuths (rad); ``height``: the
+    height each plot was converted at (m), ``guessed``: which of them were assumed (``primary_altitude_m``)."""
 
     start: float
     end: float
@@ -60,6 +61,8 @@ class Frame:
     meas: FrameMeasurements
     valid: np.ndarray
     azimuth: np.ndarray
+    height: np.ndarray
+    guessed: np.ndarray
 
     @property
     def first_report_row(self) -> int:
@@ -93,7 +96,7 @@ class FrameBuilder:
         radar_rows, base = {}, 0
         for rid, ps in by_radar.items():
             radar_rows[rid], base = range(base, base + len(ps)), base + len(ps)
-        z, C, R, radar, valid, theta = self._convert(by_radar, plots, reports, tracks)
+        z, C, R, radar, valid, theta, alt, guessed = self._convert(by_radar, plots, reports, tracks)
         if positions:
             n = len(positions)
             z = np.concatenate([z, np.array([np.asarray(p.z, float) for p in positions]).reshape(n, 2)])
@@ -102,14 +105,14 @@ class FrameBuilder:
             radar = np.concatenate([radar, np.full(n, -1, np.int64)])
         times = np.fromiter(map(_TIME, itertools.chain(plots, reports, positions)), float, len(z))
         return Frame(start, end, plots, radar_rows, reports, positions, FrameMeasurements(times, z, C, R, radar),
-                     valid, theta)
+                     valid, theta, alt, guessed)
 
     def _heights(self, plots: list[Plot], tracks: list[Track]) -> tuple[np.ndarray, np.ndarray]:
         """Each plot's height for the conversion, and which were guessed (``primary_altitude_m``)."""
         heights = list(map(_ALTITUDE, plots))
         guessed = np.zeros(len(plots), bool)
         if None in heights:
-            by_code = {t.mode_s: t.altitude_m for t in tracks if t.mode_s and t.altitude_m is not None}
+            by_code = {t.mode_s: h for t in tracks if t.mode_s and (h := t.reported_altitude_m) is not None}
             for k, (h, p) in enumerate(zip(heights, plots)):
                 if h is None:
                     h = by_code.get(p.mode_s) if p.mode_s else None
@@ -118,7 +121,8 @@ class FrameBuilder:
 
     def _convert(self, by_radar: dict[str, list[Plot]], plots: list[Plot], reports: list[AdsbReport],
                  tracks: list[Track]) -> tuple[np.ndarray, ...]:
-        """(z, C, R, radar row, valid, azimuth) of the plots and ADS-B reports, in one pass."""
+        """(z, C, R, radar row, valid, azimuth, conversion height, guessed) of the plots and ADS-B reports, in
+        one pass."""
         n, m, k = len(plots), len(reports), len(by_radar)
         alt, guessed = self._heights(plots, tracks)
         rho = np.fromiter(map(_RANGE, plots), float, n)
@@ -132,7 +136,7 @@ class FrameBuilder:
         if guessed.any():  # an assumed altitude is uncertain: near the radar its error moves the plot along the beam
             R[:n][guessed] += altitude_spread(C[:n][guessed], rho[guessed], alt[guessed],
                                               conv.height[radar[:n][guessed]], self.primary_altitude_sd_m)
-        return z, C, R, radar, valid, theta
+        return z, C, R, radar, valid, theta, alt, guessed
 
 
 class Prediction:

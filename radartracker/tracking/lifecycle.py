@@ -84,6 +84,7 @@ class TrackLifecycle:
         self.nis = [0, 0.0]  # count and sum of confirmed tracks' d² of the measurements they accepted
         self.neighbours: Prediction | None = None  # the frame's live tracks, where duplicates are looked for
         self.merged: dict[int, Track] = {}  # a track merged in this frame → the track that goes on for it
+        self.took: Callable[[Track, Update], None] | None = None  # told of each measurement a track used
 
     def begin_frame(self, pred: Prediction) -> None:
         """A frame starts with live tracks ``pred``."""
@@ -138,6 +139,8 @@ class TrackLifecycle:
         elif not updated and not self._update(tr, src, zc, Rc, radar):
             return
         tr.took(src, kind)
+        if self.took is not None:
+            self.took(tr, u)
         if tr.status == "tentative":
             tr.pending.append(Pending(PlaneMeasurement(src.time, tr.id, radar, z, C, R), kind))
             if sum(tr.detections) >= self.config.confirm_m:

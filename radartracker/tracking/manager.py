@@ -14,12 +14,14 @@ A manager is a short recipe of stages, each a class of its own module with one j
 4. **Association** (an :class:`~radartracker.tracking.associators.Associator` plugin, ``gnn`` by default):
    each radar's plots to tracks; ADS-B reports go to the track with their address, unbiased positions by
    identity or gating.
-5. **Life cycle** (:class:`~radartracker.tracking.lifecycle.TrackLifecycle`): screening, the track
+5. **Heights** (:class:`~radartracker.tracking.height.HeightEstimator`): the plots without altitude of tracks
+   whose height the slant ranges have made observable, converted again at that height.
+6. **Life cycle** (:class:`~radartracker.tracking.lifecycle.TrackLifecycle`): screening, the track
    filters (a motion-model plugin), initiation, M-of-N confirmation, misses (which antenna swept which
    track: :class:`~radartracker.tracking.coverage.AntennaSweep`), coasting and deletion.
-6. **Estimator feed** (:class:`~radartracker.tracking.feed.EstimatorFeed`): the measurements of confirmed
+7. **Estimator feed** (:class:`~radartracker.tracking.feed.EstimatorFeed`): the measurements of confirmed
    tracks to the bias estimator plugin and the coupling graph at the frame's end.
-7. **Events** (:class:`~radartracker.tracking.events.EventSink`): every event, with its track, to the
+8. **Events** (:class:`~radartracker.tracking.events.EventSink`): every event, with its track, to the
    listeners and to the caller.
 
 Every input is either used or counted under a named reason (:meth:`TrackManager.accounting`).
@@ -48,6 +50,7 @@ from radartracker.tracking.coverage import AntennaSweep
 from radartracker.tracking.events import EventSink, TrackEvent, new_tuple
 from radartracker.tracking.feed import EstimatorFeed
 from radartracker.tracking.frame import Frame, FrameBuilder, Prediction
+from radartracker.tracking.height import HeightEstimator
 from radartracker.tracking.lifecycle import TrackLifecycle, Update
 from radartracker.tracking.prepared import PlaneConverter
 from radartracker.tracking.schema import save_manager
@@ -75,13 +78,16 @@ class TrackManager:
         self.events = EventSink()
         self.admission = Admission(self.radars, config.clock, self.counts)
         self.window = ReorderWindow(config.reorder_window_s, config.clock.step_after, config.clock.window)
-        self.frames = FrameBuilder(PlaneConverter(radars, frames, self.plane), config.primary_altitude_m,
-                                   config.primary_altitude_sd_m)
+        converter = PlaneConverter(radars, frames, self.plane)
+        self.frames = FrameBuilder(converter, config.primary_altitude_m, config.primary_altitude_sd_m)
         self.antennas = AntennaSweep(radars, [frames[r.id].xy for r in radars],
                                      [self._grid_north(r) for r in radars])
         self.feed = EstimatorFeed(estimator, self.coupling, self.counts, self._plugin_failed)
         self.life = TrackLifecycle(config, new_filter, self.feed, self.events, self.counts, self._plugin_failed)
         self.life.labels = getattr(associator, "labels", False)
+        self.heights = HeightEstimator(converter, config.height, config.primary_altitude_m,
+                                       config.primary_altitude_sd_m, self.feed.bias)
+        self.life.took = self.heights.took
         self.frame: int | None = None  # the number of the frame being gathered (time // frame_s)
         self.gathered: list[Input] = []  # its inputs so far
         self.updates = itertools.count()  # the order of the updates made within a frame
@@ -208,7 +214,8 @@ class TrackManager:
         self.admission.forget(self.window.horizon)
 
     def _run_frame(self, number: int) -> None:
-        """One frame: convert, associate, apply in time order, find misses, delete, feed the estimator."""
+        """One frame: convert, associate, refine heights, apply in time order, find misses, delete, feed the
+        estimator."""
         t_a, t_b = number * self.config.frame_s, (number + 1) * self.config.frame_s
         items, self.gathered = self.gathered, []
         tracks = list(self.tracks.values())
@@ -219,6 +226,7 @@ class TrackManager:
         self.antennas.observe(frame.meas.radar[:n], frame.meas.time[:n], frame.azimuth)
         updates, hits = self._associate(frame, pred)
         updates += self._identified(frame, pred)
+        self.heights.refine(frame, updates, tracks)
         if tracks:
             swept, covered = self.antennas.sweep(pred.position, t_a, t_b)
             self.life.missed(tracks, swept, hits, t_a, t_b)

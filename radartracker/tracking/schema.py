@@ -38,6 +38,7 @@ from radartracker.domain import AdsbReport, Plot, Radar
 from radartracker.estimation.base import PlaneMeasurement
 from radartracker.tracking.association import AltitudeTrack
 from radartracker.tracking.config import ManagerConfig
+from radartracker.tracking.height import HeightFilter
 from radartracker.errors import SnapshotError
 from radartracker.tracking.snapshot import class_name, decode, encode, read_snapshot_file, write_snapshot_file
 from radartracker.tracking.track import TRACK_STATUSES, Pending, Track
@@ -108,6 +109,7 @@ def _track_doc(tr: Track) -> dict:
                          np.asarray(p.measurement.R, float).ravel().tolist(), p.kind] for p in tr.pending],
             "rejected": [[t, np.asarray(z, float).tolist(), sd] for t, z, sd in tr.rejected],
             "vertical": None if v is None else [v.time, v.h, v.v, v.p00, v.p01, v.p11],
+            "height": None if tr.height is None else tr.height.state(),
             "filter": {"class": class_name(tr.filter), "config": encode(tr.filter.config, "filter config"),
                        "state": encode(tr.filter.state_dict(), "filter state")}}
 
@@ -140,6 +142,16 @@ def _vertical(v: np.ndarray, what: str) -> AltitudeTrack:
     return AltitudeTrack(t, h, rate, p00, p01, p11)
 
 
+def _height(doc: Any, radars: int, cfg: ManagerConfig, what: str) -> HeightFilter:
+    """A track's height filter (:meth:`HeightFilter.state`'s list: numbers, NaN where it has no fix yet)."""
+    _need(isinstance(doc, list) and all(type(x) in (int, float) and not isinstance(x, bool) for x in doc),
+          f"{what}: a list of numbers expected")
+    try:
+        return HeightFilter.of_state(doc, radars, cfg.height)
+    except ValueError as exc:
+        raise ValueError(f"{what}: {exc}") from None
+
+
 def _rejection(doc: Any, what: str) -> tuple[float, np.ndarray, float]:
     _need(isinstance(doc, list) and len(doc) == 3, f"{what}: [time, z, sd] expected")
     return _number(doc[0], what), _floats(doc[1], 2, what), _number(doc[2], what)
@@ -148,7 +160,7 @@ def _rejection(doc: Any, what: str) -> tuple[float, np.ndarray, float]:
 def _track_of(doc: Any, mgr: Any, what: str) -> Track:
     keys = {"id", "status", "created", "last_update", "mode_s", "mode_3a", "target", "altitude_m", "detections",
             "n_plots", "n_adsb", "pending", "rejected", "vertical", "filter"}
-    _need(isinstance(doc, dict) and set(doc) == keys, f"{what}: fields {sorted(keys)} expected")
+    _need(isinstance(doc, dict) and set(doc) - {"height"} == keys, f"{what}: fields {sorted(keys)} expected")
     cfg, radars = mgr.config, frozenset(mgr.radars)
     tid = _integer(doc["id"], f"{what} id", 1)
     _need(doc["status"] in TRACK_STATUSES[:3], f"{what} status {doc['status']!r}")
@@ -178,6 +190,8 @@ def _track_of(doc: Any, mgr: Any, what: str) -> Track:
     _need(created <= last, f"{what}: created after its last update")
     v = doc["vertical"]
     vertical = None if v is None else _vertical(_floats(v, 6, f"{what} vertical"), f"{what} vertical")
+    hf = doc.get("height")  # schema 2 and early 3 documents have none
+    height = None if hf is None else _height(hf, len(mgr.radars), cfg, f"{what} height")
     return Track(tid, filt, doc["status"], created, last, mode_s=doc["mode_s"], mode_3a=doc["mode_3a"],
                  target=doc["target"],
                  altitude_m=None if doc["altitude_m"] is None else _number(doc["altitude_m"], f"{what} altitude_m"),
@@ -185,7 +199,7 @@ def _track_of(doc: Any, mgr: Any, what: str) -> Track:
                  pending=[_pending_of(p, tid, radars, f"{what} pending[{i}]") for i, p in enumerate(doc["pending"])],
                  n_plots=_integer(doc["n_plots"], f"{what} n_plots"), n_adsb=_integer(doc["n_adsb"], f"{what} n_adsb"),
                  rejected=[_rejection(r, f"{what} rejected[{i}]") for i, r in enumerate(doc["rejected"])],
-                 vertical=vertical)
+                 vertical=vertical, height=height)
 
 
 # --- the manager -----------------------------------------------------------------------------------

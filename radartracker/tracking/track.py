@@ -12,6 +12,7 @@ from radartracker.domain import Aircraft, AdsbReport, Plot
 from radartracker.estimation.base import PlaneMeasurement
 from radartracker.tracking.association import AltitudeTrack
 from radartracker.tracking.filters import TrackFilter
+from radartracker.tracking.height import HeightFilter
 
 TRACK_STATUSES = ("tentative", "confirmed", "coasting", "deleted")
 NO_COVARIANCE = np.full(16, np.nan).tobytes()  # the bytes of an unknown 4×4 covariance: 16 NaNs
@@ -30,8 +31,10 @@ class Track:
 
     ``filter`` (a motion-model plugin) holds the kinematic estimate χ = [x, y, vx, vy] and P; the track
     adds what the manager decides with: ``status`` (one of ``TRACK_STATUSES``), the identity its
-    measurements carried (Mode S address, Mode 3/A code, truth label ``target`` in simulations), the last
-    Mode C altitude and its vertical filter (for gating), ``detections`` (hit or miss of the last N
+    measurements carried (Mode S address, Mode 3/A code, truth label ``target`` in simulations), its altitude
+    ``altitude_m`` (the last reported, Mode C or ADS-B, with the Mode C vertical filter for gating; or, for a
+    track whose plots carry none, its ``height`` filter's estimate once observable:
+    :mod:`radartracker.tracking.height`), ``detections`` (hit or miss of the last N
     opportunities, for M-of-N confirmation), ``pending`` measurements of a tentative track, and the run of
     consecutive screening rejections ``rejected`` (:func:`radartracker.estimation.screening.judge`).
     """
@@ -51,12 +54,18 @@ class Track:
     n_adsb: int = 0
     rejected: list = attrs.field(factory=list)
     vertical: AltitudeTrack | None = None
+    height: HeightFilter | None = None
     _estimate: tuple | None = attrs.field(default=None, repr=False)
 
     @property
     def aircraft(self) -> Aircraft | None:
         """The aircraft identity the track carries (known by its Mode S address), else None."""
         return None if self.mode_s is None else Aircraft(self.mode_s, mode_3a=self.mode_3a)
+
+    @property
+    def reported_altitude_m(self) -> float | None:
+        """The last altitude the track's measurements reported (None: none, or only an estimated height)."""
+        return self.altitude_m if self.height is None else None
 
     @property
     def live(self) -> bool:
@@ -121,11 +130,12 @@ class Track:
 
     def take_over(self, new: Track) -> None:
         """This track lost its aircraft and ``new``, a younger track, found it: this track number goes on
-        with ``new``'s filter, detections, held measurements and vertical filter (identity kept, completed
-        by ``new``'s)."""
+        with ``new``'s filter, detections, held measurements, vertical and height filters (identity kept,
+        completed by ``new``'s)."""
+        reported = self.reported_altitude_m
         self.filter, self.detections, self.vertical, self.pending = new.filter, new.detections, new.vertical, new.pending
-        self.last_update, self.rejected = new.last_update, []
-        self.altitude_m = new.altitude_m if new.altitude_m is not None else self.altitude_m
+        self.last_update, self.rejected, self.height = new.last_update, [], new.height
+        self.altitude_m = new.altitude_m if new.altitude_m is not None or new.height is not None else reported
         self.mode_s, self.mode_3a = self.mode_s or new.mode_s, new.mode_3a or self.mode_3a
         self.n_plots += new.n_plots
         self.n_adsb += new.n_adsb
