@@ -145,9 +145,7 @@ class Recorder:
         status and state of four floats, kept as it is: it is immutable) with ``cov``, the 4×4 float array of the
         track's estimate at the event's time or ``None``, copied now, and ``ident``, the track's
         (altitude_m, mode_s, mode_3a, target)."""
-        self._rows.append((ev, NO_COVARIANCE if cov is None else cov.tobytes(), *ident))
-        if len(self._rows) >= self.flush_every:
-            self._columns()
+        self._append((ev, NO_COVARIANCE if cov is None else cov.tobytes(), *ident))
 
     def listen(self, event, track) -> None:
         """Record a TrackManager's ``event`` of ``track`` (subscribe this method to the manager's
@@ -155,9 +153,12 @@ class Recorder:
         covariance (a float64 4×4 array, the motion-model contract) when the event's state is the track's
         estimate (not extrapolated; never for a deletion), and the track's identity."""
         cov = NO_COVARIANCE if event.kind in ENDS else track.covariance_bytes(event.time)
-        rows = self._rows
-        rows.append((event, cov, track.altitude_m, track.mode_s, track.mode_3a, track.target))
-        if len(rows) >= self.flush_every:
+        self._append((event, cov, track.altitude_m, track.mode_s, track.mode_3a, track.target))
+
+    def _append(self, row: tuple) -> None:
+        """Keep one event row; every ``flush_every`` rows are made columns."""
+        self._rows.append(row)
+        if len(self._rows) >= self.flush_every:
             self._columns()
 
     def add_nis(self, values: np.ndarray) -> None:

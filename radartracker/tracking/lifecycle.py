@@ -166,12 +166,7 @@ class TrackLifecycle:
             return ACCEPT, None, None, False
         except Exception as exc:
             raise self.failed(f"motion model {self.new_filter.name!r}", tr.id, t, exc) from exc
-        if gate is not None and d2 <= gate:  # accepted: a run of rejections ends (judge's first case)
-            verdict = ACCEPT
-            if tr.rejected:
-                tr.rejected = []
-        else:
-            verdict, tr.rejected = judge(cfg, kind, d2, tr.rejected, tr.mode_s is not None, tentative, t, zc, Rc)
+        verdict, tr.rejected = judge(cfg, kind, d2, tr.rejected, tr.mode_s is not None, tentative, t, zc, Rc)
         if verdict == REJECT:
             self.counts[f"{kind}_outlier"] += 1
         elif not tentative and d2 < math.inf:  # a confirmed track's innovation: what its gates are sized on
