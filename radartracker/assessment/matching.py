@@ -92,13 +92,14 @@ def match_radar(radar: Radar, frame: RadarFrame, t: np.ndarray, rho: np.ndarray,
         idx = np.flatnonzero(track.covered(t))
         if not len(idx):
             continue
-        r_ref, a_ref, _ = frame.polar(*reference.geodetic(name, t[idx]))
+        lat, lon, h = reference.geodetic(name, t[idx])
+        r_ref, a_ref, _ = frame.polar(lat, lon, h)
         d2 = ((rho_c[idx] - r_ref) / g_r) ** 2 + (wrap_angle(theta_c[idx] - a_ref) / g_a) ** 2
         win = (d2 <= 1.0) & (d2 < best[idx])
         w = idx[win]
         best[w], key[w] = d2[win], name
         ref[0, w], ref[1, w] = r_ref[win], a_ref[win]
-        ref[2, w] = reference.tracks[name].trajectory.position(t[w])[2]
+        ref[2, w] = h[win]
     t_n = north_time(t, theta, radar.period_s) if n else 0.0
     scan, _ = antenna_offsets(t, theta, radar.period_s, t_n)
     expected = _expected(radar, frame, reference, config, t_n, (float(t.min()), float(t.max())) if n else (0.0, 0.0))
@@ -112,8 +113,7 @@ def _expected(radar: Radar, frame: RadarFrame, reference: Reference, config: Mat
     T = radar.period_s
     dip = math.acos(_EARTH_RADIUS_M / (_EARTH_RADIUS_M + max(radar.height_m, 0.0)))
     cone = math.radians(config.cone_of_silence_deg)
-    cols: dict[str, list] = {k: [] for k in ("aircraft", "scan", "time", "range_m", "azimuth_deg", "altitude_m",
-                                              "x", "y")}
+    cols: dict[str, list] = {k: [] for k in ("aircraft", "time", "range_m", "azimuth_deg", "altitude_m", "x", "y")}
     for name, track in reference.tracks.items():
         lo, hi = max(track.times[0], span[0]), min(track.times[-1], span[1])
         if hi <= lo:
@@ -127,16 +127,15 @@ def _expected(radar: Radar, frame: RadarFrame, reference: Reference, config: Mat
         lat, lon, h = reference.geodetic(name, tc)
         rho, theta, elev = frame.polar(lat, lon, h)
         # labelled as a plot there would be: near north two revolutions' iterations can meet one crossing
-        scans, first = np.unique(antenna_offsets(tc, theta, T, t_north)[0], return_index=True)
+        _, first = np.unique(antenna_offsets(tc, theta, T, t_north)[0], return_index=True)
         lat, lon, h, rho, theta, elev, tc = (v[first] for v in (lat, lon, h, rho, theta, elev, tc))
         inside = (rho <= radar.max_range_m) & (elev >= -dip) & (elev <= cone)
         x, y = reference.plane.to_plane(lat[inside], lon[inside])
-        for k, v in (("aircraft", np.full(int(inside.sum()), name, dtype=object)), ("scan", scans[inside]),
-                     ("time", tc[inside]), ("range_m", rho[inside]), ("azimuth_deg", np.degrees(theta[inside])),
-                     ("altitude_m", h[inside]), ("x", x), ("y", y)):
+        for k, v in (("aircraft", np.full(int(inside.sum()), name, dtype=object)), ("time", tc[inside]),
+                     ("range_m", rho[inside]), ("azimuth_deg", np.degrees(theta[inside])), ("altitude_m", h[inside]),
+                     ("x", x), ("y", y)):
             cols[k].append(np.asarray(v))
-    types = {"aircraft": object, "scan": np.int64}
-    return {k: np.concatenate(v) if v else np.empty(0, types.get(k, float)) for k, v in cols.items()}
+    return {k: np.concatenate(v) if v else np.empty(0, object if k == "aircraft" else float) for k, v in cols.items()}
 
 
 def _detected(expected: dict[str, np.ndarray], key: np.ndarray, t: np.ndarray, period_s: float) -> np.ndarray:

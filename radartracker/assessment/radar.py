@@ -76,11 +76,10 @@ def assess_radar(radar: Radar, plots: PlotTable, match: RadarMatch, bias: BiasSt
                      or any(c is not None for c in plots.mode_s)) else "psr"
     figures: dict[str, Estimate] = {}
     missing: dict[str, str] = {"timestamp_lateness_s": NOT_ASSESSABLE_LATENESS}
-    matched = match.aircraft != ""
     group, nearest = sweeps(plots.time, match, radar.period_s)
     residuals = _errors(plots, match, bias, int(observability.get("measurements", 0)), nearest, figures)
     _detection(match, group, figures, missing, reference_kind)
-    _codes(plots, match, matched, (codes, addresses), config, figures, missing)
+    _codes(plots, match, (codes, addresses), config, figures, missing)
     _timestamps(radar, plots, match, nearest, figures)
     return RadarAssessment(radar.id, kind, figures, missing, observability.get("status", "unobserved"),
                            pd_bins(match.expected, config), residuals,
@@ -145,11 +144,12 @@ def sweeps(t: np.ndarray, match: RadarMatch, period_s: float) -> tuple[np.ndarra
     return group, nearest
 
 
-def _codes(plots: PlotTable, match: RadarMatch, matched: np.ndarray, identity: tuple[dict, dict], config: RadarConfig,
+def _codes(plots: PlotTable, match: RadarMatch, identity: tuple[dict, dict], config: RadarConfig,
            figures: dict[str, Estimate], missing: dict[str, str]) -> None:
-    """Mode 3/A, Mode C and Mode S validity and correctness (module docstring) into ``figures``; ``identity``:
-    the reference aircraft's Mode 3/A codes and Mode S addresses."""
+    """Mode 3/A, Mode C and Mode S validity and correctness (module docstring) of the matched plots into
+    ``figures``; ``identity``: the reference aircraft's Mode 3/A codes and Mode S addresses."""
     codes, addresses = identity
+    matched = match.aircraft != ""
     keys = match.aircraft[matched]
     a3 = plots.mode_3a[matched]
     alt = plots.altitude_m[matched]

@@ -46,7 +46,6 @@ class ReferenceTrack:
     """One aircraft's reference: its sample times, a plane trajectory through them, and its identity
     (Mode S address where its key is one; Mode 3/A code where the scenario's aircraft list gives it)."""
 
-    key: str
     times: np.ndarray
     trajectory: RecordedTrajectory
     icao24: str | None
@@ -124,5 +123,5 @@ def _tracks(keys: np.ndarray, t: np.ndarray, x: np.ndarray, y: np.ndarray, h: np
             continue
         traj = RecordedTrajectory(t[idx], x[idx], y[idx], h[idx], smooth=smooth)
         address = name if _ADDRESS.match(name) else None
-        out[name] = ReferenceTrack(name, t[idx], traj, address, codes.get(address), max_gap_s)
+        out[name] = ReferenceTrack(t[idx], traj, address, codes.get(address), max_gap_s)
     return out

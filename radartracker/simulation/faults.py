@@ -41,9 +41,9 @@ def plant(data: ScenarioData, faults: Faults, seed: int = 0) -> ScenarioData:
     rng = np.random.default_rng([seed, 31])
     p = data.plots.take(np.arange(len(data.plots)))  # a copy: the columns are changed in place
     hit = rng.random((3, len(p)))
-    for col, rate, change in ((p.mode_3a, faults.wrong_mode_3a, lambda c: c[:3] + str((int(c[3]) + 1) % 8)),
-                              (p.mode_s, faults.wrong_mode_s, lambda c: c[:5] + f"{(int(c[5], 16) + 1) % 16:x}")):
-        rows = np.flatnonzero((hit[0 if col is p.mode_3a else 2] < rate) & np.array([c is not None for c in col]))
+    for draw, col, rate, change in ((hit[0], p.mode_3a, faults.wrong_mode_3a, lambda c: c[:3] + str((int(c[3]) + 1) % 8)),
+                                    (hit[2], p.mode_s, faults.wrong_mode_s, lambda c: c[:5] + f"{(int(c[5], 16) + 1) % 16:x}")):
+        rows = np.flatnonzero((draw < rate) & np.array([c is not None for c in col]))
         col[rows] = [change(c) for c in col[rows]]
     alt = np.isfinite(p.altitude_m) & (hit[1] < faults.wrong_mode_c)
     p.altitude_m[alt] += 1000 * _FT
