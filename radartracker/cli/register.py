@@ -10,8 +10,9 @@ from pathlib import Path
 
 from radartracker.errors import ConfigurationError
 
-#: prior σ of each component beyond the two offsets, and its command-line option
-EXTRA = {"range_gain": ("--range-gain-sd", 1e-3), "time_offset": ("--time-offset-sd-s", 0.5)}
+#: each component beyond the two offsets: its prior σ's command-line option, that option's attribute, its default
+EXTRA = {"range_gain": ("--range-gain-sd", "range_gain_sd", 1e-3),
+         "time_offset": ("--time-offset-sd-s", "time_offset_sd_s", 0.5)}
 UNITS = {"range_offset": (1.0, "m"), "azimuth_offset": (math.degrees(1.0), "deg"), "range_gain": (1e6, "ppm"),
          "time_offset": (1e3, "ms")}
 
@@ -23,9 +24,9 @@ def register_register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--components", default="range_gain,time_offset",
                    help="components beyond the range and azimuth offsets, comma-separated, or 'none' "
                         "(default: range_gain,time_offset)")
-    p.add_argument("--range-gain-sd", type=float, default=EXTRA["range_gain"][1],
+    p.add_argument("--range-gain-sd", type=float, dest=EXTRA["range_gain"][1], default=EXTRA["range_gain"][2],
                    help="prior σ of every radar's range gain (default 1e-3)")
-    p.add_argument("--time-offset-sd-s", type=float, default=EXTRA["time_offset"][1],
+    p.add_argument("--time-offset-sd-s", type=float, dest=EXTRA["time_offset"][1], default=EXTRA["time_offset"][2],
                    help="prior σ of every radar's time-stamp offset, s (default 0.5)")
     p.add_argument("--q", type=float, default=0.0, help="aircraft white-acceleration density, m²/s³ (default 0)")
     p.add_argument("--json", type=Path, help="also write the report to this JSON file")
@@ -33,6 +34,8 @@ def register_register(sub: argparse._SubParsersAction) -> None:
 
 
 def _config(args: argparse.Namespace, radar_ids: list[str]):
+    import attrs
+
     from radartracker.estimation.base import EstimatorConfig
     from radartracker.estimation.motion import MotionModel
     from radartracker.estimation.sensor import BiasComponent
@@ -41,11 +44,10 @@ def _config(args: argparse.Namespace, radar_ids: list[str]):
     names = [] if args.components.strip() == "none" else [n.strip() for n in args.components.split(",") if n.strip()]
     if unknown := [n for n in names if n not in EXTRA]:
         raise ConfigurationError(f"--components: unknown {unknown[0]!r}; known: {', '.join(EXTRA)} or none")
-    sds = {n: check_number(EXTRA[n][0], getattr(args, EXTRA[n][0][2:].replace("-", "_")), lo=0.0, lo_open=True)
-           for n in names}
+    extra = tuple(BiasComponent(n, check_number(EXTRA[n][0], getattr(args, EXTRA[n][1]), lo=0.0, lo_open=True))
+                  for n in names)
     base = EstimatorConfig(motion=MotionModel(check_number("--q", args.q, lo=0.0)))
-    extra = tuple(BiasComponent(n, sds[n]) for n in names)
-    return EstimatorConfig(motion=base.motion, sensors={r: base.sensor(r).with_components(*extra) for r in radar_ids})
+    return attrs.evolve(base, sensors={r: base.sensor(r).with_components(*extra) for r in radar_ids})
 
 
 def _cmd_register(args: argparse.Namespace) -> int:

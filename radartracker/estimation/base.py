@@ -54,8 +54,12 @@ class EstimatorConfig:
 
     def sensor(self, radar: str) -> SensorModel:
         """The sensor error model of ``radar``: its entry in ``sensors``, else seed 000's two components."""
-        if radar in self.sensors:
-            return self.sensors[radar]
+        model = self.sensors.get(radar)
+        return model if model is not None else self.default_sensor
+
+    @property
+    def default_sensor(self) -> SensorModel:
+        """Seed 000's two components with this config's priors and drifts."""
         return SensorModel.default(self.bias_sd_range_m, self.bias_sd_azimuth_rad, self.bias_drift_range,
                                    self.bias_drift_azimuth)
 
@@ -66,8 +70,7 @@ class EstimatorConfig:
         if model.extra:
             raise ConfigurationError(f"estimator {estimator!r} does not support bias component {model.extra[0]!r} "
                                      f"(radar {radar!r}): use 'coupled'")
-        if model != SensorModel.default(self.bias_sd_range_m, self.bias_sd_azimuth_rad, self.bias_drift_range,
-                                        self.bias_drift_azimuth):
+        if model != self.default_sensor:
             raise ConfigurationError(f"estimator {estimator!r} takes the bias priors and drifts of EstimatorConfig, "
                                      f"not radar {radar!r}'s own sensor model: use 'coupled'")
 

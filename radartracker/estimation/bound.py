@@ -25,6 +25,7 @@ from collections.abc import Hashable, Mapping
 
 import attrs
 import numpy as np
+from scipy.linalg import block_diag
 
 from radartracker.estimation.base import EstimatorConfig
 
@@ -69,16 +70,9 @@ class _Joint:
     def __init__(self, config: EstimatorConfig, radars: list[str]) -> None:
         self.config = config
         self.models = {r: config.sensor(r) for r in radars}
-        self.start: dict[str, int] = {}
-        blocks = []
-        for r, model in self.models.items():
-            self.start[r] = sum(b.shape[0] for b in blocks)
-            blocks.append(model.prior())
-        size = sum(b.shape[0] for b in blocks)
-        self.P = np.zeros((size, size))
-        for r, block in zip(self.models, blocks):
-            k = self.start[r]
-            self.P[k:k + block.shape[0], k:k + block.shape[0]] = block
+        blocks = [model.prior() for model in self.models.values()]  # the radars first: aircraft are appended after
+        self.start = dict(zip(self.models, np.cumsum([0] + [b.shape[0] for b in blocks[:-1]]).tolist()))
+        self.P = block_diag(*blocks)
         self.aircraft: dict[Hashable, list] = {}  # key -> [start, epoch]
         self.bias_time: float | None = None
 
@@ -96,9 +90,6 @@ class _Joint:
         for entry in self.aircraft.values():
             if entry[0] > k:
                 entry[0] -= 4
-        for r in self.start:
-            if self.start[r] > k:
-                self.start[r] -= 4
 
     def predict(self, key: Hashable, time: float) -> int:
         """Predict aircraft ``key`` (CV, its own epoch) and every drifting bias (one bias epoch) to ``time``."""

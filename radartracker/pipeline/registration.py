@@ -138,7 +138,7 @@ def register(data: ScenarioData, config: EstimatorConfig, estimator: str = "coup
     run = None
     if not np.isfinite(true_states).all():  # the bound needs states: the estimator's where there is no truth
         run = _feed(make_estimator(estimator, config, radar_ids), cols, geometry, P0)
-    states = np.where(np.isfinite(true_states), true_states, run[1] if run else 0.0)
+    states = true_states if run is None else np.where(np.isfinite(true_states), true_states, run[1])
     at = geometry.at_truth(cols, states[:, :2])
     bound = bias_bound(BoundInput(at["time"], at["key"], at["radar"], at["C"], at["R"], at["rho"], states[:, 2:],
                                   {k: P0 for k in set(cols["key"].tolist())}),
@@ -149,8 +149,8 @@ def register(data: ScenarioData, config: EstimatorConfig, estimator: str = "coup
     est, estimates = run
     rmse = math.nan
     if data.truth is not None:
-        first = {k: float(cols["time"][i]) for i, k in reversed(list(enumerate(cols["key"])))}
-        late = (cols["time"] >= np.array([first[k] for k in cols["key"]]) + SETTLE_S) & np.isfinite(true_states[:, 0])
+        _, first, which = np.unique(cols["key"], return_index=True, return_inverse=True)  # each key's first row
+        late = (cols["time"] >= cols["time"][first][which] + SETTLE_S) & np.isfinite(true_states[:, 0])
         rmse = float(np.sqrt(np.mean(np.sum((estimates[late, :2] - true_states[late, :2]) ** 2, axis=1))))
     biases = {r: est.bias(r) for r in radar_ids}
     return Registration(biases, _report(biases, bound, truth), rmse)
