@@ -295,10 +295,6 @@ def make_manager(radars: list[Radar], reference: tuple[float, float], config: Ma
     ids = [r.id for r in radars]
     est = (make_estimator(cfg.estimator, cfg.estimator_config, ids, cfg.estimator_options) if estimator is None
            else make_estimator(estimator, None, ids))
-    for rid in ids:  # the frame's measurements carry C = ∂z/∂(ρ, θ) and R, not the slant range a gain needs
-        if extra := est.config.sensor(rid).extra:
-            raise ConfigurationError(f"the TrackManager does not carry bias component {extra[0]!r} (radar {rid!r}, "
-                                     f"estimator {est.name!r}) yet: use radartracker.pipeline.registration")
     new_filter = (make_filter_factory(cfg.motion_model, motion_q(cfg), cfg.motion) if filter_factory is None
                   else make_filter_factory(filter_factory))
     settings = AssociationSettings(cfg.gate, cfg.search_radius_m, cfg.new_track_exclusion)

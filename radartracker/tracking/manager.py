@@ -39,7 +39,7 @@ from pathlib import Path
 
 
 from radartracker.domain import AdsbReport, BiasState, Plot, Radar
-from radartracker.errors import PluginError
+from radartracker.errors import ConfigurationError, PluginError
 from radartracker.estimation.base import Estimator, PlaneMeasurement
 from radartracker.estimation.coupling import CouplingGraph
 from radartracker.geometry.plane import RadarFrame, SystemPlane
@@ -73,6 +73,11 @@ class TrackManager:
         self.plane = SystemPlane(*reference)
         frames = {r.id: RadarFrame(r.lat, r.lon, r.height_m, self.plane) for r in radars}
         self.counts: Counter[str] = Counter()
+        for rid in self.radars:  # a measurement carries C = ∂z/∂(ρ, θ) and R, not the slant range ρ
+            if extra := estimator.config.sensor(rid).extra:
+                raise ConfigurationError(f"the TrackManager does not carry bias component {extra[0]!r} (radar "
+                                         f"{rid!r}, estimator {estimator.name!r}) yet: use "
+                                         "radartracker.pipeline.registration")
         self.estimator, self.new_filter, self.associator = estimator, new_filter, associator
         self.coupling = CouplingGraph(list(self.radars))
         self.events = EventSink()
