@@ -27,11 +27,10 @@ import attrs
 import numpy as np
 
 from radartracker.assessment.reference import Reference
-from radartracker.domain import Radar
+from radartracker.domain import TWO_PI, Radar
 from radartracker.geometry.plane import RadarFrame
 
 _EARTH_RADIUS_M = 6_371_008.8
-TWO_PI = 2.0 * math.pi
 
 
 @attrs.frozen

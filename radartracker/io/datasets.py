@@ -22,6 +22,7 @@ import pyarrow.dataset as ds
 
 from radartracker.errors import FormatError, TableName
 from radartracker.io.arrowsource import UNREADABLE, ArrowSource, parquet_source
+from radartracker.io.tables import concat_tables
 
 #: the partition keys a scenario table is written with (:func:`write_partitioned`) and read by
 PARTITIONS = {"plots": ("hour", "radar"), "adsb": ("hour",)}
@@ -76,11 +77,6 @@ def _take(table: T, idx: slice | np.ndarray) -> T:
     return type(table)(**{f.name: getattr(table, f.name)[idx] for f in attrs.fields(type(table))})
 
 
-def _concat(tables: list[T]) -> T:
-    cls = type(tables[0])
-    return cls(**{f.name: np.concatenate([getattr(t, f.name) for t in tables]) for f in attrs.fields(cls)})
-
-
 def merge_blocks(streams: Iterable[Iterator[T]]) -> Iterator[T]:
     """The rows of several streams of tables (columns of equal length, ``time`` among them; each stream in time
     order, its tables not empty) merged in time order a piece at a time, stably: at equal times in the order
@@ -106,7 +102,7 @@ def merge_blocks(streams: Iterable[Iterator[T]]) -> Iterator[T]:
             elif (t := next(s, None)) is not None:
                 nxt.append((s, t, 0))
         heads = nxt
-        merged = _concat(parts)
+        merged = concat_tables(parts)
         yield _take(merged, np.argsort(merged.time, kind="stable"))
 
 

@@ -21,7 +21,7 @@ from __future__ import annotations
 import json
 import logging
 import math
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -38,8 +38,8 @@ from radartracker.io.datasets import dataset_blocks
 from radartracker.io.limits import read_json, regular_file
 from radartracker.io.tablefiles import Table, as_source, data_rows, find_table, first_times, open_rows, table_files
 from radartracker.io.rowchecks import PLOT_FIELDS, AdsbReader, PlotReader, _key, _physical, _range
-from radartracker.io.tables import (ADSB_COLUMNS, BIAS_COLUMNS, PLOT_COLUMNS, RADAR_COLUMNS, SCHEMAS, TRUTH_COLUMNS,
-                                    AdsbTable, PlotTable, ScenarioData, TruthTable, label_spans)
+from radartracker.io.tables import (ADSB_COLUMNS, SCHEMAS, TRUTH_COLUMNS, AdsbTable, PlotTable, ScenarioData,
+                                    TruthTable, concat_tables, label_spans)
 from radartracker.clock import ClockConfig
 
 log = logging.getLogger(__name__)
@@ -127,17 +127,13 @@ def _tables(rows: Rows, reader, columns) -> Iterator:
             yield table
 
 
-def _concat(cls, tables: list, names: Iterable[str]):
-    return cls(**{k: np.concatenate([getattr(t, k) for t in tables]) for k in names})
-
-
 def read_plots(path: Table, radar_ids: set[str], skip: Skipper, **kw: Any) -> PlotTable:
-    return _concat(PlotTable, list(plot_blocks(path, radar_ids, skip, **kw)), PLOT_FIELDS)
+    return concat_tables(list(plot_blocks(path, radar_ids, skip, **kw)))
 
 
 def read_adsb(path: Table, skip: Skipper, **kw: Any) -> AdsbTable:
     tables = list(adsb_blocks(path, skip, **kw)) or [AdsbTable.from_columns(**{k: [] for k in ADSB_COLUMNS})]
-    return _concat(AdsbTable, tables, ADSB_COLUMNS)
+    return concat_tables(tables)
 
 
 def read_truth(path: Table, skip: Skipper) -> TruthTable:

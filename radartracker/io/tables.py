@@ -13,6 +13,12 @@ import pyarrow as pa
 from radartracker.domain import Aircraft, Radar
 
 
+def concat_tables(tables: list) -> Any:
+    """The rows of ``tables`` (attrs tables of one class: columns as arrays) one after the other, as one table."""
+    cls = type(tables[0])
+    return cls(**{f.name: np.concatenate([getattr(t, f.name) for t in tables]) for f in attrs.fields(cls)})
+
+
 @attrs.frozen
 class Column:
     """A column of a scenario table (docs/formats.md): its Arrow ``type`` as written to Parquet (a reader takes

@@ -18,7 +18,7 @@ import math
 import attrs
 import numpy as np
 
-from radartracker.io.tables import PlotTable, ScenarioData
+from radartracker.io.tables import ScenarioData, concat_tables
 from radartracker.simulation.simulator import SimRadar
 
 _FT = 0.3048
@@ -52,15 +52,10 @@ def plant(data: ScenarioData, faults: Faults, seed: int = 0) -> ScenarioData:
     extra = p.take(split)
     extra.time = extra.time + 1e-3
     extra.range_m = extra.range_m + faults.split_offset_m
-    merged = _concat(p, extra)
+    merged = concat_tables([p, extra])
     order = np.argsort(merged.time, kind="stable")
     plots = merged.take(_disorder(merged.radar[order], order, faults.out_of_order, rng))
     return attrs.evolve(data, plots=plots)
-
-
-def _concat(a: PlotTable, b: PlotTable) -> PlotTable:
-    return PlotTable(**{f.name: np.concatenate([getattr(a, f.name), getattr(b, f.name)])
-                        for f in attrs.fields(PlotTable)})
 
 
 def _disorder(radar: np.ndarray, order: np.ndarray, share: float, rng: np.random.Generator) -> np.ndarray:
