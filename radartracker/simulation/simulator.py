@@ -186,6 +186,26 @@ class SimRadar:
         return any(v != 0.0 for v in (self.range_gain, self.time_offset_s, self.drift_gain, self.drift_time))
 
 
+def random_walks(rng: np.random.Generator, t0: float, t: np.ndarray, starts: tuple[float, ...],
+                 densities: tuple[float, ...]) -> list[np.ndarray]:
+    """Random walks x(t) = x₀ + Σ wᵢ √(q Δtᵢ), wᵢ ~ N(0, 1), from each start x₀ with its density q
+    (variance per second), at the sorted times ``t`` after ``t0``; the walks drawn from ``rng`` one after
+    the other."""
+    dt = np.diff(np.concatenate([[t0], t]))
+    return [x0 + np.cumsum(rng.normal(0.0, 1.0, len(t)) * np.sqrt(q * dt)) for x0, q in zip(starts, densities)]
+
+
+def walks_at(rng: np.random.Generator, t0: float, t1: float, t: np.ndarray, starts: tuple[float, ...],
+             densities: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`random_walks` at the times ``t`` (any order; the walks run through them sorted) and at ``t1`` after
+    them: (walks × len(t), walks)."""
+    order = np.argsort(t, kind="stable")
+    w = np.array(random_walks(rng, t0, np.append(t[order], t1), starts, densities))
+    at = np.empty((len(starts), len(t)))
+    at[:, order] = w[:, :-1]
+    return at, w[:, -1]
+
+
 def apply_sensor_errors(cols: dict[str, np.ndarray], sr: SimRadar, seed: int, j: int, t0: float,
                         t1: float) -> dict[str, float]:
     """Add radar ``j``'s range gain and time-stamp offset to its plot columns in place (ρ += g ρ, time += τ),
@@ -193,18 +213,11 @@ def apply_sensor_errors(cols: dict[str, np.ndarray], sr: SimRadar, seed: int, j:
     their values at ``t1`` (the truth file's). Without either, the columns are left as they are."""
     if not sr.has_gain_or_time:
         return {"range_gain": 0.0, "time_offset": 0.0}
-    t = cols["time"]
-    order = np.argsort(t, kind="stable")
-    tt = np.append(t[order], t1)
-    dt = np.diff(np.concatenate([[t0], tt]))
-    rng = np.random.default_rng([seed, 4, j])
-    g = sr.range_gain + np.cumsum(rng.normal(0.0, 1.0, len(tt)) * np.sqrt(sr.drift_gain * dt))
-    tau = sr.time_offset_s + np.cumsum(rng.normal(0.0, 1.0, len(tt)) * np.sqrt(sr.drift_time * dt))
-    gain, shift = np.empty_like(t), np.empty_like(t)
-    gain[order], shift[order] = g[:-1], tau[:-1]
+    (gain, shift), (g1, tau1) = walks_at(np.random.default_rng([seed, 4, j]), t0, t1, cols["time"],
+                                         (sr.range_gain, sr.time_offset_s), (sr.drift_gain, sr.drift_time))
     cols["range_m"] = cols["range_m"] + gain * cols["range_m"]
-    cols["time"] = t + shift
-    return {"range_gain": float(g[-1]), "time_offset": float(tau[-1])}
+    cols["time"] = cols["time"] + shift
+    return {"range_gain": float(g1), "time_offset": float(tau1)}
 
 
 @attrs.frozen
@@ -349,11 +362,9 @@ class Simulator:
 
     def _bias_walk(self, j: int, sr: SimRadar, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Bias (Δr, Δθ) at sorted times ``t``, random walk from the initial values."""
-        rng = np.random.default_rng([self.seed, 2, j])
-        dt = np.diff(np.concatenate([[self.t0], t]))
-        dr = np.cumsum(rng.normal(0.0, 1.0, len(t)) * np.sqrt(sr.drift_range * dt))
-        da = np.cumsum(rng.normal(0.0, 1.0, len(t)) * np.sqrt(sr.drift_azimuth * dt))
-        return sr.range_bias_m + dr, sr.azimuth_bias_rad + da
+        dr, da = random_walks(np.random.default_rng([self.seed, 2, j]), self.t0, t,
+                              (sr.range_bias_m, sr.azimuth_bias_rad), (sr.drift_range, sr.drift_azimuth))
+        return dr, da
 
     # --- ADS-B and truth -----------------------------------------------------------------------
     def _adsb(self) -> AdsbTable:

@@ -32,7 +32,7 @@ from radartracker.io.tables import AdsbTable, PlotTable, ScenarioData, TruthTabl
 from radartracker.simulation.memory import check_fits, traffic_bytes
 from radartracker.simulation.simulator import (_CONE_OF_SILENCE_RAD, _EARTH_RADIUS_M, _MODE_C_STEP_M,
                                                KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator,
-                                               apply_sensor_errors, time_ordered)
+                                               apply_sensor_errors, time_ordered, walks_at)
 
 _U_EPS = 1e-9  # as radartracker.geometry.kinematics: below this |u| a leg is straight
 _N_LEGS = 36  # enough alternating straight/turn legs for the longest flight (90 min)
@@ -316,19 +316,14 @@ class TrafficSimulator:
         false = self._false_plots(sr, rng)
         cols = {k: np.concatenate([v, false[k]]) for k, v in cols.items()}
         t = cols["time"]
-        order = np.argsort(t, kind="stable")
-        rng_b = np.random.default_rng([self.config.seed, 2, j])
-        tt = np.append(t[order], self.t1)
-        dt = np.diff(np.concatenate([[self.t0], tt]))
-        br = sr.range_bias_m + np.cumsum(rng_b.normal(0.0, 1.0, len(tt)) * np.sqrt(sr.drift_range * dt))
-        ba = sr.azimuth_bias_rad + np.cumsum(rng_b.normal(0.0, 1.0, len(tt)) * np.sqrt(sr.drift_azimuth * dt))
-        bias_r, bias_a = np.empty_like(t), np.empty_like(t)
-        bias_r[order], bias_a[order] = br[:-1], ba[:-1]
+        (bias_r, bias_a), (br, ba) = walks_at(np.random.default_rng([self.config.seed, 2, j]), self.t0, self.t1,
+                                              t, (sr.range_bias_m, sr.azimuth_bias_rad),
+                                              (sr.drift_range, sr.drift_azimuth))
         extra = apply_sensor_errors(cols, sr, self.config.seed, j, self.t0, self.t1)
         cols["range_m"] = np.maximum(cols["range_m"] + bias_r, 0.0)
         cols["azimuth_rad"] = np.mod(cols["azimuth_rad"] + bias_a, 2 * np.pi)
         cols["radar"] = np.full(len(t), radar.id, dtype=object)
-        return cols, (float(br[-1]), float(ba[-1])), extra
+        return cols, (float(br), float(ba)), extra
 
     def _false_plots(self, sr: SimRadar, rng: np.random.Generator) -> dict[str, np.ndarray]:
         T = sr.radar.period_s
