@@ -26,10 +26,10 @@ from radartracker.assessment.radar import RadarAssessment, RadarConfig, assess_r
 from radartracker.assessment.reference import Reference, ReferenceConfig, build_reference
 from radartracker.assessment.stats import Estimate
 from radartracker.geometry.plane import RadarFrame
-from radartracker.io.tables import ScenarioData
+from radartracker.io.tables import ScenarioData, label_spans
 from radartracker.pipeline.config import RunConfig
 from radartracker.pipeline.evaluate import GridSpec, track_metrics
-from radartracker.pipeline.result import GRACE_S, RunResult, strict
+from radartracker.pipeline.result import RunResult, observed_spans, strict
 from radartracker.pipeline.run import run
 from radartracker.progress import progress_bar
 
@@ -149,13 +149,9 @@ def system_figures(result: RunResult, reference: Reference, matches: dict[str, t
     """The replay's tracks against the reference (module docstring, step 4): point values (consecutive
     samples of a track are correlated: no interval is claimed); false tracks only against the truth."""
     spans: dict[str, tuple[float, float]] = {}
-    for idx, m in matches.values():
-        t = data.plots.time[idx]
-        for key in np.unique(m.aircraft[m.aircraft != ""]).tolist():
-            tk = t[m.aircraft == key]
-            lo, hi = spans.get(key, (np.inf, -np.inf))
-            spans[key] = (min(lo, float(tk.min())), max(hi, float(tk.max())))
-    observed = {k: (lo + GRACE_S, hi) for k, (lo, hi) in spans.items() if hi - lo > GRACE_S}
+    for idx, m in matches.values():  # each aircraft's first and last matched plot, over every radar
+        spans = label_spans(data.plots.time[idx], np.where(m.aircraft == "", None, m.aircraft), spans)
+    observed = observed_spans(spans)
     histories = result.histories()
     if not observed or not histories:
         return {name: stats.missing("point") for name in SYSTEM_FIGURES}

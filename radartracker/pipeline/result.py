@@ -83,6 +83,12 @@ def consistency_warning(what: str, value: float, dof: float, q: float) -> str:
 GRACE_S = 20.0  # a target counts as observed this long after its first plot (M-of-N confirmation)
 
 
+def observed_spans(spans: dict[str, tuple[float, float]]) -> dict[str, tuple[float, float]]:
+    """Each aircraft's observed time from its plots' first and last times ``spans``: from ``GRACE_S`` after the
+    first (a track needs that long to be confirmed) to the last; aircraft seen for less are left out."""
+    return {k: (lo + GRACE_S, hi) for k, (lo, hi) in spans.items() if hi - lo > GRACE_S}
+
+
 _PLAIN = frozenset({str, int, bool, type(None)})  # exact types strict() gives back as they are
 
 
@@ -194,7 +200,7 @@ class RunResult:
         spans = self.label_spans if self.label_spans is not None else label_spans(d.plots.time, d.plots.target)
         if not spans:
             spans = {tg: (float(p[0].min()), float(p[0].max())) for tg, p in paths.paths.items()}
-        observed = {tg: (lo + GRACE_S, hi) for tg, (lo, hi) in spans.items() if hi - lo > GRACE_S}
+        observed = observed_spans(spans)
         grid = GridSpec(float(d.truth.time.min()), float(d.truth.time.max()), 2.0)  # its live times only
         tracking = track_metrics(self.histories(), paths, observed, grid,
                                  first_seen={tg: lo for tg, (lo, _) in spans.items()})
