@@ -64,8 +64,8 @@ def _ordered(components: Iterable[BiasComponent]) -> tuple[BiasComponent, ...]:
     names = [c.name for c in comps]
     if len(set(names)) != len(names):
         raise ConfigurationError(f"sensor model: a component appears twice in {names}")
-    if tuple(names[:2]) != BASE:
-        raise ConfigurationError(f"sensor model: the first components must be {BASE}, got {names}")
+    if not set(BASE) <= set(names):
+        raise ConfigurationError(f"sensor model: the first components must be {BASE} (given in any order), got {names}")
     order = list(COMPONENTS)
     return tuple(sorted(comps, key=lambda c: order.index(c.name)))
 
