@@ -242,7 +242,7 @@ class Service:
         self._collect(self.manager.flush(end=False))
         self._publish()  # a full publication at the stop, whatever the mode
         phases.append(time.monotonic())
-        self._supersede_child()
+        self._reap(supersede=True)
         self._checkpoint(wait=True)
         phases.append(time.monotonic())
         summary = self.summary() | {"stop_s": dict(zip(("drain", "flush_and_publish", "final_checkpoint"),
@@ -388,40 +388,32 @@ class Service:
         else:
             self.base["checkpoints_skipped_busy"] += 1
 
-    def _reap(self, block: bool = False) -> bool:
-        """Collect a finished checkpoint child; True when none is running."""
+    def _reap(self, block: bool = False, supersede: bool = False) -> bool:
+        """Collect a finished checkpoint child; True when none is running. A hung one (e.g. a lock copied by
+        fork) is ended: the previous checkpoint stands. ``supersede`` (at the stop): one still being written is
+        ended too rather than waited for, its ``.partial`` folder removed and counted ``checkpoints_superseded`` —
+        the final checkpoint supersedes it, and under load the wait could outlast systemd's stop timeout."""
         if self._child is None:
             return True
         pid, status = os.waitpid(self._child, 0 if block else os.WNOHANG)
-        if pid == 0 and time.monotonic() - self._child_started > max(300.0, 5 * self.config.checkpoint_s):
-            os.kill(self._child, signal.SIGKILL)  # hung (e.g. a lock copied by fork): the previous checkpoint stands
+        hung = pid == 0 and time.monotonic() - self._child_started > max(300.0, 5 * self.config.checkpoint_s)
+        superseded = pid == 0 and supersede and not hung
+        if pid == 0 and (hung or supersede):
+            os.kill(self._child, signal.SIGKILL)
             pid, status = os.waitpid(self._child, 0)
         if pid == 0:
             return False
         self._child = None
-        if os.waitstatus_to_exitcode(status) == 0:
+        if os.waitstatus_to_exitcode(status) == 0:  # a complete checkpoint (finished before any signal)
             self.checkpoints_written += 1
+        elif superseded:
+            self.base["checkpoints_superseded"] += 1
+            shutil.rmtree(self.config.state_dir / f".checkpoint-{self.checkpoint_seq:06d}.partial", ignore_errors=True)
+            log.info("stop: checkpoint %d, still being written, superseded by the final one", self.checkpoint_seq)
         else:
             self.base["checkpoints_failed"] += 1
             log.error("checkpoint %d failed (exit status %s); the previous one stands", self.checkpoint_seq, status)
         return True
-
-    def _supersede_child(self) -> None:
-        """At the stop: a periodic checkpoint still being written is ended (SIGKILL, counted
-        ``checkpoints_superseded``) rather than waited for, its ``.partial`` folder removed — the final
-        checkpoint supersedes it, and under load the wait could take longer than the stop may (systemd's
-        timeout). Until the final one is in place the previous complete checkpoint stands."""
-        if self._reap() or self._child is None:
-            return
-        os.kill(self._child, signal.SIGKILL)
-        pid, status = os.waitpid(self._child, 0)
-        self._child = None
-        if os.waitstatus_to_exitcode(status) == 0:  # it finished before the signal: a complete checkpoint
-            self.checkpoints_written += 1
-            return
-        self.base["checkpoints_superseded"] += 1
-        shutil.rmtree(self.config.state_dir / f".checkpoint-{self.checkpoint_seq:06d}.partial", ignore_errors=True)
-        log.info("stop: checkpoint %d, still being written, superseded by the final one", self.checkpoint_seq)
 
     def _counts(self, live: bool) -> Counter[str]:
         """All service counters (carried-over base + this run). Not ``live``: datagrams received are
