@@ -24,17 +24,17 @@ from radartracker.io.tables import table_metadata
 from radartracker.pipeline.recorder import BiasLog, Events
 
 TRACK_COLUMNS = ("time", "track", "lat", "lon", "x_m", "y_m", "vx_mps", "vy_mps", "sd_x_m", "sd_y_m", "altitude_m",
-                 "mode_s", "mode_3a")
+                 "sd_altitude_m", "mode_s", "mode_3a")
 EVENT_COLUMNS = ("time", "track", "event", "status", "lat", "lon", "x_m", "y_m", "vx_mps", "vy_mps", "sd_x_m",
-                 "sd_y_m", "altitude_m", "mode_s", "mode_3a")
+                 "sd_y_m", "altitude_m", "sd_altitude_m", "mode_s", "mode_3a")
 BIAS_COLUMNS = ("time", "radar", "range_bias_m", "azimuth_bias_deg", "sd_range_m", "sd_azimuth_deg")
 COLUMNS = {"tracks": TRACK_COLUMNS, "events": EVENT_COLUMNS, "biases": BIAS_COLUMNS}
 # the decimals each number column is rounded to (docs/formats.md)
 DECIMALS = {"time": 3, "lat": 8, "lon": 8, "x_m": 2, "y_m": 2, "vx_mps": 3, "vy_mps": 3, "sd_x_m": 2, "sd_y_m": 2,
-            "altitude_m": 1, "range_bias_m": 3, "azimuth_bias_deg": 6, "sd_range_m": 3, "sd_azimuth_deg": 6}
+            "altitude_m": 1, "sd_altitude_m": 1, "range_bias_m": 3, "azimuth_bias_deg": 6, "sd_range_m": 3, "sd_azimuth_deg": 6}
 #: the unit of each number column (a Parquet field's ``unit`` metadata); the others are texts, ``track`` an integer
 UNITS = {"time": "s", "lat": "deg", "lon": "deg", "x_m": "m", "y_m": "m", "vx_mps": "m/s", "vy_mps": "m/s",
-         "sd_x_m": "m", "sd_y_m": "m", "altitude_m": "m", "range_bias_m": "m", "azimuth_bias_deg": "deg",
+         "sd_x_m": "m", "sd_y_m": "m", "altitude_m": "m", "sd_altitude_m": "m", "range_bias_m": "m", "azimuth_bias_deg": "deg",
          "sd_range_m": "m", "sd_azimuth_deg": "deg"}
 _NO_TEXT = pa.scalar(None, pa.string())
 
@@ -79,6 +79,7 @@ def event_tables(ev: Events, plane, *, text: bool = False) -> tuple[pa.Table, pa
                _numbers(lat, "lat"), _numbers(lon, "lon"), _numbers(s[:, 0], "x_m"), _numbers(s[:, 1], "y_m"),
                _numbers(s[:, 2], "vx_mps"), _numbers(s[:, 3], "vy_mps"), _numbers(sd_x, "sd_x_m", optional=True),
                _numbers(sd_y, "sd_y_m", optional=True), _numbers(ev.altitude_m, "altitude_m", optional=True),
+               _numbers(ev.altitude_sd_m, "sd_altitude_m", optional=True),
                _texts(ev.mode_s), _texts(ev.mode_3a)]
     if text:
         columns = [c if pa.types.is_string(c.type) else pc.cast(c, pa.string()) for c in columns]

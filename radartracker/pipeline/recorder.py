@@ -30,8 +30,9 @@ def _obj(values: list) -> np.ndarray:
 @attrs.frozen
 class Events:
     """Track events as columns: time (s), track id (int), kind, status, state χ = [x, y, vx, vy] (N, 4),
-    covariance (N, 4, 4; NaN where not known), last reported altitude (m, NaN if none), Mode S address,
-    Mode 3/A code, and the evaluation target (truth label on the labelled path, else ``None``)."""
+    covariance (N, 4, 4; NaN where not known), altitude (m: the last reported, or the estimated height; NaN
+    if none) and its σ (m, NaN if none), Mode S address, Mode 3/A code, and the evaluation target (truth
+    label on the labelled path, else ``None``)."""
 
     time: np.ndarray
     track: np.ndarray
@@ -40,6 +41,7 @@ class Events:
     state: np.ndarray
     cov: np.ndarray
     altitude_m: np.ndarray
+    altitude_sd_m: np.ndarray
     mode_s: np.ndarray
     mode_3a: np.ndarray
     target: np.ndarray
@@ -83,9 +85,14 @@ class _Head(NamedTuple):
     state: tuple
 
 
+def _floats(values: tuple) -> np.ndarray:
+    """Numbers or ``None`` as floats, NaN for ``None``."""
+    return np.array([math.nan if v is None else v for v in values], float)
+
+
 def _events_of(rows: list[tuple]) -> Events:
-    """Rows (event, covariance bytes, altitude, Mode S, Mode 3/A, target) as columns."""
-    heads, covs, altitude_m, mode_s, mode_3a, target = zip(*rows)
+    """Rows (event, covariance bytes, altitude, its σ, Mode S, Mode 3/A, target) as columns."""
+    heads, covs, altitude_m, altitude_sd_m, mode_s, mode_3a, target = zip(*rows)
     time, track, kind, status, state = zip(*heads)
     n = len(time)
     cov = np.frombuffer(b"".join(covs), float)
@@ -93,7 +100,7 @@ def _events_of(rows: list[tuple]) -> Events:
         raise ValueError("an event's covariance is not a 4×4 array of floats")
     return Events(time=np.array(time, float), track=np.array(track, int), kind=_obj(kind), status=_obj(status),
                   state=np.column_stack([np.array(c, float) for c in zip(*state)]).reshape(n, 4),
-                  cov=cov.reshape(n, 4, 4), altitude_m=np.array([math.nan if a is None else a for a in altitude_m], float),
+                  cov=cov.reshape(n, 4, 4), altitude_m=_floats(altitude_m), altitude_sd_m=_floats(altitude_sd_m),
                   mode_s=_obj(mode_s), mode_3a=_obj(mode_3a), target=_obj(target))
 
 
@@ -101,7 +108,7 @@ def _concatenate(chunks: list[Events]) -> Events:
     """The events of ``chunks`` in order (none: no event)."""
     if not chunks:
         return Events(time=np.zeros(0), track=np.zeros(0, int), kind=_obj([]), status=_obj([]), state=np.zeros((0, 4)),
-                      cov=np.zeros((0, 4, 4)), altitude_m=np.zeros(0), mode_s=_obj([]), mode_3a=_obj([]),
+                      cov=np.zeros((0, 4, 4)), altitude_m=np.zeros(0), altitude_sd_m=np.zeros(0), mode_s=_obj([]), mode_3a=_obj([]),
                       target=_obj([]))
     return Events(**{f.name: np.concatenate([getattr(c, f.name) for c in chunks]) for f in attrs.fields(Events)})
 
@@ -132,19 +139,20 @@ class Recorder:
         self._nis = [0, 0.0]  # count and sum of the NIS values: a run's memory does not grow with them
 
     def event(self, time: float, track: int, kind: str, status: str, state, cov: np.ndarray | None,
-              altitude_m: float | None, mode_s: str | None, mode_3a: str | None, target: object = None) -> None:
+              altitude_m: float | None, mode_s: str | None, mode_3a: str | None, target: object = None, *,
+              altitude_sd_m: float | None = None) -> None:
         """Record one event: ``state`` a tuple of four floats or an array (its first four values), ``cov``
         a 4×4 array or ``None`` (recorded as NaN). Both are copied now."""
         if type(state) is not tuple:
             state = tuple(np.asarray(state, float).ravel()[:4].tolist())
         self.track_event(_Head(time, track, kind, status, state[:4]), None if cov is None else np.asarray(cov, float),
-                         (altitude_m, mode_s, mode_3a, target))
+                         (altitude_m, altitude_sd_m, mode_s, mode_3a, target))
 
     def track_event(self, ev, cov: np.ndarray | None, ident: tuple) -> None:
         """Record a :class:`~radartracker.tracking.manager.TrackEvent` (a named tuple of time, track, kind,
         status and state of four floats, kept as it is: it is immutable) with ``cov``, the 4×4 float array of the
         track's estimate at the event's time or ``None``, copied now, and ``ident``, the track's
-        (altitude_m, mode_s, mode_3a, target)."""
+        (altitude_m, altitude_sd_m, mode_s, mode_3a, target)."""
         self._append((ev, NO_COVARIANCE if cov is None else cov.tobytes(), *ident))
 
     def listen(self, event, track) -> None:
@@ -153,7 +161,7 @@ class Recorder:
         covariance (a float64 4×4 array, the motion-model contract) when the event's state is the track's
         estimate (not extrapolated; never for a deletion), and the track's identity."""
         cov = NO_COVARIANCE if event.kind in ENDS else track.covariance_bytes(event.time)
-        self._append((event, cov, track.altitude_m, track.mode_s, track.mode_3a, track.target))
+        self._append((event, cov, track.altitude_m, track.altitude_sd_m, track.mode_s, track.mode_3a, track.target))
 
     def _append(self, row: tuple) -> None:
         """Keep one event row; every ``flush_every`` rows are made columns."""

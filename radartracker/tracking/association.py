@@ -158,6 +158,7 @@ class AltitudeTrack:
 
 
 MODE_C_VAR = 30.48**2 / 12  # 100 ft Mode C quantisation
+ADSB_ALTITUDE_VAR = 7.62**2 / 12  # 25 ft ADS-B barometric altitude quantisation (DO-260B, Q bit set)
 VERTICAL_RATE_SD = 20.0  # m/s, a new track's vertical rate (4000 ft/min)
 VERTICAL_Q = 4.0  # m²/s³, white vertical acceleration
 ALTITUDE_GATE = 10.83  # χ²₁ 99.9 %

@@ -292,7 +292,7 @@ class HeightEstimator:
         return out
 
     def _solve(self, tracks: list, now: float) -> None:
-        """The joint solve over the tracks' height filters; each track's ``fix`` and ``altitude_m``."""
+        """The joint solve over the tracks' height filters; each track's ``fix``, ``altitude_m`` and ``altitude_sd_m``."""
         owners = [tr for tr in tracks if tr.height is not None]
         if not owners:
             return
@@ -300,7 +300,7 @@ class HeightEstimator:
         _, _, heights = joint_heights([tr.height for tr in owners], len(self.converter.ids), cfg.range_bias_sd_m)
         for tr, (h, sd) in zip(owners, heights):
             tr.height.fix = (h, sd, now) if math.isfinite(sd) else None
-            tr.altitude_m = h if sd <= cfg.observable_sd_m else None
+            tr.altitude_m, tr.altitude_sd_m = (h, sd) if sd <= cfg.observable_sd_m else (None, None)
 
     def _population(self, tracks: list) -> tuple[float, float] | None:
         """The population's height: the mean ĥ of the tracks' observable heights of the last joint solve, with σ²

@@ -103,6 +103,7 @@ def _track_doc(tr: Track) -> dict:
     v = tr.vertical
     return {"id": tr.id, "status": tr.status, "created": tr.created, "last_update": tr.last_update,
             "mode_s": tr.mode_s, "mode_3a": tr.mode_3a, "target": tr.target, "altitude_m": tr.altitude_m,
+            "altitude_sd_m": tr.altitude_sd_m,
             "detections": list(tr.detections), "n_plots": tr.n_plots, "n_adsb": tr.n_adsb,
             "pending": [[p.measurement.time, p.measurement.radar, np.asarray(p.measurement.z, float).tolist(),
                          np.asarray(p.measurement.C, float).ravel().tolist(),
@@ -152,6 +153,12 @@ def _height(doc: Any, radars: int, cfg: ManagerConfig, what: str) -> HeightFilte
         raise ValueError(f"{what}: {exc}") from None
 
 
+def _optional_number(doc: dict, key: str, what: str) -> float | None:
+    """``doc[key]``, a finite number or None (also where the key is absent)."""
+    value = doc.get(key)
+    return None if value is None else _number(value, f"{what} {key}")
+
+
 def _rejection(doc: Any, what: str) -> tuple[float, np.ndarray, float]:
     _need(isinstance(doc, list) and len(doc) == 3, f"{what}: [time, z, sd] expected")
     return _number(doc[0], what), _floats(doc[1], 2, what), _number(doc[2], what)
@@ -160,7 +167,8 @@ def _rejection(doc: Any, what: str) -> tuple[float, np.ndarray, float]:
 def _track_of(doc: Any, mgr: Any, what: str) -> Track:
     keys = {"id", "status", "created", "last_update", "mode_s", "mode_3a", "target", "altitude_m", "detections",
             "n_plots", "n_adsb", "pending", "rejected", "vertical", "filter"}
-    _need(isinstance(doc, dict) and set(doc) - {"height"} == keys, f"{what}: fields {sorted(keys)} expected")
+    _need(isinstance(doc, dict) and set(doc) - {"height", "altitude_sd_m"} == keys,
+          f"{what}: fields {sorted(keys)} expected")
     cfg, radars = mgr.config, frozenset(mgr.radars)
     tid = _integer(doc["id"], f"{what} id", 1)
     _need(doc["status"] in TRACK_STATUSES[:3], f"{what} status {doc['status']!r}")
@@ -194,7 +202,8 @@ def _track_of(doc: Any, mgr: Any, what: str) -> Track:
     height = None if hf is None else _height(hf, len(mgr.radars), cfg, f"{what} height")
     return Track(tid, filt, doc["status"], created, last, mode_s=doc["mode_s"], mode_3a=doc["mode_3a"],
                  target=doc["target"],
-                 altitude_m=None if doc["altitude_m"] is None else _number(doc["altitude_m"], f"{what} altitude_m"),
+                 altitude_m=_optional_number(doc, "altitude_m", what),
+                 altitude_sd_m=_optional_number(doc, "altitude_sd_m", what),  # absent in older documents
                  detections=deque(det, maxlen=cfg.confirm_n),
                  pending=[_pending_of(p, tid, radars, f"{what} pending[{i}]") for i, p in enumerate(doc["pending"])],
                  n_plots=_integer(doc["n_plots"], f"{what} n_plots"), n_adsb=_integer(doc["n_adsb"], f"{what} n_adsb"),

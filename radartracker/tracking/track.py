@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from typing import NamedTuple
 
@@ -10,12 +11,13 @@ import numpy as np
 
 from radartracker.domain import Aircraft, AdsbReport, Plot
 from radartracker.estimation.base import PlaneMeasurement
-from radartracker.tracking.association import AltitudeTrack
+from radartracker.tracking.association import ADSB_ALTITUDE_VAR, MODE_C_VAR, AltitudeTrack
 from radartracker.tracking.filters import TrackFilter
 from radartracker.tracking.height import HeightFilter
 
 TRACK_STATUSES = ("tentative", "confirmed", "coasting", "deleted")
 NO_COVARIANCE = np.full(16, np.nan).tobytes()  # the bytes of an unknown 4×4 covariance: 16 NaNs
+MODE_C_SD, ADSB_ALTITUDE_SD = math.sqrt(MODE_C_VAR), math.sqrt(ADSB_ALTITUDE_VAR)  # a reported altitude's σ (m)
 
 
 class Pending(NamedTuple):
@@ -34,7 +36,8 @@ class Track:
     measurements carried (Mode S address, Mode 3/A code, truth label ``target`` in simulations), its altitude
     ``altitude_m`` (the last reported, Mode C or ADS-B, with the Mode C vertical filter for gating; or, for a
     track whose plots carry none, its ``height`` filter's estimate once observable:
-    :mod:`radartracker.tracking.height`), ``detections`` (hit or miss of the last N
+    :mod:`radartracker.tracking.height`) and ``altitude_sd_m`` its σ (a reported altitude's quantisation, 100 ft
+    Mode C or 25 ft ADS-B, as a uniform error: step/√12; an estimated height's filter σ_h), ``detections`` (hit or miss of the last N
     opportunities, for M-of-N confirmation), ``pending`` measurements of a tentative track, and the run of
     consecutive screening rejections ``rejected`` (:func:`radartracker.estimation.screening.judge`).
     """
@@ -48,6 +51,7 @@ class Track:
     mode_3a: str | None = None
     target: object = None
     altitude_m: float | None = None
+    altitude_sd_m: float | None = None
     detections: deque = attrs.field(factory=deque)
     pending: list[Pending] = attrs.field(factory=list)
     n_plots: int = 0
@@ -117,7 +121,7 @@ class Track:
             self.mode_3a = src.mode_3a or self.mode_3a
             h = src.altitude_m
             if h is not None:
-                self.altitude_m = h
+                self.altitude_m, self.altitude_sd_m = h, MODE_C_SD
                 if self.vertical is None:
                     self.vertical = AltitudeTrack.start(src.time, h)
                 else:
@@ -125,7 +129,7 @@ class Track:
         elif kind == "adsb":
             self.n_adsb += 1
             if src.altitude_m is not None:
-                self.altitude_m = src.altitude_m
+                self.altitude_m, self.altitude_sd_m = src.altitude_m, ADSB_ALTITUDE_SD
         self.detections.append(True)
 
     def take_over(self, new: Track) -> None:
@@ -135,7 +139,10 @@ class Track:
         reported = self.reported_altitude_m
         self.filter, self.detections, self.vertical, self.pending = new.filter, new.detections, new.vertical, new.pending
         self.last_update, self.rejected, self.height = new.last_update, [], new.height
-        self.altitude_m = new.altitude_m if new.altitude_m is not None or new.height is not None else reported
+        if new.altitude_m is not None or new.height is not None:
+            self.altitude_m, self.altitude_sd_m = new.altitude_m, new.altitude_sd_m
+        elif reported is None:
+            self.altitude_m = self.altitude_sd_m = None
         self.mode_s, self.mode_3a = self.mode_s or new.mode_s, new.mode_3a or self.mode_3a
         self.n_plots += new.n_plots
         self.n_adsb += new.n_adsb

@@ -20,7 +20,8 @@ def _inputs(n: int, seed: int = 4):
     for i in range(n):
         state = tuple(rng.normal(0, 1e5, 4).tolist())
         cov = None if i % 4 == 1 else rng.normal(0, 10, (4, 4))
-        ident = (None if i % 3 == 0 else float(rng.normal(9000, 100)), None if i % 2 else f"{i:06x}",
+        alt = None if i % 3 == 0 else float(rng.normal(9000, 100))
+        ident = (alt, None if alt is None or i % 4 == 2 else float(rng.uniform(2, 900)), None if i % 2 else f"{i:06x}",
                  None if i % 5 else "7421", None if i % 7 else f"T{i}")
         out.append((0.25 * i, int(rng.integers(1, 9)), KINDS[i % 5], "confirmed" if i % 5 else "tentative", state, cov,
                     ident))
@@ -48,7 +49,7 @@ def test_rows_made_columns_equal_the_recorded_values(keep):
         if i % 2:  # as the TrackManager's run records its events
             rec.track_event(TrackEvent(t, track, kind, status, state), cov, ident)
         else:  # as the labels and distributed associations record theirs (state an array)
-            rec.event(t, track, kind, status, np.array(state), cov, *ident)
+            rec.event(t, track, kind, status, np.array(state), cov, ident[0], *ident[2:], altitude_sd_m=ident[1])
         if cov is not None:
             cov[:] = 0.0  # copied when recorded
         if kind in ("confirmed", "updated"):
@@ -61,16 +62,17 @@ def test_rows_made_columns_equal_the_recorded_values(keep):
     got = sink.chunks
     for name, column in [("time", [x[0] for x in fresh]), ("track", [x[1] for x in fresh]),
                          ("kind", [x[2] for x in fresh]), ("status", [x[3] for x in fresh]),
-                         ("mode_s", [x[6][1] for x in fresh]), ("mode_3a", [x[6][2] for x in fresh]),
-                         ("target", [x[6][3] for x in fresh])]:
+                         ("mode_s", [x[6][2] for x in fresh]), ("mode_3a", [x[6][3] for x in fresh]),
+                         ("target", [x[6][4] for x in fresh])]:
         assert [v for c in got for v in getattr(c, name).tolist()] == column, name
     state = np.concatenate([c.state for c in got])
     assert state.shape == (23, 4) and state.tolist() == [list(x[4]) for x in fresh]
     cov = np.concatenate([c.cov for c in got])
     for x, c in zip(fresh, cov):
         assert np.isnan(c).all() if x[5] is None else (c == x[5]).all()
-    alt = np.concatenate([c.altitude_m for c in got])
-    assert [None if math.isnan(a) else a for a in alt.tolist()] == [x[6][0] for x in fresh]
+    for k, name in enumerate(("altitude_m", "altitude_sd_m")):
+        values = np.concatenate([getattr(c, name) for c in got])
+        assert [None if math.isnan(a) else a for a in values.tolist()] == [x[6][k] for x in fresh], name
     mask = np.concatenate([c.estimate_mask() for c in got])
     assert mask.tolist() == [x[2] in ("confirmed", "updated") for x in fresh]
     held = rec.events()
@@ -93,13 +95,14 @@ def test_without_a_sink_every_event_is_kept_in_order():
 
 def test_a_covariance_that_is_not_4x4_is_refused():
     rec = Recorder()
-    rec.track_event(TrackEvent(0.0, 1, "updated", "confirmed", (0.0, 0.0, 0.0, 0.0)), np.eye(6), (None,) * 4)
+    rec.track_event(TrackEvent(0.0, 1, "updated", "confirmed", (0.0, 0.0, 0.0, 0.0)), np.eye(6), (None,) * 5)
     with pytest.raises(ValueError, match="4×4"):
         rec.events()
 
 
 def _same_events(a, b) -> None:
-    for name in ("time", "track", "kind", "status", "state", "altitude_m", "mode_s", "mode_3a", "target"):
+    for name in ("time", "track", "kind", "status", "state", "altitude_m", "altitude_sd_m", "mode_s", "mode_3a",
+                 "target"):
         x, y = getattr(a, name), getattr(b, name)
         assert x.dtype == y.dtype and (np.array_equal(x, y, equal_nan=True) if x.dtype != object
                                        else x.tolist() == y.tolist()), name
@@ -121,7 +124,7 @@ def test_a_managers_events_are_recorded_with_the_track_as_it_was(keep):
     def oracle(ev, tr):
         t0, _, P = tr.filter.estimate()
         keep_cov = ev.kind != "deleted" and t0 == ev.time
-        old.track_event(ev, np.array(P, float) if keep_cov else None, (tr.altitude_m, tr.mode_s, tr.mode_3a, None))
+        old.track_event(ev, np.array(P, float) if keep_cov else None, (tr.altitude_m, tr.altitude_sd_m, tr.mode_s, tr.mode_3a, None))
 
     sink = Sink()
     new = Recorder(sink=sink, keep=keep, flush_every=7)

@@ -39,7 +39,8 @@ def _events(rng: np.random.Generator, n: int) -> Events:
     time = np.arange(n) * 0.0005 + 1e5
     time[3] = 2.0**53  # beyond what a rounding to 10^-3 can change
     return Events(time=time, track=rng.integers(1, 2**62, n), kind=kind, status=status, state=state, cov=cov,
-                  altitude_m=alt, mode_s=mode_s, mode_3a=mode_3a, target=np.full(n, None, object))
+                  altitude_m=alt, altitude_sd_m=np.where(np.isnan(alt), np.nan, rng.uniform(2, 900, n)), mode_s=mode_s,
+                  mode_3a=mode_3a, target=np.full(n, None, object))
 
 
 def _biases(rng: np.random.Generator, n: int) -> BiasLog:
@@ -94,7 +95,8 @@ def test_events_hold_the_values_to_their_decimals(written):
         assert r[2:4] == [ev.kind[i], ev.status[i]], i
         assert all(_close(t, v, d) for t, v, d in zip(r[6:10], (x, y, vx, vy), (2, 2, 3, 3))), (i, r)
         assert _optional(r[10], sd[0], 2) and _optional(r[11], sd[1], 2) and _optional(r[12], ev.altitude_m[i], 1), i
-        assert r[13:] == [ev.mode_s[i] or "", ev.mode_3a[i] or ""], i
+        assert _optional(r[13], ev.altitude_sd_m[i], 1), i
+        assert r[14:] == [ev.mode_s[i] or "", ev.mode_3a[i] or ""], i
     lat, lon = (np.array([float(r[k]) for r in rows]) for k in (4, 5))
     px, py = PLANE.to_plane(lat, lon)
     # 10^-8 degree is at most 1.2 mm on the ground; the plane position read is within 5 mm of the state

@@ -223,3 +223,30 @@ def test_heights_survive_a_snapshot(tmp_path):
     second = restore_manager(tmp_path / "s.rtsnap")
     tail = [(e.time, e.track, e.kind, e.state) for e in second.process_many(items[half:])]
     assert head + tail == events
+
+
+def test_altitude_sd_is_the_height_sigma_or_the_quantisation(tmp_path):
+    """A track's ``altitude_sd_m`` is the σ of its ``altitude_m``: an estimated height's σ_h of the last joint
+    solve (at most ``observable_sd_m``), a reported altitude's quantisation step / √12 (100 ft Mode C, 25 ft
+    ADS-B: the steps written here), none where there is no altitude; kept by a snapshot."""
+    from radartracker.domain import AdsbReport, Plot
+    from radartracker.tracking.track import Track
+
+    data = traffic_scenario(seed=3, duration=240.0, aircraft=20, radars=4, spacing_km=80.0, period_s=(8.0, 10.0),
+                            altitude_m=(9000.0, 12000.0), speed_mps=(200.0, 250.0), adsb_share=0.0,
+                            transponder="none").run()
+    mgr = make_manager(data.radars, data.reference, ManagerConfig())
+    mgr.process_many(scenario_stream(data))
+    tracks = list(mgr.tracks.values())
+    estimated = [tr for tr in tracks if tr.height is not None and tr.altitude_m is not None]
+    assert estimated and all(tr.altitude_sd_m == tr.height.fix[1] <= 1000.0 for tr in estimated)
+    assert all((tr.altitude_m is None) == (tr.altitude_sd_m is None) for tr in tracks)
+    mgr.snapshot(tmp_path / "s.rtsnap")
+    restored = restore_manager(tmp_path / "s.rtsnap").tracks
+    assert [restored[tr.id].altitude_sd_m for tr in tracks] == [tr.altitude_sd_m for tr in tracks]
+
+    tr = Track(1, tracks[0].filter, "confirmed", 0.0, 0.0)
+    tr.took(Plot(1.0, "R1", 5e4, 0.5, altitude_m=3048.0), "plots")
+    assert tr.altitude_sd_m == pytest.approx(100 * 0.3048 / math.sqrt(12))
+    tr.took(AdsbReport(2.0, "abc123", 48.0, 2.0, altitude_m=3050.0), "adsb")
+    assert (tr.altitude_m, tr.altitude_sd_m) == (3050.0, pytest.approx(25 * 0.3048 / math.sqrt(12)))
