@@ -145,24 +145,31 @@ class RadarFrame:
                              np.asarray(alt, float))
 
 
+NEWTON_TOL_M = 1e-6  # locate_polar stops once every plot is this close to its altitude (1 µm)
+
+
 def locate_polar(rho: np.ndarray, alt: np.ndarray, site_height_m, geodetic, iterations: int = 4
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(lon, lat, valid) of polar plots (ρ, θ) at altitudes ``alt`` seen from sites at ``site_height_m``
     (one, or one per plot): the elevation ε that puts each at its altitude, by Newton's method on the exact
     ellipsoidal height, ε ← ε − (h(ε) − h)/max(ρ cos ε, 1), from the spherical law of cosines
     sin ε = (b² − a² − ρ²)/(2aρ) (a, b the geocentric radii of site and aircraft). ``geodetic(ε)`` gives
-    the WGS84 (lon, lat, h) of the plots at elevations ε. Invalid where no point at that slant range can
-    have that altitude, or where Newton's steps end more than 1 cm from it."""
+    the WGS84 (lon, lat, h) of the plots at elevations ε. Newton's method converges quadratically from the
+    spherical start (metres off, then millimetres, then nothing), so it stops as soon as every possible plot
+    is within ``NEWTON_TOL_M`` of its altitude, after at most ``iterations`` steps. Invalid where no point at
+    that slant range can have that altitude, or where the steps end more than 1 cm from it."""
     a = _EARTH_RADIUS_M + site_height_m
     b = _EARTH_RADIUS_M + alt
     sin_e = (b * b - a * a - rho * rho) / (2 * a * np.maximum(rho, 1e-9))
     valid = np.abs(sin_e) < 1.0
     elev = np.arcsin(np.clip(sin_e, -1.0, 1.0))
-    for _ in range(iterations):
-        _, _, h = geodetic(elev)
-        elev = elev - (h - alt) / np.maximum(rho * np.cos(elev), 1.0)
-    lon, lat, h = geodetic(elev)
-    return lon, lat, valid & (np.abs(h - alt) < 0.01)
+    for step in range(iterations + 1):
+        lon, lat, h = geodetic(elev)
+        miss = h - alt
+        if step == iterations or not np.any(np.abs(miss[valid]) > NEWTON_TOL_M):
+            break
+        elev = elev - miss / np.maximum(rho * np.cos(elev), 1.0)
+    return lon, lat, valid & (np.abs(miss) < 0.01)
 
 
 def bias_jacobian(radar_xy: np.ndarray, radar_height_m, p: np.ndarray, rho: np.ndarray, alt: np.ndarray) -> np.ndarray:

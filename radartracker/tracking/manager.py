@@ -271,7 +271,8 @@ class TrackManager:
         """The updates of the frame's ADS-B reports (the track with their address) and unbiased positions
         (:func:`~radartracker.tracking.associators.associate_position`)."""
         seq, cfg = self.updates, self.config
-        out = [Update(rep.time, next(seq), self.life.with_code(rep.icao24), row, rep)
+        with_code = self.life.with_code
+        out = [new_tuple(Update, (rep.time, next(seq), with_code(rep.icao24), row, rep))
                for row, rep in enumerate(frame.reports, frame.first_report_row)]
         for row, m in enumerate(frame.positions, frame.first_position_row):
             i = associate_position(m, pred, cfg.gate, cfg.search_radius_m) if pred.tracks else None
