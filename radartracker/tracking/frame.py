@@ -44,6 +44,10 @@ class FrameMeasurements(NamedTuple):
     R: np.ndarray
     radar: np.ndarray
 
+    def rows(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Each row's (z, C_s, R) as views, made in one pass (the life cycle reads one per update)."""
+        return list(zip(self.z, self.C, self.R))
+
 
 @attrs.frozen
 class Frame:

@@ -31,7 +31,7 @@ from radartracker.tracking.config import ManagerConfig
 from radartracker.tracking.duplicates import TWIN, duplicate_of
 from radartracker.tracking.events import ENDS, EventSink, TrackEvent, new_tuple
 from radartracker.tracking.feed import AddAircraft, EstimatorFeed, Measure, RemoveAircraft
-from radartracker.tracking.frame import FrameMeasurements, Prediction
+from radartracker.tracking.frame import Prediction
 from radartracker.tracking.track import Pending, Track
 
 log = logging.getLogger(__name__)
@@ -101,12 +101,13 @@ class TrackLifecycle:
         return self.tracks.get(tid if tid is not None else -1)
 
     # --- one measurement ---------------------------------------------------------------------------
-    def apply(self, u: Update, meas: FrameMeasurements) -> None:
-        """Screen ``u`` and update, start or re-initialise its track (module docstring)."""
+    def apply(self, u: Update, rows: list[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> None:
+        """Screen ``u`` (its measurement ``rows[u.row]``: z, C_s, R) and update, start or re-initialise its
+        track (module docstring)."""
         src, tr = u.source, u.track
         kind, radar, code = _kind_and_code(src)
         screening = self.config.screening
-        z, C, R = meas.z[u.row], meas.C[u.row], meas.R[u.row]
+        z, C, R = rows[u.row]
         if kind == "adsb" and screening.enabled:
             why = self.adsb_check.check(src.icao24, src.time, z, math.sqrt(R[0, 0]), src.nacp)
             if why is not None:

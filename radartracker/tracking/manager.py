@@ -236,8 +236,9 @@ class TrackManager:
             swept, covered = self.antennas.sweep(pred.position, t_a, t_b)
             self.life.missed(tracks, swept, hits, t_a, t_b)
         updates.sort()
+        rows, apply = frame.meas.rows(), self.life.apply
         for u in updates:
-            self.life.apply(u, frame.meas)
+            apply(u, rows)
         if tracks:
             self.life.sweep(tracks, covered, t_b)
         self.feed.flush()
