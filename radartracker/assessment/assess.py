@@ -4,8 +4,9 @@
 2. The replay the project already has (:func:`radartracker.pipeline.run.run`): its joint bias estimator
    gives each radar's Δr̂, Δθ̂ with their σ, and its coupling graph their observability; its tracks are the
    system tracks.
-3. Each radar's plots matched to the reference (:mod:`radartracker.assessment.matching`) and its figures
-   (:mod:`radartracker.assessment.radar`).
+3. Each radar's plots matched to the reference (:mod:`radartracker.assessment.matching`) a time slice at a
+   time, in this process or on Dask (:mod:`radartracker.assessment.slices`), the slices' sums added
+   (:mod:`radartracker.assessment.tally`), and its figures made from them (:mod:`radartracker.assessment.radar`).
 4. The system tracks against the same reference: the ESASSP indicators of
    :func:`radartracker.pipeline.evaluate.track_metrics` (:mod:`radartracker.pipeline.indicators`), an
    aircraft being observed from its first matched plot plus the confirmation grace to its last.
@@ -20,18 +21,18 @@ import attrs
 import numpy as np
 
 from radartracker.assessment import stats
-from radartracker.assessment.matching import MatchConfig, RadarMatch, match_radar
+from radartracker.assessment.matching import MatchConfig
 from radartracker.assessment.profile import INDICATORS, Profile
 from radartracker.assessment.radar import RadarAssessment, RadarConfig, assess_radar
 from radartracker.assessment.reference import Reference, ReferenceConfig, build_reference
+from radartracker.assessment.slices import SliceConfig, tally_radars
 from radartracker.assessment.stats import Estimate
-from radartracker.geometry.plane import RadarFrame
-from radartracker.io.tables import ScenarioData, label_spans
+from radartracker.assessment.tally import RadarTally, merge_spans
+from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.config import RunConfig
 from radartracker.pipeline.evaluate import GridSpec, track_metrics
 from radartracker.pipeline.result import RunResult, observed_spans, strict
 from radartracker.pipeline.run import run
-from radartracker.progress import progress_bar
 
 SYSTEM_FIGURES = ("position_rmse_m", "probability_of_update", "breaks_per_flight_hour", "multiple_share_of_time",
                   "false_tracks", "initiation_delay_p95_s")
@@ -39,12 +40,14 @@ SYSTEM_FIGURES = ("position_rmse_m", "probability_of_update", "breaks_per_flight
 
 @attrs.frozen
 class AssessmentConfig:
-    """The settings of an assessment: the replay's, the reference's, the gate's and the radar figures'."""
+    """The settings of an assessment: the replay's, the reference's, the gate's, the radar figures' and how the
+    work is split into time slices and where it runs."""
 
     run: RunConfig = attrs.field(factory=RunConfig)
     reference: ReferenceConfig = attrs.field(factory=ReferenceConfig)
     match: MatchConfig = attrs.field(factory=MatchConfig)
     radar: RadarConfig = attrs.field(factory=RadarConfig)
+    slices: SliceConfig = attrs.field(factory=SliceConfig)
 
 
 @attrs.define
@@ -107,50 +110,48 @@ class Assessment:
 
 def assess(data: ScenarioData, profile: Profile, config: AssessmentConfig | None = None, *,
            progress: bool = True) -> Assessment:
-    """The assessment of ``data`` (module docstring)."""
+    """The assessment of ``data`` (module docstring), its plots matched and summed a time slice at a time
+    (:mod:`radartracker.assessment.slices`: in this process, or on Dask by ``config.slices``)."""
     config = config or AssessmentConfig()
     reference = build_reference(data, config.reference)
     result = run(data, config.run, progress=progress)
-    plane = reference.plane
-    matches: dict[str, tuple[np.ndarray, RadarMatch]] = {}
-    for radar in progress_bar(data.radars, desc="matching plots", unit="radar", disable=not progress):
-        idx = np.flatnonzero(data.plots.radar == radar.id)
-        b = result.final_biases[radar.id]
-        frame = RadarFrame(radar.lat, radar.lon, radar.height_m, plane)
-        matches[radar.id] = idx, match_radar(radar, frame, data.plots.time[idx], data.plots.range_m[idx],
-                                             data.plots.azimuth_rad[idx], (b.range_m, b.azimuth_rad),
-                                             reference, config.match)
-    codes = reference_codes(data, reference, matches)
+    biases = {r.id: (result.final_biases[r.id].range_m, result.final_biases[r.id].azimuth_rad) for r in data.radars}
+    tallies = tally_radars(data, reference, biases, config.match, config.radar.mode_c_tolerance_ft, config.slices,
+                           progress=progress)
+    codes = reference_codes(reference, tallies)
     observability = result.observability["radars"]
-    radars = [assess_radar(radar, data.plots.take(matches[radar.id][0]), matches[radar.id][1],
-                           result.final_biases[radar.id], observability.get(radar.id, {}),
-                           codes, {k: t.icao24 for k, t in reference.tracks.items()}, reference.kind, config.radar)
+    radars = [assess_radar(radar, tallies.get(radar.id, RadarTally()), out_of_order(data.plots.time[
+        data.plots.radar == radar.id]), result.final_biases[radar.id], observability.get(radar.id, {}), codes,
+                           reference.kind, config.radar)
               for radar in data.radars]
-    return Assessment(data.name, reference.kind, profile, radars, system_figures(result, reference, matches, data),
-                      result)
+    return Assessment(data.name, reference.kind, profile, radars, system_figures(result, reference, tallies), result)
 
 
-def reference_codes(data: ScenarioData, reference: Reference, matches: dict[str, tuple[np.ndarray, RadarMatch]]
-                    ) -> dict[str, str]:
+def out_of_order(t: np.ndarray) -> int:
+    """The plots stamped earlier than a plot before them in the file (``t``: one radar's, in file order)."""
+    return int((t[1:] < np.maximum.accumulate(t)[:-1]).sum()) if len(t) > 1 else 0
+
+
+def reference_codes(reference: Reference, tallies: dict[str, RadarTally]) -> dict[str, str]:
     """Each reference aircraft's Mode 3/A code: the scenario's aircraft list's, else the code most of its
     matched plots (all radars) carry."""
     votes: dict[str, Counter] = {}
-    for idx, m in matches.values():
-        for key, code in zip(m.aircraft.tolist(), data.plots.mode_3a[idx].tolist()):
-            if key and code is not None:
-                votes.setdefault(key, Counter())[code] += 1
+    for t in tallies.values():
+        for (key, code), n in t.mode_3a.items():
+            if code is not None:
+                votes.setdefault(key, Counter())[code] += n
     out = {k: v.most_common(1)[0][0] for k, v in votes.items()}
     out.update({k: t.mode_3a for k, t in reference.tracks.items() if t.mode_3a is not None})
     return out
 
 
-def system_figures(result: RunResult, reference: Reference, matches: dict[str, tuple[np.ndarray, RadarMatch]],
-                   data: ScenarioData) -> dict[str, Estimate]:
+def system_figures(result: RunResult, reference: Reference, tallies: dict[str, RadarTally]) -> dict[str, Estimate]:
     """The replay's tracks against the reference (module docstring, step 4): point values (consecutive
     samples of a track are correlated: no interval is claimed); false tracks only against the truth."""
     spans: dict[str, tuple[float, float]] = {}
-    for idx, m in matches.values():  # each aircraft's first and last matched plot, over every radar
-        spans = label_spans(data.plots.time[idx], np.where(m.aircraft == "", None, m.aircraft), spans)
+    for t in tallies.values():  # each aircraft's first and last matched plot, over every radar
+        spans = merge_spans(spans, t.spans)
+    spans = dict(sorted(spans.items()))
     observed = observed_spans(spans)
     histories = result.histories()
     if not observed or not histories:

@@ -78,9 +78,16 @@ def antenna_offsets(t: np.ndarray, theta: np.ndarray, period_s: float, t_north: 
 
 
 def match_radar(radar: Radar, frame: RadarFrame, t: np.ndarray, rho: np.ndarray, theta: np.ndarray,
-                bias: tuple[float, float], reference: Reference, config: MatchConfig) -> RadarMatch:
+                bias: tuple[float, float], reference: Reference, config: MatchConfig, *,
+                antenna: tuple[float, tuple[float, float]] | None = None,
+                keep: tuple[float, float] = (-math.inf, math.inf)) -> RadarMatch:
     """The plots (times, slant ranges, azimuths) of ``radar`` matched to ``reference`` (module docstring),
-    its estimated ``bias`` (Δr m, Δθ rad) removed before the gate."""
+    its estimated ``bias`` (Δr m, Δθ rad) removed before the gate.
+
+    A time slice of a longer recording (:mod:`radartracker.assessment.slices`) gives ``antenna``: t_N and the
+    span (first, last plot time) of *all* the radar's plots, and ``keep``: the slice [t₀, t₁); its plots and
+    reference then cover the slice and a margin either side, and only the crossings inside the slice are
+    expected of it (computed from the same revolutions as over the whole recording: the same figures)."""
     n = len(t)
     best = np.full(n, np.inf)
     key = np.full(n, "", dtype=object)
@@ -99,25 +106,32 @@ def match_radar(radar: Radar, frame: RadarFrame, t: np.ndarray, rho: np.ndarray,
         best[w], key[w] = d2[win], name
         ref[0, w], ref[1, w] = r_ref[win], a_ref[win]
         ref[2, w] = h[win]
-    t_n = north_time(t, theta, radar.period_s) if n else 0.0
+    if antenna is None:
+        antenna = (north_time(t, theta, radar.period_s) if n else 0.0,
+                   (float(t.min()), float(t.max())) if n else (0.0, 0.0))
+    t_n, span = antenna
     scan, _ = antenna_offsets(t, theta, radar.period_s, t_n)
-    expected = _expected(radar, frame, reference, config, t_n, (float(t.min()), float(t.max())) if n else (0.0, 0.0))
+    expected = _expected(radar, frame, reference, config, t_n, (span, keep))
     expected["detected"] = _detected(expected, key, t, radar.period_s)
     return RadarMatch(key, best, ref[0], ref[1], ref[2], scan, t_n, expected)
 
 
 def _expected(radar: Radar, frame: RadarFrame, reference: Reference, config: MatchConfig, t_north: float,
-              span: tuple[float, float]) -> dict[str, np.ndarray]:
-    """The crossings of every reference aircraft inside the radar's coverage during the plots' ``span``."""
+              spans: tuple[tuple[float, float], tuple[float, float]]) -> dict[str, np.ndarray]:
+    """The crossings of every reference aircraft inside the radar's coverage during the plots' span that fall
+    in the slice ``keep`` (``spans``: both, :func:`match_radar`). The crossing of revolution n lies in
+    [t_N + nT, t_N + (n+1)T], so the revolutions from 2T before the slice to 2T after it hold them all."""
     T = radar.period_s
+    span, keep = spans
     dip = math.acos(_EARTH_RADIUS_M / (_EARTH_RADIUS_M + max(radar.height_m, 0.0)))
     cone = math.radians(config.cone_of_silence_deg)
     cols: dict[str, list] = {k: [] for k in ("aircraft", "time", "range_m", "azimuth_deg", "altitude_m", "x", "y")}
     for name, track in reference.tracks.items():
         lo, hi = max(track.times[0], span[0]), min(track.times[-1], span[1])
-        if hi <= lo:
+        a, b = max(lo, keep[0] - 2 * T), min(hi, keep[1] + 2 * T)
+        if b <= a:
             continue
-        scans = np.arange(math.floor((lo - t_north) / T), math.ceil((hi - t_north) / T) + 1)
+        scans = np.arange(math.floor((a - t_north) / T), math.ceil((b - t_north) / T) + 1)
         tc = t_north + scans * T
         for _ in range(3):
             _, theta, _ = frame.polar(*reference.geodetic(name, np.clip(tc, lo, hi)))
@@ -128,7 +142,7 @@ def _expected(radar: Radar, frame: RadarFrame, reference: Reference, config: Mat
         # labelled as a plot there would be: near north two revolutions' iterations can meet one crossing
         _, first = np.unique(antenna_offsets(tc, theta, T, t_north)[0], return_index=True)
         lat, lon, h, rho, theta, elev, tc = (v[first] for v in (lat, lon, h, rho, theta, elev, tc))
-        inside = (rho <= radar.max_range_m) & (elev >= -dip) & (elev <= cone)
+        inside = (rho <= radar.max_range_m) & (elev >= -dip) & (elev <= cone) & (tc >= keep[0]) & (tc < keep[1])
         x, y = reference.plane.to_plane(lat[inside], lon[inside])
         for k, v in (("aircraft", np.full(int(inside.sum()), name, dtype=object)), ("time", tc[inside]),
                      ("range_m", rho[inside]), ("azimuth_deg", np.degrees(theta[inside])), ("altitude_m", h[inside]),

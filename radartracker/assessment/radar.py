@@ -27,14 +27,14 @@ estimator's biases):
 from __future__ import annotations
 
 import math
+
 import attrs
 import numpy as np
 
 from radartracker.assessment import stats
-from radartracker.assessment.matching import RadarMatch, antenna_offsets, wrap_angle
 from radartracker.assessment.stats import Estimate
+from radartracker.assessment.tally import RadarTally
 from radartracker.domain import BiasState, Radar
-from radartracker.io.tables import PlotTable
 
 FT = 0.3048
 NOT_ASSESSABLE_LATENESS = "the recording carries no arrival times"
@@ -65,128 +65,82 @@ class RadarAssessment:
     expected: dict[str, np.ndarray]
 
 
-def assess_radar(radar: Radar, plots: PlotTable, match: RadarMatch, bias: BiasState, observability: dict,
-                 codes: dict[str, str], addresses: dict[str, str | None], reference_kind: str,
-                 config: RadarConfig) -> RadarAssessment:
-    """The figures of the module docstring for ``radar``'s ``plots`` (file order) matched in ``match``;
+def assess_radar(radar: Radar, tally: RadarTally, out_of_order: int, bias: BiasState, observability: dict,
+                 codes: dict[str, str], reference_kind: str, config: RadarConfig) -> RadarAssessment:
+    """The figures of the module docstring for ``radar`` from its sums over the recording (``tally``, every
+    slice's merged: :mod:`radartracker.assessment.tally`) and its count of plots ``out_of_order`` in the file;
     ``observability``: the coupling graph's report of the radar (:meth:`CouplingGraph.report`: ``status``, the
-    estimator's ``measurements``); ``codes`` and ``addresses``: each reference aircraft's Mode 3/A code and
-    Mode S address (``None``: not known)."""
-    kind = "ssr" if (np.isfinite(plots.altitude_m).any() or any(c is not None for c in plots.mode_3a)
-                     or any(c is not None for c in plots.mode_s)) else "psr"
+    estimator's ``measurements``); ``codes``: each reference aircraft's Mode 3/A code."""
+    kind = "ssr" if tally.carries.any() else "psr"
     figures: dict[str, Estimate] = {}
     missing: dict[str, str] = {"timestamp_lateness_s": NOT_ASSESSABLE_LATENESS}
-    group, nearest = sweeps(plots.time, match, radar.period_s)
-    residuals = _errors(plots, match, bias, int(observability.get("measurements", 0)), nearest, figures)
-    _detection(match, group, figures, missing, reference_kind)
-    _codes(plots, match, (codes, addresses), config, figures, missing)
-    _timestamps(radar, plots, match, nearest, figures)
+    _errors(tally, bias, int(observability.get("measurements", 0)), figures)
+    expected = tally.expected_table()
+    _detection(tally, expected, figures, missing, reference_kind)
+    _codes(tally, codes, figures, missing)
+    figures["out_of_order_share"] = stats.proportion(out_of_order, tally.plots)
+    figures["timestamp_jitter_s"] = stats.sigma(tally.moments["timestamp_s"])
     return RadarAssessment(radar.id, kind, figures, missing, observability.get("status", "unobserved"),
-                           pd_bins(match.expected, config), residuals,
-                           {k: match.expected[k] for k in ("x", "y", "range_m", "detected")})
+                           pd_bins(expected, config), tally.error_arrays(),
+                           {k: expected[k] for k in ("x", "y", "range_m", "detected")})
 
 
-def _errors(plots: PlotTable, match: RadarMatch, bias: BiasState, measured: int, used: np.ndarray,
-            figures: dict[str, Estimate]) -> dict[str, np.ndarray]:
+def _errors(tally: RadarTally, bias: BiasState, measured: int, figures: dict[str, Estimate]) -> None:
     """Systematic and random errors (module docstring) into ``figures`` (``measured``: the measurements the
-    estimator took of the radar); the residuals e_ρ (m), e_θ (deg)."""
+    estimator took of the radar)."""
     figures["range_bias_m"] = stats.normal(bias.range_m, bias.sd_range_m, measured)
     figures["azimuth_bias_deg"] = stats.scaled(stats.normal(bias.azimuth_rad, bias.sd_azimuth_rad, measured),
                                                math.degrees(1.0))
-    raw_r = plots.range_m[used] - match.ref_range[used]
-    raw_a = wrap_angle(plots.azimuth_rad[used] - match.ref_azimuth[used])
-    figures["range_bias_vs_reference_m"] = stats.mean(raw_r)
-    figures["azimuth_bias_vs_reference_deg"] = stats.scaled(stats.mean(raw_a), math.degrees(1.0))
-    e_r, e_a = raw_r - bias.range_m, np.degrees(wrap_angle(raw_a - bias.azimuth_rad))
-    figures["range_sigma_m"] = stats.sigma(e_r)
-    figures["azimuth_sigma_deg"] = stats.sigma(e_a)
-    return {"range_m": e_r, "azimuth_deg": e_a}
+    m = tally.moments
+    figures["range_bias_vs_reference_m"] = stats.mean(m["raw_range_m"])
+    figures["azimuth_bias_vs_reference_deg"] = stats.scaled(stats.mean(m["raw_azimuth_rad"]), math.degrees(1.0))
+    figures["range_sigma_m"] = stats.sigma(m["range_m"])
+    figures["azimuth_sigma_deg"] = stats.sigma(m["azimuth_deg"])
 
 
-def _detection(match: RadarMatch, group: np.ndarray, figures: dict[str, Estimate],
+def _detection(tally: RadarTally, expected: dict[str, np.ndarray], figures: dict[str, Estimate],
                missing: dict[str, str], reference_kind: str) -> None:
     """Pd, plots and false plots per scan, split plots (module docstring) into ``figures``."""
-    ex = match.expected
-    figures["pd"] = stats.proportion(int(ex["detected"].sum()), len(ex["detected"]))
-    if len(match.scan):
-        first, last = int(match.scan.min()), int(match.scan.max())
-        counts = np.bincount(match.scan - first, minlength=last - first + 1)
+    figures["pd"] = stats.proportion(int(expected["detected"].sum()), len(expected["detected"]))
+    if tally.scans:
+        first, last = min(tally.scans), max(tally.scans)
+        counts = np.zeros(last - first + 1)
+        for scan, c in tally.scans.items():
+            counts[scan - first] = c
         figures["plots_per_scan"] = stats.mean(counts)
     else:
         counts = np.zeros(0)
         figures["plots_per_scan"] = stats.missing("t")
-    unmatched = int((match.aircraft == "").sum())
     if reference_kind == "truth":
-        figures["false_plots_per_scan"] = stats.rate(unmatched, len(counts))
+        figures["false_plots_per_scan"] = stats.rate(tally.unmatched, len(counts))
     else:
         missing["false_plots_per_scan"] = ("the ADS-B reference holds only the aircraft that broadcast: a plot "
                                            "far from all of them may be a non-equipped aircraft")
-    sizes = np.bincount(group[group >= 0]) if (group >= 0).any() else np.zeros(0, np.int64)
-    figures["split_plot_share"] = stats.proportion(int((sizes > 1).sum()), len(sizes))
+    figures["split_plot_share"] = stats.proportion(tally.split_sweeps, tally.sweeps)
 
 
-def sweeps(t: np.ndarray, match: RadarMatch, period_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Each matched plot's sweep group (−1 unmatched): an aircraft's plots sorted by time, a new group after
-    a gap over T/2; and the mask of the plot of least d² in each group (the one the random errors use, so
-    that a split plot's offset does not count as noise)."""
-    group = np.full(len(t), -1, np.int64)
-    nearest = np.zeros(len(t), bool)
-    matched = np.flatnonzero(match.aircraft != "")
-    order = matched[np.lexsort((t[matched], match.aircraft[matched].astype(str)))]
-    if not len(order):
-        return group, nearest
-    new = np.concatenate([[True], (match.aircraft[order][1:] != match.aircraft[order][:-1])
-                          | (np.diff(t[order]) > period_s / 2)])
-    group[order] = np.cumsum(new) - 1
-    best = np.lexsort((match.d2[order], group[order]))  # by group, then by d²: each group's first is its nearest
-    first = np.concatenate([[True], np.diff(group[order][best]) != 0])
-    nearest[order[best[first]]] = True
-    return group, nearest
-
-
-def _codes(plots: PlotTable, match: RadarMatch, identity: tuple[dict, dict], config: RadarConfig,
-           figures: dict[str, Estimate], missing: dict[str, str]) -> None:
+def _codes(tally: RadarTally, codes: dict[str, str], figures: dict[str, Estimate], missing: dict[str, str]) -> None:
     """Mode 3/A, Mode C and Mode S validity and correctness (module docstring) of the matched plots into
-    ``figures``; ``identity``: the reference aircraft's Mode 3/A codes and Mode S addresses."""
-    codes, addresses = identity
-    matched = match.aircraft != ""
-    keys = match.aircraft[matched]
-    a3 = plots.mode_3a[matched]
-    alt = plots.altitude_m[matched]
-    ms = plots.mode_s[matched]
-    has_3a = np.array([codes.get(k) is not None for k in keys], bool)
-    if any(c is not None for c in plots.mode_3a) and has_3a.any():
-        present = np.array([c is not None for c in a3], bool)
-        figures["mode_3a_validity"] = stats.proportion(int((present & has_3a).sum()), int(has_3a.sum()))
-        right = np.array([c == codes.get(k) for c, k in zip(a3, keys)], bool)
-        figures["mode_3a_correctness"] = stats.proportion(int((right & present).sum()), int((present & has_3a).sum()))
+    ``figures``; ``codes``: the reference aircraft's Mode 3/A codes."""
+    known = [(codes.get(k), c, n) for (k, c), n in tally.mode_3a.items() if codes.get(k) is not None]
+    if tally.carries[1] and known:
+        present = sum(n for _, c, n in known if c is not None)
+        figures["mode_3a_validity"] = stats.proportion(present, sum(n for *_, n in known))
+        figures["mode_3a_correctness"] = stats.proportion(sum(n for want, c, n in known if c == want), present)
     else:
         missing["mode_3a_validity"] = missing["mode_3a_correctness"] = "no plot carries a Mode 3/A code"
-    squawking = np.isin(keys, np.unique(match.aircraft[np.isfinite(plots.altitude_m) & (match.aircraft != "")]))
-    if squawking.any():
-        valid = np.isfinite(alt)
-        figures["mode_c_validity"] = stats.proportion(int((valid & squawking).sum()), int(squawking.sum()))
-        close = np.abs(alt - match.ref_altitude[matched]) <= config.mode_c_tolerance_ft * FT
-        figures["mode_c_correctness"] = stats.proportion(int((close & valid).sum()), int(valid.sum()))
+    c = tally.mode_c
+    squawking = [k for k, n in c.get("valid", {}).items() if n > 0]
+    if squawking:
+        valid = sum(c["valid"].values())
+        figures["mode_c_validity"] = stats.proportion(valid, sum(c["matched"][k] for k in squawking))
+        figures["mode_c_correctness"] = stats.proportion(sum(c["close"].values()), valid)
     else:
         missing["mode_c_validity"] = missing["mode_c_correctness"] = "no matched plot carries a Mode C altitude"
-    present = np.array([c is not None and addresses.get(k) is not None for c, k in zip(ms, keys)], bool)
-    if present.any():
-        right = np.array([c == addresses.get(k) for c, k in zip(ms, keys)], bool)
-        figures["mode_s_correctness"] = stats.proportion(int((right & present).sum()), int(present.sum()))
+    if tally.mode_s[0]:
+        figures["mode_s_correctness"] = stats.proportion(int(tally.mode_s[1]), int(tally.mode_s[0]))
     else:
         missing["mode_s_correctness"] = "no matched plot of an aircraft of known address carries a Mode S address"
-
-
-def _timestamps(radar: Radar, plots: PlotTable, match: RadarMatch, used: np.ndarray,
-                figures: dict[str, Estimate]) -> None:
-    """Ordering, and the σ of the time stamps' offsets from the antenna position over the ``used`` plots
-    (module docstring)."""
-    t = plots.time
-    late = t[1:] < np.maximum.accumulate(t)[:-1] if len(t) > 1 else np.zeros(0, bool)
-    figures["out_of_order_share"] = stats.proportion(int(late.sum()), len(t))
-    _, offset = antenna_offsets(t[used], plots.azimuth_rad[used], radar.period_s, match.north_time)
-    figures["timestamp_jitter_s"] = stats.sigma(offset)
 
 
 def pd_bins(expected: dict[str, np.ndarray], config: RadarConfig) -> list[dict]:

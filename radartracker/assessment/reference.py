@@ -74,6 +74,23 @@ class Reference:
         lat, lon = self.plane.to_geodetic(x, y)
         return lat, lon, h
 
+    def window(self, lo: float, hi: float) -> Reference:
+        """The aircraft flying during [lo, hi], each cut to its samples there and one either side: the same
+        positions and coverage inside [lo, hi] as the whole (straight lines between the same two samples; a
+        smoothing spline is kept whole), at a fraction of the size to send to a time slice's task."""
+        tracks = {}
+        for key, tr in self.tracks.items():
+            if tr.times[-1] < lo or tr.times[0] > hi:
+                continue
+            a = max(int(np.searchsorted(tr.times, lo, "right")) - 1, 0)
+            b = min(int(np.searchsorted(tr.times, hi, "left")) + 1, len(tr.times) - 1)
+            traj = tr.trajectory
+            if not traj.smoothed and b > a:
+                traj = RecordedTrajectory(traj.t[a:b + 1], traj.x[a:b + 1], traj.y[a:b + 1], traj.h[a:b + 1],
+                                          smooth=False)
+            tracks[key] = attrs.evolve(tr, times=tr.times[a:b + 1], trajectory=traj) if b > a else tr
+        return Reference(self.kind, self.plane, tracks)
+
     def paths(self, step_s: float = 1.0) -> TruthPaths:
         """The reference as :class:`TruthPaths` (plane positions and velocities every ``step_s``), for the
         track indicators of :func:`radartracker.pipeline.evaluate.track_metrics`."""

@@ -17,8 +17,27 @@ def register_assess(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--estimator", default=None, help="the joint bias estimator (default: the best installed)")
     p.add_argument("--skip-bad", action="store_true", help="skip (and count) malformed input rows instead of stopping")
     p.add_argument("--overwrite", action="store_true", help="replace an earlier assessment's files in --out")
+    p.add_argument("--slice-s", type=float, default=3600.0, metavar="SECONDS",
+                   help="assess the recording in time slices of this length, each radar's slice one task "
+                        "(default 3600: up to an hour stays one slice)")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="run the slices on a Dask LocalCluster of N processes on 127.0.0.1 (default: this process)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run the slices on an existing Dask scheduler (tcp://host:8786) instead")
     p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS, help="no progress bars, no library logs")
     p.set_defaults(func=_cmd_assess)
+
+
+def _slices(args: argparse.Namespace):
+    """The slicing options as a SliceConfig; a bad value is a ConfigurationError naming the option."""
+    from radartracker.assessment.slices import SliceConfig
+    from radartracker.errors import ConfigurationError
+
+    if not args.slice_s > 0:
+        raise ConfigurationError(f"--slice-s: expected a positive number of seconds, got {args.slice_s}")
+    if args.workers is not None and args.workers < 1:
+        raise ConfigurationError(f"--workers: expected 1 or more, got {args.workers}")
+    return SliceConfig(args.slice_s, args.workers, args.scheduler)
 
 
 def _cmd_assess(args: argparse.Namespace) -> int:
@@ -30,11 +49,13 @@ def _cmd_assess(args: argparse.Namespace) -> int:
     from radartracker.pipeline.config import RunConfig
 
     profile = load_profile(args.profile)  # a bad profile is refused before the work
+    slices = _slices(args)
     progress = not getattr(args, "quiet", False)
     with removed_if_failed(args.out):
         out = prepare_output_folder(args.out, ASSESSMENT_FILES, overwrite=args.overwrite, keep_earlier=True)
         data = read_source(args.scenario, skip_bad=args.skip_bad)
-        config = AssessmentConfig(run=RunConfig(estimator=args.estimator, skip_bad=args.skip_bad))
+        config = AssessmentConfig(run=RunConfig(estimator=args.estimator, skip_bad=args.skip_bad),
+                                  slices=slices)
         a = assess(data, profile, config, progress=progress)
         write_assessment(a, out, progress=progress)
     counts = a.summary()["verdict_counts"]

@@ -129,6 +129,11 @@ class RecordedTrajectory:
                           ((self.x, OUTLIER_FLOOR_M), (self.y, OUTLIER_FLOOR_M), (self.h, OUTLIER_FLOOR_ALT_M))]
                          if smooth and len(self.t) >= MIN_SPLINE_POINTS else None)
 
+    @property
+    def smoothed(self) -> bool:
+        """Whether a smoothing spline (not straight lines) joins the points."""
+        return self._splines is not None
+
     @classmethod
     def from_geodetic(cls, plane: SystemPlane, t, lat, lon, alt_m, smooth: bool = True) -> RecordedTrajectory:
         x, y = plane.to_plane(lat, lon)
