@@ -19,6 +19,7 @@ from radartracker.errors import (ConfigurationError, FormatError, GeometryError,
 from radartracker.lazy import lazy_exports
 
 if TYPE_CHECKING:
+    from radartracker.cluster import dask_client
     from radartracker.compiled import kernel
     from radartracker.domain import Aircraft, AdsbReport, BiasState, Plot, Radar, nacp_sigma_m
     from radartracker.estimation.base import (AircraftEstimate, Estimator, EstimatorConfig, Innovation,
@@ -47,6 +48,7 @@ if TYPE_CHECKING:
     from radartracker.tracking.track import Track
 
 _EXPORTS = {
+    "radartracker.cluster": ("dask_client",),
     "radartracker.compiled": ("kernel",),
     "radartracker.domain": ("Aircraft", "AdsbReport", "BiasState", "Plot", "Radar", "nacp_sigma_m"),
     "radartracker.estimation.base": ("AircraftEstimate", "Estimator", "EstimatorConfig", "Innovation",

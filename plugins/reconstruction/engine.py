@@ -3,7 +3,7 @@
 * ``serial``: in this process (tests, debugging);
 * ``process`` (default): a local :class:`~concurrent.futures.ProcessPoolExecutor`;
 * ``dask``: a ``dask.distributed`` client's executor — a :class:`~distributed.LocalCluster` of
-  single-threaded worker processes, or the cluster at ``scheduler`` (``tcp://host:8786``), the
+  single-threaded worker processes on 127.0.0.1 (:func:`radartracker.api.dask_client`), or the cluster at ``scheduler`` (``tcp://host:8786``), the
   scale-out engine for thousands of flights (DESIGN §10).
 
 Flights are packed, longest first, into batches of about ``batch_plots`` plots, so a task is
@@ -14,13 +14,13 @@ reconstructed (e.g. shorter than dt_min) is reported as a failure, not a crash.
 from __future__ import annotations
 
 import contextlib
-import logging
 from collections.abc import Iterable, Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 
 import attrs
 from tqdm import tqdm
 
+from radartracker.api import dask_client
 from radartracker_plugins.reconstruction.config import ReconstructionConfig
 from radartracker_plugins.reconstruction.hypotheses import Reconstruction, reconstruct
 from radartracker_plugins.reconstruction.objects import PlotTrack
@@ -72,16 +72,8 @@ def executor(engine: str = "process", workers: int | None = None, scheduler: str
         with ProcessPoolExecutor(max_workers=workers) as ex:
             yield ex
     else:
-        from distributed import Client, LocalCluster
-
-        if scheduler:
-            with Client(scheduler) as client:
-                yield client.get_executor()
-        else:
-            with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                              silence_logs=logging.ERROR if quiet else logging.WARNING) as cluster, \
-                    Client(cluster) as client:
-                yield client.get_executor()
+        with dask_client(workers, scheduler, quiet) as client:
+            yield client.get_executor()
 
 
 def run_many(tracks: list[PlotTrack], cfg: ReconstructionConfig, ex: Executor | None,

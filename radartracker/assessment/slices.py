@@ -23,10 +23,7 @@ slices are independent of one another and nothing sequential is left to carry be
 
 from __future__ import annotations
 
-import contextlib
-import logging
 import math
-from collections.abc import Iterator
 
 import attrs
 import numpy as np
@@ -35,6 +32,7 @@ from radartracker.assessment.matching import MatchConfig, match_radar, north_tim
 from radartracker.assessment.radar import FT
 from radartracker.assessment.reference import Reference
 from radartracker.assessment.tally import RadarTally, tally
+from radartracker.cluster import dask_client
 from radartracker.domain import Radar
 from radartracker.geometry.plane import RadarFrame
 from radartracker.io.tables import PlotTable, ScenarioData
@@ -114,25 +112,6 @@ def _jobs(data: ScenarioData, biases: dict[str, tuple[float, float]], slice_s: f
             jobs.append(RadarSlice(radar, data.plots.take(order[a:b]), antenna, biases[radar.id], keep))
         out.append((keep, jobs))
     return out
-
-
-@contextlib.contextmanager
-def dask_client(workers: int | None, scheduler: str | None, quiet: bool) -> Iterator:
-    """A ``distributed`` client of ``scheduler``, else of a LocalCluster of ``workers`` single-threaded
-    processes on 127.0.0.1 (closed on exit; ``quiet``: its logs errors only), else None (this process)."""
-    if not scheduler and not workers:
-        yield None
-        return
-    from distributed import Client, LocalCluster
-
-    if scheduler:
-        with Client(scheduler) as client:
-            yield client
-        return
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                      dashboard_address=None, silence_logs=logging.ERROR if quiet else logging.WARNING) as cluster, \
-            Client(cluster) as client:
-        yield client
 
 
 def tally_radars(data: ScenarioData, reference: Reference, biases: dict[str, tuple[float, float]],
