@@ -7,6 +7,13 @@ at its Mode C altitude, else at its Mode S track's, else at ``primary_altitude_m
 added to R (:func:`~radartracker.tracking.association.altitude_spread`); an ADS-B report has
 R = σ(NACp)² I and C_s = 0; an unbiased position comes with its own R and C_s = 0.
 
+A plot is linearised at its radar's bias estimate of the frame's start ς̂ = (Δr̂, Δθ̂): converted at
+(ρ − Δr̂, θ − Δθ̂), with C_s taken there, and given as z = f(ρ − Δr̂, θ − Δθ̂) + C_s ς̂, so that
+z − C_s ς = p + C_s (ς̂ − ς) + … is exact at ς = ς̂ and the bias correction z − C_s ς̂ is the plot converted
+without its bias. Converting at (ρ, θ) instead (C_s at the biased plot) leaves an error of order
+ς² in the model, which a 2 km / 2° bias turns into tens of metres and hundredths of a degree that no
+estimator can see (docs/design-notes.md).
+
 :class:`Prediction` is what association, misses and deletion read of the live tracks at the frame's
 middle time: their straight-line positions for search and coverage, and the filters' own predictions
 (position, velocity, position covariance) computed only for the tracks a plot may go to.
@@ -16,6 +23,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+from collections.abc import Callable
 from operator import attrgetter, methodcaller
 from typing import NamedTuple
 
@@ -54,7 +62,8 @@ class Frame:
     """The inputs of [``start``, ``end``) and their measurements: rows ``radar_rows[rid]`` are radar
     ``rid``'s plots in arrival order, then come the ADS-B reports, then the unbiased positions.
     ``valid``: which plots have a possible geometry; ``azimuth``: the plots' azimuths (rad); ``height``: the
-    height each plot was converted at (m), ``guessed``: which of them were assumed (``primary_altitude_m``)."""
+    height each plot was converted at (m), ``guessed``: which of them were assumed (``primary_altitude_m``);
+    ``linearised_at``: the bias estimate (Δr̂ m, Δθ̂ rad) each plot was converted at (module docstring)."""
 
     start: float
     end: float
@@ -67,6 +76,7 @@ class Frame:
     azimuth: np.ndarray
     height: np.ndarray
     guessed: np.ndarray
+    linearised_at: np.ndarray
 
     @property
     def first_report_row(self) -> int:
@@ -80,10 +90,12 @@ class Frame:
 class FrameBuilder:
     """Makes a :class:`Frame` of a frame's inputs (module docstring)."""
 
-    def __init__(self, converter: PlaneConverter, primary_altitude_m: float, primary_altitude_sd_m: float) -> None:
+    def __init__(self, converter: PlaneConverter, primary_altitude_m: float, primary_altitude_sd_m: float,
+                 bias: Callable[[str], tuple[np.ndarray, np.ndarray]] | None = None) -> None:
         self.converter = converter
         self.primary_altitude_m = primary_altitude_m
         self.primary_altitude_sd_m = primary_altitude_sd_m
+        self.bias = bias  # a radar's (ς̂, P_ς) of the frame's start; None: plots linearised at ς̂ = 0
 
     def build(self, start: float, end: float, items: list[Input], tracks: list[Track]) -> Frame:
         by_radar: dict[str, list[Plot]] = {}
@@ -100,7 +112,7 @@ class FrameBuilder:
         radar_rows, base = {}, 0
         for rid, ps in by_radar.items():
             radar_rows[rid], base = range(base, base + len(ps)), base + len(ps)
-        z, C, R, radar, valid, theta, alt, guessed = self._convert(by_radar, plots, reports, tracks)
+        z, C, R, radar, valid, theta, alt, guessed, at = self._convert(by_radar, plots, reports, tracks)
         if positions:
             n = len(positions)
             z = np.concatenate([z, np.array([np.asarray(p.z, float) for p in positions]).reshape(n, 2)])
@@ -109,7 +121,7 @@ class FrameBuilder:
             radar = np.concatenate([radar, np.full(n, -1, np.int64)])
         times = np.fromiter(map(_TIME, itertools.chain(plots, reports, positions)), float, len(z))
         return Frame(start, end, plots, radar_rows, reports, positions, FrameMeasurements(times, z, C, R, radar),
-                     valid, theta, alt, guessed)
+                     valid, theta, alt, guessed, at)
 
     def _heights(self, plots: list[Plot], tracks: list[Track]) -> tuple[np.ndarray, np.ndarray]:
         """Each plot's height for the conversion, and which were guessed (``primary_altitude_m``)."""
@@ -125,22 +137,28 @@ class FrameBuilder:
 
     def _convert(self, by_radar: dict[str, list[Plot]], plots: list[Plot], reports: list[AdsbReport],
                  tracks: list[Track]) -> tuple[np.ndarray, ...]:
-        """(z, C, R, radar row, valid, azimuth, conversion height, guessed) of the plots and ADS-B reports, in
-        one pass."""
+        """(z, C, R, radar row, valid, azimuth, conversion height, guessed, ς̂ each plot is linearised at) of the
+        plots and ADS-B reports, in one pass (module docstring)."""
         n, m, k = len(plots), len(reports), len(by_radar)
         alt, guessed = self._heights(plots, tracks)
-        rho = np.fromiter(map(_RANGE, plots), float, n)
+        counts = np.fromiter(map(len, by_radar.values()), np.int64, k)
+        at = np.repeat(np.array([self._estimate(rid) for rid in by_radar], float).reshape(k, 2), counts, axis=0)
+        rho = np.fromiter(map(_RANGE, plots), float, n) - at[:, 0]
         theta = np.fromiter(map(_AZIMUTH, plots), float, n)
         conv = self.converter
         z, C, R, radar, valid = conv.convert_frame(
-            np.fromiter(map(conv.row.__getitem__, by_radar), np.int64, k),
-            np.fromiter(map(len, by_radar.values()), np.int64, k), rho, theta, alt,
+            np.fromiter(map(conv.row.__getitem__, by_radar), np.int64, k), counts, rho, theta - at[:, 1], alt,
             np.fromiter(map(_LAT, reports), float, m), np.fromiter(map(_LON, reports), float, m),
             np.fromiter(map(_NACP, reports), np.int64, m))
+        z[:n] += np.einsum("nij,nj->ni", C[:n], at)
         if guessed.any():  # an assumed altitude is uncertain: near the radar its error moves the plot along the beam
             R[:n][guessed] += altitude_spread(C[:n][guessed], rho[guessed], alt[guessed],
                                               conv.height[radar[:n][guessed]], self.primary_altitude_sd_m)
-        return z, C, R, radar, valid, theta, alt, guessed
+        return z, C, R, radar, valid, theta, alt, guessed, at
+
+    def _estimate(self, radar: str) -> np.ndarray:
+        """ς̂ = (Δr̂, Δθ̂) of ``radar`` a frame's plots are linearised at."""
+        return np.zeros(2) if self.bias is None else np.asarray(self.bias(radar)[0], float)[:2]
 
 
 class Prediction:

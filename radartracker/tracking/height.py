@@ -245,11 +245,13 @@ class HeightEstimator:
         n, meas, conv = len(guessed), frame.meas, self.converter
         z, C, radar = meas.z[:n].copy(), meas.C[:n].copy(), meas.radar[:n]
         h_c, sd_c = frame.height.copy(), np.full(n, self.prior_sd_m)
-        rho = np.fromiter(map(_RANGE, frame.plots), float, n)
+        at = frame.linearised_at  # the bias estimate each plot is converted at (radartracker.tracking.frame)
+        rho = np.fromiter(map(_RANGE, frame.plots), float, n) - at[:, 0]
         todo = self._heights(updates, guessed, self._population(tracks))
         if todo:
             rows, h, sd = (np.array(v) for v in zip(*todo))
-            z2, C2, _, ok = conv.convert(radar[rows], rho[rows], frame.azimuth[rows], h)
+            z2, C2, _, ok = conv.convert(radar[rows], rho[rows], frame.azimuth[rows] - at[rows, 1], h)
+            z2 += np.einsum("nij,nj->ni", C2, at[rows])
             rows, h, sd = rows[ok], h[ok], sd[ok]
             z[rows], C[rows], h_c[rows], sd_c[rows] = z2[ok], C2[ok], h, sd
         R = C @ conv.W[radar] @ np.swapaxes(C, 1, 2)

@@ -84,10 +84,10 @@ class TrackManager:
         self.admission = Admission(self.radars, config.clock, self.counts)
         self.window = ReorderWindow(config.reorder_window_s, config.clock.step_after, config.clock.window)
         converter = PlaneConverter(radars, frames, self.plane)
-        self.frames = FrameBuilder(converter, config.primary_altitude_m, config.primary_altitude_sd_m)
         self.antennas = AntennaSweep(radars, [frames[r.id].xy for r in radars],
                                      [self._grid_north(r) for r in radars])
         self.feed = EstimatorFeed(estimator, self.coupling, self.counts, self._plugin_failed)
+        self.frames = FrameBuilder(converter, config.primary_altitude_m, config.primary_altitude_sd_m, self.feed.bias)
         self.life = TrackLifecycle(config, new_filter, self.feed, self.events, self.counts, self._plugin_failed)
         self.life.labels = getattr(associator, "labels", False)
         self.heights = HeightEstimator(converter, config.height, config.primary_altitude_m,
