@@ -158,9 +158,12 @@ class IMMFilter(TrackFilter):
         self.modes = list(modes)
         n, self.dim = len(modes), int(max(self.dims))
         self._work = np.zeros(compiled.work_shape(n, self.dim))  # the state, the prediction and the scratch
-        self.mu, self.X, self.PP, self.x, self.P = compiled.block_views(self._work, n, self.dim, compiled.STATE)
-        self._pred = compiled.block_views(self._work, n, self.dim, compiled.PREDICTION)  # (c̄, X̄, P̄, χ̄, P̄)
-        _, _, self._zc, self._Rc, _, self._X0, _, _, self._P0, _ = compiled.scratch_views(self._work, n, self.dim)
+        # the kernels' own layout functions, run as plain numpy slicing (their py_func): views made in Python
+        # without numba boxing each one
+        blocks, scratch = compiled.block_views.py_func, compiled.scratch_views.py_func
+        self.mu, self.X, self.PP, self.x, self.P = blocks(self._work, n, self.dim, compiled.STATE)
+        self._pred = blocks(self._work, n, self.dim, compiled.PREDICTION)  # (c̄, X̄, P̄, χ̄, P̄)
+        _, _, self._zc, self._Rc, _, self._X0, _, _, self._P0, _ = scratch(self._work, n, self.dim)
         self.mu[:] = self.mu0
         self.time: float | None = None
         self._pred_time = math.nan  # the time _pred is the prediction for (nan: none)
