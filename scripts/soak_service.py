@@ -198,6 +198,21 @@ def spoof(feed: Feed, port: int, t: float) -> None:
         feed.raw(port, blocks(48, [cat048_bytes(t + dt, sac, sic, 30_000.0, 1.0)], 1472)[0], 1)
 
 
+def wait_checkpoint_after(state: Path, t: float, limit_s: float = 300.0) -> None:
+    """Wait until a complete checkpoint written after wall time ``t`` exists. A periodic checkpoint is
+    skipped while the previous one is still being written (seconds for thousands of tracks, more under load)
+    and one in progress at a stop is superseded, so the checkpoint before the final one can predate the
+    inputs just processed; a resume from it replays them, and their refusals would be counted as the next
+    segment's."""
+    end = time.monotonic() + limit_s
+    while time.monotonic() < end:
+        done = checkpoints(state)
+        if done and json.loads((done[-1][1] / "service.json").read_text())["written"] > t:
+            return
+        time.sleep(0.5)
+    raise RuntimeError(f"no checkpoint written within {limit_s:g} s after the segment settled")
+
+
 def flip_newest_checkpoint(state: Path) -> str:
     """Flip one byte in the middle of the newest checkpoint's manager snapshot; its name."""
     newest = checkpoints(state)[-1][1]  # numbered in numeric order
@@ -311,8 +326,10 @@ def segment_c(feed: Feed, holder: dict, start: float, speed: float, flood: int, 
 def segment_d(feed: Feed, holder: dict, start: float, speed: float, load: int, out: dict) -> dict:
     """After 2 days across a stop and a corrupted newest checkpoint: D, then SIGTERM under full load (D's
     second half and ``load`` new plots sent at once)."""
-    summary, took = holder["svc"].stop()
     state = holder["work"] / "state"
+    holder["svc"].settle()
+    wait_checkpoint_after(state, time.time())  # the checkpoint D falls back to holds all of C
+    summary, took = holder["svc"].stop()
     damaged = flip_newest_checkpoint(state)
     holder["svc"] = svc = Service(holder["work"], feed.sites, holder["publish"], 2 * DAY, holder["svc"])
     resumed = (svc.health() or {}).get("resumed_from")
