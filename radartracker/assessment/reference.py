@@ -17,7 +17,9 @@ radar's exact polar geometry (:class:`radartracker.geometry.plane.RadarFrame`).
 
 from __future__ import annotations
 
+import functools
 import re
+from collections.abc import Sequence
 
 import attrs
 import numpy as np
@@ -29,6 +31,7 @@ from radartracker.pipeline.evaluate import TruthPaths
 from radartracker.simulation.simulator import RecordedTrajectory
 
 _ADDRESS = re.compile(r"^[0-9a-f]{6}$")
+PLANE_SCALE_BOUND = 1.2  # k of the plane out to 5,700 km from its centre, and the chord's c²/24, with room
 
 
 @attrs.frozen
@@ -68,11 +71,46 @@ class Reference:
     plane: SystemPlane
     tracks: dict[str, ReferenceTrack]
 
-    def geodetic(self, key: str, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """WGS84 (lat, lon, height m) of aircraft ``key`` at times ``t`` (inside its span)."""
-        x, y, h = self.tracks[key].trajectory.position(np.asarray(t, float))
+    def geodetic(self, keys: Sequence[str], times: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """WGS84 (lat, lon, height m) of each aircraft ``keys[i]`` at its times ``times[i]`` (inside its span),
+        concatenated in that order: many aircraft in one projection, whose fixed cost per call outweighs its
+        cost per point for the few points of one aircraft."""
+        if not len(keys):
+            return np.empty(0), np.empty(0), np.empty(0)
+        x, y, h = (np.concatenate(v) for v in zip(*(self.tracks[k].trajectory.position(np.asarray(t, float))
+                                                    for k, t in zip(keys, times))))
         lat, lon = self.plane.to_geodetic(x, y)
         return lat, lon, h
+
+    def near(self, site_xy: np.ndarray, reach_m: float) -> Reference:
+        """The aircraft whose reference may come within slant range ``reach_m`` of a site at plane position
+        ``site_xy`` (the others can neither match its plots nor be expected of it): those with a sample at a
+        plane distance d ≤ :data:`PLANE_SCALE_BOUND` · reach + L from the site, L their longest step between
+        samples. Between two samples the path stays within L of one of them (straight lines; a smoothed one
+        departs from its chords by metres); the slant range is at least the ground chord, ρ² = (b − a)² +
+        4ab sin²(c/2) ≥ (2R sin(c/2))² for heights ≥ 0 (a, b the geocentric radii, c the central angle),
+        which is the ground distance s to 1 − c²/24; and s ≥ d/k, k the stereographic plane's scale, 1 + r²/4R²
+        at r from its centre: below the bound out to 5,700 km. Same order of aircraft as ``tracks``."""
+        x, y, first, step = self._vertices
+        if not len(first):
+            return self
+        closest = np.minimum.reduceat(np.hypot(x - site_xy[0], y - site_xy[1]), first)
+        keys = list(self.tracks)
+        keep = np.flatnonzero(closest <= PLANE_SCALE_BOUND * reach_m + step).tolist()
+        return Reference(self.kind, self.plane, {keys[i]: self.tracks[keys[i]] for i in keep})
+
+    @functools.cached_property
+    def _vertices(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Every track's plane (x, y) at its sample times, stacked in the order of ``tracks``; the index of
+        each track's first; each track's longest step between samples (m): what :meth:`near` tests, made once
+        per reference and shared by every radar it is matched with."""
+        if not self.tracks:
+            return np.empty(0), np.empty(0), np.zeros(0, np.int64), np.empty(0)
+        xy = [tr.trajectory.position(tr.times)[:2] for tr in self.tracks.values()]
+        step = np.array([float(np.hypot(np.diff(x), np.diff(y)).max()) for x, y in xy])
+        sizes = np.array([len(x) for x, _ in xy])
+        return (np.concatenate([x for x, _ in xy]), np.concatenate([y for _, y in xy]),
+                np.concatenate([[0], np.cumsum(sizes)[:-1]]), step)
 
     def window(self, lo: float, hi: float) -> Reference:
         """The aircraft flying during [lo, hi], each cut to its samples there and one either side: the same
