@@ -115,13 +115,16 @@ def _associate(frame: RadarFrame, t: np.ndarray, polar: tuple[np.ndarray, np.nda
     key, best, ref = np.full(n, "", dtype=object), np.full(n, np.inf), np.full((3, n), np.nan)
     names = list(reference.tracks)
     rows = [np.flatnonzero(track.covered(t)) for track in reference.tracks.values()]
+    g = config.gate_range_m  # a pair whose slant range cannot be within G_ρ of the plot's is not projected
+    rows = [r[(polar[0][r] >= lo - g) & (polar[0][r] <= hi + g)]
+            for r, (lo, hi) in zip(rows, reference.slant_range_bounds(frame, [t[r] for r in rows]))]
     lat, lon, h = reference.geodetic(names, [t[r] for r in rows])
     if not len(h):
         return key, best, ref
     r_ref, a_ref, _ = frame.polar(lat, lon, h)
     plot = np.concatenate(rows)
     owner = np.repeat(np.arange(len(names)), [len(r) for r in rows])
-    d2 = ((polar[0][plot] - r_ref) / config.gate_range_m) ** 2 \
+    d2 = ((polar[0][plot] - r_ref) / g) ** 2 \
         + (wrap_angle(polar[1][plot] - a_ref) / math.radians(config.gate_azimuth_deg)) ** 2
     gated = np.flatnonzero(d2 <= 1.0)
     order = gated[np.lexsort((owner[gated], d2[gated], plot[gated]))]  # by plot, then d², then aircraft
