@@ -1,11 +1,13 @@
 """Matching a radar's plots looks only at the reference aircraft that may come within its reach
-(:meth:`Reference.near`) and at all of them in one projection: the same matches and expected crossings as
-every aircraft, and the same association as a brute-force loop over plots and aircraft."""
+(:meth:`Reference.near`), projects only the (aircraft, plot) pairs whose slant range may fill the gate
+(:meth:`Reference.slant_range_bounds`), all in one projection: the same matches and expected crossings as
+every pair of every aircraft, and the same association as a brute-force loop over plots and aircraft."""
 
 from __future__ import annotations
 
 import math
 
+import attrs
 import numpy as np
 import pytest
 
@@ -15,12 +17,17 @@ from radartracker.geometry.plane import RadarFrame
 from radartracker.simulation.traffic import traffic_scenario
 
 
-@pytest.fixture(scope="module")
-def scenario():
-    """Radars 200 km apart seeing 120 km: each sees a few of the aircraft; false plots fill no gate."""
+@pytest.fixture(scope="module", params=["truth", "adsb"])
+def scenario(request):
+    """Radars 200 km apart seeing 120 km: each sees a few of the aircraft; false plots fill no gate. Against
+    the truth (straight lines) and against smoothed ADS-B (splines: every pair within reach projected)."""
     data = traffic_scenario(seed=2, duration=90.0, aircraft=60, radars=4, max_range_km=120.0,
-                            false_per_scan=1.0).run()
-    return data, build_reference(data)
+                            false_per_scan=1.0, adsb_share=0.6).run()
+    if request.param == "adsb":
+        data = attrs.evolve(data, truth=None)
+    reference = build_reference(data)
+    assert reference.kind == request.param
+    return data, reference
 
 
 def _match(data, reference: Reference, radar, keep=(-math.inf, math.inf)):
@@ -37,6 +44,8 @@ def test_culled_matching_equals_matching_every_aircraft(scenario, monkeypatch):
     culled = {(r.id, keep): _match(data, reference, r, keep)[2] for r in radars
               for keep in ((-math.inf, math.inf), (30.0, 60.0))}
     monkeypatch.setattr(Reference, "near", lambda self, site_xy, reach_m: self)
+    monkeypatch.setattr(Reference, "slant_range_bounds",
+                        lambda self, frame, times: [(np.full(len(t), -np.inf), np.full(len(t), np.inf)) for t in times])
     for (radar_id, keep), a in culled.items():
         b = _match(data, reference, next(r for r in radars if r.id == radar_id), keep)[2]
         for name in ("aircraft", "d2", "ref_range", "ref_azimuth", "ref_altitude", "scan"):
@@ -62,6 +71,18 @@ def test_near_keeps_every_aircraft_within_reach(scenario):
             if rho.min() <= radar.max_range_m:
                 assert key in near.tracks, (radar.id, key, rho.min())
     assert dropped > len(reference.tracks)
+
+
+def test_slant_range_bounds_hold_the_exact_range(scenario):
+    """At 0.25 s steps the exact slant range lies within the bounds, which are tight on straight lines."""
+    data, reference = scenario
+    frame = RadarFrame(data.radars[0].lat, data.radars[0].lon, data.radars[0].height_m, reference.plane)
+    times = [np.arange(tr.times[0], tr.times[-1], 0.25) for tr in reference.tracks.values()]
+    rho, _, _ = frame.polar(*reference.geodetic(list(reference.tracks), times))
+    lo, hi = (np.concatenate(b) for b in zip(*reference.slant_range_bounds(frame, times)))
+    assert np.all((lo <= rho) & (rho <= hi))
+    if reference.kind == "truth":
+        assert np.max(hi - lo) < 3e3
 
 
 def test_association_equals_a_brute_force_loop(scenario):
