@@ -9,7 +9,10 @@ detections the radar should have made.
 * **Association.** Each plot, its range and azimuth corrected by the radar's estimated bias, is compared at
   its own time with the exact slant range and azimuth of every reference aircraft
   (:meth:`radartracker.geometry.plane.RadarFrame.polar`); it goes to the one of least
-  d² = (Δρ/G_ρ)² + (Δθ/G_θ)², if d² ≤ 1 (the gate: :class:`MatchConfig`).
+  d² = (Δρ/G_ρ)² + (Δθ/G_θ)², if d² ≤ 1 (the gate: :class:`MatchConfig`). An aircraft that cannot come
+  within the radar's reach (:meth:`Reference.near`), or whose slant range at a plot's time cannot lie
+  within G_ρ of the plot's (:meth:`Reference.slant_range_bounds`), cannot fill that gate and is not
+  projected there: the same matches at a cost that grows with the traffic, not with its square.
 * **Expected detections.** In each revolution the antenna crosses a reference aircraft at the t solving
   t = t_N + (n + θ_ref(t)/2π) T (three fixed-point steps; crossings two revolutions' iterations meet near
   north counted once). The radar should detect it there when the reference is inside its coverage: slant
