@@ -9,7 +9,10 @@ detections the radar should have made.
 * **Association.** Each plot, its range and azimuth corrected by the radar's estimated bias, is compared at
   its own time with the exact slant range and azimuth of every reference aircraft
   (:meth:`radartracker.geometry.plane.RadarFrame.polar`); it goes to the one of least
-  d² = (Δρ/G_ρ)² + (Δθ/G_θ)², if d² ≤ 1 (the gate: :class:`MatchConfig`).
+  d² = (Δρ/G_ρ)² + (Δθ/G_θ)², if d² ≤ 1 (the gate: :class:`MatchConfig`). An aircraft that cannot come
+  within the radar's reach (:meth:`Reference.near`), or whose slant range at a plot's time cannot lie
+  within G_ρ of the plot's (:meth:`Reference.slant_range_bounds`), cannot fill that gate and is not
+  projected there: the same matches at a cost that grows with the traffic, not with its square.
 * **Expected detections.** In each revolution the antenna crosses a reference aircraft at the t solving
   t = t_N + (n + θ_ref(t)/2π) T (three fixed-point steps; crossings two revolutions' iterations meet near
   north counted once). The radar should detect it there when the reference is inside its coverage: slant
@@ -87,68 +90,109 @@ def match_radar(radar: Radar, frame: RadarFrame, t: np.ndarray, rho: np.ndarray,
     A time slice of a longer recording (:mod:`radartracker.assessment.slices`) gives ``antenna``: t_N and the
     span (first, last plot time) of *all* the radar's plots, and ``keep``: the slice [t₀, t₁); its plots and
     reference then cover the slice and a margin either side, and only the crossings inside the slice are
-    expected of it (computed from the same revolutions as over the whole recording: the same figures)."""
+    expected of it (computed from the same revolutions as over the whole recording: the same figures).
+
+    Only the aircraft that may come within max(``max_range_m``, max ρ + G_ρ) of the radar are looked at
+    (:meth:`Reference.near`): one farther is outside its coverage and every plot's gate."""
     n = len(t)
-    best = np.full(n, np.inf)
-    key = np.full(n, "", dtype=object)
-    ref = np.full((3, n), np.nan)
     rho_c, theta_c = rho - bias[0], theta - bias[1]
-    g_r, g_a = config.gate_range_m, math.radians(config.gate_azimuth_deg)
-    for name, track in reference.tracks.items():
-        idx = np.flatnonzero(track.covered(t))
-        if not len(idx):
-            continue
-        lat, lon, h = reference.geodetic(name, t[idx])
-        r_ref, a_ref, _ = frame.polar(lat, lon, h)
-        d2 = ((rho_c[idx] - r_ref) / g_r) ** 2 + (wrap_angle(theta_c[idx] - a_ref) / g_a) ** 2
-        win = (d2 <= 1.0) & (d2 < best[idx])
-        w = idx[win]
-        best[w], key[w] = d2[win], name
-        ref[0, w], ref[1, w] = r_ref[win], a_ref[win]
-        ref[2, w] = h[win]
+    reach = max(radar.max_range_m, float(rho_c.max()) + config.gate_range_m if n else 0.0)
+    near = reference.near(frame.xy, reach)
+    key, best, ref = _associate(frame, t, (rho_c, theta_c), near, config)
     if antenna is None:
         antenna = (north_time(t, theta, radar.period_s) if n else 0.0,
                    (float(t.min()), float(t.max())) if n else (0.0, 0.0))
     t_n, span = antenna
     scan, _ = antenna_offsets(t, theta, radar.period_s, t_n)
-    expected = _expected(radar, frame, reference, config, t_n, (span, keep))
+    expected = _expected(radar, frame, near, config, t_n, (span, keep))
     expected["detected"] = _detected(expected, key, t, radar.period_s)
     return RadarMatch(key, best, ref[0], ref[1], ref[2], scan, t_n, expected)
+
+
+def _associate(frame: RadarFrame, t: np.ndarray, polar: tuple[np.ndarray, np.ndarray], reference: Reference,
+               config: MatchConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each plot's aircraft ('' none), d² (inf none) and the reference's (ρ, θ, h) there (NaN none): of every
+    (aircraft, plot) pair whose time the aircraft's reference covers, in one projection, the plot's pair of
+    least d² ≤ 1, the first aircraft of ``reference`` on a tie. ``polar``: the plots' bias-corrected ρ, θ."""
+    n = len(t)
+    key, best, ref = np.full(n, "", dtype=object), np.full(n, np.inf), np.full((3, n), np.nan)
+    names = list(reference.tracks)
+    rows = [np.flatnonzero(track.covered(t)) for track in reference.tracks.values()]
+    g = config.gate_range_m  # a pair whose slant range cannot be within G_ρ of the plot's is not projected
+    rows = [r[(polar[0][r] >= lo - g) & (polar[0][r] <= hi + g)]
+            for r, (lo, hi) in zip(rows, reference.slant_range_bounds(frame, [t[r] for r in rows]))]
+    lat, lon, h = reference.geodetic(names, [t[r] for r in rows])
+    if not len(h):
+        return key, best, ref
+    r_ref, a_ref, _ = frame.polar(lat, lon, h)
+    plot = np.concatenate(rows)
+    owner = np.repeat(np.arange(len(names)), [len(r) for r in rows])
+    d2 = ((polar[0][plot] - r_ref) / g) ** 2 \
+        + (wrap_angle(polar[1][plot] - a_ref) / math.radians(config.gate_azimuth_deg)) ** 2
+    gated = np.flatnonzero(d2 <= 1.0)
+    order = gated[np.lexsort((owner[gated], d2[gated], plot[gated]))]  # by plot, then d², then aircraft
+    win = order[np.concatenate([[True], np.diff(plot[order]) != 0])] if len(order) else order
+    w = plot[win]
+    key[w], best[w] = np.array(names, dtype=object)[owner[win]], d2[win]
+    ref[0, w], ref[1, w], ref[2, w] = r_ref[win], a_ref[win], h[win]
+    return key, best, ref
 
 
 def _expected(radar: Radar, frame: RadarFrame, reference: Reference, config: MatchConfig, t_north: float,
               spans: tuple[tuple[float, float], tuple[float, float]]) -> dict[str, np.ndarray]:
     """The crossings of every reference aircraft inside the radar's coverage during the plots' span that fall
-    in the slice ``keep`` (``spans``: both, :func:`match_radar`). The crossing of revolution n lies in
-    [t_N + nT, t_N + (n+1)T], so the revolutions from 2T before the slice to 2T after it hold them all."""
+    in the slice ``keep`` (``spans``: both, :func:`match_radar`), every aircraft's in one projection per
+    step; in the order of ``reference``'s aircraft, then of revolution."""
     T = radar.period_s
-    span, keep = spans
     dip = math.acos(_EARTH_RADIUS_M / (_EARTH_RADIUS_M + max(radar.height_m, 0.0)))
     cone = math.radians(config.cone_of_silence_deg)
-    cols: dict[str, list] = {k: [] for k in ("aircraft", "time", "range_m", "azimuth_deg", "altitude_m", "x", "y")}
+    names, owner, tc = _crossing_times(frame, reference, t_north, T, spans)
+    lat, lon, h = reference.geodetic(names, np.split(tc, np.cumsum(np.bincount(owner, minlength=len(names)))[:-1]))
+    rho, theta, elev = frame.polar(lat, lon, h)
+    # labelled as a plot there would be: near north two revolutions' iterations can meet one crossing
+    label = antenna_offsets(tc, theta, T, t_north)[0]
+    order = np.lexsort((label, owner))
+    first = order[np.concatenate([[True], (np.diff(owner[order]) != 0) | (np.diff(label[order]) != 0)])] \
+        if len(order) else order
+    lat, lon, h, rho, theta, elev, tc, owner = (v[first] for v in (lat, lon, h, rho, theta, elev, tc, owner))
+    keep = spans[1]
+    inside = (rho <= radar.max_range_m) & (elev >= -dip) & (elev <= cone) & (tc >= keep[0]) & (tc < keep[1])
+    x, y = reference.plane.to_plane(lat[inside], lon[inside])
+    return {"aircraft": np.array(names, dtype=object)[owner[inside]], "time": tc[inside],
+            "range_m": rho[inside], "azimuth_deg": np.degrees(theta[inside]), "altitude_m": h[inside],
+            "x": np.asarray(x, float), "y": np.asarray(y, float)}
+
+
+def _crossing_times(frame: RadarFrame, reference: Reference, t_north: float, T: float,
+                    spans: tuple[tuple[float, float], tuple[float, float]]) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """The aircraft with a crossing to look at, and per crossing its aircraft (index into them) and time, in
+    order: the t solving t = t_N + (n + θ_ref(t)/2π) T by three fixed-point steps, for the revolutions n from
+    2T before the slice to 2T after it (the crossing of revolution n lies in [t_N + nT, t_N + (n+1)T]), kept
+    where the aircraft's reference covers it and the radar's plots span it."""
+    span, keep = spans
+    names, lo, hi, scans = [], [], [], []
     for name, track in reference.tracks.items():
-        lo, hi = max(track.times[0], span[0]), min(track.times[-1], span[1])
-        a, b = max(lo, keep[0] - 2 * T), min(hi, keep[1] + 2 * T)
-        if b <= a:
-            continue
-        scans = np.arange(math.floor((a - t_north) / T), math.ceil((b - t_north) / T) + 1)
-        tc = t_north + scans * T
-        for _ in range(3):
-            _, theta, _ = frame.polar(*reference.geodetic(name, np.clip(tc, lo, hi)))
-            tc = t_north + (scans + theta / TWO_PI) * T
-        tc = tc[(tc >= lo) & (tc <= hi) & track.covered(tc)]
-        lat, lon, h = reference.geodetic(name, tc)
-        rho, theta, elev = frame.polar(lat, lon, h)
-        # labelled as a plot there would be: near north two revolutions' iterations can meet one crossing
-        _, first = np.unique(antenna_offsets(tc, theta, T, t_north)[0], return_index=True)
-        lat, lon, h, rho, theta, elev, tc = (v[first] for v in (lat, lon, h, rho, theta, elev, tc))
-        inside = (rho <= radar.max_range_m) & (elev >= -dip) & (elev <= cone) & (tc >= keep[0]) & (tc < keep[1])
-        x, y = reference.plane.to_plane(lat[inside], lon[inside])
-        for k, v in (("aircraft", np.full(int(inside.sum()), name, dtype=object)), ("time", tc[inside]),
-                     ("range_m", rho[inside]), ("azimuth_deg", np.degrees(theta[inside])), ("altitude_m", h[inside]),
-                     ("x", x), ("y", y)):
-            cols[k].append(np.asarray(v))
-    return {k: np.concatenate(v) if v else np.empty(0, object if k == "aircraft" else float) for k, v in cols.items()}
+        l, u = max(track.times[0], span[0]), min(track.times[-1], span[1])
+        a, b = max(l, keep[0] - 2 * T), min(u, keep[1] + 2 * T)
+        if b > a:
+            names.append(name)
+            lo.append(l)
+            hi.append(u)
+            scans.append(np.arange(math.floor((a - t_north) / T), math.ceil((b - t_north) / T) + 1))
+    if not names:
+        return names, np.zeros(0, np.int64), np.empty(0)
+    counts = [len(s) for s in scans]
+    owner = np.repeat(np.arange(len(names)), counts)
+    scan = np.concatenate(scans)
+    lo_c, hi_c = np.repeat(lo, counts), np.repeat(hi, counts)
+    cuts = np.cumsum(counts)[:-1]
+    tc = t_north + scan * T
+    for _ in range(3):
+        _, theta, _ = frame.polar(*reference.geodetic(names, np.split(np.clip(tc, lo_c, hi_c), cuts)))
+        tc = t_north + (scan + theta / TWO_PI) * T
+    covered = np.concatenate([reference.tracks[k].covered(part) for k, part in zip(names, np.split(tc, cuts))])
+    ok = (tc >= lo_c) & (tc <= hi_c) & covered
+    return names, owner[ok], tc[ok]
 
 
 def _detected(expected: dict[str, np.ndarray], key: np.ndarray, t: np.ndarray, period_s: float) -> np.ndarray:

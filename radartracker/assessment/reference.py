@@ -17,18 +17,22 @@ radar's exact polar geometry (:class:`radartracker.geometry.plane.RadarFrame`).
 
 from __future__ import annotations
 
+import functools
 import re
+from collections.abc import Sequence
+from typing import NamedTuple
 
 import attrs
 import numpy as np
 
 from radartracker.errors import InputError
-from radartracker.geometry.plane import SystemPlane
+from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.evaluate import TruthPaths
 from radartracker.simulation.simulator import RecordedTrajectory
 
 _ADDRESS = re.compile(r"^[0-9a-f]{6}$")
+PLANE_SCALE_BOUND = 1.2  # k of the plane out to 5,700 km from its centre, and the chord's c²/24, with room
 
 
 @attrs.frozen
@@ -39,6 +43,16 @@ class ReferenceConfig:
     min_nacp: int = attrs.field(default=7, validator=[attrs.validators.ge(1), attrs.validators.le(11)])
     max_gap_s: float = attrs.field(default=20.0, validator=attrs.validators.gt(0.0))
     min_reports: int = attrs.field(default=10, validator=attrs.validators.ge(2))
+
+
+class _Vertices(NamedTuple):
+    """:attr:`Reference._vertices`."""
+
+    x: np.ndarray
+    y: np.ndarray
+    h: np.ndarray
+    first: np.ndarray
+    step: np.ndarray
 
 
 @attrs.frozen
@@ -68,11 +82,66 @@ class Reference:
     plane: SystemPlane
     tracks: dict[str, ReferenceTrack]
 
-    def geodetic(self, key: str, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """WGS84 (lat, lon, height m) of aircraft ``key`` at times ``t`` (inside its span)."""
-        x, y, h = self.tracks[key].trajectory.position(np.asarray(t, float))
+    def geodetic(self, keys: Sequence[str], times: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """WGS84 (lat, lon, height m) of each aircraft ``keys[i]`` at its times ``times[i]`` (inside its span),
+        concatenated in that order: many aircraft in one projection, whose fixed cost per call outweighs its
+        cost per point for the few points of one aircraft."""
+        if not len(keys):
+            return np.empty(0), np.empty(0), np.empty(0)
+        x, y, h = (np.concatenate(v) for v in zip(*(self.tracks[k].trajectory.position(np.asarray(t, float))
+                                                    for k, t in zip(keys, times))))
         lat, lon = self.plane.to_geodetic(x, y)
         return lat, lon, h
+
+    def near(self, site_xy: np.ndarray, reach_m: float) -> Reference:
+        """The aircraft whose reference may come within slant range ``reach_m`` of a site at plane position
+        ``site_xy`` (the others can neither match its plots nor be expected of it): those with a sample at a
+        plane distance d ≤ :data:`PLANE_SCALE_BOUND` · reach + L from the site, L their longest step between
+        samples. Between two samples the path stays within L of one of them (straight lines; a smoothed one
+        departs from its chords by metres); the slant range is at least the ground chord, ρ² = (b − a)² +
+        4ab sin²(c/2) ≥ (2R sin(c/2))² for heights ≥ 0 (a, b the geocentric radii, c the central angle),
+        which is the ground distance s to 1 − c²/24; and s ≥ d/k, k the stereographic plane's scale, 1 + r²/4R²
+        at r from its centre: below the bound out to 5,700 km. Same order of aircraft as ``tracks``."""
+        v = self._vertices
+        if not len(v.first):
+            return self
+        closest = np.minimum.reduceat(np.hypot(v.x - site_xy[0], v.y - site_xy[1]), v.first)
+        keys = list(self.tracks)
+        keep = np.flatnonzero(closest <= PLANE_SCALE_BOUND * reach_m + v.step).tolist()
+        return Reference(self.kind, self.plane, {keys[i]: self.tracks[keys[i]] for i in keep})
+
+    def slant_range_bounds(self, frame: RadarFrame, times: Sequence[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Per aircraft (in the order of ``tracks``), bounds [lo, hi] of the exact slant range from ``frame``'s
+        site at each of its ``times`` (inside its span), from the exact ρ at the two samples around it and no
+        projection at those times: ρ moves by no more than the path, so ρ(t) lies within min(ρᵢ, ρᵢ₊₁) − Lᵢ
+        and max(ρᵢ, ρᵢ₊₁) + Lᵢ, Lᵢ = :data:`PLANE_SCALE_BOUND` · dᵢ + |Δhᵢ| bounding the length of the
+        straight step between the samples (dᵢ its plane length, :meth:`near`). A smoothed track's path
+        between samples is no straight line: (−∞, ∞)."""
+        v = self._vertices
+        lat, lon = self.plane.to_geodetic(v.x, v.y)
+        rho, _, _ = frame.polar(lat, lon, v.h)
+        out = []
+        for first, tr, t in zip(v.first.tolist(), self.tracks.values(), times):
+            if tr.trajectory.smoothed:
+                out.append((np.full(len(t), -np.inf), np.full(len(t), np.inf)))
+                continue
+            i = first + np.clip(np.searchsorted(tr.times, t), 1, len(tr.times) - 1)
+            step = PLANE_SCALE_BOUND * np.hypot(v.x[i] - v.x[i - 1], v.y[i] - v.y[i - 1]) + np.abs(v.h[i] - v.h[i - 1])
+            out.append((np.minimum(rho[i - 1], rho[i]) - step, np.maximum(rho[i - 1], rho[i]) + step))
+        return out
+
+    @functools.cached_property
+    def _vertices(self) -> _Vertices:
+        """Every track's position at its sample times (plane x, y and height, m), stacked in the order of
+        ``tracks``; the index of each track's first; each track's longest plane step between samples (m):
+        what :meth:`near` and :meth:`slant_range_bounds` use, made once per reference."""
+        if not self.tracks:
+            return _Vertices(np.empty(0), np.empty(0), np.empty(0), np.zeros(0, np.int64), np.empty(0))
+        xyh = [tr.trajectory.position(tr.times) for tr in self.tracks.values()]
+        step = np.array([float(np.hypot(np.diff(x), np.diff(y)).max()) for x, y, _ in xyh])
+        sizes = np.array([len(x) for x, _, _ in xyh])
+        x, y, h = (np.concatenate(c) for c in zip(*xyh))
+        return _Vertices(x, y, h, np.concatenate([[0], np.cumsum(sizes)[:-1]]), step)
 
     def window(self, lo: float, hi: float) -> Reference:
         """The aircraft flying during [lo, hi], each cut to its samples there and one either side: the same
