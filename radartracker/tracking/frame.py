@@ -143,16 +143,15 @@ class FrameBuilder:
         alt, guessed = self._heights(plots, tracks)
         counts = np.fromiter(map(len, by_radar.values()), np.int64, k)
         at = np.repeat(np.array([self._estimate(rid) for rid in by_radar], float).reshape(k, 2), counts, axis=0)
-        rho = np.fromiter(map(_RANGE, plots), float, n) - at[:, 0]
+        rho = np.fromiter(map(_RANGE, plots), float, n)
         theta = np.fromiter(map(_AZIMUTH, plots), float, n)
         conv = self.converter
         z, C, R, radar, valid = conv.convert_frame(
-            np.fromiter(map(conv.row.__getitem__, by_radar), np.int64, k), counts, rho, theta - at[:, 1], alt,
+            np.fromiter(map(conv.row.__getitem__, by_radar), np.int64, k), counts, rho, theta, alt,
             np.fromiter(map(_LAT, reports), float, m), np.fromiter(map(_LON, reports), float, m),
-            np.fromiter(map(_NACP, reports), np.int64, m))
-        z[:n] += np.einsum("nij,nj->ni", C[:n], at)
+            np.fromiter(map(_NACP, reports), np.int64, m), at=at)
         if guessed.any():  # an assumed altitude is uncertain: near the radar its error moves the plot along the beam
-            R[:n][guessed] += altitude_spread(C[:n][guessed], rho[guessed], alt[guessed],
+            R[:n][guessed] += altitude_spread(C[:n][guessed], (rho - at[:, 0])[guessed], alt[guessed],
                                               conv.height[radar[:n][guessed]], self.primary_altitude_sd_m)
         return z, C, R, radar, valid, theta, alt, guessed, at
 

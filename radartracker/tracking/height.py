@@ -246,14 +246,14 @@ class HeightEstimator:
         z, C, radar = meas.z[:n].copy(), meas.C[:n].copy(), meas.radar[:n]
         h_c, sd_c = frame.height.copy(), np.full(n, self.prior_sd_m)
         at = frame.linearised_at  # the bias estimate each plot is converted at (radartracker.tracking.frame)
-        rho = np.fromiter(map(_RANGE, frame.plots), float, n) - at[:, 0]
+        rho = np.fromiter(map(_RANGE, frame.plots), float, n)
         todo = self._heights(updates, guessed, self._population(tracks))
         if todo:
             rows, h, sd = (np.array(v) for v in zip(*todo))
-            z2, C2, _, ok = conv.convert(radar[rows], rho[rows], frame.azimuth[rows] - at[rows, 1], h)
-            z2 += np.einsum("nij,nj->ni", C2, at[rows])
+            z2, C2, _, ok = conv.convert(radar[rows], rho[rows], frame.azimuth[rows], h, at=at[rows])
             rows, h, sd = rows[ok], h[ok], sd[ok]
             z[rows], C[rows], h_c[rows], sd_c[rows] = z2[ok], C2[ok], h, sd
+        rho = rho - at[:, 0]  # the slant range the plots were converted at, for g and g₂
         R = C @ conv.W[radar] @ np.swapaxes(C, 1, 2)
         g = height_gradient(C, rho, h_c, conv.height[radar])
         if todo:

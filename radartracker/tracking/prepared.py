@@ -53,16 +53,22 @@ class PlaneConverter:
 
     def convert_frame(self, radars: np.ndarray, counts: np.ndarray, rho: np.ndarray, theta: np.ndarray,
                       alt: np.ndarray, lat: np.ndarray, lon: np.ndarray, nacp: np.ndarray,
-                      iterations: int = 4) -> tuple[np.ndarray, ...]:
+                      iterations: int = 4, at: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
         """A frame's n plots radar by radar (``counts[k]`` plots of the radar in row ``radars[k]``, after
         those of the radars before it), then its m ADS-B positions (``lat``, ``lon``, NACp ``nacp``), as
         rows of z (n+m, 2), C_s (n+m, 2, 2), R (n+m, 2, 2) and the radar's row (n+m; −1: ADS-B), and the
         plots' validity (n): a plot's row as :meth:`RadarFrame.to_plane` and :meth:`RadarFrame.bias_jacobian`
         give it (valid where its height after Newton's steps is within 1 cm of its altitude), an ADS-B row
         its plane position with C = 0 and R = σ² I, σ = :func:`~radartracker.domain.nacp_sigma_m` of its
-        NACp (ValueError if not 1 … 11)."""
+        NACp (ValueError if not 1 … 11).
+
+        ``at`` (n, 2): the bias estimate ς̂ = (Δr̂, Δθ̂) each plot is linearised at — converted at
+        (ρ − Δr̂, θ − Δθ̂), C_s taken there, and z = f(ρ − Δr̂, θ − Δθ̂) + C_s ς̂, so that z − C_s ς is exact at
+        ς = ς̂ (an EKF's relinearisation; :mod:`radartracker.tracking.frame`). None: at ς̂ = 0."""
         radars, counts = np.asarray(radars, np.int64), np.asarray(counts, np.int64)
         rho, theta, alt, lat, lon = (np.asarray(v, float) for v in (rho, theta, alt, lat, lon))
+        if at is not None:
+            rho, theta = rho - at[:, 0], theta - at[:, 1]
         nacp = np.asarray(nacp, np.int64)
         if len(radars) != len(counts) or np.any(counts < 0) or counts.sum() != len(rho):
             raise ValueError("counts: one per radar, not negative, adding up to the plots")
@@ -75,6 +81,8 @@ class PlaneConverter:
         n = len(rho)
         C = np.zeros((len(z), 2, 2))
         C[:n] = bias_jacobian(self.xy[rows], self.height[rows], z[:n], rho, alt)
+        if at is not None:
+            z[:n] += np.einsum("nij,nj->ni", C[:n], at)
         R = np.empty_like(C)
         R[:n] = C[:n] @ self.W[rows] @ np.swapaxes(C[:n], 1, 2)
         R[n:] = _NACP_SD[nacp][:, None, None] ** 2 * np.eye(2)
@@ -98,12 +106,14 @@ class PlaneConverter:
         return np.asarray(lon, float), np.asarray(lat, float), np.asarray(h, float)
 
     def convert(self, rows: np.ndarray, rho: np.ndarray, theta: np.ndarray, alt: np.ndarray,
-                lat: np.ndarray | None = None, lon: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
-        """Plots → (z (n, 2), C_s (n, 2, 2), R (n, 2, 2), valid (n)); with ``lat``/``lon`` given (ADS-B
-        positions), also their plane positions (m, 2) from the same pyproj call (:meth:`convert_frame`)."""
+                lat: np.ndarray | None = None, lon: np.ndarray | None = None,
+                at: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+        """Plots → (z (n, 2), C_s (n, 2, 2), R (n, 2, 2), valid (n)), linearised at ``at`` where given; with
+        ``lat``/``lon`` given (ADS-B positions), also their plane positions (m, 2) from the same pyproj call
+        (:meth:`convert_frame`)."""
         m = 0 if lat is None else len(lat)
         ll = (np.zeros(0), np.zeros(0)) if lat is None else (lat, lon)
         z, C, R, _, valid = self.convert_frame(rows, np.ones(len(rows), np.int64), rho, theta, alt, *ll,
-                                               np.full(m, 8, np.int64))
+                                               np.full(m, 8, np.int64), at=at)
         n = len(valid)
         return (z[:n], C[:n], R[:n], valid) + ((z[n:],) if lat is not None else ())
