@@ -9,7 +9,7 @@ together with their range biases: each aircraft seen by radar j gives the along-
 (k = |g|/|c| varies with the range), and the biases are shared by every aircraft a radar sees. Hence two parts:
 
 **Per track**, a :class:`HeightFilter`: a Kalman filter of s = [x, y, vx, vy, h, b_1 … b_m] (b_j the range
-bias of each radar that has seen the track, prior N(0, σ_b²), σ_b = ``range_bias_sd_m``; h prior
+bias of each radar that has seen the track, prior N(0, σ_b²), σ_b the bias estimator's range prior; h prior
 N(h₀, σ₀²) = (``primary_altitude_m``, ``primary_altitude_sd_m``)), fed the track's plots corrected for their
 radar's azimuth bias only (range uncorrected):
 
@@ -60,7 +60,7 @@ _RANGE = attrgetter("range_m")
 class HeightConfig:
     """The height estimate of tracks without altitude (module docstring): ``enabled``; ``q`` (m²/s³) the
     white horizontal acceleration of its filters; ``q_height`` (m²/s) the height's random walk;
-    ``range_bias_sd_m``: the prior σ of a radar's range bias; ``observable_sd_m``: the σ_h below which a
+    ``observable_sd_m``: the σ_h below which a
     height is used and reported; ``solve_every_s``: the period of the joint solve; ``gate``: the d² (χ²₂ 99.9 %)
     beyond which a plot does not update a height filter (a manoeuvre its constant velocity does not follow, a
     wrong plot), ``restart_after`` such plots in a row start it again; ``population_min``: the observable heights
@@ -70,7 +70,6 @@ class HeightConfig:
     enabled: bool = True
     q: float = attrs.field(default=5.0, validator=attrs.validators.ge(0.0))
     q_height: float = attrs.field(default=100.0, validator=attrs.validators.ge(0.0))
-    range_bias_sd_m: float = attrs.field(default=500.0, validator=attrs.validators.gt(0.0))
     observable_sd_m: float = attrs.field(default=1000.0, validator=attrs.validators.gt(0.0))
     solve_every_s: float = attrs.field(default=10.0, validator=attrs.validators.gt(0.0))
     gate: float = attrs.field(default=13.82, validator=attrs.validators.gt(0.0))
@@ -220,10 +219,13 @@ def joint_heights(filters: list[HeightFilter], radars: int, sd_b: float
 class HeightEstimator:
     """The frame's stage that estimates and feeds back the heights of tracks without altitude (module
     docstring). ``converter``: the manager's :class:`~radartracker.tracking.prepared.PlaneConverter`;
-    ``bias(radar)``: (ς̂, P_ς) as the frame reads them; ``prior_m``, ``prior_sd_m``: the assumed height."""
+    ``bias(radar)``: (ς̂, P_ς) as the frame reads them; ``prior_m``, ``prior_sd_m``: the assumed height;
+    ``range_bias_sd_m``: σ_b, the bias estimator's prior σ of a range bias (one prior for one quantity)."""
 
-    def __init__(self, converter, config: HeightConfig, prior_m: float, prior_sd_m: float, bias) -> None:
+    def __init__(self, converter, config: HeightConfig, prior_m: float, prior_sd_m: float, bias,
+                 range_bias_sd_m: float) -> None:
         self.converter, self.config, self.bias = converter, config, bias
+        self.sd_b = float(range_bias_sd_m)
         self.prior_m, self.prior_sd_m = float(prior_m), float(prior_sd_m)
         self.rows: tuple[np.ndarray, ...] | None = None  # the frame's plots: guessed, radar, z, R, g, c, h_c
 
@@ -299,7 +301,7 @@ class HeightEstimator:
         if not owners:
             return
         cfg = self.config
-        _, _, heights = joint_heights([tr.height for tr in owners], len(self.converter.ids), cfg.range_bias_sd_m)
+        _, _, heights = joint_heights([tr.height for tr in owners], len(self.converter.ids), self.sd_b)
         for tr, (h, sd) in zip(owners, heights):
             tr.height.fix = (h, sd, now) if math.isfinite(sd) else None
             tr.altitude_m, tr.altitude_sd_m = (h, sd) if sd <= cfg.observable_sd_m else (None, None)
@@ -335,7 +337,7 @@ class HeightEstimator:
         if not guessed[k]:
             return
         row = PlotRow(z[k], R[k], g[k], c[k], float(h_c[k]))
-        sd_b, filt = self.config.range_bias_sd_m, tr.height
+        sd_b, filt = self.sd_b, tr.height
         restart = filt is not None and (filt.misses >= self.config.restart_after
                                         or not filt.settled and filt.fix is not None)
         if filt is None or restart:  # (re)start: see the module docstring

@@ -91,7 +91,7 @@ class TrackManager:
         self.life = TrackLifecycle(config, new_filter, self.feed, self.events, self.counts, self._plugin_failed)
         self.life.labels = getattr(associator, "labels", False)
         self.heights = HeightEstimator(converter, config.height, config.primary_altitude_m,
-                                       config.primary_altitude_sd_m, self.feed.bias)
+                                       config.primary_altitude_sd_m, self.feed.bias, estimator.config.bias_sd_range_m)
         self.life.took = self.heights.took
         self.frame: int | None = None  # the number of the frame being gathered (time // frame_s)
         self.gathered: list[Input] = []  # its inputs so far
