@@ -31,9 +31,7 @@ import numpy as np
 
 from radartracker.assessment.reference import Reference
 from radartracker.domain import TWO_PI, Radar
-from radartracker.geometry.plane import RadarFrame
-
-_EARTH_RADIUS_M = 6_371_008.8
+from radartracker.geometry.plane import RadarFrame, in_coverage
 
 
 @attrs.frozen
@@ -144,8 +142,6 @@ def _expected(radar: Radar, frame: RadarFrame, reference: Reference, config: Mat
     in the slice ``keep`` (``spans``: both, :func:`match_radar`), every aircraft's in one projection per
     step; in the order of ``reference``'s aircraft, then of revolution."""
     T = radar.period_s
-    dip = math.acos(_EARTH_RADIUS_M / (_EARTH_RADIUS_M + max(radar.height_m, 0.0)))
-    cone = math.radians(config.cone_of_silence_deg)
     names, owner, tc = _crossing_times(frame, reference, t_north, T, spans)
     lat, lon, h = reference.geodetic(names, np.split(tc, np.cumsum(np.bincount(owner, minlength=len(names)))[:-1]))
     rho, theta, elev = frame.polar(lat, lon, h)
@@ -156,7 +152,8 @@ def _expected(radar: Radar, frame: RadarFrame, reference: Reference, config: Mat
         if len(order) else order
     lat, lon, h, rho, theta, elev, tc, owner = (v[first] for v in (lat, lon, h, rho, theta, elev, tc, owner))
     keep = spans[1]
-    inside = (rho <= radar.max_range_m) & (elev >= -dip) & (elev <= cone) & (tc >= keep[0]) & (tc < keep[1])
+    inside = in_coverage(rho, elev, radar.max_range_m, radar.height_m, math.radians(config.cone_of_silence_deg))
+    inside &= (tc >= keep[0]) & (tc < keep[1])
     x, y = reference.plane.to_plane(lat[inside], lon[inside])
     return {"aircraft": np.array(names, dtype=object)[owner[inside]], "time": tc[inside],
             "range_m": rho[inside], "azimuth_deg": np.degrees(theta[inside]), "altitude_m": h[inside],

@@ -18,6 +18,7 @@
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 from pyproj import CRS, Transformer
@@ -143,6 +144,14 @@ class RadarFrame:
         """
         return bias_jacobian(self.xy, self.height_m, np.asarray(p, float), np.asarray(rho, float),
                              np.asarray(alt, float))
+
+
+def in_coverage(rho: np.ndarray, elev: np.ndarray, max_range_m: float, radar_height_m: float,
+                cone_of_silence_rad: float) -> np.ndarray:
+    """Where a radar at height h_r sees a target at slant range ρ and elevation ε: ρ ≤ ``max_range_m``, ε above
+    the geometric radar horizon −arccos(R/(R + h_r)) and below the cone of silence."""
+    dip = math.acos(_EARTH_RADIUS_M / (_EARTH_RADIUS_M + max(radar_height_m, 0.0)))
+    return (rho <= max_range_m) & (elev >= -dip) & (elev <= cone_of_silence_rad)
 
 
 NEWTON_TOL_M = 1e-6  # locate_polar stops once every plot is this close to its altitude (1 µm)

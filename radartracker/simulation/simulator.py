@@ -30,10 +30,9 @@ from scipy.interpolate import make_smoothing_spline
 
 from radartracker.domain import Aircraft, Radar, nacp_sigma_m
 from radartracker.io.tables import AdsbTable, PlotTable, ScenarioData, TruthTable
-from radartracker.geometry.plane import RadarFrame, SystemPlane
+from radartracker.geometry.plane import RadarFrame, SystemPlane, in_coverage
 from radartracker.geometry.kinematics import propagate
 
-_EARTH_RADIUS_M = 6_371_008.8
 _MODE_C_STEP_M = 25 * 0.3048
 MIN_SPLINE_POINTS = 5  # make_smoothing_spline's least: fewer recorded points are joined by straight lines
 SMOOTHING_S3 = 100.0  # λ = σ²/q of a recorded flight's smoothing spline: (20 m)² / (4 m²/s³), in s³
@@ -305,7 +304,6 @@ class Simulator:
         rng = np.random.default_rng([self.seed, 1, j])
         radar = sr.radar
         frame = RadarFrame(radar.lat, radar.lon, radar.height_m, self.plane)
-        dip = math.acos(_EARTH_RADIUS_M / (_EARTH_RADIUS_M + max(radar.height_m, 0.0)))
         out: dict[str, list] = {k: [] for k in ("time", "radar", "range_m", "azimuth_rad", "altitude_m",
                                                 "mode_s", "mode_3a", "target")}
         for sa in self.aircraft:
@@ -314,7 +312,7 @@ class Simulator:
                 continue
             lat, lon, h = self._geo(sa.trajectory, t)
             rho, theta, elev = frame.polar(lat, lon, h)
-            seen = (rho <= radar.max_range_m) & (elev >= -dip) & (elev <= _CONE_OF_SILENCE_RAD)
+            seen = in_coverage(rho, elev, radar.max_range_m, radar.height_m, _CONE_OF_SILENCE_RAD)
             seen &= rng.random(len(t)) < sr.pd
             n = int(seen.sum())
             if n == 0:

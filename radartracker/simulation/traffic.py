@@ -27,10 +27,10 @@ from tqdm import tqdm
 
 from radartracker.domain import Aircraft, Radar, nacp_sigma_m
 from radartracker.errors import ConfigurationError
-from radartracker.geometry.plane import RadarFrame, SystemPlane
+from radartracker.geometry.plane import RadarFrame, SystemPlane, in_coverage
 from radartracker.io.tables import AdsbTable, PlotTable, ScenarioData, TruthTable
 from radartracker.simulation.memory import check_fits, traffic_bytes
-from radartracker.simulation.simulator import (_CONE_OF_SILENCE_RAD, _EARTH_RADIUS_M, _MODE_C_STEP_M,
+from radartracker.simulation.simulator import (_CONE_OF_SILENCE_RAD, _MODE_C_STEP_M,
                                                KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator,
                                                apply_sensor_errors, time_ordered, walks_at)
 
@@ -296,10 +296,9 @@ class TrafficSimulator:
         rng = np.random.default_rng([self.config.seed, 1, j])
         radar = sr.radar
         frame = RadarFrame(radar.lat, radar.lon, radar.height_m, self.plane)
-        dip = math.acos(_EARTH_RADIUS_M / (_EARTH_RADIUS_M + max(radar.height_m, 0.0)))
         ac, t = self._crossings(frame, sr)
         rho, theta, elev = self._polar(frame, ac, t)
-        seen = (rho <= radar.max_range_m) & (elev >= -dip) & (elev <= _CONE_OF_SILENCE_RAD)
+        seen = in_coverage(rho, elev, radar.max_range_m, radar.height_m, _CONE_OF_SILENCE_RAD)
         seen &= rng.random(len(t)) < sr.pd
         ac, t, rho, theta = ac[seen], t[seen], rho[seen], theta[seen]
         n = len(t)
