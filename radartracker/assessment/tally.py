@@ -55,7 +55,7 @@ class RadarTally:
     errors: dict[str, list[np.ndarray]] = attrs.field(factory=lambda: {"range_m": [], "azimuth_deg": []})
     scans: Counter = attrs.field(factory=Counter)
     mode_3a: Counter = attrs.field(factory=Counter)
-    mode_c: dict[str, np.ndarray] = attrs.field(factory=dict)
+    mode_c: dict[str, Counter] = attrs.field(factory=dict)
     mode_s: np.ndarray = attrs.field(factory=lambda: np.zeros(2, np.int64))
     carries: np.ndarray = attrs.field(factory=lambda: np.zeros(3, bool))
     expected: dict[str, list[np.ndarray]] = attrs.field(factory=lambda: {k: [] for k in EXPECTED})
