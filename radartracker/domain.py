@@ -325,6 +325,8 @@ class BiasState:
 
     ``components`` names the entries of ``bias`` (:mod:`radartracker.estimation.sensor`): the range and
     azimuth offsets first, then any range gain (dimensionless) and time offset (s) the radar's model has.
+    ``unobservable`` names the components the data do not inform, held at their prior mean with their prior
+    σ (:func:`radartracker.estimation.observability.held_at_prior`), never reported with a small σ.
     """
 
     radar: str
@@ -332,6 +334,7 @@ class BiasState:
     bias: np.ndarray = attrs.field(converter=np.asarray)
     cov: np.ndarray = attrs.field(converter=np.asarray)
     components: tuple[str, ...] = ("range_offset", "azimuth_offset")
+    unobservable: tuple[str, ...] = attrs.field(default=(), converter=tuple)
 
     def component(self, name: str) -> tuple[float, float]:
         """(estimate, σ) of the component ``name``."""

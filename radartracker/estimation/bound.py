@@ -28,9 +28,10 @@ import numpy as np
 from scipy.linalg import block_diag
 
 from radartracker.estimation.base import EstimatorConfig
+from radartracker.estimation.observability import UNOBSERVABLE_RATIO
 
-#: CRLB / prior variance at and above which a component is unobservable, and weak
-UNOBSERVABLE_RATIO, WEAK_RATIO = 0.9, 0.1
+#: CRLB / prior variance at and above which a component is weak (unobservable: UNOBSERVABLE_RATIO)
+WEAK_RATIO = 0.1
 
 
 @attrs.frozen

@@ -165,6 +165,7 @@ class CouplingGraph:
         # so observe() of a known pair updates them without graph lookups
         self._edges: dict[str, dict[str | None, tuple[dict, dict]]] = {}
         self._graph.add_node(ADSB, kind="reference", label=ADSB, measurements=0)
+        self._tied: set[str] = set()  # radars found not isolated (:meth:`isolated`)
         self._clear_pending()
         for r in radars:
             self.add_radar(r)
@@ -342,9 +343,25 @@ class CouplingGraph:
         g.add_edges_from(edges)
         self._graph = g
         self._edges = {}
+        self._tied = set()
         self._clear_pending()
 
     # --- diagnostics -------------------------------------------------------------------------------
+    def isolated(self, radar: str) -> bool:
+        """Whether ``radar`` is tied to nothing: none of its aircraft measured by another source and no source
+        joined to it by marginalisation (the ``isolated`` status of :meth:`report`, found from its neighbours,
+        not the components). A radar once tied stays tied (a removed aircraft's links are kept), so that is
+        remembered and the question costs a set lookup from then on."""
+        if radar in self._tied:
+            return False
+        g, node = self._graph, _radar_node(radar)
+        nodes = g.nodes
+        for nb in g[node] if node in g else ():
+            if nodes[nb]["kind"] != "aircraft" or len(g[nb]) > 1:
+                self._tied.add(radar)
+                return False
+        return True
+
     def components(self) -> list[set[str]]:
         """Connected components (node names), largest first; independent blocks of the joint filter."""
         return sorted(nx.connected_components(self.graph), key=len, reverse=True)

@@ -258,12 +258,13 @@ class RunResult:
         return out
 
     def bias_entry(self, rid: str) -> dict:
-        """One radar's final bias, its σ and, with ``truth_biases.csv``, the truth, error and z-score."""
+        """One radar's final bias, its σ, the components the data did not inform (``unobservable``: reported
+        at their prior) and, with ``truth_biases.csv``, the truth, error and z-score."""
         b = self.final_biases[rid]
         entry = {"range_bias_m": b.range_m, "azimuth_bias_deg": math.degrees(b.azimuth_rad),
                  "sd_range_m": b.sd_range_m, "sd_azimuth_deg": math.degrees(b.sd_azimuth_rad),
                  "true_range_bias_m": None, "true_azimuth_bias_deg": None, "error_range_m": None,
-                 "error_azimuth_deg": None, "z_range": None, "z_azimuth": None}
+                 "error_azimuth_deg": None, "z_range": None, "z_azimuth": None, "unobservable": list(b.unobservable)}
         if rid in (self.data.truth_biases or {}):
             tr, ta = self.data.truth_biases[rid]
             entry.update({"true_range_bias_m": tr, "true_azimuth_bias_deg": math.degrees(ta),
@@ -306,7 +307,8 @@ class RunResult:
         for rid, b in s["biases"].items():
             lines.append(f"{rid:<8} {f(b['true_range_bias_m'], '8.1f')} {f(b['range_bias_m'], '8.1f')} "
                          f"{f(b['sd_range_m'], '6.1f')} {f(b['z_range'], '5.2f')} {f(b['true_azimuth_bias_deg'], '8.3f')} "
-                         f"{f(b['azimuth_bias_deg'], '9.4f')} {f(b['sd_azimuth_deg'], '7.4f')} {f(b['z_azimuth'], '6.2f')}")
+                         f"{f(b['azimuth_bias_deg'], '9.4f')} {f(b['sd_azimuth_deg'], '7.4f')} {f(b['z_azimuth'], '6.2f')}"
+                         + (f"  unobservable, at the prior: {', '.join(b['unobservable'])}" if b["unobservable"] else ""))
         if s["truth"]:
             tm, tk = s["truth"], s["tracking"]
             lines.append(f"position RMSE {f(tm['position_rmse_m'], '.1f')} m, velocity RMSE "

@@ -28,6 +28,7 @@ import attrs
 import pyarrow as pa
 from tqdm import tqdm
 
+from radartracker.domain import BiasState
 from radartracker.errors import ConfigurationError, RadarTrackerError
 from radartracker.estimation.base import Estimator
 from radartracker.estimation.coupling import CouplingGraph
@@ -92,14 +93,15 @@ def run(data: ScenarioData, config: RunConfig | None = None, *, estimator: Estim
         if cfg.architecture == "distributed":
             counts, coupling, track_counts, track_nis = run_distributed(data, cfg, est, factory, rec, progress,
                                                              cfg.fusion_settings(), local_tracks)
+            final = {r: est.bias(r) for r in radar_ids}
         else:
-            counts, coupling, track_counts, track_nis = _by_manager(data, cfg, est, factory, rec, progress, inputs,
-                                                                    total)
+            counts, coupling, track_counts, track_nis, final = _by_manager(data, cfg, est, factory, rec, progress,
+                                                                           inputs, total)
     seconds = _time.perf_counter() - started
     rec.flush()
     plane = sink.plane if sink is not None else SystemPlane(*data.reference)  # the sink's, not a second one
     return RunResult(data=data, config=cfg, plane=plane, events=rec.events(),
-                     biases=rec.biases(), final_biases={r: est.bias(r) for r in radar_ids}, counts=dict(counts),
+                     biases=rec.biases(), final_biases=final, counts=dict(counts),
                      track_counts=track_counts, track_nis=track_nis,
                      seconds=seconds, mean_nis=rec.mean_nis, coupling=coupling, plugins=plugins,
                      streamed=sink is not None, track_count=len(rec.track_ids))
@@ -129,9 +131,11 @@ def young_garbage(threshold: int = GC_YOUNG_THRESHOLD) -> Iterator[None]:
 
 def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: FilterFactory, rec: Recorder,
                 progress: bool, inputs: Iterable | None = None,
-                total: int | None = None) -> tuple[Counter, CouplingGraph, dict[str, int], dict[str, float]]:
+                total: int | None = None
+                ) -> tuple[Counter, CouplingGraph, dict[str, int], dict[str, float], dict[str, BiasState]]:
     """The TrackManager with the run's associator; events carry the track filter's state and covariance.
-    Returns the inputs' accounting, the coupling graph, the track counts and the tracks' innovations."""
+    Returns the inputs' accounting, the coupling graph, the track counts, the tracks' innovations and the
+    final biases as the tracks used them (:meth:`TrackManager.bias`)."""
     mgr = make_manager(data.radars, data.reference, cfg.manager_settings(), estimator=est, filter_factory=factory)
     mgr.events.subscribe(rec.listen)
     mgr.feed.on_nis = rec.add_nis
@@ -145,9 +149,9 @@ def _by_manager(data: ScenarioData, cfg: RunConfig, est: Estimator, factory: Fil
                 mgr.process(item)
                 rid = getattr(item, "radar", None)
                 if rid is not None and rec.bias_due(rid, item.time):  # each radar's bias once a second
-                    rec.bias(item.time, est.bias(rid))
+                    rec.bias(item.time, mgr.bias(rid))
     mgr.flush()
-    return Counter(mgr.accounting()), mgr.coupling, mgr.track_counts(), mgr.innovations()
+    return Counter(mgr.accounting()), mgr.coupling, mgr.track_counts(), mgr.innovations(), mgr.biases()
 
 
 def counted(inputs: Iterable, bar: tqdm, every: int = PROGRESS_EVERY) -> Iterator[list]:

@@ -349,11 +349,11 @@ class Service:
         obs = mgr.coupling.report()
         radars = {}
         for rid in mgr.estimator.radars:
-            b = mgr.estimator.bias(rid)
+            b = mgr.bias(rid)
             o = obs["radars"].get(rid, {})
             radars[rid] = {"range_bias_m": b.range_m, "sd_range_m": b.sd_range_m,
                            "azimuth_bias_deg": math.degrees(b.azimuth_rad),
-                           "sd_azimuth_deg": math.degrees(b.sd_azimuth_rad),
+                           "sd_azimuth_deg": math.degrees(b.sd_azimuth_rad), "unobservable": list(b.unobservable),
                            "observability": o.get("status"), "adsb_reference": o.get("adsb_reference"),
                            "shares_aircraft_with": o.get("shares_aircraft_with"),
                            "aircraft_now": o.get("aircraft_now")}

@@ -4,7 +4,8 @@ operations applied in the order they arose at the frame's end.
 The manager's screening, gating and track filters correct every measurement of a frame with the bias
 estimate (ς̂, P_ς) as it was at the frame's start (docs/design-notes.md, "The TrackManager reads the bias
 estimate once per frame"): :meth:`EstimatorFeed.bias` reads each radar's :class:`BiasState` once per
-frame, and the estimator changes only in :meth:`EstimatorFeed.flush`. There an aircraft is added when its
+frame (components the data do not inform held at their prior: :mod:`radartracker.estimation.observability`),
+and the estimator changes only in :meth:`EstimatorFeed.flush`. There an aircraft is added when its
 track is confirmed (:class:`AddAircraft`), each run of raw measurements z = C_x χ + C_s ς + w of
 confirmed tracks goes to ``Estimator.update_many`` (:class:`Measure`), and an aircraft is removed when
 its track ends (:class:`RemoveAircraft`).
@@ -20,10 +21,12 @@ from typing import NamedTuple
 
 import numpy as np
 
+from radartracker.domain import BiasState
 from radartracker.errors import PluginError
 from radartracker.estimation.base import Estimator
 from radartracker.estimation.coupling import CouplingGraph
 from radartracker.estimation.kalman import SingularInnovation
+from radartracker.estimation.observability import held_at_prior
 
 log = logging.getLogger(__name__)
 _ZERO2, _ZERO22 = np.zeros(2), np.zeros((2, 2))
@@ -70,14 +73,24 @@ class EstimatorFeed:
         self.pending: list[Operation] = []
         self.on_nis: Callable[[np.ndarray], None] | None = None  # given each update_many's NIS values
         self._biases: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self._priors: dict[str, np.ndarray] = {}  # each radar's prior covariance of its bias components
+
+    def state(self, radar: str) -> BiasState:
+        """``radar``'s bias estimate as the manager uses and reports it: the estimator's, with the components
+        the data do not inform (the radar isolated in the coupling graph, or a variance still near the prior's)
+        held at their prior (:func:`~radartracker.estimation.observability.held_at_prior`)."""
+        prior = self._priors.get(radar)
+        if prior is None:
+            prior = self._priors[radar] = self.estimator.config.sensor(radar).prior()
+        return held_at_prior(self.estimator.bias(radar), prior, self.coupling.isolated(radar))
 
     def bias(self, radar: str | None) -> tuple[np.ndarray, np.ndarray]:
-        """(ς̂, P_ς) of ``radar`` as at the frame's start (zeros for an unbiased source, ``None``)."""
+        """(ς̂, P_ς) of ``radar`` (:meth:`state`) as at the frame's start (zeros for an unbiased source, ``None``)."""
         if radar is None:
             return _ZERO2, _ZERO22
         b = self._biases.get(radar)
         if b is None:
-            state = self.estimator.bias(radar)
+            state = self.state(radar)
             b = self._biases[radar] = (np.asarray(state.bias, float), np.asarray(state.cov, float))
         return b
 

@@ -156,9 +156,15 @@ class TrackManager:
         """The live tracks that are confirmed or coasting."""
         return [t for t in self.tracks.values() if t.live]
 
+    def bias(self, radar: str) -> BiasState:
+        """``radar``'s current bias estimate [Δr (m), Δθ (rad)] and covariance, as the tracks are corrected with
+        it: components the data do not inform at their prior, named in ``unobservable``
+        (:mod:`radartracker.estimation.observability`)."""
+        return self.feed.state(radar)
+
     def biases(self) -> dict[str, BiasState]:
-        """The current bias estimate [Δr (m), Δθ (rad)] and covariance of every radar, by radar id."""
-        return {rid: self.estimator.bias(rid) for rid in self.radars}
+        """:meth:`bias` of every radar, by radar id."""
+        return {rid: self.feed.state(rid) for rid in self.radars}
 
     def accounting(self) -> dict[str, int]:
         """Counts by reason, including measurements still held by tentative tracks and inputs waiting."""
