@@ -97,7 +97,7 @@ class Assessment:
             "profile": {"name": self.profile.name, "source": self.profile.source},
             "confidence_level": stats.LEVEL,
             "units": {k: u for k, (_, u) in INDICATORS.items()},
-            "radars": {r.radar: {"kind": r.kind, "observability": r.observability,
+            "radars": {r.radar: {"kind": r.kind, "observability": r.observability, "components": r.components,
                                  "figures": {k: e.as_dict() for k, e in r.figures.items()},
                                  "not_assessable": r.not_assessable,
                                  "verdicts": {v["indicator"]: v["verdict"] for v in verdicts if v["radar"] == r.radar}}

@@ -50,6 +50,7 @@ class RadarMatch:
     ``aircraft``: the reference key of each plot ('' when none is in the gate), ``d2`` its gate distance
     d² (inf when unmatched); ``ref_range``,
     ``ref_azimuth``, ``ref_altitude``: the reference's exact polar position and height at the plot's time
+    (NaN when unmatched); ``ref_rate``: its slant-range and azimuth rates there, ρ̇ (m/s) and θ̇ (rad/s), 2 × n
     (NaN when unmatched); ``scan``: each plot's antenna revolution. ``expected``: one row per reference
     crossing inside the coverage, as columns ``aircraft``, ``scan``, ``time``, ``range_m``, ``azimuth_deg``,
     ``altitude_m``, ``x``, ``y`` (plane, m), ``detected``."""
@@ -59,9 +60,13 @@ class RadarMatch:
     ref_range: np.ndarray
     ref_azimuth: np.ndarray
     ref_altitude: np.ndarray
+    ref_rate: np.ndarray
     scan: np.ndarray
     north_time: float
     expected: dict[str, np.ndarray]
+
+
+RATE_STEP_S = 0.5  # the half-step of the reference's polar rates (s): its positions are exact, its turns slow
 
 
 def north_time(t: np.ndarray, theta: np.ndarray, period_s: float) -> float:
@@ -104,7 +109,27 @@ def match_radar(radar: Radar, frame: RadarFrame, t: np.ndarray, rho: np.ndarray,
     scan, _ = antenna_offsets(t, theta, radar.period_s, t_n)
     expected = _expected(radar, frame, near, config, t_n, (span, keep))
     expected["detected"] = _detected(expected, key, t, radar.period_s)
-    return RadarMatch(key, best, ref[0], ref[1], ref[2], scan, t_n, expected)
+    return RadarMatch(key, best, ref[0], ref[1], ref[2], _reference_rates(frame, t, key, near), scan, t_n, expected)
+
+
+def _reference_rates(frame: RadarFrame, t: np.ndarray, key: np.ndarray, reference: Reference,
+                     step_s: float = RATE_STEP_S) -> np.ndarray:
+    """ρ̇ (m/s) and θ̇ (rad/s) of each matched plot's reference at its time (2 × n, NaN unmatched): central
+    differences of the reference's exact polar position over ±``step_s``, one-sided at the ends of its span."""
+    out = np.full((2, len(t)), np.nan)
+    names = sorted(set(key[key != ""].tolist()))
+    if not names:
+        return out
+    rows = [np.flatnonzero(key == k) for k in names]
+    ends = [reference.tracks[k].times[[0, -1]] for k in names]
+    lo = [np.maximum(t[r] - step_s, e[0]) for r, e in zip(rows, ends)]
+    hi = [np.minimum(t[r] + step_s, e[1]) for r, e in zip(rows, ends)]
+    r0, a0, _ = frame.polar(*reference.geodetic(names, lo))
+    r1, a1, _ = frame.polar(*reference.geodetic(names, hi))
+    idx, dt = np.concatenate(rows), np.concatenate(hi) - np.concatenate(lo)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out[0, idx], out[1, idx] = (r1 - r0) / dt, wrap_angle(a1 - a0) / dt
+    return out
 
 
 def _associate(frame: RadarFrame, t: np.ndarray, polar: tuple[np.ndarray, np.ndarray], reference: Reference,

@@ -29,8 +29,10 @@ from radartracker.errors import ConfigurationError
 INDICATORS: dict[str, tuple[str, str]] = {
     "range_bias_m": ("range bias (joint estimator)", "m"),
     "azimuth_bias_deg": ("azimuth bias (joint estimator)", "deg"),
-    "range_bias_vs_reference_m": ("mean range residual against the reference", "m"),
-    "azimuth_bias_vs_reference_deg": ("mean azimuth residual against the reference", "deg"),
+    "range_bias_vs_reference_m": ("range offset against the reference (fit with gain and time offset)", "m"),
+    "azimuth_bias_vs_reference_deg": ("azimuth offset against the reference (fit with time offset)", "deg"),
+    "range_gain_ppm": ("range gain against the reference", "ppm"),
+    "time_offset_ms": ("time-stamp offset against the reference", "ms"),
     "range_sigma_m": ("random range error σ", "m"),
     "azimuth_sigma_deg": ("random azimuth error σ", "deg"),
     "pd": ("probability of detection", "share"),

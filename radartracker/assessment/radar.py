@@ -3,10 +3,12 @@
 With the plots matched to the reference (:mod:`radartracker.assessment.matching`; Δr̂, Δθ̂ the joint
 estimator's biases):
 
-* **Systematic errors**: the estimator's Δr̂ and Δθ̂ ± 1.96 σ (its own covariance), and, as a check, the
-  mean raw residual against the reference, mean(ρ − ρ_ref) and mean(θ − θ_ref) (t interval).
-* **Random errors**: the standard deviations of e_ρ = ρ − ρ_ref − Δr̂ and e_θ = θ − θ_ref − Δθ̂ (χ²), over
-  the plot nearest the reference in each sweep of an aircraft (a split plot is not noise).
+* **Systematic errors**: the joint estimator's Δr̂ and Δθ̂ ± 1.96 σ (its own covariance); and the sensor
+  errors fitted to the residuals against the reference (:mod:`radartracker.assessment.systematic`): range
+  and azimuth offsets, range gain and time-stamp offset ± 1.96 σ (σ the fit's Cramér–Rao bound), each with
+  its observability — an unobservable one is not a figure, and says why.
+* **Random errors**: σ_ρ and σ_θ of the residuals left by that fit (χ², n − 3 and n − 2 degrees of freedom),
+  over the plot nearest the reference in each sweep of an aircraft (a split plot is not noise).
 * **Pd**: detected crossings / crossings inside the coverage (Wilson), overall and by range, azimuth and
   altitude bin.
 * **Plots per scan**: the mean of the plot counts of the revolutions from the first plot to the last (t).
@@ -33,11 +35,15 @@ import numpy as np
 
 from radartracker.assessment import stats
 from radartracker.assessment.stats import Estimate
+from radartracker.assessment.systematic import fit_sensor_errors
 from radartracker.assessment.tally import RadarTally
 from radartracker.domain import BiasState, Radar
 
 FT = 0.3048
 NOT_ASSESSABLE_LATENESS = "the recording carries no arrival times"
+#: the fitted components' figures, and their units' scale from the fit's (m, rad, 1, s)
+FIT_FIGURES = {"range_offset": ("range_bias_vs_reference_m", 1.0), "azimuth_offset": ("azimuth_bias_vs_reference_deg",
+               math.degrees(1.0)), "range_gain": ("range_gain_ppm", 1e6), "time_offset": ("time_offset_ms", 1e3)}
 
 
 @attrs.frozen
@@ -53,7 +59,9 @@ class RadarConfig:
 @attrs.define
 class RadarAssessment:
     """One radar's figures (name → Estimate), why those missing are missing, its Pd bins, and what the
-    report draws: the error residuals (m, deg) and the expected detections (plane x, y, detected)."""
+    report draws: the error residuals (m, deg) and the expected detections (plane x, y, detected);
+    ``observability``: the coupling graph's status of its biases, ``components``: each fitted sensor error's
+    (``observable``, ``weak``, ``unobservable``)."""
 
     radar: str
     kind: str
@@ -63,6 +71,7 @@ class RadarAssessment:
     pd_bins: list[dict]
     residuals: dict[str, np.ndarray]
     expected: dict[str, np.ndarray]
+    components: dict[str, str] = attrs.field(factory=dict)
 
 
 def assess_radar(radar: Radar, tally: RadarTally, out_of_order: int, bias: BiasState, observability: dict,
@@ -75,14 +84,15 @@ def assess_radar(radar: Radar, tally: RadarTally, out_of_order: int, bias: BiasS
     figures: dict[str, Estimate] = {}
     missing: dict[str, str] = {"timestamp_lateness_s": NOT_ASSESSABLE_LATENESS}
     _errors(tally, bias, int(observability.get("measurements", 0)), figures)
+    components = _sensor_errors(radar.id, tally, figures, missing)
     expected = tally.expected_table()
     _detection(tally, expected, figures, missing, reference_kind)
     _codes(tally, codes, figures, missing)
     figures["out_of_order_share"] = stats.proportion(out_of_order, tally.plots)
-    figures["timestamp_jitter_s"] = stats.sigma(tally.moments["timestamp_s"])
+    figures["timestamp_jitter_s"] = stats.sigma(tally.offsets)
     return RadarAssessment(radar.id, kind, figures, missing, observability.get("status", "unobserved"),
                            pd_bins(expected, config), tally.error_arrays(),
-                           {k: expected[k] for k in ("x", "y", "range_m", "detected")})
+                           {k: expected[k] for k in ("x", "y", "range_m", "detected")}, components)
 
 
 def _errors(tally: RadarTally, bias: BiasState, measured: int, figures: dict[str, Estimate]) -> None:
@@ -91,11 +101,30 @@ def _errors(tally: RadarTally, bias: BiasState, measured: int, figures: dict[str
     figures["range_bias_m"] = stats.normal(bias.range_m, bias.sd_range_m, measured)
     figures["azimuth_bias_deg"] = stats.scaled(stats.normal(bias.azimuth_rad, bias.sd_azimuth_rad, measured),
                                                math.degrees(1.0))
-    m = tally.moments
-    figures["range_bias_vs_reference_m"] = stats.mean(m["raw_range_m"])
-    figures["azimuth_bias_vs_reference_deg"] = stats.scaled(stats.mean(m["raw_azimuth_rad"]), math.degrees(1.0))
-    figures["range_sigma_m"] = stats.sigma(m["range_m"])
-    figures["azimuth_sigma_deg"] = stats.sigma(m["azimuth_deg"])
+
+
+def _sensor_errors(radar: str, tally: RadarTally, figures: dict[str, Estimate],
+                   missing: dict[str, str]) -> dict[str, str]:
+    """The sensor errors fitted against the reference and the random errors they leave (module docstring) into
+    ``figures`` (an unobservable component into ``missing``, with why); returns each component's status."""
+    fit = fit_sensor_errors(radar, tally.sensor)
+    if fit is None:
+        for name in (*(f for f, _ in FIT_FIGURES.values()), "range_sigma_m", "azimuth_sigma_deg"):
+            missing[name] = "fewer than four plots matched to the reference"
+        return {}
+    n = tally.sensor.n
+    for bound in fit.bounds:
+        name, scale = FIT_FIGURES[bound.component]
+        value, sd, status = fit.component(bound.component)
+        if status == "unobservable":
+            missing[name] = (f"unobservable: the plots' geometry adds less than 11 % of the prior's information "
+                             f"(√CRLB {sd * scale:.4g} against a prior σ of {bound.prior_sd * scale:.4g})")
+        else:
+            figures[name] = stats.scaled(stats.normal(value, sd, n), scale)
+    (s_r, s_a), (dof_r, dof_a) = fit.sigma, fit.dof
+    figures["range_sigma_m"] = stats.sigma_of_sum(s_r * s_r * dof_r, dof_r, n)
+    figures["azimuth_sigma_deg"] = stats.scaled(stats.sigma_of_sum(s_a * s_a * dof_a, dof_a, n), math.degrees(1.0))
+    return {b.component: b.status for b in fit.bounds}
 
 
 def _detection(tally: RadarTally, expected: dict[str, np.ndarray], figures: dict[str, Estimate],

@@ -158,8 +158,10 @@ def render(a: Assessment, *, progress: bool = True) -> str:
                 for k, e in r.figures.items()]
         rows += [[INDICATORS[k][0], INDICATORS[k][1], "–", "–", "–", "0", f"not assessable: {why}"]
                  for k, why in r.not_assessable.items()]
+        fitted = ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in r.components.items()) or "not fitted"
         parts += [f"<h2>Radar {html.escape(r.radar)} ({r.kind.upper()}; bias observability: "
                   f"{html.escape(r.observability)})</h2>",
+                  f"<p>Sensor errors against the reference: {html.escape(fitted)}.</p>",
                   _table(["figure", "unit", "value", "95 % low", "95 % high", "n", "interval"], rows),
                   radar_figures(r, plt)]
     parts += ["<h2>System tracks (ESASSP indicators)</h2>",

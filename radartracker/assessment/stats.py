@@ -92,13 +92,18 @@ class Moments:
 def sigma(residuals: np.ndarray | Moments) -> Estimate:
     """The sample standard deviation of ``residuals`` (about their mean, n − 1) with its χ² interval."""
     m = residuals if isinstance(residuals, Moments) else Moments.of(residuals)
-    n = m.n
-    if n < 3:
+    return sigma_of_sum(m.m2, m.n - 1, m.n)
+
+
+def sigma_of_sum(squares: float, dof: int, n: int) -> Estimate:
+    """σ = √(``squares``/ν) of a residual sum of squares with ν = ``dof`` degrees of freedom (``n`` values),
+    with its χ² interval [σ √(ν/χ²_{1−α/2, ν}), σ √(ν/χ²_{α/2, ν})]."""
+    if dof < 2:
         return missing("chi2")
-    s = math.sqrt(m.m2 / (n - 1))
+    s = math.sqrt(squares / dof)
     a = 1 - LEVEL
-    lo = s * math.sqrt((n - 1) / stats.chi2.ppf(1 - a / 2, n - 1))
-    hi = s * math.sqrt((n - 1) / stats.chi2.ppf(a / 2, n - 1))
+    lo = s * math.sqrt(dof / stats.chi2.ppf(1 - a / 2, dof))
+    hi = s * math.sqrt(dof / stats.chi2.ppf(a / 2, dof))
     return Estimate(s, lo, hi, n, "chi2")
 
 

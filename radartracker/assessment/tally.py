@@ -2,10 +2,11 @@
 
 Every figure of :mod:`radartracker.assessment.radar` is a function of sums over the radar's plots, sweeps
 and expected crossings: counts (plots per revolution, unmatched plots, split sweeps, each code's plots per
-aircraft, Mode S plots), :class:`~radartracker.assessment.stats.Moments` of the residuals (their n, mean and
-M₂, merged exactly) and the expected crossings themselves (Pd, its bins and map). A slice's
-:class:`RadarTally` holds those sums for the plots stamped inside the slice [t₀, t₁) and the sweeps whose
-first plot is, and :meth:`RadarTally.merge` adds two slices: counts exactly, moments to round-off. Every
+aircraft, Mode S plots), the sums of the sensor-error fit (:mod:`radartracker.assessment.systematic`),
+:class:`~radartracker.assessment.stats.Moments` of the time-stamp offsets (their n, mean and M₂, merged
+exactly) and the expected crossings themselves (Pd, its bins and map). A slice's :class:`RadarTally` holds
+those sums for the plots stamped inside the slice [t₀, t₁) and the sweeps whose first plot is, and
+:meth:`RadarTally.merge` adds two slices: counts exactly, sums and moments to round-off. Every
 plot is counted in exactly one slice, by its time; the margin either side of a slice
 (:mod:`radartracker.assessment.slices`) only lets its sweeps, detections and crossings see across the
 boundary.
@@ -20,9 +21,9 @@ import numpy as np
 
 from radartracker.assessment.matching import RadarMatch, antenna_offsets, wrap_angle
 from radartracker.assessment.stats import Moments
+from radartracker.assessment.systematic import SensorSums
 from radartracker.io.tables import PlotTable, label_spans
 
-RESIDUALS = ("raw_range_m", "raw_azimuth_rad", "range_m", "azimuth_deg", "timestamp_s")
 EXPECTED = ("aircraft", "time", "range_m", "azimuth_deg", "altitude_m", "x", "y", "detected")
 
 
@@ -39,9 +40,11 @@ def merge_spans(a: dict[str, tuple[float, float]], b: dict[str, tuple[float, flo
 class RadarTally:
     """One radar's sums over a slice (module docstring).
 
-    ``moments``: of the sweeps' nearest plots' raw residuals ρ − ρ_ref (m) and θ − θ_ref (rad), their errors
-    e_ρ (m), e_θ (deg) with the bias removed, and their time-stamp offsets (s); ``errors``: e_ρ and e_θ
-    themselves, for the report's histograms. ``scans``: plots per antenna revolution (revolution → count).
+    Of the sweeps' nearest plots: ``offsets``, the moments of their time-stamp offsets (s); ``errors``, their
+    errors e_ρ (m) and e_θ (deg) with the joint estimator's bias removed, for the report's histograms;
+    ``sensor``, the sums of the sensor-error fit of their raw residuals ρ − ρ_ref and θ − θ_ref
+    (:class:`~radartracker.assessment.systematic.SensorSums`). ``scans``: plots per antenna revolution
+    (revolution → count).
     ``mode_3a``: matched plots per (aircraft, code or None); ``mode_c``: per aircraft, matched plots, those
     with an altitude and those within the tolerance; ``mode_s``: [plots of a known address carrying one,
     right ones]. ``carries``: whether any plot carries an altitude, a Mode 3/A code, a Mode S address.
@@ -51,8 +54,9 @@ class RadarTally:
     unmatched: int = 0
     sweeps: int = 0
     split_sweeps: int = 0
-    moments: dict[str, Moments] = attrs.field(factory=lambda: {k: Moments() for k in RESIDUALS})
+    offsets: Moments = attrs.field(factory=Moments)
     errors: dict[str, list[np.ndarray]] = attrs.field(factory=lambda: {"range_m": [], "azimuth_deg": []})
+    sensor: SensorSums = attrs.field(factory=SensorSums)
     scans: Counter = attrs.field(factory=Counter)
     mode_3a: Counter = attrs.field(factory=Counter)
     mode_c: dict[str, Counter] = attrs.field(factory=dict)
@@ -67,7 +71,8 @@ class RadarTally:
         self.unmatched += other.unmatched
         self.sweeps += other.sweeps
         self.split_sweeps += other.split_sweeps
-        self.moments = {k: m.merge(other.moments[k]) for k, m in self.moments.items()}
+        self.offsets = self.offsets.merge(other.offsets)
+        self.sensor = self.sensor.merge(other.sensor)
         for k, v in other.errors.items():
             self.errors[k] += v
         self.scans.update(other.scans)
@@ -148,13 +153,14 @@ def sweeps(t: np.ndarray, match: RadarMatch, period_s: float) -> tuple[np.ndarra
 
 def _residuals(plots: PlotTable, match: RadarMatch, bias: tuple[float, float], used: np.ndarray,
                period_s: float, out: RadarTally) -> None:
-    """The moments of the ``used`` plots' residuals and time-stamp offsets (module docstring) into ``out``."""
+    """The ``used`` plots' errors, the moments of their time-stamp offsets and the sums of their sensor-error
+    fit (module docstring) into ``out``."""
     raw_r = plots.range_m[used] - match.ref_range[used]
     raw_a = wrap_angle(plots.azimuth_rad[used] - match.ref_azimuth[used])
+    out.sensor = SensorSums.of(raw_r, raw_a, match.ref_range[used], match.ref_rate[0, used], match.ref_rate[1, used])
     e_r, e_a = raw_r - bias[0], np.degrees(wrap_angle(raw_a - bias[1]))
     _, offset = antenna_offsets(plots.time[used], plots.azimuth_rad[used], period_s, match.north_time)
-    for k, v in zip(RESIDUALS, (raw_r, raw_a, e_r, e_a, offset)):
-        out.moments[k] = Moments.of(v)
+    out.offsets = Moments.of(offset)
     out.errors["range_m"].append(e_r)
     out.errors["azimuth_deg"].append(e_a)
 

@@ -11,8 +11,7 @@ from pathlib import Path
 from radartracker.errors import ConfigurationError
 
 #: each component beyond the two offsets: its prior σ's command-line option, that option's attribute, its default
-EXTRA = {"range_gain": ("--range-gain-sd", "range_gain_sd", 1e-3),
-         "time_offset": ("--time-offset-sd-s", "time_offset_sd_s", 0.5)}
+EXTRA = {"range_gain": ("--range-gain-sd", "range_gain_sd"), "time_offset": ("--time-offset-sd-s", "time_offset_sd_s")}
 UNITS = {"range_offset": (1.0, "m"), "azimuth_offset": (math.degrees(1.0), "deg"), "range_gain": (1e6, "ppm"),
          "time_offset": (1e3, "ms")}
 
@@ -24,9 +23,9 @@ def register_register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--components", default="range_gain,time_offset",
                    help="components beyond the range and azimuth offsets, comma-separated, or 'none' "
                         "(default: range_gain,time_offset)")
-    p.add_argument("--range-gain-sd", type=float, dest=EXTRA["range_gain"][1], default=EXTRA["range_gain"][2],
+    p.add_argument("--range-gain-sd", type=float, dest=EXTRA["range_gain"][1],
                    help="prior σ of every radar's range gain (default 1e-3)")
-    p.add_argument("--time-offset-sd-s", type=float, dest=EXTRA["time_offset"][1], default=EXTRA["time_offset"][2],
+    p.add_argument("--time-offset-sd-s", type=float, dest=EXTRA["time_offset"][1],
                    help="prior σ of every radar's time-stamp offset, s (default 0.5)")
     p.add_argument("--q", type=float, default=0.0, help="aircraft white-acceleration density, m²/s³ (default 0)")
     p.add_argument("--json", type=Path, help="also write the report to this JSON file")
@@ -38,14 +37,15 @@ def _config(args: argparse.Namespace, radar_ids: list[str]):
 
     from radartracker.estimation.base import EstimatorConfig
     from radartracker.estimation.motion import MotionModel
-    from radartracker.estimation.sensor import BiasComponent
+    from radartracker.estimation.sensor import EXTRA_PRIOR_SD, BiasComponent
     from radartracker.settings import check_number
 
     names = [] if args.components.strip() == "none" else [n.strip() for n in args.components.split(",") if n.strip()]
     if unknown := [n for n in names if n not in EXTRA]:
         raise ConfigurationError(f"--components: unknown {unknown[0]!r}; known: {', '.join(EXTRA)} or none")
-    extra = tuple(BiasComponent(n, check_number(EXTRA[n][0], getattr(args, EXTRA[n][1]), lo=0.0, lo_open=True))
-                  for n in names)
+    given = {n: getattr(args, EXTRA[n][1]) for n in names}
+    extra = tuple(BiasComponent(n, EXTRA_PRIOR_SD[n] if v is None else
+                                check_number(EXTRA[n][0], v, lo=0.0, lo_open=True)) for n, v in given.items())
     base = EstimatorConfig(motion=MotionModel(check_number("--q", args.q, lo=0.0)))
     return attrs.evolve(base, sensors={r: base.sensor(r).with_components(*extra) for r in radar_ids})
 

@@ -34,6 +34,8 @@ from radartracker.errors import ConfigurationError
 #: the components, in the order they take in a radar's bias vector, with their units
 COMPONENTS: dict[str, str] = {"range_offset": "m", "azimuth_offset": "rad", "range_gain": "1", "time_offset": "s"}
 BASE = ("range_offset", "azimuth_offset")
+#: the default prior σ of the components beyond seed 000's two (``radartracker register``, the assessment's fit)
+EXTRA_PRIOR_SD: dict[str, float] = {"range_gain": 1e-3, "time_offset": 0.5}
 
 
 def _known(inst, attr, value: str) -> None:

@@ -73,14 +73,18 @@ def _disorder(radar: np.ndarray, order: np.ndarray, share: float, rng: np.random
 def known_figures(radars: list[SimRadar], truth_biases: dict[str, tuple[float, float]], faults: Faults
                   ) -> dict[str, dict[str, float]]:
     """The true value of each figure a simulation with ``faults`` planted should give, per radar id: the
-    simulated biases (``truth_biases``: Δr m, Δθ rad), noise, Pd and false plot rate (``radars``), the planted
-    rates, and the time-stamp jitter σ_θ T/2π of an exact clock."""
+    simulated biases (``truth_biases``: Δr m, Δθ rad), range gain and time-stamp offset, noise, Pd and false
+    plot rate (``radars``), the planted rates, and the time-stamp jitter σ_θ T/2π of an exact clock. A radar with
+    a range gain or a time-stamp offset has no true value for the joint estimator's two-component biases (that
+    model has no term for them): those two figures are left out for it."""
     out = {}
     for sr in radars:
         r = sr.radar
         bias_r, bias_a = truth_biases[r.id]
-        out[r.id] = {"range_bias_m": bias_r, "azimuth_bias_deg": math.degrees(bias_a),
-                     "range_bias_vs_reference_m": bias_r, "azimuth_bias_vs_reference_deg": math.degrees(bias_a),
+        two = {} if sr.range_gain or sr.time_offset_s else {"range_bias_m": bias_r,
+                                                             "azimuth_bias_deg": math.degrees(bias_a)}
+        out[r.id] = {**two, "range_bias_vs_reference_m": bias_r, "azimuth_bias_vs_reference_deg": math.degrees(bias_a),
+                     "range_gain_ppm": 1e6 * sr.range_gain, "time_offset_ms": 1e3 * sr.time_offset_s,
                      "range_sigma_m": r.sigma_range_m, "azimuth_sigma_deg": math.degrees(r.sigma_azimuth_rad),
                      "pd": sr.pd, "false_plots_per_scan": sr.false_per_scan, "split_plot_share": faults.split,
                      "mode_3a_validity": 1.0, "mode_3a_correctness": 1.0 - faults.wrong_mode_3a,

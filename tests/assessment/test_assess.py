@@ -71,8 +71,9 @@ def test_adsb_reference_without_truth(demo_data):
     assert a.reference == "adsb"
     for r in a.radars:
         tr, ta = demo_data.truth_biases[r.radar]
-        assert abs(r.figures["range_bias_vs_reference_m"].value - tr) < 20.0
-        assert abs(r.figures["azimuth_bias_vs_reference_deg"].value - math.degrees(ta)) < 0.02
+        for name, true in (("range_bias_vs_reference_m", tr), ("azimuth_bias_vs_reference_deg", math.degrees(ta))):
+            e = r.figures[name]  # within 3σ (the interval is ±1.96σ): few plots against two ADS-B aircraft
+            assert abs(e.value - true) <= 3.0 * (e.high - e.low) / (2 * 1.96), (r.radar, name, e, true)
         assert r.figures["pd"].n > 0 and r.figures["pd"].value > 0.97
         assert "false_plots_per_scan" in r.not_assessable and "false_plots_per_scan" not in r.figures
     assert "false_tracks" not in a.system
