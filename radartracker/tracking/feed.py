@@ -85,7 +85,8 @@ class EstimatorFeed:
         return held_at_prior(self.estimator.bias(radar), prior, self.coupling.isolated(radar))
 
     def bias(self, radar: str | None) -> tuple[np.ndarray, np.ndarray]:
-        """(ς̂, P_ς) of ``radar`` (:meth:`state`) as at the frame's start (zeros for an unbiased source, ``None``)."""
+        """(ς̂, P_ς) of ``radar`` (:meth:`state`) as at the frame's start (zeros for an unbiased source,
+        ``None``)."""
         if radar is None:
             return _ZERO2, _ZERO22
         b = self._biases.get(radar)
