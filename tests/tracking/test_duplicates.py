@@ -90,6 +90,28 @@ def test_relation_lost_twin_or_none():
                     track(9, [0.0, 0.0, 230.0, 0.0], created=90.0, altitude_m=10300.0), 2500.0) is None
 
 
+def _turned(rate_deg_s: float, dt: float, v: float = 200.0) -> np.ndarray:
+    """[x, y, vx, vy] after ``dt`` s of a turn at a constant rate from (0, 0) heading north at ``v``, by
+    integrating the velocity in 10,000 steps (the oracle of the closed form in relation)."""
+    w, h = math.radians(rate_deg_s), dt / 10_000
+    heading = w * h * (np.arange(10_000) + 0.5)  # counterclockwise from north, at each step's middle
+    return np.array([np.sum(-v * np.sin(heading)) * h, np.sum(v * np.cos(heading)) * h,
+                     -v * math.sin(w * dt), v * math.cos(w * dt)])
+
+
+@pytest.mark.parametrize("rate, expected", [(3.0, LOST), (-3.0, LOST), (1.2, LOST), (6.0, None)])
+def test_a_track_lost_in_a_turn_is_found_where_the_turn_took_its_aircraft(rate, expected):
+    """The aircraft turned at ``rate`` °/s for 26 s after its track's last update (78° at 3°/s: 4.1 km off the
+    straight line); a turn faster than a standard rate's 3°/s is not assumed. After the 78° turn, the same place
+    with the velocity mirrored (heading as if it had turned the other way: no turn gives both) is not its
+    aircraft (after 31° at 1.2°/s the tolerances, 2.5 km and half the speed, cannot tell that from straight on)."""
+    old = track(1, [0.0, 0.0, 0.0, 200.0], t=74.0, last=74.0, status="coasting")
+    x = _turned(rate, 26.0)
+    assert relation(old, track(9, x, created=90.0, status="tentative"), 2500.0) == expected
+    if abs(rate) == 3.0:
+        assert relation(old, track(9, [*x[:2], -x[2], x[3]], created=90.0, status="tentative"), 2500.0) is None
+
+
 @pytest.mark.parametrize("jump_m", [4000.0])
 def test_a_jump_beyond_the_merge_distance_is_a_new_track(jump_m):
     events, counts = run(jumping_aircraft(jump_m))
