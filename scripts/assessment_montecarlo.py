@@ -26,7 +26,8 @@ from radartracker.assessment.profile import INDICATORS, load_profile
 from radartracker.progress import progress_bar
 from radartracker.simulation.scenarios import build_scenario, with_sensor_errors
 
-FAULTS = Faults(wrong_mode_3a=0.03, wrong_mode_c=0.02, wrong_mode_s=0.03, split=0.02, out_of_order=0.01)
+FAULTS = Faults(wrong_mode_3a=0.03, wrong_mode_c=0.02, wrong_mode_s=0.03, split=0.02, out_of_order=0.01,
+                reflection=0.02)
 SENSOR_ERRORS = {"A": {"range_gain": 3e-4, "time_offset_s": 0.1}}
 
 

@@ -39,6 +39,7 @@ INDICATORS: dict[str, tuple[str, str]] = {
     "plots_per_scan": ("plots per scan", "plots"),
     "false_plots_per_scan": ("false plots per scan", "plots"),
     "split_plot_share": ("split plots (share of sweeps)", "share"),
+    "reflection_share": ("reflections (share of sweeps)", "share"),
     "mode_3a_validity": ("Mode 3/A validity", "share"),
     "mode_3a_correctness": ("Mode 3/A correctness", "share"),
     "mode_c_validity": ("Mode C validity", "share"),

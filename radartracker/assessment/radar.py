@@ -12,8 +12,12 @@ estimator's biases):
 * **Pd**: detected crossings / crossings inside the coverage (Wilson), overall and by range, azimuth and
   altitude bin.
 * **Plots per scan**: the mean of the plot counts of the revolutions from the first plot to the last (t).
-* **False plots per scan**: plots with no reference in the gate / revolutions (Poisson, Garwood) — only
-  against the truth: an ADS-B reference lacks the aircraft that do not broadcast.
+* **False plots per scan**: plots with no reference in the gate, reflections excepted / revolutions (Poisson,
+  Garwood) — only against the truth: an ADS-B reference lacks the aircraft that do not broadcast.
+* **Reflections**: plots with no reference in the gate that carry a reference aircraft's Mode S address (or,
+  without one, a Mode 3/A code a matched plot carries) — an aircraft's reply seen where it is not — per
+  sweep of an aircraft that replies with a code (Wilson or Clopper–Pearson); not assessable where no plot
+  carries a code (a primary aircraft's reflection has nothing to tell it by: it counts as a false plot).
 * **Split plots**: an aircraft's matched plots fall in groups (gaps > T/2 between groups, one group per
   sweep); the share of groups with two plots or more.
 * **Codes**: Mode 3/A validity (a code present) and correctness (the aircraft's code), Mode C validity
@@ -141,11 +145,15 @@ def _detection(tally: RadarTally, expected: dict[str, np.ndarray], figures: dict
         counts = np.zeros(0)
         figures["plots_per_scan"] = stats.missing("t")
     if reference_kind == "truth":
-        figures["false_plots_per_scan"] = stats.rate(tally.unmatched, len(counts))
+        figures["false_plots_per_scan"] = stats.rate(tally.unmatched - tally.reflections, len(counts))
     else:
         missing["false_plots_per_scan"] = ("the ADS-B reference holds only the aircraft that broadcast: a plot "
                                            "far from all of them may be a non-equipped aircraft")
     figures["split_plot_share"] = stats.proportion(tally.split_sweeps, tally.sweeps)
+    if tally.coded_sweeps:
+        figures["reflection_share"] = stats.proportion(tally.reflections, tally.coded_sweeps)
+    else:
+        missing["reflection_share"] = "no plot carries a Mode 3/A code or Mode S address to tell a reflection by"
 
 
 def _codes(tally: RadarTally, codes: dict[str, str], figures: dict[str, Estimate], missing: dict[str, str]) -> None:

@@ -1,10 +1,11 @@
 """One radar's sufficient statistics over a time slice, and their sum over the slices of a recording.
 
 Every figure of :mod:`radartracker.assessment.radar` is a function of sums over the radar's plots, sweeps
-and expected crossings: counts (plots per revolution, unmatched plots, split sweeps, each code's plots per
-aircraft, Mode S plots), the sums of the sensor-error fit (:mod:`radartracker.assessment.systematic`),
-:class:`~radartracker.assessment.stats.Moments` of the time-stamp offsets (their n, mean and M₂, merged
-exactly) and the expected crossings themselves (Pd, its bins and map). A slice's :class:`RadarTally` holds
+and expected crossings: counts (plots per revolution, unmatched plots and reflections among them, split
+sweeps, each code's plots per aircraft, Mode S plots), the sums of the sensor-error fit
+(:mod:`radartracker.assessment.systematic`), :class:`~radartracker.assessment.stats.Moments` of the
+time-stamp offsets (their n, mean and M₂, merged exactly) and the expected crossings themselves (Pd, its bins
+and map). A slice's :class:`RadarTally` holds
 those sums for the plots stamped inside the slice [t₀, t₁) and the sweeps whose first plot is, and
 :meth:`RadarTally.merge` adds two slices: counts exactly, sums and moments to round-off. Every
 plot is counted in exactly one slice, by its time; the margin either side of a slice
@@ -44,15 +45,18 @@ class RadarTally:
     errors e_ρ (m) and e_θ (deg) with the joint estimator's bias removed, for the report's histograms;
     ``sensor``, the sums of the sensor-error fit of their raw residuals ρ − ρ_ref and θ − θ_ref
     (:class:`~radartracker.assessment.systematic.SensorSums`). ``scans``: plots per antenna revolution
-    (revolution → count).
-    ``mode_3a``: matched plots per (aircraft, code or None); ``mode_c``: per aircraft, matched plots, those
-    with an altitude and those within the tolerance; ``mode_s``: [plots of a known address carrying one,
-    right ones]. ``carries``: whether any plot carries an altitude, a Mode 3/A code, a Mode S address.
-    ``spans``: each aircraft's first and last matched plot time."""
+    (revolution → count). ``unmatched``: plots matched to no reference aircraft, ``reflections`` those of them
+    carrying a reference aircraft's code (:func:`reflections`); ``coded_sweeps``: the sweeps whose plot carries
+    a code (of an aircraft whose reflections can be told). ``mode_3a``: matched plots per (aircraft, code or
+    None); ``mode_c``: per aircraft, matched plots, those with an altitude and those within the tolerance;
+    ``mode_s``: [plots of a known address carrying one, right ones]. ``carries``: whether any plot carries an
+    altitude, a Mode 3/A code, a Mode S address. ``spans``: each aircraft's first and last matched plot time."""
 
     plots: int = 0
     unmatched: int = 0
+    reflections: int = 0
     sweeps: int = 0
+    coded_sweeps: int = 0
     split_sweeps: int = 0
     offsets: Moments = attrs.field(factory=Moments)
     errors: dict[str, list[np.ndarray]] = attrs.field(factory=lambda: {"range_m": [], "azimuth_deg": []})
@@ -69,7 +73,9 @@ class RadarTally:
         """The sums of both slices (module docstring): ``self`` updated and returned."""
         self.plots += other.plots
         self.unmatched += other.unmatched
+        self.reflections += other.reflections
         self.sweeps += other.sweeps
+        self.coded_sweeps += other.coded_sweeps
         self.split_sweeps += other.split_sweeps
         self.offsets = self.offsets.merge(other.offsets)
         self.sensor = self.sensor.merge(other.sensor)
@@ -112,8 +118,12 @@ def tally(plots: PlotTable, match: RadarMatch, bias: tuple[float, float], period
     _residuals(plots, match, bias, used, period_s, out)
     sizes = np.bincount(group[group >= 0], minlength=len(first_own)) if len(first_own) else np.zeros(0, np.int64)
     out.sweeps, out.split_sweeps = int(first_own.sum()), int(((sizes > 1) & first_own).sum())
+    out.coded_sweeps = sum(1 for s, a in zip(plots.mode_s[used].tolist(), plots.mode_3a[used].tolist())
+                           if s is not None or a is not None)
     out.plots = int(own.sum())
-    out.unmatched = int((own & (match.aircraft == "")).sum())
+    lost = own & (match.aircraft == "")
+    out.unmatched = int(lost.sum())
+    out.reflections = reflections(plots, match, lost, addresses)
     out.scans = Counter(dict(zip(*(a.tolist() for a in np.unique(match.scan[own], return_counts=True)))))
     _codes(plots, match, own, addresses, config_tolerance_m, out)
     for k in EXPECTED:
@@ -121,6 +131,17 @@ def tally(plots: PlotTable, match: RadarMatch, bias: tuple[float, float], period
     matched = own & (match.aircraft != "")
     out.spans = label_spans(plots.time[matched], match.aircraft[matched])
     return out
+
+
+def reflections(plots: PlotTable, match: RadarMatch, lost: np.ndarray, addresses: dict[str, str | None]) -> int:
+    """The plots of ``lost`` (matched to no reference aircraft) that carry a reference aircraft's Mode S address,
+    or, without an address, a Mode 3/A code that a matched plot of the radar carries: an aircraft's reply seen
+    where no aircraft is, a reflection."""
+    known = {a for a in addresses.values() if a is not None}
+    codes = {c for c in plots.mode_3a[match.aircraft != ""].tolist() if c is not None}
+    rows = np.flatnonzero(lost)
+    return sum(1 for s, a in zip(plots.mode_s[rows].tolist(), plots.mode_3a[rows].tolist())
+               if (s in known if s is not None else a is not None and a in codes))
 
 
 def _first_plot_own(t: np.ndarray, group: np.ndarray, keep: tuple[float, float]) -> np.ndarray:

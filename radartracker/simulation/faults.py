@@ -8,7 +8,11 @@ planted here, each plot independently with its stated probability:
 * a split plot: a second plot of the same sweep, 1 ms later and ``split_offset_m`` farther in range;
 * a plot out of time order: of two consecutive plots of a radar (pairs taken without overlap) the two rows
   exchanged, with probability 2 × ``out_of_order`` per pair, so that this share of the plots is stamped
-  earlier than the plot before it in the file.
+  earlier than the plot before it in the file;
+* a reflection: the aircraft's reply, with its codes, seen a second time off a reflector, 20°–160° away in
+  azimuth (either side) and up to ``reflection_extra_m`` farther, stamped when the antenna pointed there (in
+  the same revolution, T·Δθ/2π later); it carries no truth label (it is not where an aircraft is). Drawn
+  from a generator of its own, so that planting none leaves the other faults' draws as they were.
 """
 
 from __future__ import annotations
@@ -33,7 +37,9 @@ class Faults:
     wrong_mode_s: float = 0.0
     split: float = 0.0
     out_of_order: float = 0.0
+    reflection: float = 0.0
     split_offset_m: float = 300.0
+    reflection_extra_m: float = 2000.0
 
 
 def plant(data: ScenarioData, faults: Faults, seed: int = 0) -> ScenarioData:
@@ -52,10 +58,25 @@ def plant(data: ScenarioData, faults: Faults, seed: int = 0) -> ScenarioData:
     extra = p.take(split)
     extra.time = extra.time + 1e-3
     extra.range_m = extra.range_m + faults.split_offset_m
-    merged = concat_tables([p, extra])
+    reflections = _reflections(data.plots, labelled, faults, data.radars, np.random.default_rng([seed, 37]))
+    merged = concat_tables([p, extra, reflections])
     order = np.argsort(merged.time, kind="stable")
     plots = merged.take(_disorder(merged.radar[order], order, faults.out_of_order, rng))
     return attrs.evolve(data, plots=plots)
+
+
+def _reflections(p, labelled: np.ndarray, faults: Faults, radars: list, rng: np.random.Generator):
+    """The reflections of the module docstring of the labelled plots of ``p`` (the plot table as simulated,
+    before any code was made wrong: a reflection repeats the reply the aircraft sent)."""
+    rows = np.flatnonzero(labelled & (rng.random(len(p)) < faults.reflection))
+    out = p.take(rows)
+    turn = rng.choice([-1.0, 1.0], len(rows)) * rng.uniform(math.radians(20.0), math.radians(160.0), len(rows))
+    period = {r.id: r.period_s for r in radars}
+    out.azimuth_rad = np.mod(out.azimuth_rad + turn, 2 * math.pi)
+    out.time = out.time + np.mod(turn, 2 * math.pi) / (2 * math.pi) * np.array([period[r] for r in out.radar.tolist()])
+    out.range_m = out.range_m + rng.uniform(0.0, faults.reflection_extra_m, len(rows))
+    out.target = np.full(len(rows), None, dtype=object)
+    return out
 
 
 def _disorder(radar: np.ndarray, order: np.ndarray, share: float, rng: np.random.Generator) -> np.ndarray:
@@ -90,5 +111,6 @@ def known_figures(radars: list[SimRadar], truth_biases: dict[str, tuple[float, f
                      "mode_3a_validity": 1.0, "mode_3a_correctness": 1.0 - faults.wrong_mode_3a,
                      "mode_c_validity": 1.0, "mode_c_correctness": 1.0 - faults.wrong_mode_c,
                      "mode_s_correctness": 1.0 - faults.wrong_mode_s, "out_of_order_share": faults.out_of_order,
+                     "reflection_share": faults.reflection,
                      "timestamp_jitter_s": r.sigma_azimuth_rad * r.period_s / (2 * math.pi)}
     return out

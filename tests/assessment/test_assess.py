@@ -16,7 +16,8 @@ from radartracker.simulation.faults import Faults, known_figures, plant
 from radartracker.assessment.profile import Criterion, load_profile
 from radartracker.simulation.scenarios import build_scenario
 
-FAULTS = Faults(wrong_mode_3a=0.03, wrong_mode_c=0.02, wrong_mode_s=0.03, split=0.02, out_of_order=0.01)
+FAULTS = Faults(wrong_mode_3a=0.03, wrong_mode_c=0.02, wrong_mode_s=0.03, split=0.02, out_of_order=0.01,
+                reflection=0.02)
 
 
 @pytest.fixture(scope="module")
@@ -49,6 +50,7 @@ def test_faults_are_seen(planted):
         assert r.figures["mode_3a_correctness"].high < 1.0 or r.figures["mode_c_correctness"].high < 1.0
         assert r.figures["split_plot_share"].low > 0.0
         assert r.figures["out_of_order_share"].low > 0.0
+        assert r.figures["reflection_share"].low > 0.0
         assert 0.8 < r.figures["pd"].value < 0.97
         assert r.figures["range_sigma_m"].high - r.figures["range_sigma_m"].low < 15.0
 

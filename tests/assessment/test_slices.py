@@ -20,7 +20,8 @@ from radartracker.cli import main
 from radartracker.simulation.faults import Faults, plant
 from radartracker.simulation.scenarios import build_scenario
 
-FAULTS = Faults(wrong_mode_3a=0.03, wrong_mode_c=0.02, wrong_mode_s=0.03, split=0.02, out_of_order=0.01)
+FAULTS = Faults(wrong_mode_3a=0.03, wrong_mode_c=0.02, wrong_mode_s=0.03, split=0.02, out_of_order=0.01,
+                reflection=0.02)
 
 
 def _flat(d, path: str = "") -> dict:
