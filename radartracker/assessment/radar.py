@@ -114,7 +114,7 @@ def _sensor_errors(radar: str, tally: RadarTally, figures: dict[str, Estimate],
     fit = fit_sensor_errors(radar, tally.sensor)
     if fit is None:
         for name in (*(f for f, _ in FIT_FIGURES.values()), "range_sigma_m", "azimuth_sigma_deg"):
-            missing[name] = "fewer than four plots matched to the reference"
+            missing[name] = "fewer than five plots matched to the reference"
         return {}
     n = tally.sensor.n
     for bound in fit.bounds:
@@ -125,9 +125,9 @@ def _sensor_errors(radar: str, tally: RadarTally, figures: dict[str, Estimate],
                              f"(√CRLB {sd * scale:.4g} against a prior σ of {bound.prior_sd * scale:.4g})")
         else:
             figures[name] = stats.scaled(stats.normal(value, sd, n), scale)
-    (s_r, s_a), (dof_r, dof_a) = fit.sigma, fit.dof
-    figures["range_sigma_m"] = stats.sigma_of_sum(s_r * s_r * dof_r, dof_r, n)
-    figures["azimuth_sigma_deg"] = stats.scaled(stats.sigma_of_sum(s_a * s_a * dof_a, dof_a, n), math.degrees(1.0))
+    (rss_r, rss_a), (dof_r, dof_a) = fit.rss, fit.dof
+    figures["range_sigma_m"] = stats.sigma_of_sum(rss_r, dof_r, n)
+    figures["azimuth_sigma_deg"] = stats.scaled(stats.sigma_of_sum(rss_a, dof_a, n), math.degrees(1.0))
     return {b.component: b.status for b in fit.bounds}
 
 

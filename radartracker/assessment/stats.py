@@ -9,7 +9,8 @@ Every figure of the assessment is an :class:`Estimate`: the value, the interval 
   ``scipy.stats.binomtest`` computes them;
 * a standard deviation s of n residuals: **χ²**, [s √((n−1)/χ²_{1−α/2, n−1}), s √((n−1)/χ²_{α/2, n−1})];
 * a mean of n values: Student's **t**, x̄ ± t_{1−α/2, n−1} s/√n;
-* both from the sample's :class:`Moments`, which add up over the time slices of a long recording;
+* σ also from the sample's :class:`Moments`, which add up over the time slices of a long recording, or
+  from a residual sum of squares and its degrees of freedom (a fit's);
 * a rate of N events in S scans (false plots per scan): the exact Poisson (**Garwood**) interval
   [χ²_{α/2, 2N}/2, χ²_{1−α/2, 2N+2}/2] / S;
 * an estimator's own estimate with its σ (a bias): **normal**, x̂ ± z σ.
@@ -107,9 +108,9 @@ def sigma_of_sum(squares: float, dof: int, n: int) -> Estimate:
     return Estimate(s, lo, hi, n, "chi2")
 
 
-def mean(values: np.ndarray | Moments) -> Estimate:
+def mean(values: np.ndarray) -> Estimate:
     """The sample mean with Student's t interval."""
-    x = values if isinstance(values, Moments) else Moments.of(values)
+    x = Moments.of(values)
     n = x.n
     if n < 2:
         return missing("t")

@@ -73,14 +73,20 @@ class SensorSums:
 @attrs.frozen
 class SensorFit:
     """The fit of :func:`fit_sensor_errors`: ``estimate`` x̂ and ``cov`` P (module docstring, in
-    :data:`FIT_MODEL`'s order), the random errors ``sigma`` (σ_ρ m, σ_θ rad) with their degrees of freedom
-    ``dof``, and each component's ``bounds`` (√P_kk against its prior σ: its observability)."""
+    :data:`FIT_MODEL`'s order), each axis's residual sum of squares ``rss`` and degrees of freedom ``dof``
+    (the random errors :attr:`sigma`), and each component's ``bounds`` (√P_kk against its prior σ: its
+    observability)."""
 
     estimate: np.ndarray
     cov: np.ndarray
-    sigma: tuple[float, float]
+    rss: tuple[float, float]
     dof: tuple[int, int]
     bounds: tuple[ComponentBound, ...]
+
+    @property
+    def sigma(self) -> tuple[float, float]:
+        """σ_ρ (m) and σ_θ (rad): √(RSS/ν) of each axis."""
+        return math.sqrt(self.rss[0] / self.dof[0]), math.sqrt(self.rss[1] / self.dof[1])
 
     def component(self, name: str) -> tuple[float, float, str]:
         """(estimate, σ, status) of component ``name``."""
@@ -93,16 +99,20 @@ def fit_sensor_errors(radar: str, sums: SensorSums) -> SensorFit | None:
     dof = (sums.n - _PER_AXIS[0], sums.n - _PER_AXIS[1])
     if min(dof) < 2:
         return None
-    prior = np.diag(1.0 / np.diag(FIT_MODEL.prior()))
-    var = np.maximum((sums.s - sums.b[:, :2].diagonal() ** 2 / sums.n) / (sums.n - 1), 1e-300)
+    rss = (sums.s - sums.b[:, :2].diagonal() ** 2 / sums.n) * np.array(dof) / (sums.n - 1)  # about the means
     for _ in range(_ITERATIONS):
-        x, P = _solve(sums.F[0] / var[0] + sums.F[1] / var[1] + prior, sums.b[0] / var[0] + sums.b[1] / var[1])
+        x, P = _weighted(sums, np.maximum(rss, 0.0) / np.array(dof) + 1e-300)
         rss = np.array([sums.s[k] - 2.0 * x @ sums.b[k] + x @ sums.F[k] @ x for k in (0, 1)])
-        var = np.maximum(rss, 0.0) / np.array(dof) + 1e-300
-    x, P = _solve(sums.F[0] / var[0] + sums.F[1] / var[1] + prior, sums.b[0] / var[0] + sums.b[1] / var[1])
+    x, P = _weighted(sums, np.maximum(rss, 0.0) / np.array(dof) + 1e-300)
     bounds = tuple(ComponentBound(radar, c.name, float(math.sqrt(P[k, k])), c.prior_sd)
                    for k, c in enumerate(FIT_MODEL.components))
-    return SensorFit(x, P, (float(math.sqrt(var[0])), float(math.sqrt(var[1]))), dof, bounds)
+    return SensorFit(x, P, (float(max(rss[0], 0.0)), float(max(rss[1], 0.0))), dof, bounds)
+
+
+def _weighted(sums: SensorSums, var: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(x̂, P) for the axes' variances ``var`` (module docstring): P = (F_ρ/σ_ρ² + F_θ/σ_θ² + Λ₀)⁻¹."""
+    M = sums.F[0] / var[0] + sums.F[1] / var[1] + np.diag(1.0 / np.diag(FIT_MODEL.prior()))
+    return _solve(M, sums.b[0] / var[0] + sums.b[1] / var[1])
 
 
 def _solve(M: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -8,8 +8,8 @@ within :data:`ALTITUDE_M`) and
 
 * it has *lost* the aircraft (it has had no measurement since the new track began), and some turn at a
   constant rate of at most :data:`TURN_RATE_MAX` (straight on included) from its last estimate (p₀, v₀) at
-  t₀ puts the aircraft within ``merge_distance_m`` of the new track's position at t, with a velocity within
-  :data:`SPEED_SHARE` of the new track's speed (plus :data:`SPEED_SLACK_MPS`) of the new one's: with
+  t₀ puts the aircraft within ``merge_distance_m`` of the new track's position at t, with a velocity as far
+  from the new track's as :data:`SPEED_SHARE` of its speed plus :data:`SPEED_SLACK_MPS` at most: with
   a = ω(t − t₀), p(ω) = p₀ + [[S, −K], [K, S]] v₀ and v(ω) = R(a) v₀, S = sin a / ω, K = (1 − cos a)/ω
   (a lost aircraft is most often one that turned while its track went straight on). Its covariance, which
   let the aircraft get out of its gate, cannot be trusted to judge; the older number *takes over* the new

@@ -73,16 +73,13 @@ class EstimatorFeed:
         self.pending: list[Operation] = []
         self.on_nis: Callable[[np.ndarray], None] | None = None  # given each update_many's NIS values
         self._biases: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-        self._priors: dict[str, np.ndarray] = {}  # each radar's prior covariance of its bias components
 
     def state(self, radar: str) -> BiasState:
         """``radar``'s bias estimate as the manager uses and reports it: the estimator's, with the components
         the data do not inform (the radar isolated in the coupling graph, or a variance still near the prior's)
         held at their prior (:func:`~radartracker.estimation.observability.held_at_prior`)."""
-        prior = self._priors.get(radar)
-        if prior is None:
-            prior = self._priors[radar] = self.estimator.config.sensor(radar).prior()
-        return held_at_prior(self.estimator.bias(radar), prior, self.coupling.isolated(radar))
+        est = self.estimator
+        return held_at_prior(est.bias(radar), est.config.sensor(radar).prior(), self.coupling.isolated(radar))
 
     def bias(self, radar: str | None) -> tuple[np.ndarray, np.ndarray]:
         """(ς̂, P_ς) of ``radar`` (:meth:`state`) as at the frame's start (zeros for an unbiased source,
