@@ -7,7 +7,8 @@ plots), and the built-in ``tracking`` and ``manoeuvres`` scenarios. Prints one J
 then a Markdown table. Metrics (:func:`radartracker.pipeline.evaluate.track_metrics`, 2 s grid,
 c = 2 km): continuity (min over aircraft), breaks (also in % of flights; ``coverage_gaps`` counts
 the gaps longer than ``delete_after_s`` in an aircraft's plots, each an unavoidable break, and
-``breaks_continuous`` an aircraft's breaks beyond its gaps: those while its plots kept coming), swaps,
+``breaks_continuous`` track_metrics' ``breaks_in_coverage``, an aircraft's breaks beyond its gaps: those while
+its plots kept coming), swaps,
 RMSE and GOSPA;
 the height estimate of tracks whose plots carry no altitude (RMSE against the truth's altitude, mean NEES of
 χ²₁, median σ_h and the share of the aircraft's own tracks' estimates with an observable height); here also
@@ -39,7 +40,7 @@ from tracking_stonesoup import load_tracks, plots_digest, save_tracks, stonesoup
 
 from radartracker.registry import make_manager
 from radartracker.io.tables import ScenarioData  # noqa: E402
-from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, track_metrics  # noqa: E402
+from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, detection_gaps, track_metrics  # noqa: E402
 from radartracker.pipeline.stream import scenario_stream  # noqa: E402
 from radartracker.simulation.scenarios import build_scenario  # noqa: E402
 from radartracker.tracking.config import ManagerConfig  # noqa: E402
@@ -97,17 +98,17 @@ def evaluate(data: ScenarioData, tracks: dict[int, TrackHistory]) -> dict:
 
     paths = TruthPaths.from_table(data.truth, SystemPlane(*data.reference))
     labelled = np.array([t is not None for t in data.plots.target])
-    observed, gaps = {}, {}
+    observed = {}
     for tg in np.unique(data.plots.target[labelled].astype(str)):
         t = np.sort(data.plots.time[data.plots.target == tg])
         if t.max() - t.min() > GRACE_S:
             observed[tg] = (float(t.min()) + GRACE_S, float(t.max()))
-            gaps[tg] = int(np.sum(np.diff(t) > ManagerConfig().delete_after_s))
+    gaps = detection_gaps(data.plots.time, data.plots.target, ManagerConfig().delete_after_s)
     grid = np.arange(data.truth.time.min(), data.truth.time.max(), GRID_S)
     # the aircraft some plot or ADS-B report saw: a track following one of them is not false
     sensed = set(observed) | set(np.unique(data.plots.target[labelled].astype(str))) | set(data.adsb.icao24.astype(str))
     first = {tg: lo - GRACE_S for tg, (lo, _) in observed.items()}
-    m = track_metrics(tracks, paths, observed, grid, C_M, sensed=sensed, first_seen=first)
+    m = track_metrics(tracks, paths, observed, grid, C_M, sensed=sensed, first_seen=first, gaps=gaps)
     q = m["indicators"]
     err, turning, high, nees4, nees2, dh, sdh, n_est = [], [], [], [], [], [], [], 0
     for tg, v in m["per_target"].items():
@@ -130,10 +131,9 @@ def evaluate(data: ScenarioData, tracks: dict[int, TrackHistory]) -> dict:
         ti = np.flatnonzero(data.truth.target == tg)
         high.extend(np.interp(g[use], data.truth.time[ti], data.truth.altitude_m[ti]) >= HIGH_M)
     e, high = np.array(err), np.array(high, bool)
-    # a break across a gap in the aircraft's plots longer than delete_after_s is the life cycle doing its job
-    # (the track is deleted, a new one starts when the plots come back): a flight's breaks beyond its gaps are not
-    continuous = sum(max(0, v["breaks"] - gaps.get(tg, 0)) for tg, v in m["per_target"].items())
-    return {"flights": len(observed), "coverage_gaps": sum(gaps.values()), "continuity_min": m["continuity_min"],
+    continuous = m["breaks_in_coverage"]
+    return {"flights": len(observed), "coverage_gaps": sum(gaps[tg] for tg in observed),
+            "continuity_min": m["continuity_min"],
             "breaks": m["breaks"], "breaks_pct": 100.0 * m["breaks"] / max(len(observed), 1),
             "breaks_continuous": continuous, "breaks_continuous_pct": 100.0 * continuous / max(len(observed), 1),
             "swaps": m["swaps"],

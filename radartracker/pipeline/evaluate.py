@@ -129,9 +129,33 @@ def gospa(d2: np.ndarray, n_missed: int, n_false: int, c: float) -> float:
     return float(np.sqrt(np.sum(d2) + c * c / 2 * (n_missed + n_false)))
 
 
+def detection_gaps(time: np.ndarray, target: np.ndarray, longer_than_s: float) -> dict[str, int]:
+    """Per truth label of ``target`` (``None``: no label, left out), how many times its detections (``time``)
+    stop for longer than ``longer_than_s``: the aircraft left every sensor's coverage for longer than a track
+    is kept without an update."""
+    out = {}
+    labelled = np.array([t is not None for t in target], bool)
+    keys = np.asarray(target[labelled]).astype(str)
+    t = np.asarray(time, float)[labelled]
+    order = np.lexsort((t, keys))
+    keys, t = keys[order], t[order]
+    for k, start, stop in zip(*_runs(keys)):
+        out[k] = int(np.sum(np.diff(t[start:stop]) > longer_than_s))
+    return out
+
+
+def _runs(keys: np.ndarray) -> tuple[list[str], list[int], list[int]]:
+    """The runs of equal values of the sorted ``keys``: each value, its first index and the index after its last."""
+    if not len(keys):
+        return [], [], []
+    cut = np.flatnonzero(keys[1:] != keys[:-1]) + 1
+    starts, stops = np.concatenate([[0], cut]), np.concatenate([cut, [len(keys)]])
+    return keys[starts].tolist(), starts.tolist(), stops.tolist()
+
+
 def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: dict[str, tuple[float, float]],
                   grid: np.ndarray | GridSpec, c: float = 2000.0, sensed: Iterable[str] | None = None,
-                  first_seen: dict[str, float] | None = None) -> dict:
+                  first_seen: dict[str, float] | None = None, gaps: dict[str, int] | None = None) -> dict:
     """Track-to-truth assignment on a time grid and the metrics derived from it.
 
     At each grid time the alive tracks are assigned to the observed truths as in CLEAR MOT
@@ -141,7 +165,10 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
     same point at a crossing would "swap" for one instant by an accident of the tie.) Per target, the *right* track
     is the one assigned to it most often; continuity is the fraction of its observed time it holds.
     A *swap* is a track assigned to two different targets; a *break* a change of a target's
-    assigned track. A track *follows* an aircraft at a grid time when it is assigned to it, or lies
+    assigned track; ``breaks_in_coverage`` leaves out, per target, as many breaks as its detections have
+    ``gaps`` (:func:`detection_gaps`; none given: none left out): across such a gap the aircraft was out of
+    every sensor's coverage, its track rightly deleted and a new one started when it came back (ESASSP and
+    SASS-C judge continuity inside the coverage). A track *follows* an aircraft at a grid time when it is assigned to it, or lies
     within ``c`` of one of the ``sensed`` aircraft (those any plot or report observed; default: every
     aircraft of ``paths``) where it has truth — so a track confirmed during its aircraft's grace
     period, on an aircraft seen only by ADS-B, or a second track on an aircraft follows it. A *false
@@ -173,6 +200,8 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
                                                                paths.paths if sensed is None else sensed, grid, c * c)
     tid_of = np.array(tids + [-1])  # index -1 stays -1
     per_target = _per_target(tid_of[assigned], tru_live, targets)
+    for tg, v in per_target.items():
+        v["breaks_in_coverage"] = max(0, v["breaks"] - (gaps or {}).get(tg, 0))
     breaks = sum(v["breaks"] for v in per_target.values())
     found = Assignment(grid, assigned, trk_pos, trk_live, tru_pos, tru_live, [tracks[t].times for t in tids],
                        np.array([tracks[t].start for t in tids], float))
@@ -184,6 +213,7 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
         "continuity_min": min((v["continuity"] for v in per_target.values()), default=float("nan")),
         "swaps": sum(len(s) > 1 for s in track_targets),
         "breaks": breaks,
+        "breaks_in_coverage": sum(v["breaks_in_coverage"] for v in per_target.values()),
         "false_tracks": int(np.sum((t_alive > 0) & (t_follows < 0.5 * t_alive))),
         "confirmed_tracks": len(tids),
         "position_rmse_m": float(np.sqrt(np.mean(sq))) if sq else float("nan"),

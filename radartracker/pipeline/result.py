@@ -31,7 +31,8 @@ from radartracker.estimation.coupling import CouplingGraph
 from radartracker.geometry.plane import SystemPlane
 from radartracker.io.tables import ScenarioData, label_spans
 from radartracker.pipeline.config import RunConfig
-from radartracker.pipeline.evaluate import GridSpec, TrackHistory, TruthPaths, nees, state_errors, track_metrics
+from radartracker.pipeline.evaluate import (GridSpec, TrackHistory, TruthPaths, detection_gaps, nees, state_errors,
+                                            track_metrics)
 from radartracker.pipeline.outputs import bias_table, event_tables
 from radartracker.pipeline.recorder import BiasLog, Events
 from radartracker.tracking.events import ENDS
@@ -202,8 +203,9 @@ class RunResult:
             spans = {tg: (float(p[0].min()), float(p[0].max())) for tg, p in paths.paths.items()}
         observed = observed_spans(spans)
         grid = GridSpec(float(d.truth.time.min()), float(d.truth.time.max()), 2.0)  # its live times only
+        gaps = detection_gaps(d.plots.time, d.plots.target, self.config.manager_settings().delete_after_s)
         tracking = track_metrics(self.histories(), paths, observed, grid,
-                                 first_seen={tg: lo for tg, (lo, _) in spans.items()})
+                                 first_seen={tg: lo for tg, (lo, _) in spans.items()}, gaps=gaps)
         tracking.pop("gospa")
         # the target of each estimate: its truth label, else the target its track was assigned to
         owner = {v["right_track"]: tg for tg, v in tracking["per_target"].items() if v["right_track"] >= 0}

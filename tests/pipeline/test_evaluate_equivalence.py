@@ -60,6 +60,7 @@ def naive_track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, obse
             "continuity": float(np.mean(a[inside] == right)) if inside.any() else float("nan"),
             "breaks": int(np.sum(seq[1:] != seq[:-1])) if len(seq) else 0,
         }
+        per_target[tg]["breaks_in_coverage"] = per_target[tg]["breaks"]  # no detection gaps given: all of them
     # a track follows an aircraft where it is assigned or within c of any aircraft of the truth
     held = {(tid, k) for a in assigned.values() for k, tid in enumerate(a) if tid >= 0}
     every = {tg: paths.state_at(tg, grid) for tg in paths.paths}
@@ -71,6 +72,7 @@ def naive_track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, obse
         "continuity_min": min((v["continuity"] for v in per_target.values()), default=float("nan")),
         "swaps": sum(len(s) > 1 for s in track_targets.values()),
         "breaks": sum(v["breaks"] for v in per_target.values()),
+        "breaks_in_coverage": sum(v["breaks_in_coverage"] for v in per_target.values()),
         "false_tracks": sum(1 for tid in tids if t_alive[tid] and follows[tid] < 0.5 * t_alive[tid]),
         "confirmed_tracks": len(tids),
         "position_rmse_m": float(np.sqrt(np.mean(sq))) if sq else float("nan"),

@@ -4,7 +4,7 @@ initiation delay) on hand-made tracks whose answers are counted by hand in each 
 import numpy as np
 import pytest
 
-from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, track_metrics
+from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, detection_gaps, track_metrics
 
 GRID = np.arange(0.0, 100.0, 1.0)  # 100 grid times, 0–99 s
 OBS = {"a": (0.0, 99.0), "b": (0.0, 99.0)}
@@ -59,3 +59,21 @@ def test_breaks_per_flight_hour_and_initiation_delay():
     assert q["breaks_per_flight_hour"] == pytest.approx(1 / (2 * 99.0 / 3600.0))
     # delays: a 0 s (track 1 from 0 s), b 25 s
     assert q["initiation_delay_max_s"] == 25.0 and q["initiation_delay_median_s"] == 12.5
+
+
+def test_a_break_across_a_gap_in_the_detections_is_not_a_break_in_coverage():
+    """a's detections stop from 45 to 100 s (one gap of 55 s, longer than 40 s) and its track changes across it
+    (one break, not in coverage); b's detections never stop for more than 10 s and its track changes at 60 s
+    (one break in coverage). detection_gaps counts the gaps by hand's count; unlabelled plots are left out."""
+    t_a = np.concatenate([np.arange(0.0, 46.0, 5.0), np.arange(100.0, 150.0, 5.0)])
+    t_b = np.arange(0.0, 150.0, 10.0)
+    time = np.concatenate([t_a, t_b, [70.0]])
+    target = np.array(["a"] * len(t_a) + ["b"] * len(t_b) + [None], object)
+    gaps = detection_gaps(time, target, 40.0)
+    assert gaps == {"a": 1, "b": 0}
+    tracks = {1: track(0.0, np.arange(0.0, 51.0), end=50.0), 3: track(0.0, np.arange(51.0, 100.0)),
+              2: track(5000.0, np.arange(0.0, 61.0), end=60.0), 4: track(5000.0, np.arange(61.0, 100.0))}
+    m = track_metrics(tracks, truth(), OBS, GRID, gaps=gaps)
+    assert m["breaks"] == 2 and m["breaks_in_coverage"] == 1
+    assert [m["per_target"][k]["breaks_in_coverage"] for k in ("a", "b")] == [0, 1]
+    assert track_metrics(tracks, truth(), OBS, GRID)["breaks_in_coverage"] == 2  # no gaps given: every break
