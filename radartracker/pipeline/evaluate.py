@@ -164,23 +164,22 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
     farther than ``c`` left unassigned. (Without the first rule, two tracks passing through the
     same point at a crossing would "swap" for one instant by an accident of the tie.) Per target, the *right* track
     is the one assigned to it most often; continuity is the fraction of its observed time it holds.
-    A *swap* is a track assigned to two different targets; a *break* a change of a target's
-    assigned track; ``breaks_in_coverage`` leaves out, per target, as many breaks as its detections have
-    ``gaps`` (:func:`detection_gaps`; none given: none left out): across such a gap the aircraft was out of
-    every sensor's coverage, its track rightly deleted and a new one started when it came back (ESASSP and
-    SASS-C judge continuity inside the coverage). A track *follows* an aircraft at a grid time when it is assigned to it, or lies
-    within ``c`` of one of the ``sensed`` aircraft (those any plot or report observed; default: every
-    aircraft of ``paths``) where it has truth — so a track confirmed during its aircraft's grace
-    period, on an aircraft seen only by ADS-B, or a second track on an aircraft follows it. A *false
-    track* follows no aircraft for at least half of its life up to its last estimate (what measurements
-    support: a track coasts ``delete_after_s`` after its last plot, also when its aircraft has
-    vanished, as simulated flights do at their end). A :class:`GridSpec` is evaluated at its times where
-    something lives (the others add nothing but zeros to the GOSPA mean, counted in it), with the same
-    results as the whole grid; the times evaluated may be at most :data:`MAX_GRID_CELLS` / (targets +
-    tracks), else an InputError. ``indicators``: the standards' track-quality indicators
-    (:mod:`radartracker.pipeline.indicators`: multiple tracks, probability of update, breaks per flight
-    hour, initiation delay from ``first_seen``, each target's first detection, by default the start of
-    its observed span).
+    A *swap* is a track assigned to two different targets; a *break* a change of a target's assigned track;
+    ``breaks_in_coverage`` leaves out, per target, as many breaks as its detections have ``gaps``
+    (:func:`detection_gaps`; none given: none left out): across such a gap the aircraft was out of every
+    sensor's coverage, its track rightly deleted and a new one started when it came back (ESASSP and SASS-C
+    judge continuity inside the coverage). A track *follows* an aircraft at a grid time when it is assigned to
+    it, or lies within ``c`` of one of the ``sensed`` aircraft (those any plot or report observed; default:
+    every aircraft of ``paths``) where it has truth — so a track confirmed during its aircraft's grace period,
+    on an aircraft seen only by ADS-B, or a second track on an aircraft follows it. A *false track* follows no
+    aircraft for at least half of its life up to its last estimate (what measurements support: a track coasts
+    ``delete_after_s`` after its last plot, also when its aircraft has vanished, as simulated flights do at
+    their end). A :class:`GridSpec` is evaluated at its times where something lives (the others add nothing
+    but zeros to the GOSPA mean, counted in it), with the same results as the whole grid; the times evaluated
+    may be at most :data:`MAX_GRID_CELLS` / (targets + tracks), else an InputError. ``indicators``: the
+    standards' track-quality indicators (:mod:`radartracker.pipeline.indicators`: multiple tracks, probability
+    of update, breaks per flight hour, initiation delay from ``first_seen``, each target's first detection, by
+    default the start of its observed span).
     """
     targets = sorted(observed)
     tids = sorted(tracks)

@@ -310,7 +310,8 @@ class RunResult:
             lines.append(f"{rid:<8} {f(b['true_range_bias_m'], '8.1f')} {f(b['range_bias_m'], '8.1f')} "
                          f"{f(b['sd_range_m'], '6.1f')} {f(b['z_range'], '5.2f')} {f(b['true_azimuth_bias_deg'], '8.3f')} "
                          f"{f(b['azimuth_bias_deg'], '9.4f')} {f(b['sd_azimuth_deg'], '7.4f')} {f(b['z_azimuth'], '6.2f')}"
-                         + (f"  unobservable, at the prior: {', '.join(b['unobservable'])}" if b["unobservable"] else ""))
+                         + (f"  unobservable, at the prior: {', '.join(b['unobservable'])}"
+                            if b["unobservable"] else ""))
         if s["truth"]:
             tm, tk = s["truth"], s["tracking"]
             lines.append(f"position RMSE {f(tm['position_rmse_m'], '.1f')} m, velocity RMSE "
