@@ -98,31 +98,32 @@ def measure_cone(elevation_deg: np.ndarray, detected: np.ndarray,
     return Estimate(float(e[j] + e[j + 1]) / 2, float(e[ok.min()]), float(e[ok.max() + 1]), n, "step-fit-lr"), ""
 
 
-def _range_bins(range_km: np.ndarray, detected: np.ndarray, config: CoverageConfig) -> tuple[list[int], list[Estimate]]:
-    """The judged slant-range bins (index b: [b Δρ, (b + 1) Δρ)) of the crossings and each one's Pd."""
+def _range_bins(range_km: np.ndarray, detected: np.ndarray, config: CoverageConfig) -> tuple[np.ndarray, ...]:
+    """The judged slant-range bins (index b: [b Δρ, (b + 1) Δρ)) of the crossings, their crossings, and each
+    one's Pd with its interval (:func:`radartracker.assessment.stats.proportions`): five arrays."""
     if not len(range_km):
-        return [], []
+        return (np.zeros(0, np.int64),) * 2 + (np.zeros(0),) * 3
     b = np.floor(range_km / config.range_bin_km).astype(np.int64)
     n = np.bincount(b)
     k = np.bincount(b, weights=detected.astype(float), minlength=len(n)).round().astype(np.int64)
-    judged = np.flatnonzero(n >= config.min_crossings).tolist()
-    return judged, [stats.proportion(int(k[i]), int(n[i])) for i in judged]
+    judged = np.flatnonzero(n >= config.min_crossings)
+    return (judged, n[judged], *stats.proportions(k[judged], n[judged]))
 
 
-def detection_range(bins: list[int], pd: list[Estimate], max_range_km: float,
+def detection_range(bins: tuple[np.ndarray, ...], max_range_km: float,
                     config: CoverageConfig) -> tuple[float, float, float, str]:
-    """(R, R_low, R_high) in km of the judged range ``bins`` and their ``pd`` (module docstring), and what limits
-    R: ``configured range`` (R = R_max), ``detection`` (a judged bin beyond R falls short of P_c) or
+    """(R, R_low, R_high) in km of the judged range ``bins`` (:func:`_range_bins`, module docstring), and what
+    limits R: ``configured range`` (R = R_max), ``detection`` (a judged bin beyond R falls short of P_c) or
     ``traffic`` (no judged bin beyond R: the traffic stopped first, R is a lower bound of the reach)."""
-    w = config.range_bin_km
+    w, index = config.range_bin_km, bins[0]
 
-    def reach(values: list[float]) -> float:
-        met = [i for i, v in zip(bins, values) if v >= config.level]
-        return min(max_range_km, (max(met) + 1) * w) if met else 0.0
+    def reach(values: np.ndarray) -> float:
+        met = index[values >= config.level]
+        return min(max_range_km, float(met.max() + 1) * w) if len(met) else 0.0
 
-    r = reach([e.value for e in pd])
-    limit = "configured range" if r >= max_range_km else "detection" if max(bins) * w >= r else "traffic"
-    return (r, max(0.0, reach([e.low for e in pd]) - w), min(max_range_km, reach([e.high for e in pd]) + w), limit)
+    r = reach(bins[2])
+    limit = "configured range" if r >= max_range_km else "detection" if index.max() * w >= r else "traffic"
+    return r, max(0.0, reach(bins[3]) - w), min(max_range_km, reach(bins[4]) + w), limit
 
 
 def achieved_coverage(range_m: np.ndarray, azimuth_deg: np.ndarray, detected: np.ndarray, max_range_m: float,
@@ -131,29 +132,28 @@ def achieved_coverage(range_m: np.ndarray, azimuth_deg: np.ndarray, detected: np
     the coverage diagram: per azimuth sector its crossings, detections, R_s with its bounds, what limits it,
     and R_max (km)."""
     r_km, r_max, w = range_m / 1000.0, max_range_m / 1000.0, config.range_bin_km
-    bins, pd = _range_bins(r_km, detected, config)
-    if not bins:
+    bins = _range_bins(r_km, detected, config)
+    if not len(bins[0]):
         why = f"no {w:g} km range bin holds {config.min_crossings} crossings"
         return {}, {"detection_range_km": why, "coverage_share": why}, []
-    whole = detection_range(bins, pd, r_max, config)
+    whole = detection_range(bins, r_max, config)
     figures = {"detection_range_km": Estimate(*whole[:3], len(r_km), "wilson-bins")}
     sector = np.floor(np.mod(azimuth_deg, 360.0) / config.sector_deg).astype(np.int64)
-    rows, cells = [], []  # cells: (area, Pd) of every judged (sector, range bin)
+    rows, cells = [], []  # cells: per sector, its judged range bins' areas, crossings and Pd with its bounds
     for s in range(math.ceil(360.0 / config.sector_deg)):
         sel = sector == s
         width = min(360.0, (s + 1) * config.sector_deg) - s * config.sector_deg
         got = _range_bins(r_km[sel], detected[sel], config)
-        cells += [(width * (min((b + 1) * w, r_max) ** 2 - (b * w) ** 2), e) for b, e in zip(*got)]
-        reach = detection_range(*got, r_max, config) if got[0] else (math.nan,) * 3 + ("",)
+        cells.append(np.vstack([width * (np.minimum((got[0] + 1) * w, r_max) ** 2 - (got[0] * w) ** 2), *got[1:]]))
+        reach = detection_range(got, r_max, config) if len(got[0]) else (math.nan,) * 3 + ("",)
         rows.append({"azimuth_low": s * config.sector_deg, "azimuth_high": s * config.sector_deg + width,
                      "crossings": int(sel.sum()), "detected": int(detected[sel].sum()), "range_km": reach[0],
                      "range_low_km": reach[1], "range_high_km": reach[2], "limited_by": reach[3],
                      "configured_range_km": r_max})
-    if not cells:
+    area, n, *pd = np.hstack(cells)
+    if not len(area):
         return figures, {"coverage_share": f"no {config.sector_deg:g}° sector's {w:g} km range bin holds "
                                            f"{config.min_crossings} crossings"}, rows
-    area = np.array([a for a, _ in cells])
-    share = [float(area[[getattr(e, k) >= config.level for _, e in cells]].sum() / area.sum())
-             for k in ("value", "low", "high")]
-    figures["coverage_share"] = Estimate(*share, sum(e.n for _, e in cells), "wilson-cells")
+    share = [float(area[p >= config.level].sum() / area.sum()) for p in pd]
+    figures["coverage_share"] = Estimate(*share, int(n.sum()), "wilson-cells")
     return figures, {}, rows

@@ -169,3 +169,20 @@ def test_no_range_bin_with_enough_crossings_is_not_assessable():
     figures, missing, rows = achieved_coverage(np.array([5e3, 50e3]), np.array([10.0, 200.0]),
                                                np.array([True, False]), 120e3, CoverageConfig())
     assert not figures and set(missing) == {"detection_range_km", "coverage_share"} and rows == []
+
+
+def test_vectorised_intervals_are_binomtests():
+    """stats.proportions (one call for every bin) gives scipy.stats.binomtest's Wilson and Clopper–Pearson
+    intervals, as stats.proportion does one bin at a time."""
+    from scipy.stats import binomtest
+
+    from radartracker.assessment.stats import proportions
+
+    n = np.array([1, 2, 6, 6, 11, 11, 37, 200, 5000, 5000])
+    k = np.array([0, 2, 3, 6, 5, 6, 20, 190, 4990, 2500])
+    p, low, high = proportions(k, n)
+    for i in range(len(n)):
+        exact = min(k[i], n[i] - k[i]) <= 5
+        ci = binomtest(int(k[i]), int(n[i])).proportion_ci(0.95, method="exact" if exact else "wilson")
+        assert p[i] == k[i] / n[i] and math.isclose(low[i], ci.low, abs_tol=1e-9) \
+            and math.isclose(high[i], ci.high, abs_tol=1e-9), (k[i], n[i])
