@@ -99,7 +99,7 @@ class Assessment:
             "units": {k: u for k, (_, u) in INDICATORS.items()},
             "radars": {r.radar: {"kind": r.kind, "observability": r.observability, "components": r.components,
                                  "figures": {k: e.as_dict() for k, e in r.figures.items()},
-                                 "not_assessable": r.not_assessable,
+                                 "not_assessable": r.not_assessable, "coverage": r.coverage,
                                  "verdicts": {v["indicator"]: v["verdict"] for v in verdicts if v["radar"] == r.radar}}
                        for r in self.radars},
             "system": {"figures": {k: e.as_dict() for k, e in self.system.items()},

@@ -17,9 +17,11 @@ detections the radar should have made.
   t = t_N + (n + θ_ref(t)/2π) T (three fixed-point steps; crossings two revolutions' iterations meet near
   north counted once). The radar should detect it there when the reference is inside its coverage: slant
   range ≤ its ``max_range_m``, elevation above the geometric radar horizon −arccos(R/(R + h)) and below
-  the cone of silence (:attr:`MatchConfig.cone_of_silence_deg`). It did when a plot matched to that
+  the assumed cone of silence (:attr:`MatchConfig.cone_of_silence_deg`). It did when a plot matched to that
   aircraft lies within T/2 of the crossing (by time, not by revolution label: near north a plot's
-  azimuth noise can move its label by one).
+  azimuth noise can move its label by one). The crossings above the assumed cone are kept too, flagged
+  ``above_cone``: Pd leaves them out, the measured cone of silence
+  (:mod:`radartracker.assessment.coverage`) needs them.
 """
 
 from __future__ import annotations
@@ -52,8 +54,8 @@ class RadarMatch:
     ``ref_azimuth``, ``ref_altitude``: the reference's exact polar position and height at the plot's time
     (NaN when unmatched); ``ref_rate``: its slant-range and azimuth rates there, ρ̇ (m/s) and θ̇ (rad/s), 2 × n
     (NaN when unmatched); ``scan``: each plot's antenna revolution. ``expected``: one row per reference
-    crossing inside the coverage, as columns ``aircraft``, ``scan``, ``time``, ``range_m``, ``azimuth_deg``,
-    ``altitude_m``, ``x``, ``y`` (plane, m), ``detected``."""
+    crossing inside the coverage or above the assumed cone, as columns ``aircraft``, ``time``, ``range_m``,
+    ``azimuth_deg``, ``elevation_deg``, ``altitude_m``, ``x``, ``y`` (plane, m), ``above_cone``, ``detected``."""
 
     aircraft: np.ndarray
     d2: np.ndarray
@@ -163,9 +165,10 @@ def _associate(frame: RadarFrame, t: np.ndarray, polar: tuple[np.ndarray, np.nda
 
 def _expected(radar: Radar, frame: RadarFrame, reference: Reference, config: MatchConfig, t_north: float,
               spans: tuple[tuple[float, float], tuple[float, float]]) -> dict[str, np.ndarray]:
-    """The crossings of every reference aircraft inside the radar's coverage during the plots' span that fall
-    in the slice ``keep`` (``spans``: both, :func:`match_radar`), every aircraft's in one projection per
-    step; in the order of ``reference``'s aircraft, then of revolution."""
+    """The crossings of every reference aircraft inside the radar's coverage, or above its assumed cone of
+    silence (flagged ``above_cone``), during the plots' span that fall in the slice ``keep`` (``spans``:
+    both, :func:`match_radar`), every aircraft's in one projection per step; in the order of ``reference``'s
+    aircraft, then of revolution."""
     T = radar.period_s
     names, owner, tc = _crossing_times(frame, reference, t_north, T, spans)
     lat, lon, h = reference.geodetic(names, np.split(tc, np.cumsum(np.bincount(owner, minlength=len(names)))[:-1]))
@@ -177,12 +180,14 @@ def _expected(radar: Radar, frame: RadarFrame, reference: Reference, config: Mat
         if len(order) else order
     lat, lon, h, rho, theta, elev, tc, owner = (v[first] for v in (lat, lon, h, rho, theta, elev, tc, owner))
     keep = spans[1]
-    inside = in_coverage(rho, elev, radar.max_range_m, radar.height_m, math.radians(config.cone_of_silence_deg))
+    inside = in_coverage(rho, elev, radar.max_range_m, radar.height_m, math.pi / 2)  # the cone's crossings too
     inside &= (tc >= keep[0]) & (tc < keep[1])
     x, y = reference.plane.to_plane(lat[inside], lon[inside])
     return {"aircraft": np.array(names, dtype=object)[owner[inside]], "time": tc[inside],
-            "range_m": rho[inside], "azimuth_deg": np.degrees(theta[inside]), "altitude_m": h[inside],
-            "x": np.asarray(x, float), "y": np.asarray(y, float)}
+            "range_m": rho[inside], "azimuth_deg": np.degrees(theta[inside]),
+            "elevation_deg": np.degrees(elev[inside]), "altitude_m": h[inside],
+            "x": np.asarray(x, float), "y": np.asarray(y, float),
+            "above_cone": elev[inside] > math.radians(config.cone_of_silence_deg)}
 
 
 def _crossing_times(frame: RadarFrame, reference: Reference, t_north: float, T: float,

@@ -10,7 +10,11 @@ estimator's biases):
 * **Random errors**: σ_ρ and σ_θ of the residuals left by that fit (χ², n − 3 and n − 2 degrees of freedom),
   over the plot nearest the reference in each sweep of an aircraft (a split plot is not noise).
 * **Pd**: detected crossings / crossings inside the coverage (Wilson), overall and by range, azimuth and
-  altitude bin.
+  altitude bin; by elevation bin over the crossings above the assumed cone of silence too.
+* **Cone of silence and coverage achieved**: measured from the crossings
+  (:mod:`radartracker.assessment.coverage`): the elevation above which Pd drops (a step fit), the farthest
+  slant range at which Pd meets a stated level, over all azimuths and per azimuth sector, and the share of
+  the configured coverage it reaches.
 * **Plots per scan**: the mean of the plot counts of the revolutions from the first plot to the last (t).
 * **False plots per scan**: plots with no reference in the gate, reflections excepted / revolutions (Poisson,
   Garwood) — only against the truth: an ADS-B reference lacks the aircraft that do not broadcast.
@@ -38,6 +42,7 @@ import attrs
 import numpy as np
 
 from radartracker.assessment import stats
+from radartracker.assessment.coverage import CoverageConfig, achieved_coverage, measure_cone
 from radartracker.assessment.stats import Estimate
 from radartracker.assessment.systematic import fit_sensor_errors
 from radartracker.assessment.tally import RadarTally
@@ -52,20 +57,24 @@ FIT_FIGURES = {"range_offset": ("range_bias_vs_reference_m", 1.0), "azimuth_offs
 
 @attrs.frozen
 class RadarConfig:
-    """The bins of Pd by range, azimuth and altitude, and the Mode C tolerance."""
+    """The bins of Pd by range, azimuth and altitude, the Mode C tolerance, and the bins and levels of the
+    measured cone of silence and coverage."""
 
     range_bin_km: float = attrs.field(default=25.0, validator=attrs.validators.gt(0.0))
     azimuth_bin_deg: float = attrs.field(default=30.0, validator=attrs.validators.gt(0.0))
     altitude_bin_m: float = attrs.field(default=1500.0, validator=attrs.validators.gt(0.0))
     mode_c_tolerance_ft: float = attrs.field(default=300.0, validator=attrs.validators.gt(0.0))
+    coverage: CoverageConfig = attrs.field(factory=CoverageConfig)
 
 
 @attrs.define
 class RadarAssessment:
     """One radar's figures (name → Estimate), why those missing are missing, its Pd bins, and what the
-    report draws: the error residuals (m, deg) and the expected detections (plane x, y, detected);
-    ``observability``: the coupling graph's status of its biases, ``components``: each fitted sensor error's
-    (``observable``, ``weak``, ``unobservable``)."""
+    report draws: the error residuals (m, deg) and the expected detections inside the coverage (plane x, y,
+    detected); ``observability``: the coupling graph's status of its biases, ``components``: each fitted sensor
+    error's (``observable``, ``weak``, ``unobservable``); ``coverage``: the coverage diagram, per azimuth sector
+    (:func:`radartracker.assessment.coverage.achieved_coverage`); ``scan_counts``: its plots in each antenna
+    revolution, first to last."""
 
     radar: str
     kind: str
@@ -76,6 +85,8 @@ class RadarAssessment:
     residuals: dict[str, np.ndarray]
     expected: dict[str, np.ndarray]
     components: dict[str, str] = attrs.field(factory=dict)
+    coverage: list[dict] = attrs.field(factory=list)
+    scan_counts: np.ndarray = attrs.field(factory=lambda: np.zeros(0, np.int64))
 
 
 def assess_radar(radar: Radar, tally: RadarTally, out_of_order: int, bias: BiasState, observability: dict,
@@ -89,14 +100,25 @@ def assess_radar(radar: Radar, tally: RadarTally, out_of_order: int, bias: BiasS
     missing: dict[str, str] = {"timestamp_lateness_s": NOT_ASSESSABLE_LATENESS}
     _errors(tally, bias, int(observability.get("measurements", 0)), figures)
     components = _sensor_errors(radar.id, tally, figures, missing)
-    expected = tally.expected_table()
-    _detection(tally, expected, figures, missing, reference_kind)
+    crossings = tally.expected_table()
+    expected = {k: v[~crossings["above_cone"]] for k, v in crossings.items()}  # inside the assumed coverage
+    counts = _detection(tally, expected, figures, missing, reference_kind)
+    cone, why = measure_cone(crossings["elevation_deg"], crossings["detected"], config.coverage)
+    if cone is None:
+        missing["cone_of_silence_deg"] = why
+    else:
+        figures["cone_of_silence_deg"] = cone
+    reach, unreached, diagram = achieved_coverage(expected["range_m"], expected["azimuth_deg"], expected["detected"],
+                                                  radar.max_range_m, config.coverage)
+    figures |= reach
+    missing |= unreached
     _codes(tally, codes, figures, missing)
     figures["out_of_order_share"] = stats.proportion(out_of_order, tally.plots)
     figures["timestamp_jitter_s"] = stats.sigma(tally.offsets)
     return RadarAssessment(radar.id, kind, figures, missing, observability.get("status", "unobserved"),
-                           pd_bins(expected, config), tally.error_arrays(),
-                           {k: expected[k] for k in ("x", "y", "range_m", "detected")}, components)
+                           pd_bins(crossings, config), tally.error_arrays(),
+                           {k: expected[k] for k in ("x", "y", "range_m", "detected")}, components, diagram,
+                           counts)
 
 
 def _errors(tally: RadarTally, bias: BiasState, measured: int, figures: dict[str, Estimate]) -> None:
@@ -132,8 +154,9 @@ def _sensor_errors(radar: str, tally: RadarTally, figures: dict[str, Estimate],
 
 
 def _detection(tally: RadarTally, expected: dict[str, np.ndarray], figures: dict[str, Estimate],
-               missing: dict[str, str], reference_kind: str) -> None:
-    """Pd, plots and false plots per scan, split plots (module docstring) into ``figures``."""
+               missing: dict[str, str], reference_kind: str) -> np.ndarray:
+    """Pd, plots and false plots per scan, split plots (module docstring) into ``figures``; returns the plots
+    of each revolution, first to last."""
     figures["pd"] = stats.proportion(int(expected["detected"].sum()), len(expected["detected"]))
     if tally.scans:
         first, last = min(tally.scans), max(tally.scans)
@@ -154,6 +177,7 @@ def _detection(tally: RadarTally, expected: dict[str, np.ndarray], figures: dict
         figures["reflection_share"] = stats.proportion(tally.reflections, tally.coded_sweeps)
     else:
         missing["reflection_share"] = "no plot carries a Mode 3/A code or Mode S address to tell a reflection by"
+    return counts.astype(np.int64)
 
 
 def _codes(tally: RadarTally, codes: dict[str, str], figures: dict[str, Estimate], missing: dict[str, str]) -> None:
@@ -180,20 +204,26 @@ def _codes(tally: RadarTally, codes: dict[str, str], figures: dict[str, Estimate
         missing["mode_s_correctness"] = "no matched plot of an aircraft of known address carries a Mode S address"
 
 
-def pd_bins(expected: dict[str, np.ndarray], config: RadarConfig) -> list[dict]:
-    """Pd by slant-range, azimuth and altitude bin: rows of variable, bin bounds, crossings, detections, Pd and
-    its Wilson interval (bins without a crossing left out)."""
+def pd_bins(crossings: dict[str, np.ndarray], config: RadarConfig) -> list[dict]:
+    """Pd by slant-range, azimuth and altitude bin of the crossings inside the assumed coverage, and by
+    elevation bin of all of them (above the assumed cone of silence too: what the measured cone is read
+    from): rows of variable, bin bounds, crossings, detections, Pd and its Wilson interval (bins without a
+    crossing left out)."""
     rows = []
-    for variable, values, width in (("range_km", expected["range_m"] / 1000.0, config.range_bin_km),
-                                    ("azimuth_deg", expected["azimuth_deg"], config.azimuth_bin_deg),
-                                    ("altitude_m", expected["altitude_m"], config.altitude_bin_m)):
+    inside = ~crossings["above_cone"]
+    for variable, values, width, sel in (
+            ("range_km", crossings["range_m"] / 1000.0, config.range_bin_km, inside),
+            ("azimuth_deg", crossings["azimuth_deg"], config.azimuth_bin_deg, inside),
+            ("altitude_m", crossings["altitude_m"], config.altitude_bin_m, inside),
+            ("elevation_deg", crossings["elevation_deg"], config.coverage.elevation_bin_deg, np.ones_like(inside))):
+        values, detected = values[sel], crossings["detected"][sel]
         if not len(values):
             continue
         b = np.floor(values / width).astype(np.int64)
         for k in np.unique(b).tolist():
-            sel = b == k
-            e = stats.proportion(int(expected["detected"][sel].sum()), int(sel.sum()))
+            hit = b == k
+            e = stats.proportion(int(detected[hit].sum()), int(hit.sum()))
             rows.append({"variable": variable, "bin_low": k * width, "bin_high": (k + 1) * width,
-                         "crossings": e.n, "detected": int(expected["detected"][sel].sum()),
+                         "crossings": e.n, "detected": int(detected[hit].sum()),
                          "pd": e.value, "ci_low": e.low, "ci_high": e.high})
     return rows

@@ -2,7 +2,8 @@
 radar's figures with their 95 % intervals, and the figures drawn (matplotlib, Agg), each embedded as a
 base64 PNG: the bias estimates with ±1.96 σ against the profile's limits, the biases over the run, and per
 radar its Pd by range, azimuth and altitude, its Pd map and its error histograms with the normal density of the
-measured σ."""
+measured σ; its Pd by elevation with the measured cone of silence, its coverage diagram (the detection range
+achieved per azimuth sector against the configured range) and its plots per scan."""
 
 from __future__ import annotations
 
@@ -136,6 +137,47 @@ def radar_figures(r: RadarAssessment, plt) -> str:
     return _png(fig)
 
 
+def coverage_figures(r: RadarAssessment, plt) -> str:
+    """Pd by elevation (all crossings, Wilson 95 %) with the measured cone of silence and its interval; the
+    coverage diagram (polar, north up, clockwise): per azimuth sector the detection range achieved, its upper
+    bound outlined, the configured range dashed; the plots of each antenna revolution."""
+    fig = plt.figure(figsize=(15, 4.2))
+    ax = fig.add_subplot(1, 3, 1)
+    rows = [b for b in r.pd_bins if b["variable"] == "elevation_deg"]
+    if rows:
+        mid, pd = np.array([(b["bin_low"] + b["bin_high"]) / 2 for b in rows]), np.array([b["pd"] for b in rows])
+        ax.errorbar(mid, pd, yerr=[pd - [b["ci_low"] for b in rows], [b["ci_high"] for b in rows] - pd], fmt="o-",
+                    capsize=3)
+    cone = r.figures.get("cone_of_silence_deg")
+    if cone is not None:
+        ax.axvline(cone.value, color="r", label=f"measured cone {cone.value:.1f}°")
+        ax.axvspan(cone.low, cone.high, color="r", alpha=0.2)
+        ax.legend(fontsize=7)
+    ax.set_ylim(0, 1.05)
+    ax.set_xlabel("elevation (deg)")
+    ax.set_title(f"{r.radar}: Pd by elevation (cone of silence)")
+    polar = fig.add_subplot(1, 3, 2, projection="polar")
+    polar.set_theta_zero_location("N")
+    polar.set_theta_direction(-1)
+    judged = [s for s in r.coverage if math.isfinite(s["range_km"])]
+    if judged:
+        mid = np.radians([(s["azimuth_low"] + s["azimuth_high"]) / 2 for s in judged])
+        width = np.radians([s["azimuth_high"] - s["azimuth_low"] for s in judged])
+        polar.bar(mid, [s["range_high_km"] for s in judged], width=width, fill=False, edgecolor="g")
+        polar.bar(mid, [s["range_km"] for s in judged], width=width, color="g", alpha=0.5, label="achieved")
+    if r.coverage:
+        ring = np.linspace(0, 2 * math.pi, 200)
+        polar.plot(ring, np.full(200, r.coverage[0]["configured_range_km"]), "r--", label="configured")
+        polar.legend(fontsize=7, loc="lower left")
+    polar.set_title(f"{r.radar}: detection range per sector (km)")
+    ax = fig.add_subplot(1, 3, 3)
+    ax.plot(np.arange(len(r.scan_counts)), r.scan_counts, lw=0.8)
+    ax.set_xlabel("antenna revolution")
+    ax.set_title(f"{r.radar}: plots per scan")
+    fig.tight_layout()
+    return _png(fig)
+
+
 def render(a: Assessment, *, progress: bool = True) -> str:
     """The whole page (module docstring)."""
     plt = _figure()
@@ -163,7 +205,7 @@ def render(a: Assessment, *, progress: bool = True) -> str:
                   f"{html.escape(r.observability)})</h2>",
                   f"<p>Sensor errors against the reference: {html.escape(fitted)}.</p>",
                   _table(["figure", "unit", "value", "95 % low", "95 % high", "n", "interval"], rows),
-                  radar_figures(r, plt)]
+                  radar_figures(r, plt), coverage_figures(r, plt)]
     parts += ["<h2>System tracks (ESASSP indicators)</h2>",
               _table(["figure", "unit", "value", "aircraft", "note"],
                      [[INDICATORS[k][0], INDICATORS[k][1], _fmt(e.value), str(e.n),

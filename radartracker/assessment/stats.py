@@ -61,6 +61,21 @@ def proportion(k: int, n: int) -> Estimate:
     return Estimate(k / n, float(ci.low), float(ci.high), n, "clopper-pearson" if exact else "wilson")
 
 
+def proportions(k: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """k/n with :func:`proportion`'s interval for many bins at once (n > 0): Wilson's closed form, or
+    Clopper–Pearson's [B(α/2; k, n−k+1), B(1−α/2; k+1, n−k)] (0 at k = 0, 1 at k = n) where k or n − k is 5
+    or less — the values ``scipy.stats.binomtest`` gives, at the cost of one vectorised call, not one per bin."""
+    k, n = np.asarray(k, float), np.asarray(n, float)
+    p, a = k / n, 1 - LEVEL
+    centre, half = p + _Z**2 / (2 * n), _Z * np.sqrt(p * (1 - p) / n + _Z**2 / (4 * n * n))
+    low, high = (centre - half) / (1 + _Z**2 / n), (centre + half) / (1 + _Z**2 / n)
+    exact = np.minimum(k, n - k) <= 5
+    with np.errstate(invalid="ignore"):
+        cp_low = np.where(k > 0, stats.beta.ppf(a / 2, k, n - k + 1), 0.0)
+        cp_high = np.where(k < n, stats.beta.ppf(1 - a / 2, k + 1, n - k), 1.0)
+    return p, np.where(exact, cp_low, low), np.where(exact, cp_high, high)
+
+
 @attrs.frozen
 class Moments:
     """The count n, mean x̄ and sum of squared deviations M₂ = Σ(xᵢ − x̄)² of a sample: what its mean and σ

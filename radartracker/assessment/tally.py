@@ -25,7 +25,8 @@ from radartracker.assessment.stats import Moments
 from radartracker.assessment.systematic import SensorSums
 from radartracker.io.tables import PlotTable, label_spans
 
-EXPECTED = ("aircraft", "time", "range_m", "azimuth_deg", "altitude_m", "x", "y", "detected")
+EXPECTED = ("aircraft", "time", "range_m", "azimuth_deg", "elevation_deg", "altitude_m", "x", "y", "above_cone",
+            "detected")
 
 
 def merge_spans(a: dict[str, tuple[float, float]], b: dict[str, tuple[float, float]]) -> dict:
@@ -94,9 +95,8 @@ class RadarTally:
 
     def expected_table(self) -> dict[str, np.ndarray]:
         """The expected crossings of every slice as one table (:attr:`RadarMatch.expected`'s columns)."""
-        return {k: np.concatenate(v) if v else np.empty(0, object if k == "aircraft" else bool if k == "detected"
-                                                        else float)
-                for k, v in self.expected.items()}
+        kinds = {"aircraft": object, "above_cone": bool, "detected": bool}
+        return {k: np.concatenate(v) if v else np.empty(0, kinds.get(k, float)) for k, v in self.expected.items()}
 
     def error_arrays(self) -> dict[str, np.ndarray]:
         """e_ρ (m) and e_θ (deg) of every slice's sweeps."""

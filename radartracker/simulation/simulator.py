@@ -7,7 +7,9 @@
   when the antenna sweeps the aircraft: the crossing time solves θ(t) = α(t) (fixed-point
   iteration on the exact azimuth), so plot times are asynchronous across aircraft and radars.
 * Visibility: slant range ≤ max range, elevation above the geometric radar horizon (−arccos(R/(R+h)))
-  and below a 45° cone of silence. Detection with probability Pd.
+  and below the radar's cone of silence (:attr:`SimRadar.cone_of_silence_deg`, 45° by default), and within
+  its true detection range where a sector is screened (:attr:`SimRadar.screening`). Detection with
+  probability Pd.
 * Measured ρ = ρ_true (1 + g(t)) + Δr(t) + σ_r n, θ = θ_true + Δθ(t) + σ_θ n (exact 3-D geometry with
   pyproj), stamped t + τ(t) for a plot measured at t: range offset Δr, azimuth offset Δθ, range gain g
   and time-stamp offset τ (docs/design-notes.md, the sensor error model), each constant or drifting as
@@ -37,7 +39,6 @@ _MODE_C_STEP_M = 25 * 0.3048
 MIN_SPLINE_POINTS = 5  # make_smoothing_spline's least: fewer recorded points are joined by straight lines
 SMOOTHING_S3 = 100.0  # λ = σ²/q of a recorded flight's smoothing spline: (20 m)² / (4 m²/s³), in s³
 OUTLIER_FLOOR_M, OUTLIER_FLOOR_ALT_M = 150.0, 100.0  # residuals this small are never outliers
-_CONE_OF_SILENCE_RAD = math.radians(45.0)
 
 
 class Trajectory(Protocol):
@@ -169,6 +170,10 @@ class SimRadar:
     Biases are [Δr (m), Δθ (rad)], the range gain g (dimensionless: ρ_meas = ρ (1 + g) + …) and the
     time-stamp offset τ (s: a plot measured at t is stamped t + τ); drifts are random-walk densities
     (m²/s, rad²/s, 1/s, s); ``false_per_scan`` is the mean number of false plots per antenna revolution.
+    ``cone_of_silence_deg``: the true elevation ε_c above which the radar detects nothing; ``screening``: the
+    azimuth sectors (from°, to°, clockwise from north, and the range R m) where its true detection range is
+    R, shorter than the configured ``max_range_m`` (terrain, a weak receiver): what the assessment's measured
+    cone and achieved coverage are checked against.
     """
 
     radar: Radar
@@ -183,6 +188,21 @@ class SimRadar:
     pd: float = attrs.field(default=1.0, validator=[attrs.validators.ge(0.0), attrs.validators.le(1.0)])
     false_per_scan: float = attrs.field(default=0.0, validator=attrs.validators.ge(0.0))
     phase_rad: float = 0.0
+    cone_of_silence_deg: float = attrs.field(default=45.0, kw_only=True,
+                                             validator=[attrs.validators.gt(0.0), attrs.validators.le(90.0)])
+    screening: tuple[tuple[float, float, float], ...] = attrs.field(default=(), kw_only=True, converter=tuple)
+
+    def visible(self, rho: np.ndarray, theta: np.ndarray, elev: np.ndarray) -> np.ndarray:
+        """Where the radar can see a target at slant range ρ (m), azimuth θ and elevation ε (rad): ρ within the
+        configured range and, in a screened sector, within that sector's R; ε above the radar horizon and below
+        the cone of silence."""
+        seen = in_coverage(rho, elev, self.radar.max_range_m, self.radar.height_m,
+                           math.radians(self.cone_of_silence_deg))
+        az = np.mod(np.degrees(theta), 360.0)
+        for lo, hi, reach in self.screening:  # a sector from lo to hi clockwise; lo = hi (mod 360): all azimuths
+            width = np.mod(hi - lo, 360.0) or 360.0
+            seen &= (np.mod(az - lo, 360.0) >= width) | (rho <= reach)
+        return seen
 
     @property
     def has_gain_or_time(self) -> bool:
@@ -312,7 +332,7 @@ class Simulator:
                 continue
             lat, lon, h = self._geo(sa.trajectory, t)
             rho, theta, elev = frame.polar(lat, lon, h)
-            seen = in_coverage(rho, elev, radar.max_range_m, radar.height_m, _CONE_OF_SILENCE_RAD)
+            seen = sr.visible(rho, theta, elev)
             seen &= rng.random(len(t)) < sr.pd
             n = int(seen.sum())
             if n == 0:

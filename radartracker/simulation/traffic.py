@@ -27,10 +27,10 @@ from tqdm import tqdm
 
 from radartracker.domain import Aircraft, Radar, nacp_sigma_m
 from radartracker.errors import ConfigurationError
-from radartracker.geometry.plane import RadarFrame, SystemPlane, in_coverage
+from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.io.tables import AdsbTable, PlotTable, ScenarioData, TruthTable
 from radartracker.simulation.memory import check_fits, traffic_bytes
-from radartracker.simulation.simulator import (_CONE_OF_SILENCE_RAD, _MODE_C_STEP_M,
+from radartracker.simulation.simulator import (_MODE_C_STEP_M,
                                                KinematicTrajectory, Leg, SimAircraft, SimRadar, Simulator,
                                                apply_sensor_errors, time_ordered, walks_at)
 
@@ -298,7 +298,7 @@ class TrafficSimulator:
         frame = RadarFrame(radar.lat, radar.lon, radar.height_m, self.plane)
         ac, t = self._crossings(frame, sr)
         rho, theta, elev = self._polar(frame, ac, t)
-        seen = in_coverage(rho, elev, radar.max_range_m, radar.height_m, _CONE_OF_SILENCE_RAD)
+        seen = sr.visible(rho, theta, elev)
         seen &= rng.random(len(t)) < sr.pd
         ac, t, rho, theta = ac[seen], t[seen], rho[seen], theta[seen]
         n = len(t)

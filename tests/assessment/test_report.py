@@ -54,7 +54,7 @@ def paris_assessment(tmp_path_factory) -> Path:
 def test_report_renders_every_figure_and_table(paris_assessment):
     page = _Page()
     page.feed((paris_assessment / "report.html").read_text(encoding="utf-8"))
-    assert len(page.images) == 2 + 4  # the two bias figures, and one row of figures per radar
+    assert len(page.images) == 2 + 2 * 4  # the two bias figures, and two rows of figures per radar
     for src in page.images:
         assert src.startswith("data:image/png;base64,")
         png = base64.b64decode(src.split(",", 1)[1])
@@ -79,7 +79,10 @@ def test_tables_and_summary(paris_assessment):
     indicators = pacsv.read_csv(paris_assessment / "indicators.csv").to_pylist()
     assert {"radar", "indicator", "value", "ci_low", "ci_high", "method", "reference"} <= set(indicators[0])
     pd_bins = pacsv.read_csv(paris_assessment / "pd_bins.csv").to_pylist()
-    assert {b["variable"] for b in pd_bins} == {"range_km", "azimuth_deg", "altitude_m"}
+    assert {b["variable"] for b in pd_bins} == {"range_km", "azimuth_deg", "altitude_m", "elevation_deg"}
+    for r in summary["radars"].values():  # four radars 250 km out, traffic to their edges: all judged
+        assert len(r["coverage"]) == 12 and 0.0 < r["figures"]["detection_range_km"]["value"] <= 250.0
+        assert "cone_of_silence_deg" in r["figures"] or "cone_of_silence_deg" in r["not_assessable"]
     assert all(0 <= b["ci_low"] <= b["pd"] <= b["ci_high"] <= 1 for b in pd_bins)
 
 

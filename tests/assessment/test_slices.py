@@ -68,7 +68,8 @@ def test_slice_boundaries_lose_or_double_nothing(planted):
         assert sum(cut[r.id].scans.values()) == n and cut[r.id].scans == whole[r.id].scans
         a, b = whole[r.id].expected_table(), cut[r.id].expected_table()
         assert len(a["time"]) == len(b["time"]) and np.array_equal(np.sort(a["time"]), np.sort(b["time"]))
-        assert a["detected"].sum() == b["detected"].sum()
+        assert a["detected"].sum() == b["detected"].sum() and a["above_cone"].sum() == b["above_cone"].sum()
+        assert np.array_equal(np.sort(a["elevation_deg"]), np.sort(b["elevation_deg"]))
 
 
 def test_dask_command_gives_the_one_process_figures(tmp_path: Path):

@@ -94,3 +94,15 @@ def test_adsb_noise_matches_nacp():
 def test_plots_are_time_ordered_and_truth_present(seed_data):
     assert np.all(np.diff(seed_data.plots.time) >= 0)
     assert set(seed_data.truth.target) == {a.icao24 for a in seed_data.aircraft}
+
+
+def test_cone_of_silence_and_screening_set_what_a_radar_sees():
+    """SimRadar.visible: nothing above its own cone; in a screened sector (here one across north, 350°–10°,
+    and every azimuth cut to 90 km) nothing beyond the sector's range; elsewhere the configured range."""
+    radar = Radar("R", 48.0, 2.0, 50.0, 50.0, 0.001, 4.0, 120e3)
+    sr = SimRadar(radar, cone_of_silence_deg=30.0, screening=((350.0, 10.0, 40e3), (0.0, 360.0, 90e3)))
+    rho = np.array([10e3, 10e3, 50e3, 50e3, 50e3, 100e3, 100e3])
+    az = np.radians([90.0, 90.0, 355.0, 5.0, 20.0, 200.0, 200.0])
+    elev = np.radians([29.0, 31.0, 1.0, 1.0, 1.0, 1.0, -30.0])
+    assert sr.visible(rho, az, elev).tolist() == [True, False, False, False, True, False, False]
+    assert SimRadar(radar).visible(rho, az, elev).tolist() == [True, True, True, True, True, True, False]
