@@ -181,6 +181,21 @@ class HeightFilter:
                    config.q_height, fix, bool(v[5 + m]), misses)
 
 
+def _by_size(filters: list[HeightFilter]) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """The filters grouped by their number of radars m: (their positions in ``filters``, radar rows (g × m),
+    the information J = (P_hb)⁻¹ (g × (1 + m) × (1 + m)), i = J (ĥ, b̂) (g × (1 + m))), one batched inverse a group."""
+    sizes: dict[int, list[int]] = {}
+    for k, f in enumerate(filters):
+        sizes.setdefault(len(f.radars), []).append(k)
+    out = []
+    for members in sizes.values():
+        P = np.stack([filters[k].P[4:, 4:] for k in members])
+        J = np.linalg.inv(P)
+        s = np.stack([filters[k].s[4:] for k in members])
+        out.append((np.array(members), np.array([filters[k].radars for k in members]), J, np.einsum("gij,gj->gi", J, s)))
+    return out
+
+
 def joint_heights(filters: list[HeightFilter], radars: int, sd_b: float
                   ) -> tuple[np.ndarray, np.ndarray, list[tuple[float, float]]]:
     """The range biases b (``radars``) with their covariance, and each filter's (ĥ, σ_h), from every filter's
@@ -190,29 +205,25 @@ def joint_heights(filters: list[HeightFilter], radars: int, sd_b: float
     ĥ = (i_h − J_hb b̂)/J_hh, σ_h² = 1/J_hh + w P_b wᵀ, w = J_hb/J_hh ((NaN, ∞) where J_hh ≤ 0)."""
     lam = np.eye(radars) / sd_b**2
     eta = np.zeros(radars)
+    h_free, var = np.full(len(filters), math.nan), np.full(len(filters), math.inf)
     parts = []
-    for f in filters:
-        idx = f.radars
-        J = np.linalg.inv(f.P[4:, 4:])
-        i = J @ f.s[4:]
-        J[1:, 1:] -= np.eye(len(idx)) / sd_b**2
-        jhh = J[0, 0]
-        if not jhh > 0.0:
-            parts.append(None)
-            continue
-        w = J[0, 1:] / jhh
-        lam[np.ix_(idx, idx)] += J[1:, 1:] - np.outer(J[1:, 0], w)
-        eta[idx] += i[1:] - J[1:, 0] * i[0] / jhh
-        parts.append((idx, w, i[0] / jhh, 1.0 / jhh))
+    for members, idx, J, i in _by_size(filters):  # the filters of one size, their information stacked
+        J[:, 1:, 1:] -= np.eye(idx.shape[1]) / sd_b**2
+        ok = J[:, 0, 0] > 0.0
+        members, idx, J, i = members[ok], idx[ok], J[ok], i[ok]
+        jhh = J[:, 0, 0]
+        w = J[:, 0, 1:] / jhh[:, None]
+        np.add.at(lam, (idx[:, :, None], idx[:, None, :]), J[:, 1:, 1:] - J[:, 1:, :1] * w[:, None, :])
+        np.add.at(eta, idx, i[:, 1:] - J[:, 1:, 0] * (i[:, 0] / jhh)[:, None])
+        h_free[members], var[members] = i[:, 0] / jhh, 1.0 / jhh
+        parts.append((members, idx, w))
     Pb = np.linalg.inv(lam)
     b = Pb @ eta
-    heights = []
-    for part in parts:
-        if part is None:
-            heights.append((math.nan, math.inf))
-            continue
-        idx, w, h_free, var = part
-        heights.append((float(h_free - w @ b[idx]), math.sqrt(var + float(w @ Pb[np.ix_(idx, idx)] @ w))))
+    h, sd = h_free, np.sqrt(var)
+    for members, idx, w in parts:
+        h[members] -= np.einsum("gk,gk->g", w, b[idx])
+        sd[members] = np.sqrt(var[members] + np.einsum("gk,gkl,gl->g", w, Pb[idx[:, :, None], idx[:, None, :]], w))
+    heights = [(float(a), float(s)) if math.isfinite(s) else (math.nan, math.inf) for a, s in zip(h, sd)]
     return b, Pb, heights
 
 
