@@ -75,8 +75,9 @@ def read_system_tracks(path: Path | str, plane: SystemPlane, config: SystemTrack
     for item, fields in (("I105 (WGS-84 position)", ("lat", "lon")), ("I185 (velocity)", ("vx_mps", "vy_mps"))):
         bad = [k for k, r in enumerate(records) if not r["ended"] and any(r[f] is None for f in fields)]
         if bad:
-            raise InputError(f"{path}: CAT062 update {bad[0]} (track {records[bad[0]]['track_number']}) and "
-                             f"{len(bad) - 1} more: field {item} missing")
+            more = f" and {len(bad) - 1} more" if len(bad) > 1 else ""
+            raise InputError(f"{path}: CAT062 record {bad[0]} (track {records[bad[0]]['track_number']}){more}: "
+                             f"field {item} missing")
     x, y = plane.to_plane(np.array([r["lat"] for r in live], float), np.array([r["lon"] for r in live], float))
     for r, xi, yi in zip(live, x.tolist(), y.tolist()):
         r["x_m"], r["y_m"] = xi, yi
