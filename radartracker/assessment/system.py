@@ -42,13 +42,12 @@ REPLAY_LATENCY = ("the replay's tracks carry their plots' times and are not deli
 
 @attrs.frozen
 class SystemAssessment:
-    """The system tracks' figures, the ones not assessable and why, where the tracks came from (``replay`` or
-    the CAT062 file) and how many there were."""
+    """The system tracks' figures, the ones not assessable and why, and where the tracks came from
+    (``replay`` or the CAT062 file)."""
 
     source: str
     figures: dict[str, Estimate]
     not_assessable: dict[str, str]
-    tracks: int
 
 
 def assess_system(histories: dict[int, TrackHistory], reference: Reference, tallies: dict[str, RadarTally],
@@ -69,8 +68,7 @@ def assess_system(histories: dict[int, TrackHistory], reference: Reference, tall
         figures, missing["latency_p95_s"] = {}, no_latency
     if not observed or not histories:
         return SystemAssessment(source, figures, missing | {k: "no aircraft observed or no system track" for k in
-                                                            SYSTEM_FIGURES if k not in missing and k not in figures},
-                                len(histories))
+                                                            SYSTEM_FIGURES if k not in missing and k not in figures})
     grid = GridSpec(min(lo for lo, _ in observed.values()), max(hi for _, hi in observed.values()), 2.0)
     m = track_metrics(histories, reference.paths(), observed, grid, first_seen={k: lo for k, (lo, _) in spans.items()},
                       samples=True)
@@ -84,4 +82,4 @@ def assess_system(histories: dict[int, TrackHistory], reference: Reference, tall
     }
     if "false_tracks" not in missing:
         figures["false_tracks"] = stats.rate(m["false_tracks"], 1.0, n=m["confirmed_tracks"])
-    return SystemAssessment(source, {k: figures[k] for k in SYSTEM_FIGURES if k in figures}, missing, len(histories))
+    return SystemAssessment(source, {k: figures[k] for k in SYSTEM_FIGURES if k in figures}, missing)

@@ -5,12 +5,13 @@
   does. I100 is in the sending system's own plane, which the recording does not name, so it is not used
   even where it would match. I185 (the velocity, which carries a position between updates) is taken as it
   is: between two stereographic planes a few degrees apart the axes turn by under a degree. An update
-  without I105 or I185 is refused, naming the file, the update and the item.
-* **Track identity**: a CAT062 track number (I040, 16 bits) names one track only while it lives: trackers
-  reuse numbers once a track has ended. Each number's updates, in time order, form one track until an update
-  marked ended (I080 TSE), after which the next update starts a new track, or until the next update comes
-  more than :attr:`SystemTrackConfig.max_gap_s` later (then it starts a new track too). A track lives from
-  its first update to its TSE update, else to its last update (what the recording shows of it).
+  without I105 or I185 is refused, naming the file, the record and the item.
+* **Track identity**: a CAT062 track number (I040, 16 bits) names one track of its sender (I010 SAC/SIC)
+  only while it lives: trackers reuse numbers once a track has ended. Each sender's number's updates, in time
+  order, form one track until an update marked ended (I080 TSE), after which the next update starts a new
+  track, or until the next update comes more than :attr:`SystemTrackConfig.max_gap_s` later (then it starts
+  a new track too). A track lives from its first update to its TSE update, else to its last update (what
+  the recording shows of it).
 * **Latency**: the time from an update's time of applicability (I070) to its delivery. A recording holds
   the delivery time only as a pcap packet's capture time; raw blocks and FINAL files carry none, and
   CAT062 as the project writes it has no I290 (update ages), so there latency is not assessable.
@@ -49,13 +50,12 @@ class SystemTrackConfig:
 @attrs.frozen
 class SystemTracks:
     """The tracks of a CAT062 recording: histories by track (numbered 0, 1, … in order of their first update),
-    each track's CAT062 number, the updates read, and each update's delivery latency (s; empty without
-    delivery times: ``no_latency`` says why)."""
+    each track's CAT062 number, and each update's delivery latency (s; empty without delivery times:
+    ``no_latency`` says why)."""
 
     source: str
     histories: dict[int, TrackHistory]
     numbers: dict[int, int]
-    updates: int
     latency_s: np.ndarray
     no_latency: str
 
@@ -88,18 +88,19 @@ def read_system_tracks(path: Path | str, plane: SystemPlane, config: SystemTrack
                                      "packet times give one) and no I290 update ages")
     else:
         latency, why = np.array(received, float) - np.array([r["time"] for r in live], float), ""
-    return SystemTracks(str(path), histories, numbers, len(live), latency, why)
+    return SystemTracks(str(path), histories, numbers, latency, why)
 
 
 def split_tracks(records: list[dict], max_gap_s: float) -> tuple[dict[int, TrackHistory], dict[int, int]]:
     """(histories by track, each track's CAT062 number) of decoded CAT062 records with plane ``x_m``, ``y_m``
-    (module docstring, track identity): per number in time order (the last record wins at equal times; an
-    ended record after the updates at its time), a new track after a TSE record or a gap over ``max_gap_s``."""
-    per: dict[int, list[dict]] = {}
+    (module docstring, track identity): per sender (SAC/SIC) and number in time order (the last record wins at
+    equal times; an ended record after the updates at its time), a new track after a TSE record or a gap over
+    ``max_gap_s``."""
+    per: dict[tuple[int, int, int], list[dict]] = {}
     for r in records:
-        per.setdefault(r["track_number"], []).append(r)
+        per.setdefault((r["sac"], r["sic"], r["track_number"]), []).append(r)
     pieces: list[tuple[int, list[dict], float | None]] = []
-    for number, recs in per.items():
+    for (_, _, number), recs in per.items():
         recs = sorted(recs, key=lambda r: (r["time"], r["ended"]))
         current: list[dict] = []
         for r in recs:

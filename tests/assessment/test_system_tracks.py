@@ -124,20 +124,22 @@ def test_a_gap_in_the_updates_is_missed_updates_and_a_break(round_trip):
 
 def test_a_reused_track_number_is_two_tracks(tmp_path):
     """Number 7 lives 0–50 s, ends (TSE) and is reused at 60 s; number 9 stops at 50 s and comes back at 200 s
-    (a gap over 60 s). Four tracks, each with its own span; with ``max_gap_s`` 200, 9 stays one track."""
+    (a gap over 60 s); another sender's number 7 lives 20–25 s. Five tracks, each with its own span; with
+    ``max_gap_s`` 200, 9 stays one track."""
     plane = SystemPlane(48.0, 2.0)
     lat, lon = plane.to_geodetic(np.array([0.0]), np.array([0.0]))
     recs = [cat062_record(t, 0, 1, 7, lat[0], lon[0], 0.0, 0.0, 100.0, 0.0) for t in range(0, 51, 5)]
     recs.append(cat062_record(50.0, 0, 1, 7, lat[0], lon[0], 0.0, 0.0, 100.0, 0.0, ended=True))
     recs += [cat062_record(t, 0, 1, 7, lat[0], lon[0], 0.0, 0.0, 100.0, 0.0) for t in range(60, 91, 5)]
     recs += [cat062_record(t, 0, 1, 9, lat[0], lon[0], 0.0, 0.0, 0.0, 0.0) for t in [*range(0, 51, 5), 200, 205]]
+    recs += [cat062_record(t, 0, 2, 7, lat[0], lon[0], 0.0, 0.0, 0.0, 0.0) for t in (20.0, 25.0)]  # another sender
     (tmp_path / "reused.cat062").write_bytes(b"".join(datablocks(CAT062, recs)))
     got = read_system_tracks(tmp_path / "reused.cat062", plane)
     spans = sorted((got.numbers[k], h.start, h.end) for k, h in got.histories.items())
-    assert spans == [(7, 0.0, 50.0), (7, 60.0, 90.0), (9, 0.0, 50.0), (9, 200.0, 205.0)]
+    assert spans == [(7, 0.0, 50.0), (7, 20.0, 25.0), (7, 60.0, 90.0), (9, 0.0, 50.0), (9, 200.0, 205.0)]
     assert max(abs(h.states[:, :2]).max() for h in got.histories.values()) < 0.5  # I105 back in the plane
     joined = read_system_tracks(tmp_path / "reused.cat062", plane, SystemTrackConfig(max_gap_s=200.0))
-    assert sorted((joined.numbers[k], h.start, h.end) for k, h in joined.histories.items())[2:] == [(9, 0.0, 205.0)]
+    assert sorted((joined.numbers[k], h.start, h.end) for k, h in joined.histories.items())[3:] == [(9, 0.0, 205.0)]
 
 
 def test_latency_from_a_pcaps_packet_times(round_trip, tmp_path):
