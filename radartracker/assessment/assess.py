@@ -3,19 +3,23 @@
 1. The reference (:func:`radartracker.assessment.reference.build_reference`): truth, else validated ADS-B.
 2. The replay the project already has (:func:`radartracker.pipeline.run.run`): its joint bias estimator
    gives each radar's Δr̂, Δθ̂ with their σ, and its coupling graph their observability; its tracks are the
-   system tracks.
+   system tracks, unless a CAT062 recording's are given (``system_tracks``:
+   :mod:`radartracker.assessment.systracks`, read and checked before the replay).
 3. Each radar's plots matched to the reference (:mod:`radartracker.assessment.matching`) a time slice at a
    time, in this process or on Dask (:mod:`radartracker.assessment.slices`), the slices' sums added
    (:mod:`radartracker.assessment.tally`), and its figures made from them (:mod:`radartracker.assessment.radar`).
 4. The system tracks against the same reference: the ESASSP indicators of
    :func:`radartracker.pipeline.evaluate.track_metrics` (:mod:`radartracker.pipeline.indicators`), an
-   aircraft being observed from its first matched plot plus the confirmation grace to its last.
+   aircraft being observed from its first matched plot plus the confirmation grace to its last, each with
+   its 95 % interval (:mod:`radartracker.assessment.system`).
 5. Every figure judged by the profile's criteria (:meth:`Criterion.judge`).
 """
 
 from __future__ import annotations
 
+import math
 from collections import Counter
+from pathlib import Path
 
 import attrs
 import numpy as np
@@ -27,32 +31,32 @@ from radartracker.assessment.radar import RadarAssessment, RadarConfig, assess_r
 from radartracker.assessment.reference import Reference, ReferenceConfig, build_reference
 from radartracker.assessment.slices import SliceConfig, tally_radars
 from radartracker.assessment.stats import Estimate
-from radartracker.assessment.tally import RadarTally, merge_spans
+from radartracker.assessment.system import REPLAY_LATENCY, assess_system
+from radartracker.assessment.systracks import SystemTrackConfig, read_system_tracks, within
+from radartracker.assessment.tally import RadarTally
 from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.config import RunConfig
-from radartracker.pipeline.evaluate import GridSpec, track_metrics
-from radartracker.pipeline.result import RunResult, observed_spans, strict
+from radartracker.pipeline.result import RunResult, strict
 from radartracker.pipeline.run import run
-
-SYSTEM_FIGURES = ("position_rmse_m", "probability_of_update", "breaks_per_flight_hour", "multiple_share_of_time",
-                  "false_tracks", "initiation_delay_p95_s")
 
 
 @attrs.frozen
 class AssessmentConfig:
-    """The settings of an assessment: the replay's, the reference's, the gate's, the radar figures' and how the
-    work is split into time slices and where it runs."""
+    """The settings of an assessment: the replay's, the reference's, the gate's, the radar figures', how the
+    work is split into time slices and where it runs, and how a CAT062 recording's updates become tracks."""
 
     run: RunConfig = attrs.field(factory=RunConfig)
     reference: ReferenceConfig = attrs.field(factory=ReferenceConfig)
     match: MatchConfig = attrs.field(factory=MatchConfig)
     radar: RadarConfig = attrs.field(factory=RadarConfig)
     slices: SliceConfig = attrs.field(factory=SliceConfig)
+    system: SystemTrackConfig = attrs.field(factory=SystemTrackConfig)
 
 
 @attrs.define
 class Assessment:
-    """What :func:`assess` found: per radar, the system tracks, the profile and the replay it used."""
+    """What :func:`assess` found: per radar, the system tracks' figures, the profile and the replay it used;
+    where the system tracks came from (``replay`` or a CAT062 file) and their figures that are not assessable."""
 
     scenario: str
     reference: str
@@ -60,6 +64,8 @@ class Assessment:
     radars: list[RadarAssessment]
     system: dict[str, Estimate]
     result: RunResult
+    system_source: str = "replay"
+    system_not_assessable: dict[str, str] = attrs.field(factory=dict)
 
     def verdicts(self) -> list[dict]:
         """One row per (radar or ``system``, criterion that applies): the figure, its interval, the rule, the
@@ -84,9 +90,13 @@ class Assessment:
             for name, why in r.not_assessable.items():
                 rows.append({"radar": r.radar, "indicator": name, **stats.missing("").as_dict(),
                              "reference": self.reference, "note": f"not assessable: {why}"})
+        note = f"ESASSP indicators of radartracker.pipeline.indicators; tracks: {self.system_source}"
         for name, e in self.system.items():
             rows.append({"radar": "system", "indicator": name, **e.as_dict(), "reference": self.reference,
-                         "note": "ESASSP indicators of radartracker.pipeline.indicators"})
+                         "note": note})
+        for name, why in self.system_not_assessable.items():
+            rows.append({"radar": "system", "indicator": name, **stats.missing("").as_dict(),
+                         "reference": self.reference, "note": f"not assessable: {why}"})
         return rows
 
     def summary(self) -> dict:
@@ -102,18 +112,27 @@ class Assessment:
                                  "not_assessable": r.not_assessable, "coverage": r.coverage,
                                  "verdicts": {v["indicator"]: v["verdict"] for v in verdicts if v["radar"] == r.radar}}
                        for r in self.radars},
-            "system": {"figures": {k: e.as_dict() for k, e in self.system.items()},
+            "system": {"source": self.system_source,
+                       "figures": {k: e.as_dict() for k, e in self.system.items()},
+                       "not_assessable": self.system_not_assessable,
                        "verdicts": {v["indicator"]: v["verdict"] for v in verdicts if v["radar"] == "system"}},
             "verdict_counts": dict(Counter(v["verdict"] for v in verdicts)),
         })
 
 
 def assess(data: ScenarioData, profile: Profile, config: AssessmentConfig | None = None, *,
-           progress: bool = True) -> Assessment:
+           progress: bool = True, system_tracks: Path | str | None = None) -> Assessment:
     """The assessment of ``data`` (module docstring), its plots matched and summed a time slice at a time
-    (:mod:`radartracker.assessment.slices`: in this process, or on Dask by ``config.slices``)."""
+    (:mod:`radartracker.assessment.slices`: in this process, or on Dask by ``config.slices``); the system tracks
+    scored are those of the CAT062 recording ``system_tracks`` if given, else the replay's."""
     config = config or AssessmentConfig()
     reference = build_reference(data, config.reference)
+    recorded = None
+    if system_tracks is not None:  # a bad file is refused before the replay
+        start, stop = float(np.min(data.plots.time, initial=np.inf)), float(np.max(data.plots.time, initial=-np.inf))
+        recorded = read_system_tracks(system_tracks, reference.plane, config.system,
+                                      start if math.isfinite(start) else 0.0)
+        within(recorded, start, stop)
     result = run(data, config.run, progress=progress)
     biases = {r.id: (result.final_biases[r.id].range_m, result.final_biases[r.id].azimuth_rad) for r in data.radars}
     tallies = tally_radars(data, reference, biases, config.match, config.radar.mode_c_tolerance_ft, config.slices,
@@ -124,7 +143,13 @@ def assess(data: ScenarioData, profile: Profile, config: AssessmentConfig | None
         data.plots.radar == radar.id]), result.final_biases[radar.id], observability.get(radar.id, {}), codes,
                            reference.kind, config.radar)
               for radar in data.radars]
-    return Assessment(data.name, reference.kind, profile, radars, system_figures(result, reference, tallies), result)
+    if recorded is None:
+        system = assess_system(result.histories(), reference, tallies, "replay", np.zeros(0), REPLAY_LATENCY)
+    else:
+        system = assess_system(recorded.histories, reference, tallies, recorded.source, recorded.latency_s,
+                               recorded.no_latency)
+    return Assessment(data.name, reference.kind, profile, radars, system.figures, result, system.source,
+                      system.not_assessable)
 
 
 def out_of_order(t: np.ndarray) -> int:
@@ -143,26 +168,3 @@ def reference_codes(reference: Reference, tallies: dict[str, RadarTally]) -> dic
     out = {k: v.most_common(1)[0][0] for k, v in votes.items()}
     out.update({k: t.mode_3a for k, t in reference.tracks.items() if t.mode_3a is not None})
     return out
-
-
-def system_figures(result: RunResult, reference: Reference, tallies: dict[str, RadarTally]) -> dict[str, Estimate]:
-    """The replay's tracks against the reference (module docstring, step 4): point values (consecutive
-    samples of a track are correlated: no interval is claimed); false tracks only against the truth."""
-    spans: dict[str, tuple[float, float]] = {}
-    for t in tallies.values():  # each aircraft's first and last matched plot, over every radar
-        spans = merge_spans(spans, t.spans)
-    spans = dict(sorted(spans.items()))
-    observed = observed_spans(spans)
-    histories = result.histories()
-    if not observed or not histories:
-        return {name: stats.missing("point") for name in SYSTEM_FIGURES}
-    grid = GridSpec(min(lo for lo, _ in observed.values()), max(hi for _, hi in observed.values()), 2.0)
-    metrics = track_metrics(histories, reference.paths(), observed, grid,
-                            first_seen={k: lo for k, (lo, _) in spans.items()})
-    q = metrics["indicators"]
-    values = {"position_rmse_m": metrics["position_rmse_m"],
-              **{k: q[k] for k in ("probability_of_update", "breaks_per_flight_hour", "multiple_share_of_time",
-                                   "initiation_delay_p95_s")}}
-    if reference.kind == "truth":  # against ADS-B, a track on an aircraft that does not broadcast looks false
-        values["false_tracks"] = float(metrics["false_tracks"])
-    return {k: Estimate(float(v), float(v), float(v), len(observed), "point") for k, v in values.items()}

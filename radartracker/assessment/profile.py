@@ -57,6 +57,7 @@ INDICATORS: dict[str, tuple[str, str]] = {
     "multiple_share_of_time": ("system tracks: multiple tracks (share of time)", "share"),
     "false_tracks": ("system tracks: false tracks", "tracks"),
     "initiation_delay_p95_s": ("system tracks: initiation delay, 95th percentile", "s"),
+    "latency_p95_s": ("system tracks: latency (time of applicability to delivery), 95th percentile", "s"),
 }
 RULES = ("below", "abs_below", "above")
 KINDS = ("any", "ssr", "psr", "system")

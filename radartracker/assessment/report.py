@@ -206,9 +206,11 @@ def render(a: Assessment, *, progress: bool = True) -> str:
                   f"<p>Sensor errors against the reference: {html.escape(fitted)}.</p>",
                   _table(["figure", "unit", "value", "95 % low", "95 % high", "n", "interval"], rows),
                   radar_figures(r, plt), coverage_figures(r, plt)]
-    parts += ["<h2>System tracks (ESASSP indicators)</h2>",
-              _table(["figure", "unit", "value", "aircraft", "note"],
-                     [[INDICATORS[k][0], INDICATORS[k][1], _fmt(e.value), str(e.n),
-                       "point value: a track's samples are correlated"] for k, e in a.system.items()]),
+    rows = [[INDICATORS[k][0], INDICATORS[k][1], _fmt(e.value), _fmt(e.low), _fmt(e.high), str(e.n), e.method]
+            for k, e in a.system.items()]
+    rows += [[INDICATORS[k][0], INDICATORS[k][1], "–", "–", "–", "0", f"not assessable: {why}"]
+             for k, why in a.system_not_assessable.items()]
+    parts += [f"<h2>System tracks (ESASSP indicators; tracks: {html.escape(a.system_source)})</h2>",
+              _table(["figure", "unit", "value", "95 % low", "95 % high", "n", "interval"], rows),
               "</body></html>"]
     return "\n".join(parts)

@@ -13,7 +13,16 @@ Every figure of the assessment is an :class:`Estimate`: the value, the interval 
   from a residual sum of squares and its degrees of freedom (a fit's);
 * a rate of N events in S scans (false plots per scan): the exact Poisson (**Garwood**) interval
   [χ²_{α/2, 2N}/2, χ²_{1−α/2, 2N+2}/2] / S;
-* an estimator's own estimate with its σ (a bias): **normal**, x̂ ± z σ.
+* an estimator's own estimate with its σ (a bias): **normal**, x̂ ± z σ;
+* a pooled ratio R = Σ aᵢ / Σ bᵢ over units i that are independent while their own samples are not (the
+  aircraft of a system track figure, whose 2 s samples are correlated): the **bootstrap over the units**
+  (Efron & Tibshirani 1993, §6 and §13): the units drawn with replacement :data:`BOOTSTRAP_DRAWS` times, R
+  recomputed each time, the interval the 2.5 % and 97.5 % quantiles of those R (percentile method);
+* a share of time over such units: the same bootstrap; where every unit's share is 0 (or 1) and the bootstrap
+  collapses, Clopper–Pearson's bound for m units none (all) of which showed it, [0, 1 − (α/2)^(1/m)];
+* a quantile ξ_q of n values: the distribution-free **order-statistic** interval [x₍ₗ₎, x₍ᵤ₎], l the
+  smallest k with B(k; n, q) ≥ α/2 and u − 1 the smallest with B(u − 1; n, q) ≥ 1 − α/2 (B the binomial
+  distribution function): P(x₍ₗ₎ ≤ ξ_q ≤ x₍ᵤ₎) = B(u − 1) − B(l − 1) ≥ 1 − α; an order outside 1..n is ∓∞.
 """
 
 from __future__ import annotations
@@ -25,6 +34,8 @@ import numpy as np
 from scipy import stats
 
 LEVEL = 0.95
+BOOTSTRAP_DRAWS = 2000  # percentile bootstrap: 2000 draws put the 2.5 % quantile's Monte Carlo error near 0.1 σ
+BOOTSTRAP_SEED = 0  # the same input gives the same interval
 _Z = float(stats.norm.ppf(0.5 + LEVEL / 2))
 
 
@@ -134,14 +145,67 @@ def mean(values: np.ndarray) -> Estimate:
     return Estimate(m, m - half, m + half, n, "t")
 
 
-def rate(events: int, exposures: int) -> Estimate:
-    """``events`` in ``exposures`` (scans): the Poisson rate with Garwood's exact interval."""
+def rate(events: int, exposures: float, n: int | None = None) -> Estimate:
+    """``events`` in ``exposures`` (scans, flight hours; 1 for a count): the Poisson rate with Garwood's exact
+    interval; ``n`` the sample it came from (default: ``exposures``)."""
+    size = int(exposures) if n is None else n
     if exposures <= 0:
         return missing("poisson-garwood")
     a = 1 - LEVEL
     lo = float(stats.chi2.ppf(a / 2, 2 * events)) / 2 if events > 0 else 0.0
     hi = float(stats.chi2.ppf(1 - a / 2, 2 * events + 2)) / 2
-    return Estimate(events / exposures, lo / exposures, hi / exposures, exposures, "poisson-garwood")
+    return Estimate(events / exposures, lo / exposures, hi / exposures, size, "poisson-garwood")
+
+
+def bootstrap_ratio(num: np.ndarray, den: np.ndarray, root: bool = False) -> Estimate:
+    """R = Σ num / Σ den over the units (√R with ``root``: an RMS from squared sums and counts), with the
+    percentile interval of the bootstrap over the units (module docstring); units with den = 0 carry nothing
+    and are left out. Fewer than two units: the value with no interval (NaN bounds: inconclusive)."""
+    num, den = np.asarray(num, float), np.asarray(den, float)
+    keep = den > 0
+    num, den = num[keep], den[keep]
+    m = len(num)
+    if not m:
+        return missing("bootstrap-aircraft")
+    f = np.sqrt if root else (lambda v: v)
+    value = float(f(num.sum() / den.sum()))
+    if m < 2:
+        return Estimate(value, math.nan, math.nan, m, "bootstrap-aircraft")
+    draw = np.random.default_rng(BOOTSTRAP_SEED).integers(0, m, (BOOTSTRAP_DRAWS, m))
+    r = f(num[draw].sum(axis=1) / den[draw].sum(axis=1))
+    a = 1 - LEVEL
+    lo, hi = np.quantile(r, [a / 2, 1 - a / 2])
+    return Estimate(value, float(lo), float(hi), m, "bootstrap-aircraft")
+
+
+def share_of_units(num: np.ndarray, den: np.ndarray) -> Estimate:
+    """A share of time R = Σ num / Σ den (0 ≤ num ≤ den per unit) with the bootstrap over the units; where no
+    unit has any (Σ num = 0) or every unit has only (num = den), the bootstrap's interval collapses to a point,
+    so the Clopper–Pearson bound of m units none (all) of which showed it stands instead: [0, 1 − (α/2)^(1/m)]
+    ([(α/2)^(1/m), 1]). Each unit's share lies under the chance that it shows it at all, so that bound holds
+    the share's expectation too."""
+    e = bootstrap_ratio(num, den)
+    if not e.n or (0.0 < e.value < 1.0):
+        return e
+    bound = (1 - LEVEL) / 2
+    edge = 1 - bound ** (1 / e.n)
+    low, high = (0.0, edge) if e.value == 0.0 else (1 - edge, 1.0)
+    return Estimate(e.value, low, high, e.n, "clopper-pearson-aircraft")
+
+
+def quantile(values: np.ndarray, q: float) -> Estimate:
+    """The ``q`` quantile of ``values`` (numpy's linear interpolation) with the order-statistic interval
+    (module docstring)."""
+    x = np.sort(np.asarray(values, float))
+    n = len(x)
+    if not n:
+        return missing("order-statistic")
+    a = 1 - LEVEL
+    lo_k = int(stats.binom.ppf(a / 2, n, q))  # l, 1-based
+    hi_k = int(stats.binom.ppf(1 - a / 2, n, q)) + 1  # u, 1-based
+    low = float(x[lo_k - 1]) if lo_k >= 1 else -math.inf
+    high = float(x[hi_k - 1]) if hi_k <= n else math.inf
+    return Estimate(float(np.quantile(x, q)), low, high, n, "order-statistic")
 
 
 def normal(value: float, sd: float, n: int) -> Estimate:

@@ -14,6 +14,12 @@ def register_assess(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--profile", type=Path, default=None,
                    help="thresholds and standards, a TOML or JSON file (default: the 1997 EUROCONTROL radar "
                         "standard and ESASSP 5 NM, radartracker/data/assessment-eurocontrol-1997.toml)")
+    p.add_argument("--system-tracks", type=Path, default=None, metavar="FILE",
+                   help="score the system tracks of this CAT062 recording (raw, FINAL or pcap) instead of the "
+                        "replay's own; the radars' figures still come from the replay (docs/assessment.md)")
+    p.add_argument("--track-gap-s", type=float, default=60.0, metavar="SECONDS",
+                   help="with --system-tracks: a CAT062 track number's updates further apart than this are two "
+                        "tracks, the number reused (default 60)")
     p.add_argument("--estimator", default=None, help="the joint bias estimator (default: the best installed)")
     p.add_argument("--skip-bad", action="store_true", help="skip (and count) malformed input rows instead of stopping")
     p.add_argument("--overwrite", action="store_true", help="replace an earlier assessment's files in --out")
@@ -40,6 +46,16 @@ def _slices(args: argparse.Namespace):
     return SliceConfig(args.slice_s, args.workers, args.scheduler)
 
 
+def _system(args: argparse.Namespace):
+    """The CAT062 track options as a SystemTrackConfig; a bad value is a ConfigurationError naming the option."""
+    from radartracker.assessment.systracks import SystemTrackConfig
+    from radartracker.errors import ConfigurationError
+
+    if not args.track_gap_s > 0:
+        raise ConfigurationError(f"--track-gap-s: expected a positive number of seconds, got {args.track_gap_s}")
+    return SystemTrackConfig(max_gap_s=args.track_gap_s)
+
+
 def _cmd_assess(args: argparse.Namespace) -> int:
     from radartracker.assessment.assess import AssessmentConfig, assess
     from radartracker.assessment.profile import load_profile
@@ -50,16 +66,18 @@ def _cmd_assess(args: argparse.Namespace) -> int:
 
     profile = load_profile(args.profile)  # a bad profile is refused before the work
     slices = _slices(args)
+    system = _system(args)
     progress = not getattr(args, "quiet", False)
     with removed_if_failed(args.out):
         out = prepare_output_folder(args.out, ASSESSMENT_FILES, overwrite=args.overwrite, keep_earlier=True)
         data = read_source(args.scenario, skip_bad=args.skip_bad)
         config = AssessmentConfig(run=RunConfig(estimator=args.estimator, skip_bad=args.skip_bad),
-                                  slices=slices)
-        a = assess(data, profile, config, progress=progress)
+                                  slices=slices, system=system)
+        a = assess(data, profile, config, progress=progress, system_tracks=args.system_tracks)
         write_assessment(a, out, progress=progress)
     counts = a.summary()["verdict_counts"]
     print(f"assessed {len(a.radars)} radars of {data.name or args.scenario} against the {a.reference}; "
           f"profile {profile.name!r}: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
+    print(f"system tracks: {a.system_source}")
     print(f"outputs in {out} (report.html)")
     return 0

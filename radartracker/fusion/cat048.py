@@ -130,7 +130,7 @@ def local_tracks_from_asterix(path: Path | str, *, radars: Path | str | None = N
         data = attrs.evolve(data, reference=tuple(reference))
     _, ids = read_sites(Path(radars) if radars is not None else sidecar_of(path))
     reader = _TrackReader(data, ids, default_altitude_m, position_sd_scale, velocity_sd_mps)
-    for clock, where, block in clocked_blocks(path, Counter() if skip_bad else None, day_start):
+    for clock, where, block, _ in clocked_blocks(path, Counter() if skip_bad else None, day_start):
         try:
             cat, recs = decode_block(block, where)
         except InputError:

@@ -226,7 +226,10 @@ def write_sites(path: Path, radars: list[Radar], sac_sic: dict[str, tuple[int, i
 def write_cat062(path: Path | str, result, *, sac: int = 0, sic: int = 100) -> dict:
     """Write a :class:`~radartracker.pipeline.result.RunResult`'s track estimates as CAT062 (raw blocks).
 
-    Track ids become track numbers 1, 2, … in order of first appearance; returns that mapping.
+    Track ids become track numbers 1, 2, … in order of first appearance; returns that mapping. A track that
+    ended (deleted or merged) gets one more record at its end, I080 TSE set (the last update of the track),
+    its position the last estimate's carried on at its velocity to that time: what the system showed until
+    the track was dropped. The records are written in time order (estimates before an end at the same time).
     """
     path = Path(path)
     if path.exists():
@@ -236,10 +239,19 @@ def write_cat062(path: Path | str, result, *, sac: int = 0, sic: int = 100) -> d
     for k in tracks.track.tolist():
         numbers.setdefault(k, len(numbers) + 1)
     s = np.asarray(tracks.state, float)
-    if len(s):
-        lat, lon = result.plane.to_geodetic(s[:, 0], s[:, 1])
-    recs = (cat062_record(tracks.time[i], sac, sic, numbers[tracks.track[i]], lat[i], lon[i],
-                          s[i, 0], s[i, 1], s[i, 2], s[i, 3]) for i in range(len(s)))
+    last = {k: i for i, k in enumerate(tracks.track.tolist())}  # each track's last estimate (time order)
+    ends = result.track_ends()
+    rows = [(float(tracks.time[i]), 0, i) for i in range(len(s))]
+    rows += [(t, 1, last[k]) for k, t in ends.items() if k in last and t >= float(tracks.time[last[k]])]
+    rows.sort(key=lambda r: (r[0], r[1]))
+    t = np.array([r[0] for r in rows], float)
+    src = np.array([r[2] for r in rows], int)
+    xy = s[src, :2] + s[src, 2:] * (t - np.asarray(tracks.time, float)[src])[:, None]  # (N, 2)
+    if rows:
+        lat, lon = result.plane.to_geodetic(xy[:, 0], xy[:, 1])
+    recs = (cat062_record(t[j], sac, sic, numbers[tracks.track[i]], lat[j], lon[j], xy[j, 0], xy[j, 1], s[i, 2],
+                          s[i, 3], ended=bool(end))
+            for j, (_, end, i) in enumerate(rows))
     with atomic_open(path, "wb") as fh:
         fh.writelines(datablocks(CAT062, recs))
     return numbers

@@ -49,8 +49,10 @@ class Clock:
         return self.base + tod
 
 
-def clocked_blocks(path: Path | str, bad: Counter | None, day_start: float) -> Iterator[tuple[Clock, str, bytes]]:
-    """(clock, where, data block) of each block of a recording, in file order.
+def clocked_blocks(path: Path | str, bad: Counter | None,
+                   day_start: float) -> Iterator[tuple[Clock, str, bytes, float | None]]:
+    """(clock, where, data block, its packet's capture time or None) of each block of a recording, in file
+    order.
 
     One :class:`Clock` serves the whole file; its first day is the midnight before the first packet's
     time stamp (pcap), else ``day_start``. ``bad``: as :func:`~radartracker.io.capture.iter_datablocks`.
@@ -59,7 +61,7 @@ def clocked_blocks(path: Path | str, bad: Counter | None, day_start: float) -> I
     for k, (stamp, block) in enumerate(iter_datablocks(path, bad)):
         if clock is None:
             clock = Clock(math.floor(stamp / DAY) * DAY if stamp is not None else day_start)
-        yield clock, f"{path}: data block {k}", block
+        yield clock, f"{path}: data block {k}", block, stamp
 
 
 def read_sites(path: Path) -> tuple[list[Radar], dict[tuple[int, int], str]]:
@@ -135,7 +137,7 @@ def _read_reports(path: Path, day_start: float, bad: Counter | None,
     # bytes of the file: the blocks, then the framing between them (FINAL, pcap) once all are read; the bar
     # shows on stderr once reading takes 2 s (off with --quiet): decoding is pure Python
     with progress_bar(total=path.stat().st_size, desc=f"read {path.name}", unit="B", unit_scale=True) as bar:
-        for clock, where, block in clocked_blocks(path, bad, day_start):
+        for clock, where, block, _ in clocked_blocks(path, bad, day_start):
             bar.update(len(block))
             try:
                 cat, recs = decode_block(block, where)
@@ -248,13 +250,13 @@ def _aircraft(plots: list[dict], adsb: list[dict]) -> list[Aircraft]:
 def read_cat062(path: Path | str, *, day_start: float = 0.0) -> list[dict]:
     """The CAT062 system track updates of a recording (raw, FINAL or pcap), in file order, as
     :func:`~radartracker.io.asterix.decode_cat062` dicts with absolute ``time`` (see the module notes
-    on time of day); records of other categories, and records without I010, I040, I070 or I080, are
-    skipped."""
+    on time of day) and ``received``, the capture time of the record's packet (pcap; None in a raw or FINAL
+    file); records of other categories, and records without I010, I040, I070 or I080, are skipped."""
     out: list[dict] = []
-    for clock, where, block in clocked_blocks(path, None, day_start):
+    for clock, where, block, stamp in clocked_blocks(path, None, day_start):
         cat, recs = decode_block(block, where)
         if cat == 62:
             for d in decoded_records(62, recs, decode_cat062, Counter()):
-                d["time"] = clock(d["tod"])
+                d["time"], d["received"] = clock(d["tod"]), stamp
                 out.append(d)
     return out

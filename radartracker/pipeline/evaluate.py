@@ -16,7 +16,8 @@ import numpy as np
 from radartracker.errors import InputError
 from radartracker.io.tables import TruthTable
 from radartracker.geometry.plane import SystemPlane
-from radartracker.pipeline.indicators import Assignment, indicators
+from radartracker.pipeline.indicators import (UPDATE_INTERVAL_S, Assignment, doubled_times, indicators,
+                                              initiation_delays, update_counts)
 
 
 @attrs.frozen
@@ -155,7 +156,8 @@ def _runs(keys: np.ndarray) -> tuple[list[str], list[int], list[int]]:
 
 def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: dict[str, tuple[float, float]],
                   grid: np.ndarray | GridSpec, c: float = 2000.0, sensed: Iterable[str] | None = None,
-                  first_seen: dict[str, float] | None = None, gaps: dict[str, int] | None = None) -> dict:
+                  first_seen: dict[str, float] | None = None, gaps: dict[str, int] | None = None,
+                  samples: bool = False) -> dict:
     """Track-to-truth assignment on a time grid and the metrics derived from it.
 
     At each grid time the alive tracks are assigned to the observed truths as in CLEAR MOT
@@ -179,7 +181,8 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
     may be at most :data:`MAX_GRID_CELLS` / (targets + tracks), else an InputError. ``indicators``: the
     standards' track-quality indicators (:mod:`radartracker.pipeline.indicators`: multiple tracks, probability
     of update, breaks per flight hour, initiation delay from ``first_seen``, each target's first detection, by
-    default the start of its observed span).
+    default the start of its observed span). With ``samples``, also ``samples``: each target's share of those
+    figures (:func:`target_samples`), what an interval over the aircraft needs.
     """
     targets = sorted(observed)
     tids = sorted(tracks)
@@ -189,7 +192,7 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
     trk_live = np.zeros((len(tids), len(grid)), bool)
     for q, tid in enumerate(tids):
         trk_pos[q], trk_live[q] = tracks[tid].at(grid)
-    assigned, track_targets, g, sq = _assignment(tru_pos, tru_live, trk_pos, trk_live, index, c)
+    assigned, track_targets, g, sq, sq_rows = _assignment(tru_pos, tru_live, trk_pos, trk_live, index, c)
     held = np.zeros(trk_live.shape, bool)
     r, k = np.nonzero(assigned >= 0)
     held[assigned[r, k], k] = True
@@ -205,9 +208,11 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
     found = Assignment(grid, assigned, trk_pos, trk_live, tru_pos, tru_live, [tracks[t].times for t in tids],
                        np.array([tracks[t].start for t in tids], float))
     seen = first_seen or {}
-    quality = indicators(found, {r: observed[tg] for r, tg in enumerate(targets)},
-                         {r: seen.get(tg, observed[tg][0]) for r, tg in enumerate(targets)}, breaks, c)
-    return {
+    spans = {r: observed[tg] for r, tg in enumerate(targets)}
+    starts = {r: seen.get(tg, observed[tg][0]) for r, tg in enumerate(targets)}
+    quality = indicators(found, spans, starts, breaks, c)
+    extra = {"samples": target_samples(found, targets, spans, starts, sq, sq_rows, c)} if samples else {}
+    return extra | {
         "per_target": per_target,
         "continuity_min": min((v["continuity"] for v in per_target.values()), default=float("nan")),
         "swaps": sum(len(s) > 1 for s in track_targets),
@@ -220,6 +225,23 @@ def track_metrics(tracks: dict[int, TrackHistory], paths: TruthPaths, observed: 
         "indicators": quality,
         "gospa": g,
     }
+
+
+def target_samples(a: Assignment, targets: list[str], spans: dict[int, tuple[float, float]],
+                   first_seen: dict[int, float], sq: list[float], sq_rows: list[int], c: float) -> dict:
+    """Per target (in the order of ``targets``): the sum of its assigned pairs' squared distances
+    (``sq_sum_m2``) and their count (``pairs``), its observed grid times (``observed``) and those with a
+    multiple track (``multiple``), its expected and updated update intervals (``expected``, ``updated``);
+    and the initiation delays (``delays_s``). Each pooled figure of :func:`track_metrics` is a ratio of two of
+    these sums (RMSE² = Σ sq_sum / Σ pairs, P_u = Σ updated / Σ expected, …), so resampling the aircraft
+    resamples the figure."""
+    n = len(targets)
+    updated, expected = update_counts(a, spans, UPDATE_INTERVAL_S)
+    return {"targets": list(targets),
+            "sq_sum_m2": np.bincount(np.asarray(sq_rows, int), weights=np.asarray(sq, float), minlength=n),
+            "pairs": np.bincount(np.asarray(sq_rows, int), minlength=n),
+            "observed": a.tru_live.sum(axis=1), "multiple": doubled_times(a, c)[0].sum(axis=1),
+            "updated": updated, "expected": expected, "delays_s": initiation_delays(a, first_seen)}
 
 
 def _grid_times(grid: np.ndarray | GridSpec, observed: dict[str, tuple[float, float]],
@@ -248,15 +270,15 @@ def _truth_on_grid(paths: TruthPaths, observed: dict[str, tuple[float, float]], 
 
 
 def _assignment(tru_pos: np.ndarray, tru_live: np.ndarray, trk_pos: np.ndarray, trk_live: np.ndarray,
-                index: np.ndarray, c: float) -> tuple[np.ndarray, list[set[int]], np.ndarray, list[float]]:
+                index: np.ndarray, c: float) -> tuple[np.ndarray, list[set[int]], np.ndarray, list[float], list[int]]:
     """The assignment at each grid time (:func:`track_metrics`): the track index each target holds
-    (targets × grid, −1: none), the targets each track was assigned to, GOSPA per grid time and the
-    squared distances of all assigned pairs. A target's previous track is the one of the grid time
-    before (``index`` consecutive)."""
+    (targets × grid, −1: none), the targets each track was assigned to, GOSPA per grid time, the
+    squared distances of all assigned pairs and each pair's target row. A target's previous track is the
+    one of the grid time before (``index`` consecutive)."""
     n_g = tru_live.shape[1]
     assigned = np.full(tru_live.shape, -1)  # track index held by each target
     track_targets: list[set[int]] = [set() for _ in range(len(trk_live))]
-    g, sq = np.zeros(n_g), []
+    g, sq, sq_rows = np.zeros(n_g), [], []
     for k in range(n_g):
         live_t = np.flatnonzero(tru_live[:, k])
         live_k = np.flatnonzero(trk_live[:, k])
@@ -266,10 +288,11 @@ def _assignment(tru_pos: np.ndarray, tru_live: np.ndarray, trk_pos: np.ndarray, 
         rows, cols, d2 = _assign_at(tru_pos[:, k], trk_pos[:, k], trk_live[:, k], live_t, live_k, prev, c * c)
         g[k] = gospa(np.array(d2), len(live_t) - len(rows), len(live_k) - len(rows), c)
         sq.extend(d2)
+        sq_rows.extend(rows)
         assigned[rows, k] = cols
         for r, q in zip(rows, cols):
             track_targets[q].add(r)
-    return assigned, track_targets, g, sq
+    return assigned, track_targets, g, sq, sq_rows
 
 
 def _assign_at(tru_pos: np.ndarray, trk_pos: np.ndarray, trk_live: np.ndarray, live_t: np.ndarray,

@@ -44,8 +44,9 @@ class Assignment:
     starts: np.ndarray
 
 
-def multiple_tracks(a: Assignment, c: float) -> dict:
-    """The multiple-track indicators (module docstring) for the association distance ``c``."""
+def doubled_times(a: Assignment, c: float) -> tuple[np.ndarray, set[int]]:
+    """(targets × grid: the target is held and another, spare track lies within ``c`` of it; the spare tracks
+    that ever are such a multiple track), as :func:`multiple_tracks` counts them."""
     held_by_some = np.zeros(a.trk_live.shape, bool)
     r, k = np.nonzero(a.assigned >= 0)
     held_by_some[a.assigned[r, k], k] = True
@@ -60,6 +61,12 @@ def multiple_tracks(a: Assignment, c: float) -> dict:
         near = np.sum((a.tru_pos[rows, k][:, None] - a.trk_pos[qs, k][None]) ** 2, axis=-1) < c * c
         doubled[rows[near.any(axis=1)], k] = True
         extra.update(qs[near.any(axis=0)].tolist())
+    return doubled, extra
+
+
+def multiple_tracks(a: Assignment, c: float) -> dict:
+    """The multiple-track indicators (module docstring) for the association distance ``c``."""
+    doubled, extra = doubled_times(a, c)
     observed = int(a.tru_live.sum())
     flights = int(a.tru_live.any(axis=1).sum())
     with_multiple = int(doubled.any(axis=1).sum())
@@ -69,14 +76,16 @@ def multiple_tracks(a: Assignment, c: float) -> dict:
             "flights_with_multiple_share": with_multiple / flights if flights else math.nan}
 
 
-def probability_of_update(a: Assignment, spans: dict[int, tuple[float, float]], interval_s: float) -> float:
-    """Pooled P_u (module docstring) of the targets whose observed span (by target row) is in ``spans``."""
-    expected = updated = 0
-    for r, (lo, hi) in spans.items():
+def update_counts(a: Assignment, spans: dict[int, tuple[float, float]], interval_s: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Per target row of ``spans`` (its observed span), in their order: the update intervals that were updated
+    and those expected (module docstring, probability of update)."""
+    updated, expected = np.zeros(len(spans), int), np.zeros(len(spans), int)
+    for i, (r, (lo, hi)) in enumerate(spans.items()):
         n = int(math.floor((hi - lo) / interval_s))
         if n <= 0:
             continue
-        expected += n
+        expected[i] = n
         ks = np.flatnonzero(a.tru_live[r] & (a.assigned[r] >= 0))
         slot = np.floor((a.grid[ks] - lo) / interval_s).astype(int)
         hit = np.zeros(n, bool)
@@ -85,8 +94,14 @@ def probability_of_update(a: Assignment, spans: dict[int, tuple[float, float]], 
             u = a.updates[q]
             j = np.floor((u[(u >= lo) & (u < lo + n * interval_s)] - lo) / interval_s).astype(int)
             hit[np.intersect1d(mine[(mine >= 0) & (mine < n)], j)] = True
-        updated += int(hit.sum())
-    return updated / expected if expected else math.nan
+        updated[i] = int(hit.sum())
+    return updated, expected
+
+
+def probability_of_update(a: Assignment, spans: dict[int, tuple[float, float]], interval_s: float) -> float:
+    """Pooled P_u (module docstring) of the targets whose observed span (by target row) is in ``spans``."""
+    updated, expected = update_counts(a, spans, interval_s)
+    return int(updated.sum()) / int(expected.sum()) if expected.sum() else math.nan
 
 
 def initiation_delays(a: Assignment, first_seen: dict[int, float]) -> np.ndarray:

@@ -179,11 +179,16 @@ class RunResult:
         self._held()
         return bias_table(self.biases).to_pandas()
 
+    def track_ends(self) -> dict[int, float]:
+        """The tracks that ended (deleted, or merged into another), each at its first such event's time."""
+        ev = self.events
+        deleted = np.isin(ev.kind, ENDS)
+        return dict(zip(ev.track[deleted][::-1].tolist(), ev.time[deleted][::-1].tolist()))  # first deletion wins
+
     def histories(self) -> dict[int, TrackHistory]:
         """Each track's estimates and life span (created to deleted, or to its last estimate)."""
-        ev, est = self.events, self.tracks
-        deleted = np.isin(ev.kind, ENDS)
-        end = dict(zip(ev.track[deleted][::-1].tolist(), ev.time[deleted][::-1].tolist()))  # first deletion wins
+        est = self.tracks
+        end = self.track_ends()
         order = np.argsort(est.track, kind="stable")
         ids, first = np.unique(est.track[order], return_index=True)
         out = {}
