@@ -1,6 +1,8 @@
 """The assessment of a scenario: every radar's figures and the system tracks' indicators, judged by a profile.
 
-1. The reference (:func:`radartracker.assessment.reference.build_reference`): truth, else validated ADS-B.
+1. The reference (:func:`radartracker.assessment.reference.build_reference`): truth, else validated ADS-B and,
+   when asked (``ReferenceConfig.reconstruct``), after the replay the reconstruction of the other aircraft with
+   its bias estimates removed (:func:`~radartracker.assessment.reference.add_reconstructed`).
 2. The replay the project already has (:func:`radartracker.pipeline.run.run`): its joint bias estimator
    gives each radar's Δr̂, Δθ̂ with their σ, and its coupling graph their observability; its tracks are the
    system tracks, unless a CAT062 recording's are given (``system_tracks``:
@@ -28,7 +30,8 @@ from radartracker.assessment import stats
 from radartracker.assessment.matching import MatchConfig
 from radartracker.assessment.profile import INDICATORS, Profile
 from radartracker.assessment.radar import RadarAssessment, RadarConfig, assess_radar
-from radartracker.assessment.reference import Reference, ReferenceConfig, build_reference
+from radartracker.assessment.reference import (Reference, ReferenceConfig, add_reconstructed, build_reference,
+                                               reconstructor)
 from radartracker.assessment.slices import SliceConfig, tally_radars
 from radartracker.assessment.stats import Estimate
 from radartracker.assessment.system import REPLAY_LATENCY, assess_system
@@ -56,7 +59,8 @@ class AssessmentConfig:
 @attrs.define
 class Assessment:
     """What :func:`assess` found: per radar, the system tracks' figures, the profile and the replay it used;
-    where the system tracks came from (``replay`` or a CAT062 file) and their figures that are not assessable."""
+    where the system tracks came from (``replay`` or a CAT062 file) and their figures that are not assessable;
+    the aircraft a reconstruction did not give a reference, and why (``reference_left_out``)."""
 
     scenario: str
     reference: str
@@ -66,6 +70,7 @@ class Assessment:
     result: RunResult
     system_source: str = "replay"
     system_not_assessable: dict[str, str] = attrs.field(factory=dict)
+    reference_left_out: dict[str, str] = attrs.field(factory=dict)
 
     def verdicts(self) -> list[dict]:
         """One row per (radar or ``system``, criterion that applies): the figure, its interval, the rule, the
@@ -103,7 +108,8 @@ class Assessment:
         """``assessment.json``: strict JSON (NaN as null)."""
         verdicts = self.verdicts()
         return strict({
-            "scenario": self.scenario, "reference": self.reference, "estimator": self.result.estimator_name,
+            "scenario": self.scenario, "reference": self.reference, "reference_left_out": self.reference_left_out,
+            "estimator": self.result.estimator_name,
             "profile": {"name": self.profile.name, "source": self.profile.source},
             "confidence_level": stats.LEVEL,
             "units": {k: u for k, (_, u) in INDICATORS.items()},
@@ -127,6 +133,8 @@ def assess(data: ScenarioData, profile: Profile, config: AssessmentConfig | None
     scored are those of the CAT062 recording ``system_tracks`` if given, else the replay's."""
     config = config or AssessmentConfig()
     reference = build_reference(data, config.reference)
+    if config.reference.reconstruct:
+        reconstructor(config.reference)  # an unknown plugin is refused before the replay
     recorded = None
     if system_tracks is not None:  # a bad file is refused before the replay
         start, stop = float(np.min(data.plots.time, initial=np.inf)), float(np.max(data.plots.time, initial=-np.inf))
@@ -134,6 +142,10 @@ def assess(data: ScenarioData, profile: Profile, config: AssessmentConfig | None
                                       start if math.isfinite(start) else 0.0)
         within(recorded, start, stop)
     result = run(data, config.run, progress=progress)
+    if config.reference.reconstruct and reference.kind != "truth":
+        estimates = {rid: (np.asarray(b.bias, float)[:2], np.asarray(b.cov, float)[:2, :2])
+                     for rid, b in result.final_biases.items()}
+        reference = add_reconstructed(reference, data, estimates, config.reference, progress)
     biases = {r.id: (result.final_biases[r.id].range_m, result.final_biases[r.id].azimuth_rad) for r in data.radars}
     tallies = tally_radars(data, reference, biases, config.match, config.radar.mode_c_tolerance_ft, config.slices,
                            progress=progress)
@@ -149,7 +161,7 @@ def assess(data: ScenarioData, profile: Profile, config: AssessmentConfig | None
         system = assess_system(recorded.histories, reference, tallies, recorded.source, recorded.latency_s,
                                recorded.no_latency)
     return Assessment(data.name, reference.kind, profile, radars, system.figures, result, system.source,
-                      system.not_assessable)
+                      system.not_assessable, reference.left_out)
 
 
 def out_of_order(t: np.ndarray) -> int:

@@ -1,5 +1,6 @@
 """The reference trajectories the sensors are judged against: the truth where the scenario has it, else
-each aircraft's validated ADS-B.
+each aircraft's validated ADS-B, and (``ReferenceConfig.reconstruct``) the reconstruction of every other
+aircraft whose plots carry a Mode S address.
 
 * **truth** (``truth.csv``): each target's positions, joined by straight lines in the system plane
   (a conformal projection: over the truth's 1 s steps the chord differs from the path by millimetres).
@@ -10,6 +11,12 @@ each aircraft's validated ADS-B.
   :attr:`ReferenceConfig.max_gap_s` from a report: a plot in a longer gap has no reference. The smoothed
   ADS-B carries its own error (about 10–20 m at NACp 8): a radar's random error measured against it is
   √(σ_radar² + σ_ref²), which the report says.
+* **reconstruction** (:func:`add_reconstructed`): the aircraft without validated ADS-B, their radar plots grouped
+  by Mode S address (or truth label) and reconstructed by a reconstructor plugin (``multi-hypothesis`` by
+  default: piecewise-constant controls, docs/reconstruction.md) with the replay's joint bias estimates ς̂ removed
+  (z̃ = z − C ς̂, R̃ = R + C Σ Cᵀ); a flight its quality flags call implausible, or one that could not be
+  reconstructed, is left out and named (:attr:`Reference.left_out`). The reference then holds the radar's own
+  plots: its errors correlate with the radar's, so a random σ measured against it is somewhat too small.
 
 Positions come back geodetic (lat, lon, height), so that every comparison with a radar goes through the
 radar's exact polar geometry (:class:`radartracker.geometry.plane.RadarFrame`).
@@ -25,7 +32,7 @@ from typing import NamedTuple
 import attrs
 import numpy as np
 
-from radartracker.errors import InputError
+from radartracker.errors import ConfigurationError, InputError
 from radartracker.geometry.plane import RadarFrame, SystemPlane
 from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.evaluate import TruthPaths
@@ -38,11 +45,16 @@ PLANE_SCALE_BOUND = 1.2  # k of the plane out to 5,700 km from its centre, and t
 @attrs.frozen
 class ReferenceConfig:
     """How the ADS-B reference is validated: the least NACp kept, the longest gap between reports across
-    which a position is interpolated, and the fewest reports an aircraft needs."""
+    which a position is interpolated, and the fewest reports an aircraft needs; whether the aircraft without
+    it are reconstructed (``reconstruct``: by the reconstructor plugin ``reconstructor``, those with at least
+    ``min_plots`` plots)."""
 
     min_nacp: int = attrs.field(default=7, validator=[attrs.validators.ge(1), attrs.validators.le(11)])
     max_gap_s: float = attrs.field(default=20.0, validator=attrs.validators.gt(0.0))
     min_reports: int = attrs.field(default=10, validator=attrs.validators.ge(2))
+    reconstruct: bool = False
+    reconstructor: str = "multi-hypothesis"
+    min_plots: int = attrs.field(default=10, validator=attrs.validators.ge(2))
 
 
 class _Vertices(NamedTuple):
@@ -76,11 +88,14 @@ class ReferenceTrack:
 
 @attrs.frozen
 class Reference:
-    """Every aircraft's reference trajectory (``kind``: ``"truth"`` or ``"adsb"``) in ``plane``."""
+    """Every aircraft's reference trajectory in ``plane`` (``kind``: ``"truth"``, ``"adsb"``,
+    ``"adsb+reconstruction"`` or ``"reconstruction"``); ``left_out``: the aircraft a reconstruction did not give
+    a reference, and why."""
 
     kind: str
     plane: SystemPlane
     tracks: dict[str, ReferenceTrack]
+    left_out: dict[str, str] = attrs.field(factory=dict)
 
     def geodetic(self, keys: Sequence[str], times: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """WGS84 (lat, lon, height m) of each aircraft ``keys[i]`` at its times ``times[i]`` (inside its span),
@@ -185,6 +200,8 @@ def build_reference(data: ScenarioData, config: ReferenceConfig | None = None) -
         return Reference("truth", plane, tracks)
     a = data.adsb
     keep = (a.nacp >= config.min_nacp) & np.isfinite(a.altitude_m)
+    if config.reconstruct and not keep.any():  # every aircraft to be reconstructed (add_reconstructed)
+        return Reference("adsb", plane, {})
     if not keep.any():
         raise InputError(f"scenario {data.name!r}: no truth.csv and no ADS-B report of NACp ≥ {config.min_nacp} "
                          "with an altitude: nothing to judge the radars against")
@@ -192,6 +209,43 @@ def build_reference(data: ScenarioData, config: ReferenceConfig | None = None) -
     tracks = _tracks(a.icao24[keep].astype(str), a.time[keep], x, y, a.altitude_m[keep], codes, config.max_gap_s,
                      smooth=True, min_reports=config.min_reports)
     return Reference("adsb", plane, tracks)
+
+
+def reconstructor(config: ReferenceConfig):
+    """The reconstructor plugin ``config.reconstructor``, made with its defaults; a ConfigurationError when it is not
+    installed or cannot reconstruct a scenario's flights (it has no ``flights(data, biases, *, exclude, min_plots,
+    progress)``, docs/plugins.md)."""
+    from radartracker.registry import load_reconstructor
+
+    made = load_reconstructor(config.reconstructor)()
+    if not callable(getattr(made, "flights", None)):
+        raise ConfigurationError(f"reconstructor {config.reconstructor!r} has no flights(): it cannot give an "
+                                 "assessment its reference")
+    return made
+
+
+def add_reconstructed(reference: Reference, data: ScenarioData, biases: dict[str, tuple[np.ndarray, np.ndarray]],
+                      config: ReferenceConfig, progress: bool = False) -> Reference:
+    """``reference`` and the reconstruction of every other aircraft of ``data`` (module docstring), the radar
+    biases ``biases`` (radar → (ς̂ = [Δr m, Δθ rad], 2×2 covariance)) removed; an InputError when no aircraft has a
+    reference then. Each reconstruction's geometric track (1 s apart) is joined by straight lines."""
+    codes = {a.icao24: a.mode_3a for a in data.aircraft}
+    tracks, left = dict(reference.tracks), {}
+    flights = reconstructor(config).flights(data, biases, exclude=set(tracks), min_plots=config.min_plots,
+                                            progress=progress)
+    for f in flights:
+        if f.verdict != "plausible" or len(f.time) < 2:
+            left[f.key] = f.verdict
+            continue
+        address = f.key if _ADDRESS.match(f.key) else None
+        tracks[f.key] = ReferenceTrack(f.time, RecordedTrajectory(f.time, f.x, f.y, f.h, smooth=False), address,
+                                       codes.get(address), np.inf)
+    if not tracks:
+        raise InputError(f"scenario {data.name!r}: no validated ADS-B and no aircraft reconstructed "
+                         f"({len(left)} left out): nothing to judge the radars against")
+    added = len(tracks) - len(reference.tracks)
+    kind = reference.kind if not added else "reconstruction" if not reference.tracks else f"{reference.kind}+reconstruction"
+    return Reference(kind, reference.plane, dict(sorted(tracks.items())), left)
 
 
 def _tracks(keys: np.ndarray, t: np.ndarray, x: np.ndarray, y: np.ndarray, h: np.ndarray, codes: dict,

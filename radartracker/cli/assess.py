@@ -20,6 +20,11 @@ def register_assess(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--track-gap-s", type=float, default=60.0, metavar="SECONDS",
                    help="with --system-tracks: a CAT062 track number's updates further apart than this are two "
                         "tracks, the number reused (default 60)")
+    p.add_argument("--reconstruct", action="store_true",
+                   help="without truth: reconstruct the aircraft without validated ADS-B from their Mode S plots, "
+                        "the replay's bias estimates removed, as their reference (docs/assessment.md)")
+    p.add_argument("--reconstructor", default="multi-hypothesis", metavar="NAME",
+                   help="with --reconstruct: the reconstructor plugin (default multi-hypothesis)")
     p.add_argument("--estimator", default=None, help="the joint bias estimator (default: the best installed)")
     p.add_argument("--skip-bad", action="store_true", help="skip (and count) malformed input rows instead of stopping")
     p.add_argument("--overwrite", action="store_true", help="replace an earlier assessment's files in --out")
@@ -59,6 +64,7 @@ def _system(args: argparse.Namespace):
 def _cmd_assess(args: argparse.Namespace) -> int:
     from radartracker.assessment.assess import AssessmentConfig, assess
     from radartracker.assessment.profile import load_profile
+    from radartracker.assessment.reference import ReferenceConfig
     from radartracker.assessment.writer import ASSESSMENT_FILES, write_assessment
     from radartracker.io.atomic import prepare_output_folder, removed_if_failed
     from radartracker.io.sources import read_source
@@ -72,11 +78,14 @@ def _cmd_assess(args: argparse.Namespace) -> int:
         out = prepare_output_folder(args.out, ASSESSMENT_FILES, overwrite=args.overwrite, keep_earlier=True)
         data = read_source(args.scenario, skip_bad=args.skip_bad)
         config = AssessmentConfig(run=RunConfig(estimator=args.estimator, skip_bad=args.skip_bad),
+                                  reference=ReferenceConfig(reconstruct=args.reconstruct,
+                                                            reconstructor=args.reconstructor),
                                   slices=slices, system=system)
         a = assess(data, profile, config, progress=progress, system_tracks=args.system_tracks)
         write_assessment(a, out, progress=progress)
     counts = a.summary()["verdict_counts"]
-    print(f"assessed {len(a.radars)} radars of {data.name or args.scenario} against the {a.reference}; "
+    left = f" ({len(a.reference_left_out)} aircraft without a reference)" if a.reference_left_out else ""
+    print(f"assessed {len(a.radars)} radars of {data.name or args.scenario} against the {a.reference}{left}; "
           f"profile {profile.name!r}: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
     print(f"system tracks: {a.system_source}")
     print(f"outputs in {out} (report.html)")
