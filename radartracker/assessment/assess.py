@@ -37,6 +37,7 @@ from radartracker.assessment.stats import Estimate
 from radartracker.assessment.system import REPLAY_LATENCY, assess_system
 from radartracker.assessment.systracks import SystemTrackConfig, read_system_tracks, within
 from radartracker.assessment.tally import RadarTally
+from radartracker.cluster import dask_client
 from radartracker.io.tables import ScenarioData
 from radartracker.pipeline.config import RunConfig
 from radartracker.pipeline.result import RunResult, strict
@@ -142,13 +143,15 @@ def assess(data: ScenarioData, profile: Profile, config: AssessmentConfig | None
                                       start if math.isfinite(start) else 0.0)
         within(recorded, start, stop)
     result = run(data, config.run, progress=progress)
-    if config.reference.reconstruct and reference.kind != "truth":
-        estimates = {rid: (np.asarray(b.bias, float)[:2], np.asarray(b.cov, float)[:2, :2])
-                     for rid, b in result.final_biases.items()}
-        reference = add_reconstructed(reference, data, estimates, config.reference, progress)
     biases = {r.id: (result.final_biases[r.id].range_m, result.final_biases[r.id].azimuth_rad) for r in data.radars}
-    tallies = tally_radars(data, reference, biases, config.match, config.radar.mode_c_tolerance_ft, config.slices,
-                           progress=progress)
+    with dask_client(config.slices.workers, config.slices.scheduler, quiet=not progress) as client:
+        if config.reference.reconstruct and reference.kind != "truth":  # its flights on the slices' cluster
+            estimates = {rid: (np.asarray(b.bias, float)[:2], np.asarray(b.cov, float)[:2, :2])
+                         for rid, b in result.final_biases.items()}
+            reference = add_reconstructed(reference, data, estimates, config.reference, progress,
+                                          None if client is None else client.get_executor())
+        tallies = tally_radars(data, reference, biases, config.match, config.radar.mode_c_tolerance_ft,
+                               config.slices, progress=progress, client=client)
     codes = reference_codes(reference, tallies)
     observability = result.observability["radars"]
     radars = [assess_radar(radar, tallies.get(radar.id, RadarTally()), out_of_order(data.plots.time[

@@ -23,7 +23,10 @@ slices are independent of one another and nothing sequential is left to carry be
 
 from __future__ import annotations
 
+import contextlib
 import math
+from collections.abc import Iterator
+from typing import Any
 
 import attrs
 import numpy as np
@@ -114,10 +117,21 @@ def _jobs(data: ScenarioData, biases: dict[str, tuple[float, float]], slice_s: f
     return out
 
 
+@contextlib.contextmanager
+def _client(config: SliceConfig, given: Any, quiet: bool) -> Iterator[Any]:
+    """``given`` if not None, else the client of ``config``'s cluster (:func:`dask_client`: None without one)."""
+    if given is not None:
+        yield given
+        return
+    with dask_client(config.workers, config.scheduler, quiet=quiet) as made:
+        yield made
+
+
 def tally_radars(data: ScenarioData, reference: Reference, biases: dict[str, tuple[float, float]],
                  match: MatchConfig, mode_c_tolerance_ft: float, config: SliceConfig, *,
-                 progress: bool = True) -> dict[str, RadarTally]:
-    """Every radar's sums over the recording (module docstring), one progress bar over all the tasks."""
+                 progress: bool = True, client: Any = None) -> dict[str, RadarTally]:
+    """Every radar's sums over the recording (module docstring), one progress bar over all the tasks; on
+    ``client`` (a ``distributed`` client the caller holds) if given, else on the cluster ``config`` names."""
     work = _jobs(data, biases, config.slice_s)
     m = margin_s(data.radars)
     configs = (match, mode_c_tolerance_ft * FT)
@@ -125,7 +139,7 @@ def tally_radars(data: ScenarioData, reference: Reference, biases: dict[str, tup
     bar = progress_bar(total=sum(len(j) for _, j in work), desc="assessing (slice, radar)", unit="task",
                        disable=not progress)
     try:
-        with dask_client(config.workers, config.scheduler, quiet=not progress) as client:
+        with _client(config, client, quiet=not progress) as client:
             futures = {}
             for i, (keep, jobs) in enumerate(work):
                 ref = reference if len(work) == 1 else reference.window(keep[0] - m, keep[1] + m)
