@@ -1,5 +1,6 @@
-"""The same scenario judged against its truth and against its ADS-B alone (docs/assessment.md, "The
-reference"): what the ADS-B reference costs a radar's figures. Prints one Markdown row per radar.
+"""The same scenario judged against its truth, against its ADS-B alone and against its ADS-B with the other
+aircraft reconstructed (``--reconstruct``; docs/assessment.md, "The reference"): what each reference costs a
+radar's figures. Prints one Markdown row per radar, and the CPU seconds of each assessment.
 
     python scripts/assessment_reference.py [--scenario paris] [--duration 1800] [--seed 1]
 """
@@ -8,11 +9,13 @@ from __future__ import annotations
 
 import argparse
 import math
+import time
 
 import attrs
 
-from radartracker.assessment.assess import assess
+from radartracker.assessment.assess import AssessmentConfig, assess
 from radartracker.assessment.profile import load_profile
+from radartracker.assessment.reference import ReferenceConfig
 from radartracker.assessment.stats import Estimate
 from radartracker.simulation.scenarios import build_scenario
 
@@ -29,18 +32,24 @@ def main() -> None:
     args = p.parse_args()
     sim = build_scenario(args.scenario, seed=args.seed, duration=args.duration)
     data = sim.run()
-    truth = assess(data, load_profile(), progress=False)
-    adsb = assess(attrs.evolve(data, truth=None), load_profile(), progress=False)
+    hidden = attrs.evolve(data, truth=None)
+    cpu = {}
+    runs = {}
+    for name, scenario, config in (("truth", data, None), ("ADS-B", hidden, None),
+                                   ("ADS-B + rec.", hidden, AssessmentConfig(reference=ReferenceConfig(reconstruct=True)))):
+        started = time.process_time()
+        runs[name] = assess(scenario, load_profile(), config, progress=False)
+        cpu[name] = time.process_time() - started
     print(f"{args.scenario}, {args.duration:g} s, seed {args.seed}: {len(data.plots)} plots; "
-          f"intervals at 95 %")
-    print("| radar | σ_r true (m) | σ_r vs truth | σ_r vs ADS-B | σ_θ true (deg) | σ_θ vs truth | σ_θ vs ADS-B "
-          "| Pd vs truth | Pd vs ADS-B |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
-    for sr, a, b in zip(sim.radars, truth.radars, adsb.radars):
-        r = sr.radar
-        print(f"| {r.id} | {r.sigma_range_m:g} | {_f(a.figures['range_sigma_m'])} | {_f(b.figures['range_sigma_m'])} "
-              f"| {math.degrees(r.sigma_azimuth_rad):g} | {_f(a.figures['azimuth_sigma_deg'])} "
-              f"| {_f(b.figures['azimuth_sigma_deg'])} | {_f(a.figures['pd'])} | {_f(b.figures['pd'])} |")
+          f"intervals at 95 %; CPU s per assessment: " + ", ".join(f"{k} {v:.1f}" for k, v in cpu.items()))
+    for what, unit, true in (("range_sigma_m", "σ_r (m)", lambda sr: sr.radar.sigma_range_m),
+                             ("azimuth_sigma_deg", "σ_θ (deg)", lambda sr: math.degrees(sr.radar.sigma_azimuth_rad)),
+                             ("pd", "Pd", lambda sr: sr.pd)):
+        print(f"\n| radar | {unit} true | " + " | ".join(f"vs {k}" for k in runs) + " |")
+        print("| --- | --- | " + " | ".join("---" for _ in runs) + " |")
+        for k, sr in enumerate(sim.radars):
+            cells = [_f(a.radars[k].figures[what]) for a in runs.values()]
+            print(f"| {sr.radar.id} | {true(sr):g} | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":
