@@ -12,6 +12,14 @@ Flights:
   two radars 40–90 km away (σ 70 m / 0.08°, periods 4–12 s) through radartracker's simulator.
 * simulated manoeuvring flights of the seed's model (random legs with turns up to 3.5 m/s²), truth known.
 
+``--biases``: the radars have biases, and every method gets the same estimates of them. The Paris flights
+are seen by the ``paris`` scenario's four radars (ORLY, CDG, EVREUX, REIMS, with its biases of 60–150 m and
+0.08–0.2°), shared by all of them; each calibration window by three radars of its own with biases drawn in
+±[50, 150] m and ±[0.05, 0.15]°. The reconstruction estimates them jointly with every flight's trajectory
+(``joint.estimate_jointly``: one criterion over all flights and radars); the CV RTS and IMM smoothers are given
+those estimates (the plots corrected, z̃ = z − C ς̂, R̃ = R + C Σ Cᵀ: ``biases.debias``). The Paris flights are
+split into approaches and departures by their altitude (down or up by more than 1000 m over the flight).
+
 Errors are horizontal distances from the reference at the plot times; velocity errors are against
 the recorded ground speed and track (linearly interpolated between reports) or the simulated truth. Prints one JSON line per flight
 and method, one per group (pooled), the cost per flight-hour, and a Markdown table (per flight and
@@ -19,7 +27,7 @@ pooled), and how hard each real reference curve accelerates (its |d²p/dt²|: Op
 and jump, so the curve through them is not always flyable). ``--jump-sd 0,1,3`` runs the reconstruction once per prior strength (0 = no prior; the
 column of the configuration's default strength is ``rec``).
 Usage: nice python scripts/reconstruction_baselines.py [--paris N] [--cal N] [--sim N] [--window S]
-       [--workers W] [--max-u A] [--max-w A] [--jump-sd LIST] [--seed S] [--dump OUT.npz]
+       [--workers W] [--max-u A] [--max-w A] [--jump-sd LIST] [--seed S] [--dump OUT.npz] [--biases]
 """
 
 from __future__ import annotations
@@ -31,15 +39,20 @@ import json
 import math
 import sys
 import time
+
+import attrs
 from pathlib import Path
 
 import numpy as np
 from scipy.interpolate import CubicHermiteSpline
 
 from radartracker.geometry.plane import SystemPlane
+from radartracker.simulation.scenarios import paris_scenario
 from radartracker_plugins.reconstruction import ReconstructionConfig
+from radartracker_plugins.reconstruction.biases import BiasEstimate, debias
 from radartracker_plugins.reconstruction.engine import Failure, executor, run_many
 from radartracker_plugins.reconstruction.imm import imm_smooth
+from radartracker_plugins.reconstruction.joint import estimate_jointly
 from radartracker_plugins.reconstruction.integrate import sample
 from radartracker_plugins.reconstruction.quality import assess
 from radartracker_plugins.reconstruction.sim import radars_around, simulate_flight
@@ -54,6 +67,8 @@ KT, FT = 1852.0 / 3600.0, 0.3048
 REFERENCE_ACCELERATION: dict[str, dict] = {}  # per real flight: how hard the reference curve accelerates
 VELOCITY: dict[str, np.ndarray] = {}  # per flight: the reference ground velocity at the plot times
 SERIES: dict[str, np.ndarray] = {}  # '--dump': per-plot series (errors, reference acceleration, switch times)
+GROUP: dict[str, str] = {}  # per flight: approach, departure, paris (neither), calibration, simulated
+ESTIMATES: dict[str, BiasEstimate] = {}  # '--biases': the reconstruction's joint bias estimates, per radar
 
 
 class AdsbReference:
@@ -118,7 +133,29 @@ def radars_for(plane, rng):
     return radars_around(plane, np.column_stack([dist * np.sin(ang), dist * np.cos(ang)]), rng.uniform(4, 12, 2))
 
 
-def real_tracks(flights, ids, window, rng):
+def biased_radars(fid, plane, rng):
+    """``--biases``: (radars, their true [Δr m, Δθ rad]): the ``paris`` scenario's four for a Paris flight, three
+    of the flight's own (ids prefixed by it) with random biases for a calibration window."""
+    if fid.startswith("paris-"):
+        sims = paris_scenario().radars
+        return [s.radar for s in sims], [(s.range_bias_m, s.azimuth_bias_rad) for s in sims]
+    ang = rng.uniform(0, 2 * np.pi) + np.array([0.0, 2.1, 4.2]) + rng.uniform(-0.4, 0.4, 3)
+    dist = rng.uniform(40, 90, 3)
+    radars = radars_around(plane, np.column_stack([dist * np.sin(ang), dist * np.cos(ang)]), rng.uniform(4, 12, 3))
+    signs = rng.choice([-1.0, 1.0], (3, 2))
+    biases = [(sr * rng.uniform(50, 150), sa * math.radians(rng.uniform(0.05, 0.15))) for sr, sa in signs]
+    return [attrs.evolve(r, id=f"{fid}/{r.id}") for r in radars], biases
+
+
+def group_of_flight(fid, alt):
+    """calibration, or a Paris flight's kind by its altitude: approach (down by > 1000 m), departure (up)."""
+    if fid.startswith("cal_"):
+        return "calibration"
+    climb = float(alt[-1] - alt[0])
+    return "approach" if climb < -1000.0 else "departure" if climb > 1000.0 else "paris"
+
+
+def real_tracks(flights, ids, window, rng, biased=False):
     tracks, truth = [], {}
     for fid in ids:
         f = flights[fid]
@@ -131,7 +168,9 @@ def real_tracks(flights, ids, window, rng):
         ref = (float(np.mean(f["lat"][sel])), float(np.mean(f["lon"][sel])))
         plane = SystemPlane(*ref)
         traj = AdsbReference(plane, *(f[k][sel] for k in ("t", "lat", "lon", "alt", "gs", "track")))
-        pt, true = simulate_flight(traj, radars_for(plane, rng), seed=int(rng.integers(1 << 30)), reference=ref)
+        radars, biases = biased_radars(fid, plane, rng) if biased else (radars_for(plane, rng), None)
+        pt, true = simulate_flight(traj, radars, seed=int(rng.integers(1 << 30)), reference=ref, biases=biases)
+        GROUP[fid] = group_of_flight(fid, f["alt"][sel])
         tracks.append(type(pt)(fid, pt.t, pt.z, pt.h, pt.radar, pt.R, pt.C))
         truth[fid] = true
         VELOCITY[fid] = traj.velocity(pt.t)
@@ -185,7 +224,7 @@ def vstats(e):
 
 
 def group_of(key):
-    return "calibration" if key.startswith("cal_") else "simulated" if key.startswith("sim") else "paris"
+    return GROUP.get(key, "simulated")
 
 
 def main() -> None:
@@ -203,6 +242,8 @@ def main() -> None:
     ap.add_argument("--dump", type=Path, default=None,
                     help="write per-plot series (times, plots, reference, estimates and errors per method, radar, "
                          "reference acceleration, switch times) to this .npz for analysis")
+    ap.add_argument("--biases", action="store_true",
+                    help="radars with biases, estimated jointly by the reconstruction and given to every method")
     ap.add_argument("--reference-only", action="store_true",
                     help="print how hard each real flight's reference accelerates, and stop")
     args = ap.parse_args()
@@ -210,7 +251,7 @@ def main() -> None:
     flights = load_adsb(SHARED if SHARED.exists() else SUBSET)
     paris = sorted(k for k in flights if k.startswith("paris-"))[: args.paris]
     cal = sorted(k for k in flights if k.startswith("cal_"))[: args.cal]
-    tracks, truth = real_tracks(flights, paris + cal, args.window, rng)
+    tracks, truth = real_tracks(flights, paris + cal, args.window, rng, biased=args.biases)
     for fid, acc in REFERENCE_ACCELERATION.items():
         print(json.dumps({"flight": fid, "reference_acceleration": acc}))
     if args.reference_only:
@@ -228,7 +269,15 @@ def main() -> None:
         cfg = ReconstructionConfig(max_u=args.max_u, max_w=args.max_w, jump_sd=js)
         t0, c0 = time.perf_counter(), time.process_time()
         with executor("process", args.workers) as ex:
-            for r in run_many(tracks, cfg, ex, batch_plots=400, progress=False):
+            if args.biases:  # the biases estimated with the trajectories; the smoothers get the same below
+                results, joint = estimate_jointly(tracks, cfg, ex, batch_plots=400)
+                ESTIMATES.update({r: BiasEstimate([b["range_bias_m"], math.radians(b["azimuth_bias_deg"])],
+                                                  np.diag([b["sd_range_m"], math.radians(b["sd_azimuth_deg"])]) ** 2)
+                                  for r, b in joint["biases"].items()})
+                print(json.dumps({"joint_biases": joint}))
+            else:
+                results = run_many(tracks, cfg, ex, batch_plots=400, progress=False)
+            for r in results:
                 if isinstance(r, Failure):
                     print(json.dumps({"flight": r.key, "method": name, "failed": r.reason}))
                     continue
@@ -246,7 +295,8 @@ def main() -> None:
         cost[name] = {"wall_s": round(wall, 1), "workers": args.workers, "flight_hours": round(hours, 2),
                       "wall_s_per_flight_hour": round(wall / hours, 1)}
         print(json.dumps({"cost": name, **cost[name]}))
-    for pt in tracks:
+    for raw in tracks:
+        pt = debias(raw, ESTIMATES) if ESTIMATES else raw  # the same bias estimates as the reconstruction's
         for name, xs in (("cv_rts", tuned_rts(pt.t, pt.z, pt.R)[0]), ("imm", imm_smooth(pt.t, pt.z, pt.R)[0])):
             errs[pt.key][name] = np.hypot(*(xs[:, :2] - truth[pt.key]).T)
             SERIES[f"{pt.key}|{name}|xy"] = xs[:, :2]
@@ -262,7 +312,7 @@ def main() -> None:
         rows.append(row)
         print(json.dumps(row))
     pooled = {}
-    for g in ("paris", "calibration", "simulated"):
+    for g in ("approach", "departure", "paris", "calibration", "simulated"):
         keys = [pt.key for pt in tracks if group_of(pt.key) == g]
         if not keys:
             continue
