@@ -49,6 +49,13 @@ class MultipleShooting:
         kern.ms_jacobian(*self._args(phi), self.obj.Linv, self.obj.wk, np.empty((4, 6)), J)
         return J
 
+    def order(self) -> np.ndarray:
+        """Place of each parameter of φ in the normal equations: segment by segment (S_k, u_k, w_k, t_k) at
+        7k … 7k + 6. A plot row then spans places 7k − 1 … 7k + 5 and a continuity row 7k − 1 … 7k + 10, so
+        JᵀJ is banded with bandwidth 11."""
+        K, k = self.K, np.arange(self.K)
+        return np.concatenate([(7 * k[:, None] + np.arange(4)).ravel(), 7 * k + 4, 7 * k + 5, 7 * k[:-1] + 6])
+
     def from_single(self, theta: np.ndarray) -> np.ndarray:
         """φ of a single-shooting θ (states chained through the segments)."""
         init, u, w, bounds, _ = self.obj.unpack(theta)
@@ -65,5 +72,5 @@ class MultipleShooting:
 
     def refine(self, theta: np.ndarray, max_nfev: int) -> tuple[np.ndarray, int]:
         """θ after a multiple-shooting Levenberg–Marquardt refinement, and the evaluations spent."""
-        phi, nfev = levenberg_marquardt(self.residuals, self.jacobian, self.from_single(theta), max_nfev)
+        phi, nfev = levenberg_marquardt(self.residuals, self.jacobian, self.from_single(theta), max_nfev, self.order())
         return self.to_single(phi), nfev

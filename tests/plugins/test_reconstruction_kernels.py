@@ -105,11 +105,23 @@ def test_normal_equations_and_damped_solve_match_numpy():
     J = rng.normal(size=(60, 12)) * (rng.random((60, 12)) < 0.3)
     r = rng.normal(size=60)
     A, g = np.empty((12, 12)), np.empty(12)
-    normal_equations(J, r, A, g)
+    assert normal_equations(J, r, np.arange(12), np.empty(12, np.int64), A, g) == 11
     np.testing.assert_allclose(A, J.T @ J, atol=1e-12)
     np.testing.assert_allclose(g, J.T @ r, atol=1e-12)
     damp, L, h = rng.random(12) + 0.1, np.empty((12, 12)), np.empty(12)
-    assert damped_solve(A, g, damp, L, h)
+    assert damped_solve(A, g, damp, 11, L, h)
+    np.testing.assert_allclose(h, np.linalg.solve(A + np.diag(damp), -g), rtol=1e-10)
+    # a permuted banded problem: rows touching 3 consecutive places of a random order
+    pos = rng.permutation(12)
+    Jb = np.zeros((40, 12))
+    for i in range(40):
+        first = i % 10
+        Jb[i, np.argsort(pos)[first:first + 3]] = rng.normal(size=3)
+    bw = normal_equations(Jb, r[:40], pos, np.empty(12, np.int64), A, g)
+    assert bw == 2
+    Pm = np.eye(12)[pos]  # Pm[j, pos[j]] = 1: A = Pmᵀ JᵀJ Pm
+    np.testing.assert_allclose(A, Pm.T @ Jb.T @ Jb @ Pm, atol=1e-12)
+    assert damped_solve(A, g, damp, bw, L, h)
     np.testing.assert_allclose(h, np.linalg.solve(A + np.diag(damp), -g), rtol=1e-10)
 
 
@@ -137,7 +149,10 @@ def test_levenberg_marquardt_reaches_scipys_optimum_of_the_fit(flight):
                      np.array([0.05, -0.1, 0.5, -0.2]), np.array([0.0, 125.0, 176.0, 284.0, obj.times[-1]]))
     ms = MultipleShooting(obj)
     phi0 = ms.from_single(theta)
-    phi, _ = levenberg_marquardt(ms.residuals, ms.jacobian, phi0, 500)
+    P = len(phi0)
+    assert normal_equations(ms.jacobian(phi0), ms.residuals(phi0), ms.order(), np.empty(P, np.int64),
+                            np.empty((P, P)), np.empty(P)) == 11
+    phi, _ = levenberg_marquardt(ms.residuals, ms.jacobian, phi0, 500, ms.order())
     ref = least_squares(ms.residuals, phi0, jac=ms.jacobian, method="lm", x_scale="jac", ftol=1e-8, xtol=1e-12,
                         max_nfev=500)
     cost = 0.5 * np.sum(ms.residuals(phi) ** 2)
