@@ -52,8 +52,8 @@ class ControlObjective:
         k = np.arange(1, K)
         self.lower = t0 + k * cfg.dt_min
         self.upper = t_end - (K - k) * cfg.dt_min
-        self.cs = np.array([t0, t_end, cfg.max_u, cfg.max_w, cfg.dt_min, cfg.du1, cfg.dw1, cfg.dt1, cfg.dv1, cfg.v_min,
-                            cfg.penalty, cfg.jump_sd, _LOSS_CODE[weight.loss], weight.c, weight.const], float)
+        settings = {"t0": t0, "t_end": t_end, "loss": _LOSS_CODE[weight.loss], "loss_c": weight.c, "const": weight.const}
+        self.cs = np.array([settings[f] if f in settings else getattr(cfg, f) for f in kern.CS_FIELDS], float)
         self.z = np.ascontiguousarray(weight.z, float)
         self.Linv = np.ascontiguousarray(weight.Linv, float)
         self.fixed = np.zeros(4) if initial is None else np.array(initial, float)
@@ -65,6 +65,7 @@ class ControlObjective:
         return 4 if self.initial is None else 0
 
     def _init_in(self, theta: np.ndarray) -> np.ndarray:
+        """Where the kernels read (x₀, y₀, φ₀, v₀): θ's first four entries when free, else the fixed state."""
         return theta if self.initial is None else self.fixed
 
     def pack(self, init, u, w, bounds) -> np.ndarray:

@@ -40,11 +40,13 @@ class MultipleShooting:
         return np.ascontiguousarray(phi, float), self.K, o.lower, o.upper, o.cs, o.times
 
     def residuals(self, phi: np.ndarray) -> np.ndarray:
+        """The plot rows L_i⁻¹(z_i − p_i) (2n), then the continuity gaps / σ_c (4(K − 1))."""
         r = np.empty(self.n_rows)
         kern.ms_residuals(*self._args(phi), self.obj.z, self.obj.Linv, self.obj.wk, self.obj.p, r)
         return r
 
     def jacobian(self, phi: np.ndarray) -> np.ndarray:
+        """∂ residuals / ∂φ, block-sparse (:func:`._kernels.ms_jacobian`)."""
         J = np.empty((self.n_rows, len(phi)))
         kern.ms_jacobian(*self._args(phi), self.obj.Linv, self.obj.wk, np.empty((4, 6)), J)
         return J
@@ -67,6 +69,7 @@ class MultipleShooting:
         return np.concatenate([np.ravel(states), u, w_eff, bounds[1:-1]])
 
     def to_single(self, phi: np.ndarray) -> np.ndarray:
+        """The single-shooting θ = (S_0, u, w, switch times) of φ."""
         K = self.K
         return np.concatenate([phi[:4], phi[4 * K:]])
 
