@@ -30,6 +30,8 @@ import numpy as np
 
 from radartracker.api import kernel
 
+_MU_MAX = 1e30  # damping beyond which a failed factorisation ends the solve
+
 
 def levenberg_marquardt(fun: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.ndarray], np.ndarray],
                         x0: np.ndarray, max_nfev: int, pos: np.ndarray | None = None, ftol: float = 1e-8,
@@ -55,6 +57,8 @@ def levenberg_marquardt(fun: Callable[[np.ndarray], np.ndarray], jac: Callable[[
             break
         while nfev < max_nfev:
             if not damped_solve(A, g, mu * d2, bw, L, hs):  # not positive definite in floating point
+                if not mu < _MU_MAX:  # no damping makes it so (a non-finite Jacobian): stop where we are
+                    return x, nfev
                 mu, nu = mu * nu, 2 * nu
                 continue
             if np.sqrt(np.sum(d2 * hs * hs)) <= xtol * (np.sqrt(np.sum(d2[pos] * x * x)) + xtol):

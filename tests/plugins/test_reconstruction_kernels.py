@@ -141,6 +141,11 @@ def test_levenberg_marquardt_matches_scipy_on_a_textbook_problem():
     np.testing.assert_allclose(x, ref.x, rtol=1e-7)
 
 
+def test_levenberg_marquardt_stops_on_a_non_finite_jacobian():
+    x, nfev = levenberg_marquardt(lambda x: x - 1.0, lambda x: np.full((2, 2), np.nan), np.zeros(2), 50)
+    assert nfev == 1 and np.array_equal(x, np.zeros(2))
+
+
 def test_levenberg_marquardt_reaches_scipys_optimum_of_the_fit(flight):
     """Same optimum as MINPACK (scipy's ``lm``) on the multiple- and the single-shooting problems."""
     obj = _objective(flight, 4)
