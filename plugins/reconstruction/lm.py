@@ -16,15 +16,14 @@ JᵀJ is P × P. It is formed in compiled code over the non-zero entries of J on
 (:func:`normal_equations`), and the damped system is solved by a compiled banded Cholesky
 factorisation (:func:`damped_solve`), one per trial step, neither with a threaded BLAS. Multiple
 shooting orders its parameters segment by segment (S_k, u_k, w_k, t_k), so its JᵀJ is banded with a
-bandwidth of 11 whatever the segment count (:meth:`.shooting.MultipleShooting.order`): a step costs
-O(P) where MINPACK's QR of the m × P Jacobian costs O(m P²).
+bandwidth of 11 whatever the segment count (:meth:`.shooting.MultipleShooting.order`): its
+factorisation costs O(P·11²), where MINPACK's QR of the dense m × P Jacobian costs O(m P²).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import math
+from collections.abc import Callable
 
 import numpy as np
 
