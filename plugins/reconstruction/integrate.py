@@ -3,8 +3,9 @@
 Every segment is integrated in closed form by :func:`radartracker.kinematics.propagate`
 (straight line, circular arc for w = 0, the logarithmic-spiral form for w ≠ 0), so there is no
 step-size error at all; the tests hold it to a fine ``scipy.integrate.solve_ivp`` solution.
-:func:`states_at` is the array form the optimiser calls thousands of times; :func:`geo_track`
-builds the seed's uniform-grid geometric track with each segment's span (nTr/kTr).
+:func:`states_at` samples a track at given times (the search's bookkeeping: splits, weights, χ²);
+:func:`geo_track` builds the seed's uniform-grid geometric track with each segment's span (nTr/kTr).
+The optimiser's own integration, thousands of times per fit, is the compiled :func:`._kernels.flow`.
 """
 
 from __future__ import annotations
