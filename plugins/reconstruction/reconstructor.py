@@ -51,13 +51,14 @@ class MultiHypothesisReconstructor:
         return run_many(tracks, self.config, executor, batch_plots, progress)
 
     def flights(self, data: ScenarioData, biases: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None, *,
-                exclude: Collection[str] = (), min_plots: int = 10, executor: Executor | None = None,
-                progress: bool = False) -> Iterator[Flight]:
-        """Every aircraft of ``data`` whose plots carry a truth label or a Mode S address (but those named in
-        ``exclude``), with at least ``min_plots`` plots, reconstructed with the radar biases ``biases`` (radar →
+                exclude: Collection[str] = (), min_plots: int = 10, groups: np.ndarray | None = None,
+                executor: Executor | None = None, progress: bool = False) -> Iterator[Flight]:
+        """Every aircraft of ``data`` whose plots carry a truth label or a Mode S address — or, given ``groups``,
+        each plot's aircraft key by the caller's grouping (None: no aircraft) — but those named in
+        ``exclude``, with at least ``min_plots`` plots, reconstructed with the radar biases ``biases`` (radar →
         (ς̂ = [Δr m, Δθ rad], its 2×2 covariance)) removed: z̃ = z − C ς̂, R̃ = R + C Σ Cᵀ (:func:`.biases.debias`).
         Yields one :class:`Flight` per aircraft as it finishes, in the scenario's system plane."""
-        tracks, _, _ = scenario_tracks(data, min_plots)
+        tracks, _, _ = scenario_tracks(data, min_plots, groups)
         skip = set(exclude)
         tracks = [pt for pt in tracks if pt.key not in skip]
         known = {r: BiasEstimate(b, cov) for r, (b, cov) in (biases or {}).items()}

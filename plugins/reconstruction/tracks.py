@@ -25,12 +25,14 @@ from radartracker_plugins.reconstruction.objects import PlotTrack
 DEFAULT_ALTITUDE_M = 3000.0
 
 
-def scenario_tracks(data: ScenarioData, min_plots: int = 10) -> tuple[list[PlotTrack], SystemPlane, Counter]:
-    """One plot track per aircraft of a scenario, the system plane, and counts of skipped plots."""
+def scenario_tracks(data: ScenarioData, min_plots: int = 10, keys: np.ndarray | None = None
+                    ) -> tuple[list[PlotTrack], SystemPlane, Counter]:
+    """One plot track per aircraft of a scenario, the system plane, and counts of skipped plots; ``keys``: each
+    plot's aircraft key (None: none) when the caller groups the plots, else the truth label or Mode S address."""
     plane = SystemPlane(*data.reference)
     plots = data.plots
-    use_truth = any(t is not None for t in plots.target)
-    keys = plot_keys(plots, use_truth)
+    if keys is None:
+        keys = plot_keys(plots, any(t is not None for t in plots.target))
     alt, _ = fill_altitudes(plots, keys, DEFAULT_ALTITUDE_M)
     m = convert_plots(plots, data.radars, plane, keys, alt)
     skipped: Counter = Counter()

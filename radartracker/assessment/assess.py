@@ -27,6 +27,7 @@ import attrs
 import numpy as np
 
 from radartracker.assessment import stats
+from radartracker.assessment.grouping import plot_groups
 from radartracker.assessment.matching import MatchConfig
 from radartracker.assessment.profile import INDICATORS, Profile
 from radartracker.assessment.radar import RadarAssessment, RadarConfig, assess_radar
@@ -148,8 +149,9 @@ def assess(data: ScenarioData, profile: Profile, config: AssessmentConfig | None
         if config.reference.reconstruct and reference.kind != "truth":  # its flights on the slices' cluster
             estimates = {rid: (np.asarray(b.bias, float)[:2], np.asarray(b.cov, float)[:2, :2])
                          for rid, b in result.final_biases.items()}
+            groups = plot_groups(data, reference, result.histories(), biases, config.match)
             reference = add_reconstructed(reference, data, estimates, config.reference, progress,
-                                          None if client is None else client.get_executor())
+                                          None if client is None else client.get_executor(), groups)
         tallies = tally_radars(data, reference, biases, config.match, config.radar.mode_c_tolerance_ft,
                                config.slices, progress=progress, client=client)
     codes = reference_codes(reference, tallies)

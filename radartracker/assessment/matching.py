@@ -103,7 +103,7 @@ def match_radar(radar: Radar, frame: RadarFrame, t: np.ndarray, rho: np.ndarray,
     rho_c, theta_c = rho - bias[0], theta - bias[1]
     reach = max(radar.max_range_m, float(rho_c.max()) + config.gate_range_m if n else 0.0)
     near = reference.near(frame.xy, reach)
-    key, best, ref = _associate(frame, t, (rho_c, theta_c), near, config)
+    key, best, ref = associate(frame, t, (rho_c, theta_c), near, config)
     if antenna is None:
         antenna = (north_time(t, theta, radar.period_s) if n else 0.0,
                    (float(t.min()), float(t.max())) if n else (0.0, 0.0))
@@ -134,7 +134,7 @@ def _reference_rates(frame: RadarFrame, t: np.ndarray, key: np.ndarray, referenc
     return out
 
 
-def _associate(frame: RadarFrame, t: np.ndarray, polar: tuple[np.ndarray, np.ndarray], reference: Reference,
+def associate(frame: RadarFrame, t: np.ndarray, polar: tuple[np.ndarray, np.ndarray], reference: Reference,
                config: MatchConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each plot's aircraft ('' none), d² (inf none) and the reference's (ρ, θ, h) there (NaN none): of every
     (aircraft, plot) pair whose time the aircraft's reference covers, in one projection, the plot's pair of

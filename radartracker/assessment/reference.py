@@ -226,15 +226,17 @@ def reconstructor(config: ReferenceConfig):
 
 
 def add_reconstructed(reference: Reference, data: ScenarioData, biases: dict[str, tuple[np.ndarray, np.ndarray]],
-                      config: ReferenceConfig, progress: bool = False, executor: Executor | None = None) -> Reference:
+                      config: ReferenceConfig, progress: bool = False, executor: Executor | None = None,
+                      groups: np.ndarray | None = None) -> Reference:
     """``reference`` and the reconstruction of every other aircraft of ``data`` (module docstring), the radar
     biases ``biases`` (radar → (ς̂ = [Δr m, Δθ rad], 2×2 covariance)) removed, the flights on ``executor`` (this
-    process when None); an InputError when no aircraft has a reference then. Each reconstruction's geometric
+    process when None), the plots grouped into aircraft by ``groups`` (each plot's key,
+    :func:`radartracker.assessment.grouping.plot_groups`) when given, else by Mode S address or truth label; an InputError when no aircraft has a reference then. Each reconstruction's geometric
     track (1 s apart) is joined by straight lines."""
     codes = {a.icao24: a.mode_3a for a in data.aircraft}
     tracks, left = dict(reference.tracks), {}
     flights = reconstructor(config).flights(data, biases, exclude=set(tracks), min_plots=config.min_plots,
-                                            progress=progress, executor=executor)
+                                            groups=groups, progress=progress, executor=executor)
     for f in flights:
         if f.verdict != "plausible" or len(f.time) < 2:
             left[f.key] = f.verdict

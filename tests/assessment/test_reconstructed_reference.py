@@ -114,3 +114,22 @@ def test_on_a_local_cluster_the_reconstruction_gives_the_same_reference(recordin
         for name in ("pd", "range_bias_vs_reference_m", "range_sigma_m", "azimuth_sigma_deg"):
             got, want = dask["radars"][radar]["figures"][name], r["figures"][name]
             assert got["n"] == want["n"] and got["value"] == pytest.approx(want["value"], rel=1e-9, abs=1e-12)
+
+
+def test_plots_without_an_address_are_grouped_by_the_system_tracks(recording, assessed):
+    """The same recording with the address taken off every plot of the aircraft without ADS-B (Mode A/C or
+    primary): their plots are grouped by the replay's tracks (``track-<id>``) and reconstructed, so the radars
+    are judged on nearly the same plots as when the addresses grouped them, and still hold the true biases."""
+    data, _, true = recording
+    with_addresses, _ = assessed
+    adsb = set(data.adsb.icao24.astype(str))
+    mode_s = data.plots.mode_s.copy()
+    mode_s[[m is not None and m not in adsb for m in mode_s.tolist()]] = None
+    stripped = attrs.evolve(data, plots=attrs.evolve(data.plots, mode_s=mode_s))
+    config = AssessmentConfig(reference=ReferenceConfig(reconstruct=True))
+    a = assess(stripped, load_profile(), config, progress=False)
+    assert a.reference == "adsb+reconstruction" and a.reference_left_out == {}
+    for r, full in zip(a.radars, with_addresses.radars):
+        assert r.figures["pd"].n >= 0.95 * full.figures["pd"].n
+        rng = r.figures["range_bias_vs_reference_m"]
+        assert rng.low - 5.0 < true[r.radar][0] < rng.high + 5.0
