@@ -241,8 +241,8 @@ def main() -> None:
     ap.add_argument("--window", type=float, default=1200.0, help="calibration-flight window (s)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--max-u", type=float, default=9.5)
-    ap.add_argument("--max-w", type=float, default=2.0)
+    ap.add_argument("--max-u", type=float, default=ReconstructionConfig().max_u)
+    ap.add_argument("--max-w", type=float, default=ReconstructionConfig().max_w)
     ap.add_argument("--jump-sd", default=f"{ReconstructionConfig().jump_sd:g}",
                     help="comma-separated prior strengths (m/s²; 0 = no prior; default: the configuration's)")
     ap.add_argument("--dump", type=Path, default=None,

@@ -38,8 +38,10 @@ def register_reconstruct(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--batch-plots", type=int, default=500, help="plots per task (default 500)")
     p.add_argument("--sigma", type=float, default=100.0, help=".new4 input: position σ in metres (default 100)")
     p.add_argument("--min-plots", type=int, default=10, help="skip aircraft with fewer plots (default 10)")
-    p.add_argument("--max-u", type=float, default=4.0, help="lateral acceleration bound m/s² (default 4)")
-    p.add_argument("--max-w", type=float, default=2.0, help="longitudinal acceleration bound m/s² (default 2)")
+    p.add_argument("--max-u", type=float, default=9.5,
+                   help="lateral acceleration bound m/s² (default 9.5; the seed's 4 pins on real approaches: "
+                        "docs/reconstruction.md, Control bounds)")
+    p.add_argument("--max-w", type=float, default=3.0, help="longitudinal acceleration bound m/s² (default 3)")
     p.add_argument("--loss", choices=("gauss", "huber", "cauchy"), default="gauss",
                    help="track weight: Gaussian NLL or a robust loss (default gauss)")
     p.add_argument("--hypotheses", type=int, default=10, help="most hypotheses fitted per flight (default 10)")

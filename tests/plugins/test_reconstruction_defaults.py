@@ -1,19 +1,26 @@
-"""The defaults of ``reconstruct``: radar biases estimated jointly unless given or kept.
+"""The defaults of ``reconstruct``: radar biases estimated jointly unless given or kept, and the control bounds.
 
 Oracles: the scenario's truth_biases.csv and truth.csv (the default's truth error must be close to that of
 ``--truth-biases``, which removes the true biases, and far below that of ``--keep-biases``, which leaves
-them in).
+them in); for the bounds, the known controls of a simulated flight turning at 6 m/s² (beyond the seed's
+bound of 4, within the default's).
 """
 
 import json
+import math
 
 import attrs
 import numpy as np
 import pytest
 
+from radartracker.api import KinematicTrajectory, Leg, SystemPlane
 from radartracker.cli import main
 from radartracker.io.scenario import write_scenario
-from radartracker_plugins.reconstruction.sim import biased_scenario
+from radartracker_plugins.reconstruction import ReconstructionConfig
+from radartracker_plugins.reconstruction.hypotheses import reconstruct
+from radartracker_plugins.reconstruction.integrate import sample
+from radartracker_plugins.reconstruction.quality import assess, pinned_segments
+from radartracker_plugins.reconstruction.sim import REFERENCE, biased_scenario, radars_around, simulate_flight
 
 FAST = ["--engine", "serial", "--quiet", "--no-figures", "--hypotheses", "2", "--no-shooting"]
 
@@ -56,3 +63,16 @@ def test_single_radar_scenario_keeps_its_plots_and_says_why(tmp_path, capsys):
     assert "no aircraft was seen by two radars" in capsys.readouterr().err
     kept, _ = _errors(folder, tmp_path / "keep", "--keep-biases")
     assert s["biases_removed"].startswith("none") and default == kept
+
+
+def test_default_bounds_fit_a_6_mps2_turn_without_pinning():
+    """A 60-s turn at u = 6 m/s² (3.4°/s at 100 m/s, a tight approach turn) between straight legs."""
+    plane = SystemPlane(*REFERENCE)
+    traj = KinematicTrajectory(0.0, -8e3, 0.0, 3000.0, math.radians(80.0), 100.0,
+                               [Leg(120.0), Leg(60.0, u=6.0), Leg(120.0)])
+    pt, true = simulate_flight(traj, radars_around(plane, [(-40.0, -20.0), (30.0, 35.0)], [4.0, 5.0]), seed=5)
+    cfg = ReconstructionConfig(shooting=False, hypotheses=3)
+    rec = reconstruct(pt, cfg)
+    assert not any(mask.any() for mask in pinned_segments(rec, cfg).values())
+    assert assess(rec, cfg)["plausible"]
+    assert np.median(np.hypot(*(sample(rec.control, pt.t)[:, :2] - true).T)) < 40.0  # plots: σ ≈ 70 m
