@@ -232,13 +232,14 @@ def group_of(key):
     return GROUP.get(key, "simulated")
 
 
-def main() -> None:
+def _arguments() -> argparse.Namespace:
+    """The command line (see the module docstring)."""
     ap = argparse.ArgumentParser()
     ap.add_argument("--paris", type=int, default=6)
     ap.add_argument("--cal", type=int, default=4)
     ap.add_argument("--cruise", type=int, default=0, help="real en-route flights over Switzerland, one window each")
     ap.add_argument("--sim", type=int, default=6)
-    ap.add_argument("--window", type=float, default=1200.0, help="calibration-flight window (s)")
+    ap.add_argument("--window", type=float, default=1200.0, help="calibration and cruise window (s)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--max-u", type=float, default=ReconstructionConfig().max_u)
@@ -252,33 +253,30 @@ def main() -> None:
                     help="radars with biases, estimated jointly by the reconstruction and given to every method")
     ap.add_argument("--reference-only", action="store_true",
                     help="print how hard each real flight's reference accelerates, and stop")
-    args = ap.parse_args()
-    rng = np.random.default_rng(args.seed)
+    return ap.parse_args()
+
+
+def _real_flights(args: argparse.Namespace) -> tuple[dict[str, dict[str, np.ndarray]], list[str]]:
+    """(ADS-B per flight, the ids asked for: the first ``--paris`` Paris flights, ``--cal`` calibration flights
+    and ``--cruise`` Swiss cruise flights, each set in sorted order)."""
     flights = load_adsb(SHARED if SHARED.exists() else SUBSET)
     paris = sorted(k for k in flights if k.startswith("paris-"))[: args.paris]
     cal = sorted(k for k in flights if k.startswith("cal_"))[: args.cal]
-    cruise = []
+    cruise: list[str] = []
     if args.cruise:
         swiss = load_adsb(CRUISE)
         cruise = sorted(swiss)[: args.cruise]
         flights.update({k: swiss[k] for k in cruise})
-    tracks, truth = real_tracks(flights, paris + cal + cruise, args.window, rng, biased=args.biases)
-    for fid, acc in REFERENCE_ACCELERATION.items():
-        print(json.dumps({"flight": fid, "reference_acceleration": acc}))
-    if args.reference_only:
-        return
-    st, sv = sim_tracks(args.sim, rng)
-    tracks += st
-    truth.update(sv)
-    hours = sum(pt.duration for pt in tracks) / 3600
-    errs: dict[str, dict[str, np.ndarray]] = {pt.key: {} for pt in tracks}
-    verrs: dict[str, dict[str, np.ndarray]] = {pt.key: {} for pt in tracks}  # ground-velocity errors (m/s)
-    extra: dict[str, dict] = {pt.key: {} for pt in tracks}
-    cost = {}
+    return flights, paris + cal + cruise
+
+
+def _reconstruct(tracks, truth, args: argparse.Namespace, errs, verrs, extra, hours: float) -> None:
+    """Every flight reconstructed once per ``--jump-sd`` (the biases estimated jointly with ``--biases``), its
+    position and velocity errors into ``errs``/``verrs`` and its fit quality into ``extra``; prints the cost."""
     for js in (float(v) for v in args.jump_sd.split(",")):
         name = "rec" if js == ReconstructionConfig().jump_sd else f"rec_jump{js:g}"  # "rec": the default
         cfg = ReconstructionConfig(max_u=args.max_u, max_w=args.max_w, jump_sd=js)
-        t0, c0 = time.perf_counter(), time.process_time()
+        t0 = time.perf_counter()
         with executor("process", args.workers) as ex:
             if args.biases:  # the biases estimated with the trajectories; the smoothers get the same below
                 results, joint = estimate_jointly(tracks, cfg, ex, batch_plots=400)
@@ -303,9 +301,27 @@ def main() -> None:
                 extra[r.key][name] = {"segments": len(r.control), "chi2": q["chi2"], "plausible": q["plausible"],
                                       "pinned_s": sum(p["seconds"] for p in q["pinned"])}
         wall = time.perf_counter() - t0
-        cost[name] = {"wall_s": round(wall, 1), "workers": args.workers, "flight_hours": round(hours, 2),
-                      "wall_s_per_flight_hour": round(wall / hours, 1)}
-        print(json.dumps({"cost": name, **cost[name]}))
+        print(json.dumps({"cost": name, "wall_s": round(wall, 1), "workers": args.workers, "flight_hours": round(hours, 2),
+                          "wall_s_per_flight_hour": round(wall / hours, 1)}))
+
+
+def main() -> None:
+    args = _arguments()
+    rng = np.random.default_rng(args.seed)
+    flights, ids = _real_flights(args)
+    tracks, truth = real_tracks(flights, ids, args.window, rng, biased=args.biases)
+    for fid, acc in REFERENCE_ACCELERATION.items():
+        print(json.dumps({"flight": fid, "reference_acceleration": acc}))
+    if args.reference_only:
+        return
+    st, sv = sim_tracks(args.sim, rng)
+    tracks += st
+    truth.update(sv)
+    hours = sum(pt.duration for pt in tracks) / 3600
+    errs: dict[str, dict[str, np.ndarray]] = {pt.key: {} for pt in tracks}
+    verrs: dict[str, dict[str, np.ndarray]] = {pt.key: {} for pt in tracks}  # ground-velocity errors (m/s)
+    extra: dict[str, dict] = {pt.key: {} for pt in tracks}
+    _reconstruct(tracks, truth, args, errs, verrs, extra, hours)
     for raw in tracks:
         pt = debias(raw, ESTIMATES) if ESTIMATES else raw  # the same bias estimates as the reconstruction's
         for name, xs in (("cv_rts", tuned_rts(pt.t, pt.z, pt.R)[0]), ("imm", imm_smooth(pt.t, pt.z, pt.R)[0])):

@@ -19,8 +19,10 @@ from radartracker.io.scenario import write_scenario
 from radartracker_plugins.reconstruction import ReconstructionConfig
 from radartracker_plugins.reconstruction.hypotheses import reconstruct
 from radartracker_plugins.reconstruction.integrate import sample
+from radartracker_plugins.reconstruction.joint import shared_radars
 from radartracker_plugins.reconstruction.quality import assess, pinned_segments
 from radartracker_plugins.reconstruction.sim import REFERENCE, biased_scenario, radars_around, simulate_flight
+from radartracker_plugins.reconstruction.tracks import scenario_tracks
 
 FAST = ["--engine", "serial", "--quiet", "--no-figures", "--hypotheses", "2", "--no-shooting"]
 
@@ -76,3 +78,13 @@ def test_default_bounds_fit_a_6_mps2_turn_without_pinning():
     assert not any(mask.any() for mask in pinned_segments(rec, cfg).values())
     assert assess(rec, cfg)["plausible"]
     assert np.median(np.hypot(*(sample(rec.control, pt.t)[:, :2] - true).T)) < 40.0  # plots: σ ≈ 70 m
+
+
+def test_only_radars_seen_with_another_are_estimated():
+    """A radar whose aircraft no other radar saw is left out of the joint estimate (its bias unobservable)."""
+    data, _ = biased_scenario(seed=5, duration=200.0)
+    tracks, _, _ = scenario_tracks(data)
+    assert shared_radars(tracks) == {"R0", "R1"}
+    alone = attrs.evolve(tracks[0], radar=np.full(len(tracks[0]), "R9"))  # one aircraft seen by R9 only
+    assert shared_radars([*tracks[1:], alone]) == {"R0", "R1"}
+    assert shared_radars([alone]) == set()
