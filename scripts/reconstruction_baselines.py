@@ -299,10 +299,11 @@ def _reconstruct(tracks, truth, args: argparse.Namespace, errs, verrs, extra, ho
                                                     - VELOCITY[r.key]).T)
                 q = assess(r, cfg)
                 extra[r.key][name] = {"segments": len(r.control), "chi2": q["chi2"], "plausible": q["plausible"],
-                                      "pinned_s": sum(p["seconds"] for p in q["pinned"])}
+                                      "pinned_s": sum(p["seconds"] for p in q["pinned"]),
+                                      "score": round(r.best.score, 1)}
         wall = time.perf_counter() - t0
-        print(json.dumps({"cost": name, "wall_s": round(wall, 1), "workers": args.workers, "flight_hours": round(hours, 2),
-                          "wall_s_per_flight_hour": round(wall / hours, 1)}))
+        print(json.dumps({"cost": name, "wall_s": round(wall, 1), "workers": args.workers,
+                          "flight_hours": round(hours, 2), "wall_s_per_flight_hour": round(wall / hours, 1)}))
 
 
 def main() -> None:

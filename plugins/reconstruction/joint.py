@@ -70,7 +70,8 @@ def bias_step(tracks: list[PlotTrack], recs: dict[str, Reconstruction], biases: 
     inverse of that matrix (the tracks' uncertainty included). Only the radars in ``estimated`` (all when
     None) get a step; the others keep their biases in ``biases``.
     """
-    radars = sorted(r for r in {str(r) for pt in tracks for r in pt.radar} if estimated is None or r in estimated)
+    seen = {str(r) for pt in tracks for r in pt.radar}
+    radars = sorted(r for r in seen if estimated is None or r in estimated)
     col = {r: 2 * i for i, r in enumerate(radars)}
     m = 2 * len(radars)
     prior = np.kron(np.eye(len(radars)), np.diag(1.0 / PRIOR_SD**2))
