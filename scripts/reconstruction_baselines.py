@@ -10,6 +10,8 @@ Flights:
   model-neutral: a cubic Hermite curve through the recorded ADS-B positions with the recorded ground
   speed and track as its velocities (no smoother, no motion model). Plots are simulated from it by
   two radars 40–90 km away (σ 70 m / 0.08°, periods 4–12 s) through radartracker's simulator.
+* ``--cruise N``: real en-route flights at FL350–390 over Switzerland (``scripts/data/switzerland_cruise.csv.gz``,
+  the ``cruise-real`` set of issue 29; OpenSky reports every 10 s), one ``--window`` each, same radars and reference.
 * simulated manoeuvring flights of the seed's model (random legs with turns up to 3.5 m/s²), truth known.
 
 ``--biases``: the radars have biases, and every method gets the same estimates of them. The Paris flights
@@ -26,7 +28,7 @@ and method, one per group (pooled), the cost per flight-hour, and a Markdown tab
 pooled), and how hard each real reference curve accelerates (its |d²p/dt²|: OpenSky positions hold
 and jump, so the curve through them is not always flyable). ``--jump-sd 0,1,3`` runs the reconstruction once per prior strength (0 = no prior; the
 column of the configuration's default strength is ``rec``).
-Usage: nice python scripts/reconstruction_baselines.py [--paris N] [--cal N] [--sim N] [--window S]
+Usage: nice python scripts/reconstruction_baselines.py [--paris N] [--cal N] [--cruise N] [--sim N] [--window S]
        [--workers W] [--max-u A] [--max-w A] [--jump-sd LIST] [--seed S] [--dump OUT.npz] [--biases]
 """
 
@@ -63,11 +65,12 @@ from reconstruction_simulated import random_flight  # noqa: E402
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "real_flights.csv.gz"
 SUBSET = Path(__file__).resolve().parents[1] / "radartracker" / "data" / "flights_subset.csv.gz"
+CRUISE = Path(__file__).resolve().parent / "data" / "switzerland_cruise.csv.gz"
 KT, FT = 1852.0 / 3600.0, 0.3048
 REFERENCE_ACCELERATION: dict[str, dict] = {}  # per real flight: how hard the reference curve accelerates
 VELOCITY: dict[str, np.ndarray] = {}  # per flight: the reference ground velocity at the plot times
 SERIES: dict[str, np.ndarray] = {}  # '--dump': per-plot series (errors, reference acceleration, switch times)
-GROUP: dict[str, str] = {}  # per flight: approach, departure, paris (neither), calibration, simulated
+GROUP: dict[str, str] = {}  # per flight: approach, departure, paris (neither), calibration, cruise, simulated
 ESTIMATES: dict[str, BiasEstimate] = {}  # '--biases': the reconstruction's joint bias estimates, per radar
 
 
@@ -148,9 +151,11 @@ def biased_radars(fid, plane, rng):
 
 
 def group_of_flight(fid, alt):
-    """calibration, or a Paris flight's kind by its altitude: approach (down by > 1000 m), departure (up)."""
+    """calibration, cruise, or a Paris flight's kind by its altitude: approach (down by > 1000 m), departure (up)."""
     if fid.startswith("cal_"):
         return "calibration"
+    if fid.startswith("ch-"):
+        return "cruise"
     climb = float(alt[-1] - alt[0])
     return "approach" if climb < -1000.0 else "departure" if climb > 1000.0 else "paris"
 
@@ -160,7 +165,7 @@ def real_tracks(flights, ids, window, rng, biased=False):
     for fid in ids:
         f = flights[fid]
         sel = np.ones(len(f["t"]), bool)
-        if fid.startswith("cal_") and window:
+        if fid.startswith(("cal_", "ch-")) and window:
             start = f["t"][0] + rng.uniform(0, max(f["t"][-1] - f["t"][0] - window, 0))
             sel = (f["t"] >= start) & (f["t"] <= start + window)
         if sel.sum() < 20:
@@ -227,16 +232,18 @@ def group_of(key):
     return GROUP.get(key, "simulated")
 
 
-def main() -> None:
+def _arguments() -> argparse.Namespace:
+    """The command line (see the module docstring)."""
     ap = argparse.ArgumentParser()
     ap.add_argument("--paris", type=int, default=6)
     ap.add_argument("--cal", type=int, default=4)
+    ap.add_argument("--cruise", type=int, default=0, help="real en-route flights over Switzerland, one window each")
     ap.add_argument("--sim", type=int, default=6)
-    ap.add_argument("--window", type=float, default=1200.0, help="calibration-flight window (s)")
+    ap.add_argument("--window", type=float, default=1200.0, help="calibration and cruise window (s)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--max-u", type=float, default=9.5)
-    ap.add_argument("--max-w", type=float, default=2.0)
+    ap.add_argument("--max-u", type=float, default=ReconstructionConfig().max_u)
+    ap.add_argument("--max-w", type=float, default=ReconstructionConfig().max_w)
     ap.add_argument("--jump-sd", default=f"{ReconstructionConfig().jump_sd:g}",
                     help="comma-separated prior strengths (m/s²; 0 = no prior; default: the configuration's)")
     ap.add_argument("--dump", type=Path, default=None,
@@ -246,28 +253,30 @@ def main() -> None:
                     help="radars with biases, estimated jointly by the reconstruction and given to every method")
     ap.add_argument("--reference-only", action="store_true",
                     help="print how hard each real flight's reference accelerates, and stop")
-    args = ap.parse_args()
-    rng = np.random.default_rng(args.seed)
+    return ap.parse_args()
+
+
+def _real_flights(args: argparse.Namespace) -> tuple[dict[str, dict[str, np.ndarray]], list[str]]:
+    """(ADS-B per flight, the ids asked for: the first ``--paris`` Paris flights, ``--cal`` calibration flights
+    and ``--cruise`` Swiss cruise flights, each set in sorted order)."""
     flights = load_adsb(SHARED if SHARED.exists() else SUBSET)
     paris = sorted(k for k in flights if k.startswith("paris-"))[: args.paris]
     cal = sorted(k for k in flights if k.startswith("cal_"))[: args.cal]
-    tracks, truth = real_tracks(flights, paris + cal, args.window, rng, biased=args.biases)
-    for fid, acc in REFERENCE_ACCELERATION.items():
-        print(json.dumps({"flight": fid, "reference_acceleration": acc}))
-    if args.reference_only:
-        return
-    st, sv = sim_tracks(args.sim, rng)
-    tracks += st
-    truth.update(sv)
-    hours = sum(pt.duration for pt in tracks) / 3600
-    errs: dict[str, dict[str, np.ndarray]] = {pt.key: {} for pt in tracks}
-    verrs: dict[str, dict[str, np.ndarray]] = {pt.key: {} for pt in tracks}  # ground-velocity errors (m/s)
-    extra: dict[str, dict] = {pt.key: {} for pt in tracks}
-    cost = {}
+    cruise: list[str] = []
+    if args.cruise:
+        swiss = load_adsb(CRUISE)
+        cruise = sorted(swiss)[: args.cruise]
+        flights.update({k: swiss[k] for k in cruise})
+    return flights, paris + cal + cruise
+
+
+def _reconstruct(tracks, truth, args: argparse.Namespace, errs, verrs, extra, hours: float) -> None:
+    """Every flight reconstructed once per ``--jump-sd`` (the biases estimated jointly with ``--biases``), its
+    position and velocity errors into ``errs``/``verrs`` and its fit quality into ``extra``; prints the cost."""
     for js in (float(v) for v in args.jump_sd.split(",")):
         name = "rec" if js == ReconstructionConfig().jump_sd else f"rec_jump{js:g}"  # "rec": the default
         cfg = ReconstructionConfig(max_u=args.max_u, max_w=args.max_w, jump_sd=js)
-        t0, c0 = time.perf_counter(), time.process_time()
+        t0 = time.perf_counter()
         with executor("process", args.workers) as ex:
             if args.biases:  # the biases estimated with the trajectories; the smoothers get the same below
                 results, joint = estimate_jointly(tracks, cfg, ex, batch_plots=400)
@@ -290,11 +299,30 @@ def main() -> None:
                                                     - VELOCITY[r.key]).T)
                 q = assess(r, cfg)
                 extra[r.key][name] = {"segments": len(r.control), "chi2": q["chi2"], "plausible": q["plausible"],
-                                      "pinned_s": sum(p["seconds"] for p in q["pinned"])}
+                                      "pinned_s": sum(p["seconds"] for p in q["pinned"]),
+                                      "score": round(r.best.score, 1)}
         wall = time.perf_counter() - t0
-        cost[name] = {"wall_s": round(wall, 1), "workers": args.workers, "flight_hours": round(hours, 2),
-                      "wall_s_per_flight_hour": round(wall / hours, 1)}
-        print(json.dumps({"cost": name, **cost[name]}))
+        print(json.dumps({"cost": name, "wall_s": round(wall, 1), "workers": args.workers,
+                          "flight_hours": round(hours, 2), "wall_s_per_flight_hour": round(wall / hours, 1)}))
+
+
+def main() -> None:
+    args = _arguments()
+    rng = np.random.default_rng(args.seed)
+    flights, ids = _real_flights(args)
+    tracks, truth = real_tracks(flights, ids, args.window, rng, biased=args.biases)
+    for fid, acc in REFERENCE_ACCELERATION.items():
+        print(json.dumps({"flight": fid, "reference_acceleration": acc}))
+    if args.reference_only:
+        return
+    st, sv = sim_tracks(args.sim, rng)
+    tracks += st
+    truth.update(sv)
+    hours = sum(pt.duration for pt in tracks) / 3600
+    errs: dict[str, dict[str, np.ndarray]] = {pt.key: {} for pt in tracks}
+    verrs: dict[str, dict[str, np.ndarray]] = {pt.key: {} for pt in tracks}  # ground-velocity errors (m/s)
+    extra: dict[str, dict] = {pt.key: {} for pt in tracks}
+    _reconstruct(tracks, truth, args, errs, verrs, extra, hours)
     for raw in tracks:
         pt = debias(raw, ESTIMATES) if ESTIMATES else raw  # the same bias estimates as the reconstruction's
         for name, xs in (("cv_rts", tuned_rts(pt.t, pt.z, pt.R)[0]), ("imm", imm_smooth(pt.t, pt.z, pt.R)[0])):
@@ -312,7 +340,7 @@ def main() -> None:
         rows.append(row)
         print(json.dumps(row))
     pooled = {}
-    for g in ("approach", "departure", "paris", "calibration", "simulated"):
+    for g in ("approach", "departure", "paris", "calibration", "cruise", "simulated"):
         keys = [pt.key for pt in tracks if group_of(pt.key) == g]
         if not keys:
             continue

@@ -38,8 +38,10 @@ def register_reconstruct(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--batch-plots", type=int, default=500, help="plots per task (default 500)")
     p.add_argument("--sigma", type=float, default=100.0, help=".new4 input: position σ in metres (default 100)")
     p.add_argument("--min-plots", type=int, default=10, help="skip aircraft with fewer plots (default 10)")
-    p.add_argument("--max-u", type=float, default=4.0, help="lateral acceleration bound m/s² (default 4)")
-    p.add_argument("--max-w", type=float, default=2.0, help="longitudinal acceleration bound m/s² (default 2)")
+    p.add_argument("--max-u", type=float, default=9.5,
+                   help="lateral acceleration bound m/s² (default 9.5; the seed's 4 pins on real approaches: "
+                        "docs/reconstruction.md, Control bounds)")
+    p.add_argument("--max-w", type=float, default=3.0, help="longitudinal acceleration bound m/s² (default 3)")
     p.add_argument("--loss", choices=("gauss", "huber", "cauchy"), default="gauss",
                    help="track weight: Gaussian NLL or a robust loss (default gauss)")
     p.add_argument("--hypotheses", type=int, default=10, help="most hypotheses fitted per flight (default 10)")
@@ -51,7 +53,11 @@ def register_reconstruct(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--biases", type=Path, default=None, metavar="BIASES_CSV",
                    help="remove the radar biases of a replay's biases.csv (last row per radar; its sd inflates R)")
     p.add_argument("--estimate-biases", action="store_true",
-                   help="scenario input: estimate the radar biases jointly with every flight's trajectory")
+                   help="estimate the radar biases jointly with every flight's trajectory (the default for a "
+                        "scenario folder without --truth-biases or --biases; for .new4 input with --radars on request)")
+    p.add_argument("--keep-biases", action="store_true",
+                   help="scenario input: reconstruct the plots as they are, radar biases left in "
+                        "(the behaviour before the joint estimate became the default)")
     p.add_argument("--radars", type=Path, default=None, metavar="RADARS_CSV",
                    help=".new4 input: radars.csv (scenario format); <radar>_r.new4 plots then get R from the "
                         "radar's range/azimuth sigma, and the plots of all radars of one folder are fused")
@@ -124,18 +130,53 @@ def _select(tracks, flights: str | None):
     return [t for t in tracks if t.key in set(want)]
 
 
+def _estimate_biases(args: argparse.Namespace) -> bool:
+    """Whether the radar biases are estimated jointly with the trajectories: on request, and by default for a
+    scenario folder (radar plots with their geometry) unless known biases (``--truth-biases``, ``--biases``)
+    are given or ``--keep-biases`` asks for the plots as they are. Biases left in the plots shift every
+    flight (truth RMSE 116 m against 8 m on the ``demo`` scenario: docs/reconstruction.md), so a reference
+    must remove them by default. ``.new4`` input keeps its plots unless asked: most such files are positions
+    without radar geometry."""
+    if args.estimate_biases:
+        return True
+    scenario = len(args.inputs) == 1 and args.inputs[0].is_dir()
+    return scenario and not (args.truth_biases or args.biases or args.keep_biases)
+
+
+def _results(tracks, cfg, ex, args: argparse.Namespace, summary: dict, notes: list[str]):
+    """Every flight's reconstruction (or failure), as they finish: with the radar biases estimated jointly when
+    :func:`_estimate_biases` says so — those of the radars that saw an aircraft together with another
+    (:func:`.joint.shared_radars`); a radar seen alone keeps its plots as they are (its azimuth bias, a rotation
+    of its tracks, is unobservable) — else of the plots as given. Records the bias mode in ``summary``."""
+    from radartracker_plugins.reconstruction.engine import run_many
+    from radartracker_plugins.reconstruction.joint import estimate_jointly, shared_radars
+
+    if not _estimate_biases(args):
+        return run_many(tracks, cfg, ex, args.batch_plots, not args.quiet)
+    radars = shared_radars(tracks)
+    if not radars:
+        notes.append("reconstruct: warning: no aircraft was seen by two radars, so the radar biases cannot be "
+                     "estimated; the plots are reconstructed as they are (give --biases to remove known ones)")
+        summary["biases_removed"] = "none: no aircraft seen by two radars"
+        return run_many(tracks, cfg, ex, args.batch_plots, not args.quiet)
+    results, joint = estimate_jointly(tracks, cfg, ex, args.batch_plots, not args.quiet, radars)
+    summary["biases_removed"] = "estimated jointly"
+    summary["joint_biases"] = joint
+    return results
+
+
 def _cmd_reconstruct(args: argparse.Namespace) -> int:
     from radartracker_plugins.reconstruction import ReconstructionConfig
     from radartracker_plugins.reconstruction.biases import debias, read_biases
-    from radartracker_plugins.reconstruction.engine import Failure, executor, run_many
+    from radartracker_plugins.reconstruction.engine import Failure, executor
     from radartracker_plugins.reconstruction.output import write_reconstruction
     from radartracker_plugins.reconstruction.quality import assess, truth_error
 
     if args.out.exists() and any(args.out.iterdir()):
         raise ConfigurationError(f"{args.out} exists and is not empty; choose a new folder")
     _check_options(args)
-    if sum(map(bool, (args.truth_biases, args.biases, args.estimate_biases))) > 1:
-        raise ConfigurationError("give at most one of --truth-biases, --biases, --estimate-biases")
+    if sum(map(bool, (args.truth_biases, args.biases, args.estimate_biases, args.keep_biases))) > 1:
+        raise ConfigurationError("give at most one of --truth-biases, --biases, --estimate-biases, --keep-biases")
     try:
         cfg = ReconstructionConfig(max_u=args.max_u, max_w=args.max_w, loss=args.loss, hypotheses=args.hypotheses,
                                    grid_dt=args.grid, shooting=not args.no_shooting,
@@ -161,14 +202,7 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
         summary["biases_removed"] = "truth_biases.csv" if args.truth_biases else str(args.biases)
     notes: list[str] = []  # failures and warnings, printed unless nothing was reconstructed
     with executor(engine, args.workers, args.scheduler, quiet=args.quiet) as ex:
-        if args.estimate_biases:
-            from radartracker_plugins.reconstruction.joint import estimate_jointly
-
-            results, joint = estimate_jointly(tracks, cfg, ex, args.batch_plots, not args.quiet)
-            summary["joint_biases"] = joint
-        else:
-            results = run_many(tracks, cfg, ex, args.batch_plots, not args.quiet)
-        for res in results:
+        for res in _results(tracks, cfg, ex, args, summary, notes):
             if isinstance(res, Failure):
                 summary["failed"][res.key] = res.reason
                 notes.append(f"reconstruct: {res.key}: {res.reason}")

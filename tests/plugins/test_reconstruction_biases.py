@@ -82,7 +82,7 @@ def test_biases_csv_with_the_true_values_equals_truth_biases(scenario, tmp_path)
     bcsv.write_text(HEADER + "".join(f"100.0,{r},{b[0]:.6f},{math.degrees(b[1]):.9f},0,0\n"
                                      for r, b in data.truth_biases.items()))
     runs = {}
-    for name, extra in (("file", ["--biases", str(bcsv)]), ("truth", ["--truth-biases"]), ("none", [])):
+    for name, extra in (("file", ["--biases", str(bcsv)]), ("truth", ["--truth-biases"]), ("none", ["--keep-biases"])):
         out = tmp_path / name
         assert main(["reconstruct", str(folder), "--out", str(out), "--flights", key, *FAST, *extra]) in (0, 1)
         runs[name] = json.loads((out / "summary.json").read_text())["reconstructed"][0]

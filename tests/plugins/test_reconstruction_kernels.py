@@ -91,7 +91,7 @@ def test_objective_is_weight_plus_prior_plus_penalty(flight, loss):
     theta = _theta(obj, flight)
     theta[obj.n_init] = 20.0  # u₁ beyond max_u: projected, with a penalty
     init, u, w, bounds, viol = obj.unpack(theta)
-    assert viol == pytest.approx((20.0 - 4.0) / 0.5)
+    assert viol == pytest.approx((20.0 - obj.cfg.max_u) / obj.cfg.du1)  # per step unit beyond the bound
     p, _, v2 = obj.positions(init, u, w, bounds)
     prior = 0.5 * (np.sum(np.diff(u) ** 2) + np.sum(np.diff(w) ** 2)) / 0.5**2
     assert obj(theta) == pytest.approx(obj.weight(p) + prior + obj.cfg.penalty * (viol + v2), rel=1e-12)
