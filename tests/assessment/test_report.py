@@ -71,7 +71,7 @@ def paris_assessment(tmp_path_factory) -> Path:
 def test_report_renders_every_figure_and_table(paris_assessment):
     page = _Page()
     page.feed((paris_assessment / "report.html").read_text(encoding="utf-8"))
-    assert len(page.images) == 2 + 2 * 4  # the two bias figures, and two rows of figures per radar
+    assert len(page.images) == 2 + 3 * 4  # the two bias figures, and three figures per radar: two rows, the scatter
     for src in page.images:
         assert src.startswith("data:image/png;base64,")
         png = base64.b64decode(src.split(",", 1)[1])
