@@ -35,6 +35,7 @@ INDICATORS: dict[str, tuple[str, str]] = {
     "time_offset_ms": ("time-stamp offset against the reference", "ms"),
     "range_sigma_m": ("random range error σ", "m"),
     "azimuth_sigma_deg": ("random azimuth error σ", "deg"),
+    "range_azimuth_correlation": ("correlation of the random range and azimuth errors", "1"),
     "pd": ("probability of detection", "share"),
     "cone_of_silence_deg": ("cone of silence, measured (elevation above which Pd drops)", "deg"),
     "detection_range_km": ("detection range achieved (farthest slant range with Pd ≥ the stated level)", "km"),

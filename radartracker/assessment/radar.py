@@ -8,7 +8,9 @@ estimator's biases):
   and azimuth offsets, range gain and time-stamp offset ± 1.96 σ (σ the fit's Cramér–Rao bound), each with
   its observability — an unobservable one is not a figure, and says why.
 * **Random errors**: σ_ρ and σ_θ of the residuals left by that fit (χ², n − 3 and n − 2 degrees of freedom),
-  over the plot nearest the reference in each sweep of an aircraft (a split plot is not noise).
+  over the plot nearest the reference in each sweep of an aircraft (a split plot is not noise); the
+  correlation of the two (Fisher's z) and their covariance, the report's error ellipse
+  (:mod:`radartracker.assessment.ellipse`).
 * **Pd**: detected crossings / crossings inside the coverage (Wilson), overall and by range, azimuth and
   altitude bin; by elevation bin over the crossings above the assumed cone of silence too.
 * **Cone of silence and coverage achieved**: measured from the crossings
@@ -43,8 +45,9 @@ import numpy as np
 
 from radartracker.assessment import stats
 from radartracker.assessment.coverage import CoverageConfig, achieved_coverage, measure_cone
+from radartracker.assessment.ellipse import ErrorEllipse, error_ellipse
 from radartracker.assessment.stats import Estimate
-from radartracker.assessment.systematic import fit_sensor_errors
+from radartracker.assessment.systematic import SensorFit, fit_sensor_errors
 from radartracker.assessment.tally import RadarTally
 from radartracker.domain import BiasState, Radar
 
@@ -74,7 +77,7 @@ class RadarAssessment:
     detected); ``observability``: the coupling graph's status of its biases, ``components``: each fitted sensor
     error's (``observable``, ``weak``, ``unobservable``); ``coverage``: the coverage diagram, per azimuth sector
     (:func:`radartracker.assessment.coverage.achieved_coverage`); ``scan_counts``: its plots in each antenna
-    revolution, first to last."""
+    revolution, first to last; ``ellipse``: its error scatter against its stated σ's (None without a fit)."""
 
     radar: str
     kind: str
@@ -87,6 +90,7 @@ class RadarAssessment:
     components: dict[str, str] = attrs.field(factory=dict)
     coverage: list[dict] = attrs.field(factory=list)
     scan_counts: np.ndarray = attrs.field(factory=lambda: np.zeros(0, np.int64))
+    ellipse: ErrorEllipse | None = None
 
 
 def assess_radar(radar: Radar, tally: RadarTally, out_of_order: int, bias: BiasState, observability: dict,
@@ -99,7 +103,12 @@ def assess_radar(radar: Radar, tally: RadarTally, out_of_order: int, bias: BiasS
     figures: dict[str, Estimate] = {}
     missing: dict[str, str] = {"timestamp_lateness_s": NOT_ASSESSABLE_LATENESS}
     _errors(tally, bias, int(observability.get("measurements", 0)), figures)
-    components = _sensor_errors(radar.id, tally, figures, missing)
+    components, fit = _sensor_errors(radar.id, tally, figures, missing)
+    ellipse = None if fit is None else error_ellipse(radar, tally.sensor, fit, tally.sample)
+    if ellipse is None:
+        missing["range_azimuth_correlation"] = "fewer than five plots matched to the reference"
+    else:
+        figures["range_azimuth_correlation"] = ellipse.correlation()
     crossings = tally.expected_table()
     expected = {k: v[~crossings["above_cone"]] for k, v in crossings.items()}  # inside the assumed coverage
     counts = _detection(tally, expected, figures, missing, reference_kind)
@@ -118,7 +127,7 @@ def assess_radar(radar: Radar, tally: RadarTally, out_of_order: int, bias: BiasS
     return RadarAssessment(radar.id, kind, figures, missing, observability.get("status", "unobserved"),
                            pd_bins(crossings, config), tally.error_arrays(),
                            {k: expected[k] for k in ("x", "y", "range_m", "detected")}, components, diagram,
-                           counts)
+                           counts, ellipse)
 
 
 def _errors(tally: RadarTally, bias: BiasState, measured: int, figures: dict[str, Estimate]) -> None:
@@ -130,14 +139,15 @@ def _errors(tally: RadarTally, bias: BiasState, measured: int, figures: dict[str
 
 
 def _sensor_errors(radar: str, tally: RadarTally, figures: dict[str, Estimate],
-                   missing: dict[str, str]) -> dict[str, str]:
+                   missing: dict[str, str]) -> tuple[dict[str, str], SensorFit | None]:
     """The sensor errors fitted against the reference and the random errors they leave (module docstring) into
-    ``figures`` (an unobservable component into ``missing``, with why); returns each component's status."""
+    ``figures`` (an unobservable component into ``missing``, with why); returns each component's status and
+    the fit (None with too few plots)."""
     fit = fit_sensor_errors(radar, tally.sensor)
     if fit is None:
         for name in (*(f for f, _ in FIT_FIGURES.values()), "range_sigma_m", "azimuth_sigma_deg"):
             missing[name] = "fewer than five plots matched to the reference"
-        return {}
+        return {}, None
     n = tally.sensor.n
     for bound in fit.bounds:
         name, scale = FIT_FIGURES[bound.component]
@@ -150,7 +160,7 @@ def _sensor_errors(radar: str, tally: RadarTally, figures: dict[str, Estimate],
     (rss_r, rss_a), (dof_r, dof_a) = fit.rss, fit.dof
     figures["range_sigma_m"] = stats.sigma_of_sum(rss_r, dof_r, n)
     figures["azimuth_sigma_deg"] = stats.scaled(stats.sigma_of_sum(rss_a, dof_a, n), math.degrees(1.0))
-    return {b.component: b.status for b in fit.bounds}
+    return {b.component: b.status for b in fit.bounds}, fit
 
 
 def _detection(tally: RadarTally, expected: dict[str, np.ndarray], figures: dict[str, Estimate],

@@ -3,7 +3,9 @@ radar's figures with their 95 % intervals, and the figures drawn (matplotlib, Ag
 base64 PNG: the bias estimates with ±1.96 σ against the profile's limits, the biases over the run, and per
 radar its Pd by range, azimuth and altitude, its Pd map and its error histograms with the normal density of the
 measured σ; its Pd by elevation with the measured cone of silence, its coverage diagram (the detection range
-achieved per azimuth sector against the configured range) and its plots per scan."""
+achieved per azimuth sector against the configured range) and its plots per scan; and its error scatter, range
+against azimuth error with the fitted sensor errors removed, with the 95 % ellipse of their covariance and,
+dashed, the one its stated σ's give (:mod:`radartracker.assessment.ellipse`)."""
 
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ import math
 import numpy as np
 
 from radartracker.assessment.assess import Assessment
+from radartracker.assessment.ellipse import ellipse_points
 from radartracker.assessment.profile import INDICATORS
 from radartracker.assessment.radar import RadarAssessment
 from radartracker.progress import progress_bar
@@ -178,6 +181,30 @@ def coverage_figures(r: RadarAssessment, plt) -> str:
     return _png(fig)
 
 
+def ellipse_figure(r: RadarAssessment, plt) -> str:
+    """The error scatter of one radar (module docstring): its sampled residuals, the 95 % ellipse of the
+    measured covariance (solid) and of the stated σ's (dashed), both about the residuals' mean; empty axes, and
+    why, without a fit."""
+    fig, ax = plt.subplots(figsize=(6.5, 5))
+    e = r.ellipse
+    if e is None:
+        ax.text(0.5, 0.5, "no sensor-error fit: too few matched plots", ha="center", transform=ax.transAxes)
+    else:
+        ax.scatter(e.points[:, 0], e.points[:, 1], s=4, alpha=0.4, label=f"{len(e.points)} of {e.n} plots")
+        sd, stated = np.sqrt(np.diag(e.cov)), np.sqrt(np.diag(e.stated))
+        for cov, style, what, (s_r, s_a) in ((e.cov, "r-", "measured", sd), (e.stated, "k--", "stated", stated)):
+            ring = ellipse_points(e.mean, cov)
+            ax.plot(ring[:, 0], ring[:, 1], style, label=f"95 % {what}: σ_r {s_r:.3g} m, σ_θ {s_a:.3g}°")
+        c = r.figures["range_azimuth_correlation"]
+        ax.set_title(f"{r.radar}: errors, sensor errors removed; r = {_fmt(c.value)} [{_fmt(c.low)}, "
+                     f"{_fmt(c.high)}]", fontsize=9)
+        ax.legend(fontsize=7)
+    ax.set_xlabel("range error (m)")
+    ax.set_ylabel("azimuth error (deg)")
+    fig.tight_layout()
+    return _png(fig)
+
+
 def render(a: Assessment, *, progress: bool = True) -> str:
     """The whole page (module docstring)."""
     plt = _figure()
@@ -205,7 +232,7 @@ def render(a: Assessment, *, progress: bool = True) -> str:
                   f"{html.escape(r.observability)})</h2>",
                   f"<p>Sensor errors against the reference: {html.escape(fitted)}.</p>",
                   _table(["figure", "unit", "value", "95 % low", "95 % high", "n", "interval"], rows),
-                  radar_figures(r, plt), coverage_figures(r, plt)]
+                  radar_figures(r, plt), coverage_figures(r, plt), ellipse_figure(r, plt)]
     rows = [[INDICATORS[k][0], INDICATORS[k][1], _fmt(e.value), _fmt(e.low), _fmt(e.high), str(e.n), e.method]
             for k, e in a.system.items()]
     rows += [[INDICATORS[k][0], INDICATORS[k][1], "–", "–", "–", "0", f"not assessable: {why}"]

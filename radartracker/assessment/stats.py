@@ -20,6 +20,8 @@ Every figure of the assessment is an :class:`Estimate`: the value, the interval 
   recomputed each time, the interval the 2.5 % and 97.5 % quantiles of those R (percentile method);
 * a share of time over such units: the same bootstrap; where every unit's share is 0 (or 1) and the bootstrap
   collapses, Clopper–Pearson's bound for m units none (all) of which showed it, [0, 1 − (α/2)^(1/m)];
+* a correlation r of n pairs: **Fisher's z**, tanh(atanh r ± z_{1−α/2}/√(n − 3)) (the pairs independent and
+  normal);
 * a quantile ξ_q of n values: the distribution-free **order-statistic** interval [x₍ₗ₎, x₍ᵤ₎], l the
   smallest k with B(k; n, q) ≥ α/2 and u − 1 the smallest with B(u − 1; n, q) ≥ 1 − α/2 (B the binomial
   distribution function): P(x₍ₗ₎ ≤ ξ_q ≤ x₍ᵤ₎) = B(u − 1) − B(l − 1) ≥ 1 − α; an order outside 1..n is ∓∞.
@@ -218,3 +220,14 @@ def normal(value: float, sd: float, n: int) -> Estimate:
 def scaled(e: Estimate, factor: float) -> Estimate:
     """``e`` in other units (every bound times ``factor`` > 0)."""
     return attrs.evolve(e, value=e.value * factor, low=e.low * factor, high=e.high * factor)
+
+
+def correlation(r: float, n: int) -> Estimate:
+    """A sample correlation ``r`` of ``n`` pairs with Fisher's interval tanh(z ± z_{1−α/2}/√(n − 3)),
+    z = atanh r (module docstring); |r| = 1 gives the point [r, r]."""
+    if n <= 3 or not math.isfinite(r):
+        return missing("fisher-z")
+    if abs(r) >= 1.0:
+        return Estimate(r, r, r, n, "fisher-z")
+    z, half = math.atanh(r), _Z / math.sqrt(n - 3)
+    return Estimate(r, math.tanh(z - half), math.tanh(z + half), n, "fisher-z")

@@ -20,6 +20,16 @@ residuals' raw variances to a fixed point. A component keeps the status its vari
 prior (:class:`radartracker.estimation.bound.ComponentBound`): a time offset on traffic that is neither
 moving in range nor in azimuth, or a range gain on plots all at one range, is ``unobservable`` and not
 reported as a figure.
+
+The residuals the fit leaves, e_k = u_k − a_kᵀx̂, have the means and second moments (:func:`residual_moments`)
+
+    Σ e_ρ = b_ρ,0 − x̂ᵀF_ρ,·0,    Σ e_θ = b_θ,1 − x̂ᵀF_θ,·1,    Σ e_k² = RSS_k(x̂),
+    Σ e_ρ e_θ = c − x̂ᵀ(d_ρθ + d_θρ) + x̂ᵀ G x̂,
+
+(a_ρ,0 = a_θ,1 = 1 pick Σ a and Σ u out of F and b) with the cross sums G = Σ a_ρ a_θᵀ, d_ρθ = Σ a_ρ u_θ,
+d_θρ = Σ a_θ u_ρ and c = Σ u_ρ u_θ, which add over the slices as the others do. Their mean m = Σ e / n and
+covariance C = (Σ e eᵀ − n m mᵀ)/(n − 1) (the report's error ellipse) are so made from sums, not from the
+residuals themselves.
 """
 
 from __future__ import annotations
@@ -43,13 +53,17 @@ _ITERATIONS = 8
 
 @attrs.define
 class SensorSums:
-    """Per axis (0 range, 1 azimuth): F = Σ a aᵀ (2 × 4 × 4), b = Σ a u (2 × 4), s = Σ u² (2) and the count n
-    (module docstring), in the order of :data:`FIT_MODEL`'s components; added exactly by :meth:`merge`."""
+    """Per axis (0 range, 1 azimuth): F = Σ a aᵀ (2 × 4 × 4), b = Σ a u (2 × 4), s = Σ u² (2) and the count n;
+    across the axes G = Σ a_ρ a_θᵀ (4 × 4), d = [Σ a_ρ u_θ, Σ a_θ u_ρ] (2 × 4) and c = Σ u_ρ u_θ (module
+    docstring), in the order of :data:`FIT_MODEL`'s components; added exactly by :meth:`merge`."""
 
     F: np.ndarray = attrs.field(factory=lambda: np.zeros((2, 4, 4)))
     b: np.ndarray = attrs.field(factory=lambda: np.zeros((2, 4)))
     s: np.ndarray = attrs.field(factory=lambda: np.zeros(2))
     n: int = 0
+    G: np.ndarray = attrs.field(factory=lambda: np.zeros((4, 4)))
+    d: np.ndarray = attrs.field(factory=lambda: np.zeros((2, 4)))
+    c: float = 0.0
 
     @classmethod
     def of(cls, u_range: np.ndarray, u_azimuth: np.ndarray, rho_ref: np.ndarray, rho_rate: np.ndarray,
@@ -58,16 +72,21 @@ class SensorSums:
         and rates (those with a non-finite value left out)."""
         ok = np.isfinite(u_range) & np.isfinite(u_azimuth) & np.isfinite(rho_ref) & np.isfinite(rho_rate) \
             & np.isfinite(theta_rate)
-        n = int(ok.sum())
-        one, zero = np.ones(n), np.zeros(n)
-        rows = (np.stack([one, zero, rho_ref[ok], -rho_rate[ok]], axis=1),
-                np.stack([zero, one, zero, -theta_rate[ok]], axis=1))
+        rows = design_rows(rho_ref[ok], rho_rate[ok], theta_rate[ok])
         u = (u_range[ok], u_azimuth[ok])
         return cls(np.stack([a.T @ a for a in rows]), np.stack([a.T @ v for a, v in zip(rows, u)]),
-                   np.array([v @ v for v in u]), n)
+                   np.array([v @ v for v in u]), int(ok.sum()), rows[0].T @ rows[1],
+                   np.stack([rows[0].T @ u[1], rows[1].T @ u[0]]), float(u[0] @ u[1]))
 
     def merge(self, other: SensorSums) -> SensorSums:
-        return SensorSums(self.F + other.F, self.b + other.b, self.s + other.s, self.n + other.n)
+        return SensorSums(self.F + other.F, self.b + other.b, self.s + other.s, self.n + other.n,
+                          self.G + other.G, self.d + other.d, self.c + other.c)
+
+
+def design_rows(rho_ref: np.ndarray, rho_rate: np.ndarray, theta_rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rows a_ρ = [1, 0, ρ_ref, −ρ̇] and a_θ = [0, 1, 0, −θ̇] of each plot (n × 4 each; module docstring)."""
+    one, zero = np.ones(len(rho_ref)), np.zeros(len(rho_ref))
+    return (np.stack([one, zero, rho_ref, -rho_rate], axis=1), np.stack([zero, one, zero, -theta_rate], axis=1))
 
 
 @attrs.frozen
@@ -121,3 +140,15 @@ def _solve(M: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     d = 1.0 / np.sqrt(np.diag(M))
     inv = np.linalg.inv(M * np.outer(d, d)) * np.outer(d, d)
     return inv @ rhs, 0.5 * (inv + inv.T)
+
+
+def residual_moments(sums: SensorSums, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The mean m (2: e_ρ m, e_θ rad) and the covariance about it, C = (Σ e eᵀ − n m mᵀ)/(n − 1) (2 × 2), of the
+    residuals e = (u_ρ − a_ρᵀx, u_θ − a_θᵀx) that the sensor errors ``x`` (the fit's x̂) leave, from ``sums``
+    alone (module docstring); needs n ≥ 2."""
+    total = np.array([sums.b[0, 0] - x @ sums.F[0, :, 0], sums.b[1, 1] - x @ sums.F[1, :, 1]])
+    square = [sums.s[k] - 2.0 * x @ sums.b[k] + x @ sums.F[k] @ x for k in (0, 1)]
+    cross = sums.c - x @ (sums.d[0] + sums.d[1]) + x @ sums.G @ x
+    m = total / sums.n
+    S = np.array([[square[0], cross], [cross, square[1]]])
+    return m, (S - sums.n * np.outer(m, m)) / (sums.n - 1)

@@ -4,11 +4,12 @@ Every figure of :mod:`radartracker.assessment.radar` is a function of sums over 
 and expected crossings: counts (plots per revolution, unmatched plots and reflections among them, split
 sweeps, each code's plots per aircraft, Mode S plots), the sums of the sensor-error fit
 (:mod:`radartracker.assessment.systematic`), :class:`~radartracker.assessment.stats.Moments` of the
-time-stamp offsets (their n, mean and M₂, merged exactly) and the expected crossings themselves (Pd, its bins
-and map). A slice's :class:`RadarTally` holds
-those sums for the plots stamped inside the slice [t₀, t₁) and the sweeps whose first plot is, and
-:meth:`RadarTally.merge` adds two slices: counts exactly, sums and moments to round-off. Every
-plot is counted in exactly one slice, by its time; the margin either side of a slice
+time-stamp offsets (their n, mean and M₂, merged exactly), the expected crossings themselves (Pd, its bins
+and map) and a bounded sample of the plots for the error scatter
+(:class:`~radartracker.assessment.ellipse.ErrorSample`, merged to the one-pass sample). A slice's
+:class:`RadarTally` holds those sums for the plots stamped inside the slice [t₀, t₁) and the sweeps whose
+first plot is, and :meth:`RadarTally.merge` adds two slices: counts exactly, sums and moments to round-off,
+the sample exactly. Every plot is counted in exactly one slice, by its time; the margin either side of a slice
 (:mod:`radartracker.assessment.slices`) only lets its sweeps, detections and crossings see across the
 boundary.
 """
@@ -20,6 +21,7 @@ from collections import Counter
 import attrs
 import numpy as np
 
+from radartracker.assessment.ellipse import ErrorSample
 from radartracker.assessment.matching import RadarMatch, antenna_offsets, wrap_angle
 from radartracker.assessment.stats import Moments
 from radartracker.assessment.systematic import SensorSums
@@ -45,13 +47,15 @@ class RadarTally:
     Of the sweeps' nearest plots: ``offsets``, the moments of their time-stamp offsets (s); ``errors``, their
     errors e_ρ (m) and e_θ (deg) with the joint estimator's bias removed, for the report's histograms;
     ``sensor``, the sums of the sensor-error fit of their raw residuals ρ − ρ_ref and θ − θ_ref
-    (:class:`~radartracker.assessment.systematic.SensorSums`). ``scans``: plots per antenna revolution
-    (revolution → count). ``unmatched``: plots matched to no reference aircraft, ``reflections`` those of them
-    carrying a reference aircraft's code (:func:`reflections`); ``coded_sweeps``: the sweeps whose plot carries
-    a code (of an aircraft whose reflections can be told). ``mode_3a``: matched plots per (aircraft, code or
-    None); ``mode_c``: per aircraft, matched plots, those with an altitude and those within the tolerance;
-    ``mode_s``: [plots of a known address carrying one, right ones]. ``carries``: whether any plot carries an
-    altitude, a Mode 3/A code, a Mode S address. ``spans``: each aircraft's first and last matched plot time."""
+    (:class:`~radartracker.assessment.systematic.SensorSums`) and ``sample``, a bounded number of them with those
+    residuals, for the report's error scatter (:class:`~radartracker.assessment.ellipse.ErrorSample`).
+    ``scans``: plots per antenna revolution (revolution → count). ``unmatched``: plots matched to no reference
+    aircraft, ``reflections`` those of them carrying a reference aircraft's code (:func:`reflections`);
+    ``coded_sweeps``: the sweeps whose plot carries a code (of an aircraft whose reflections can be told).
+    ``mode_3a``: matched plots per (aircraft, code or None); ``mode_c``: per aircraft, matched plots, those with
+    an altitude and those within the tolerance; ``mode_s``: [plots of a known address carrying one, right
+    ones]. ``carries``: whether any plot carries an altitude, a Mode 3/A code, a Mode S address. ``spans``:
+    each aircraft's first and last matched plot time."""
 
     plots: int = 0
     unmatched: int = 0
@@ -62,6 +66,7 @@ class RadarTally:
     offsets: Moments = attrs.field(factory=Moments)
     errors: dict[str, list[np.ndarray]] = attrs.field(factory=lambda: {"range_m": [], "azimuth_deg": []})
     sensor: SensorSums = attrs.field(factory=SensorSums)
+    sample: ErrorSample = attrs.field(factory=ErrorSample)
     scans: Counter = attrs.field(factory=Counter)
     mode_3a: Counter = attrs.field(factory=Counter)
     mode_c: dict[str, Counter] = attrs.field(factory=dict)
@@ -80,6 +85,7 @@ class RadarTally:
         self.split_sweeps += other.split_sweeps
         self.offsets = self.offsets.merge(other.offsets)
         self.sensor = self.sensor.merge(other.sensor)
+        self.sample = self.sample.merge(other.sample)
         for k, v in other.errors.items():
             self.errors[k] += v
         self.scans.update(other.scans)
@@ -174,11 +180,13 @@ def sweeps(t: np.ndarray, match: RadarMatch, period_s: float) -> tuple[np.ndarra
 
 def _residuals(plots: PlotTable, match: RadarMatch, bias: tuple[float, float], used: np.ndarray,
                period_s: float, out: RadarTally) -> None:
-    """The ``used`` plots' errors, the moments of their time-stamp offsets and the sums of their sensor-error
-    fit (module docstring) into ``out``."""
+    """The ``used`` plots' errors, the moments of their time-stamp offsets, the sums of their sensor-error
+    fit and their sample (module docstring) into ``out``."""
     raw_r = plots.range_m[used] - match.ref_range[used]
     raw_a = wrap_angle(plots.azimuth_rad[used] - match.ref_azimuth[used])
-    out.sensor = SensorSums.of(raw_r, raw_a, match.ref_range[used], match.ref_rate[0, used], match.ref_rate[1, used])
+    reference = (match.ref_range[used], match.ref_rate[0, used], match.ref_rate[1, used])
+    out.sensor = SensorSums.of(raw_r, raw_a, *reference)
+    out.sample = ErrorSample.of(plots.time[used], raw_r, raw_a, *reference)
     e_r, e_a = raw_r - bias[0], np.degrees(wrap_angle(raw_a - bias[1]))
     _, offset = antenna_offsets(plots.time[used], plots.azimuth_rad[used], period_s, match.north_time)
     out.offsets = Moments.of(offset)

@@ -1,17 +1,34 @@
 """``radartracker assess`` end to end on the ``paris`` scenario: the report renders (every figure an embedded
-PNG, every table filled), the tables and the JSON summary are written, and bad input is one line, exit 2."""
+PNG, every table filled), the tables (CSV and Parquet, the same) and the JSON summary are written, an
+``--overwrite`` replaces them all, and bad input is one line, exit 2."""
 
 from __future__ import annotations
 
 import base64
 import json
+import math
+import shutil
 from html.parser import HTMLParser
 from pathlib import Path
 
+import pyarrow as pa
 import pyarrow.csv as pacsv
+import pyarrow.parquet as pq
 import pytest
 
+from radartracker.assessment.writer import ASSESSMENT_FILES
 from radartracker.cli import main
+
+#: the columns of each table and their Arrow types, as docs/assessment.md states them
+STATED = {"indicators": [("radar", "string"), ("indicator", "string"), ("value", "double"), ("ci_low", "double"),
+                         ("ci_high", "double"), ("n", "int64"), ("method", "string"), ("reference", "string"),
+                         ("note", "string")],
+          "verdicts": [("radar", "string"), ("indicator", "string"), ("value", "double"), ("ci_low", "double"),
+                       ("ci_high", "double"), ("rule", "string"), ("verdict", "string"), ("standard", "string"),
+                       ("note", "string")],
+          "pd_bins": [("radar", "string"), ("variable", "string"), ("bin_low", "double"), ("bin_high", "double"),
+                      ("crossings", "int64"), ("detected", "int64"), ("pd", "double"), ("ci_low", "double"),
+                      ("ci_high", "double")]}
 
 
 class _Page(HTMLParser):
@@ -54,7 +71,7 @@ def paris_assessment(tmp_path_factory) -> Path:
 def test_report_renders_every_figure_and_table(paris_assessment):
     page = _Page()
     page.feed((paris_assessment / "report.html").read_text(encoding="utf-8"))
-    assert len(page.images) == 2 + 2 * 4  # the two bias figures, and two rows of figures per radar
+    assert len(page.images) == 2 + 3 * 4  # the two bias figures, and three figures per radar: two rows, the scatter
     for src in page.images:
         assert src.startswith("data:image/png;base64,")
         png = base64.b64decode(src.split(",", 1)[1])
@@ -86,6 +103,29 @@ def test_tables_and_summary(paris_assessment):
     assert all(0 <= b["ci_low"] <= b["pd"] <= b["ci_high"] <= 1 for b in pd_bins)
 
 
+def test_the_parquet_tables_are_the_csv_tables_typed(paris_assessment):
+    """Each table's Parquet file holds the stated types and, cell for cell, what its CSV file reads back as (a
+    figure without a value a null in both; numbers within a float's round trip)."""
+    assert sorted(p.name for p in paris_assessment.iterdir()) == sorted(ASSESSMENT_FILES)
+    for name, columns in STATED.items():
+        parquet = pq.read_table(paris_assessment / f"{name}.parquet")
+        assert [(f.name, str(f.type)) for f in parquet.schema] == columns
+        types = {c: pa.type_for_alias(t) for c, t in columns}
+        csv = pacsv.read_csv(paris_assessment / f"{name}.csv", convert_options=pacsv.ConvertOptions(column_types=types))
+        assert csv.column_names == parquet.column_names and csv.num_rows == parquet.num_rows > 0
+        for column, kind in columns:
+            ours, theirs = parquet.column(column).to_pylist(), csv.column(column).to_pylist()
+            if kind == "double":
+                assert all(a is None and b is None or a == pytest.approx(b, rel=1e-15) or a == b
+                           for a, b in zip(ours, theirs)), column
+            else:
+                assert ours == theirs, column
+    indicators = pq.read_table(paris_assessment / "indicators.parquet").to_pylist()
+    missing = [r for r in indicators if r["note"].startswith("not assessable")]
+    assert missing and all(r["value"] is None and r["n"] == 0 for r in missing)
+    assert any(r["ci_high"] == math.inf for r in indicators)  # an unbounded interval stays ∞, not a null
+
+
 def test_a_bad_profile_is_one_line_naming_file_line_and_field(tmp_path, capsys, paris_assessment):
     profile = tmp_path / "p.toml"
     profile.write_text('name = "mine"\n\n[[criteria]]\nindicator = "pd"\nrule = "above"\nthreshold = "high"\n'
@@ -102,9 +142,14 @@ def test_a_replaced_profile_judges_by_its_own_figures(tmp_path, paris_assessment
         {"indicator": "range_sigma_m", "rule": "below", "threshold": 10.0, "radar_kind": "any",
          "standard": "a test's"}]}))
     scenario = paris_assessment.parent / "paris"
-    assert main(["--quiet", "assess", str(scenario), "--out", str(tmp_path / "o"), "--profile", str(profile)]) == 0
+    shutil.copytree(paris_assessment, tmp_path / "o")  # an earlier run's files, replaced by --overwrite
+    assert main(["--quiet", "assess", str(scenario), "--out", str(tmp_path / "o"), "--profile", str(profile),
+                 "--overwrite"]) == 0
     summary = json.loads((tmp_path / "o" / "assessment.json").read_text())
     assert summary["profile"]["name"] == "strict"
+    for ext in ("csv", "parquet"):  # both forms of the table are this run's
+        rows = (pq.read_table if ext == "parquet" else pacsv.read_csv)(tmp_path / "o" / f"verdicts.{ext}").to_pylist()
+        assert {r["indicator"] for r in rows} == {"range_sigma_m"} and len(rows) == 4
     assert {r["verdicts"]["range_sigma_m"] for r in summary["radars"].values()} == {"fail"}
     assert summary["system"]["verdicts"] == {}
 
@@ -124,8 +169,6 @@ def test_an_asterix_recording_is_judged_against_its_adsb(tmp_path, paris_assessm
 
 
 def test_a_bad_plot_row_is_one_line_naming_file_line_and_field(tmp_path, capsys, paris_assessment):
-    import shutil
-
     scenario = tmp_path / "bad"
     shutil.copytree(paris_assessment.parent / "paris", scenario)
     lines = (scenario / "plots.csv").read_text().splitlines()

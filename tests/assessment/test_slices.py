@@ -70,6 +70,8 @@ def test_slice_boundaries_lose_or_double_nothing(planted):
         assert len(a["time"]) == len(b["time"]) and np.array_equal(np.sort(a["time"]), np.sort(b["time"]))
         assert a["detected"].sum() == b["detected"].sum() and a["above_cone"].sum() == b["above_cone"].sum()
         assert np.array_equal(np.sort(a["elevation_deg"]), np.sort(b["elevation_deg"]))
+        assert np.array_equal(whole[r.id].sample.key, cut[r.id].sample.key)  # the error scatter's plots
+        assert np.array_equal(whole[r.id].sample.values, cut[r.id].sample.values)
 
 
 def test_dask_command_gives_the_one_process_figures(tmp_path: Path):
