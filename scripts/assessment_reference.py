@@ -1,5 +1,5 @@
 """The same scenario judged against its truth, against its ADS-B alone and against its ADS-B with the other
-aircraft reconstructed (``--reconstruct``; docs/assessment.md, "The reference"): what each reference costs a
+aircraft reconstructed (the default without truth; docs/assessment.md, "The reference"): what each reference costs a
 radar's figures. Prints one Markdown row per radar, and the CPU seconds of each assessment.
 
     python scripts/assessment_reference.py [--scenario paris] [--duration 1800] [--seed 1]
@@ -35,7 +35,8 @@ def main() -> None:
     hidden = attrs.evolve(data, truth=None)
     cpu = {}
     runs = {}
-    for name, scenario, config in (("truth", data, None), ("ADS-B", hidden, None),
+    adsb_only = AssessmentConfig(reference=ReferenceConfig(reconstruct=False))
+    for name, scenario, config in (("truth", data, None), ("ADS-B", hidden, adsb_only),
                                    ("ADS-B + rec.", hidden, AssessmentConfig(reference=ReferenceConfig(reconstruct=True)))):
         started = time.process_time()
         runs[name] = assess(scenario, load_profile(), config, progress=False)

@@ -1,6 +1,6 @@
 """The reference trajectories the sensors are judged against: the truth where the scenario has it, else
-each aircraft's validated ADS-B, and (``ReferenceConfig.reconstruct``) the reconstruction of every other
-aircraft whose plots carry a Mode S address.
+each aircraft's validated ADS-B and the reconstruction of every other aircraft from its plots
+(``ReferenceConfig.reconstruct``, on by default).
 
 * **truth** (``truth.csv``): each target's positions, joined by straight lines in the system plane
   (a conformal projection: over the truth's 1 s steps the chord differs from the path by millimetres).
@@ -53,7 +53,7 @@ class ReferenceConfig:
     min_nacp: int = attrs.field(default=7, validator=[attrs.validators.ge(1), attrs.validators.le(11)])
     max_gap_s: float = attrs.field(default=20.0, validator=attrs.validators.gt(0.0))
     min_reports: int = attrs.field(default=10, validator=attrs.validators.ge(2))
-    reconstruct: bool = False
+    reconstruct: bool = True
     reconstructor: str = "multi-hypothesis"
     min_plots: int = attrs.field(default=10, validator=attrs.validators.ge(2))
 

@@ -8,7 +8,8 @@ from pathlib import Path
 
 def register_assess(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("assess", help="assess each radar (biases, errors, Pd, codes, time stamps) and the system "
-                                      "tracks against the truth or ADS-B; writes report.html (docs/assessment.md)")
+                                      "tracks against the truth, else ADS-B and reconstructed flights; writes report.html "
+                                      "(docs/assessment.md)")
     p.add_argument("scenario", type=Path, help="scenario folder or ASTERIX recording (see docs/formats.md)")
     p.add_argument("--out", type=Path, required=True, help="output folder (new or empty; see --overwrite)")
     p.add_argument("--profile", type=Path, default=None,
@@ -20,11 +21,11 @@ def register_assess(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--track-gap-s", type=float, default=60.0, metavar="SECONDS",
                    help="with --system-tracks: a CAT062 track number's updates further apart than this are two "
                         "tracks, the number reused (default 60)")
-    p.add_argument("--reconstruct", action="store_true",
-                   help="without truth: reconstruct the aircraft without validated ADS-B from their Mode S plots, "
-                        "the replay's bias estimates removed, as their reference (docs/assessment.md)")
+    p.add_argument("--no-reconstruct", dest="reconstruct", action="store_false",
+                   help="without truth, judge against the validated ADS-B alone; by default the other aircraft are "
+                        "reconstructed from their plots, the replay's bias estimates removed (docs/assessment.md)")
     p.add_argument("--reconstructor", default="multi-hypothesis", metavar="NAME",
-                   help="with --reconstruct: the reconstructor plugin (default multi-hypothesis)")
+                   help="the reconstructor plugin of the reference without truth (default multi-hypothesis)")
     p.add_argument("--estimator", default=None, help="the joint bias estimator (default: the best installed)")
     p.add_argument("--skip-bad", action="store_true", help="skip (and count) malformed input rows instead of stopping")
     p.add_argument("--overwrite", action="store_true", help="replace an earlier assessment's files in --out")

@@ -11,9 +11,10 @@ import pytest
 from scipy.stats import binom
 
 from radartracker.assessment import stats
-from radartracker.assessment.assess import assess
+from radartracker.assessment.assess import AssessmentConfig, assess
 from radartracker.simulation.faults import Faults, known_figures, plant
 from radartracker.assessment.profile import Criterion, load_profile
+from radartracker.assessment.reference import ReferenceConfig
 from radartracker.simulation.scenarios import build_scenario
 
 FAULTS = Faults(wrong_mode_3a=0.03, wrong_mode_c=0.02, wrong_mode_s=0.03, split=0.02, out_of_order=0.01,
@@ -64,12 +65,12 @@ def test_system_tracks_use_the_pipeline_indicators(planted):
 
 
 def test_adsb_reference_without_truth(demo_data):
-    """Without truth.csv the ADS-B aircraft are the reference: biases and Pd still recovered, false plots not
+    """Without truth.csv and without the reconstruction (``--no-reconstruct``) the ADS-B aircraft are the reference: biases and Pd still recovered, false plots not
     assessable (the aircraft without ADS-B are not in the reference)."""
     import attrs
 
     data = attrs.evolve(demo_data, truth=None)
-    a = assess(data, load_profile(), progress=False)
+    a = assess(data, load_profile(), AssessmentConfig(reference=ReferenceConfig(reconstruct=False)), progress=False)
     assert a.reference == "adsb"
     for r in a.radars:
         tr, ta = demo_data.truth_biases[r.radar]

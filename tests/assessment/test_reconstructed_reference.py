@@ -1,4 +1,4 @@
-"""The reconstruction as the assessment's reference (``ReferenceConfig.reconstruct``, ``assess --reconstruct``):
+"""The reconstruction as the assessment's reference (``ReferenceConfig.reconstruct``, the default without truth):
 a ``paris`` recording without its truth, where only every third aircraft broadcasts ADS-B; the others are
 reconstructed from their Mode S plots with the replay's bias estimates removed. Judged by the simulator's truth,
 which the assessment never sees."""
@@ -34,7 +34,8 @@ def recording():
 def assessed(recording):
     data, _, _ = recording
     config = AssessmentConfig(reference=ReferenceConfig(reconstruct=True))
-    return assess(data, load_profile(), config, progress=False), assess(data, load_profile(), progress=False)
+    adsb_only = AssessmentConfig(reference=ReferenceConfig(reconstruct=False))
+    return assess(data, load_profile(), config, progress=False), assess(data, load_profile(), adsb_only, progress=False)
 
 
 def test_every_aircraft_with_mode_s_plots_gets_a_reference(recording, assessed):
@@ -42,10 +43,10 @@ def test_every_aircraft_with_mode_s_plots_gets_a_reference(recording, assessed):
     with_rec, adsb_only = assessed
     assert adsb_only.reference == "adsb" and with_rec.reference == "adsb+reconstruction"
     assert with_rec.reference_left_out == {}
-    adsb_keys = set(build_reference(data).tracks)
+    adsb_keys = set(build_reference(data, ReferenceConfig(reconstruct=False)).tracks)
     plotted = {m for m in data.plots.mode_s if m is not None}
     assert len(adsb_keys) < len(plotted)
-    reference = build_reference(data, ReferenceConfig(reconstruct=True))
+    reference = build_reference(data)  # reconstruct by default; the flights are added after the replay
     assert set(reference.tracks) == adsb_keys  # the reconstruction is added after the replay, in assess
     for r_rec, r_adsb in zip(with_rec.radars, adsb_only.radars):
         assert r_rec.figures["pd"].n > 1.5 * r_adsb.figures["pd"].n  # more aircraft judged
@@ -90,7 +91,7 @@ def test_an_unknown_reconstructor_is_refused_before_the_replay(recording, tmp_pa
     with pytest.raises(ConfigurationError, match="unknown reconstructor 'nope'"):
         assess(data, load_profile(), config, progress=False)
     write_scenario(tmp_path / "rec", data)
-    assert main(["--quiet", "assess", str(tmp_path / "rec"), "--out", str(tmp_path / "out"), "--reconstruct",
+    assert main(["--quiet", "assess", str(tmp_path / "rec"), "--out", str(tmp_path / "out"),
                  "--reconstructor", "nope"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "unknown reconstructor 'nope'" in err[0]
@@ -98,15 +99,14 @@ def test_an_unknown_reconstructor_is_refused_before_the_replay(recording, tmp_pa
 
 
 def test_on_a_local_cluster_the_reconstruction_gives_the_same_reference(recording, tmp_path):
-    """``assess --reconstruct --workers 2``: the flights reconstructed on the slices' LocalCluster give the
-    figures of ``assess --reconstruct`` in this process, on the same folder (the same computation, other
+    """``assess --workers 2``: the flights reconstructed on the slices' LocalCluster give the figures of
+    ``assess`` in this process, on the same folder (the same computation, other
     processes)."""
     data, _, _ = recording
     write_scenario(tmp_path / "rec", data)
     runs = {}
     for name, extra in (("one", []), ("dask", ["--workers", "2"])):
-        assert main(["--quiet", "assess", str(tmp_path / "rec"), "--out", str(tmp_path / name), "--reconstruct",
-                     *extra]) == 0
+        assert main(["--quiet", "assess", str(tmp_path / "rec"), "--out", str(tmp_path / name), *extra]) == 0
         runs[name] = json.loads((tmp_path / name / "assessment.json").read_text())
     one, dask = runs["one"], runs["dask"]
     assert one["reference"] == dask["reference"] == "adsb+reconstruction" and dask["reference_left_out"] == {}

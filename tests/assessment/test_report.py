@@ -155,13 +155,13 @@ def test_a_replaced_profile_judges_by_its_own_figures(tmp_path, paris_assessment
 
 
 def test_an_asterix_recording_is_judged_against_its_adsb(tmp_path, paris_assessment):
-    """A CAT048/CAT021 recording has no truth: the reference is the validated ADS-B, and false plots and false
-    tracks are said to be not assessable."""
+    """A CAT048/CAT021 recording has no truth: the reference is the validated ADS-B and the other aircraft
+    reconstructed (the default), and false plots and false tracks are said to be not assessable."""
     recording = tmp_path / "paris.ast"
     assert main(["asterix-export", str(paris_assessment.parent / "paris"), "--out", str(recording), "--quiet"]) == 0
     assert main(["--quiet", "assess", str(recording), "--out", str(tmp_path / "o")]) == 0
     summary = json.loads((tmp_path / "o" / "assessment.json").read_text())
-    assert summary["reference"] == "adsb"
+    assert summary["reference"] == "adsb+reconstruction" and summary["reference_left_out"] == {}
     for r in summary["radars"].values():
         assert "false_plots_per_scan" in r["not_assessable"]
         assert 0.8 < r["figures"]["pd"]["value"] < 1.0
