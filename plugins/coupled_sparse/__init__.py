@@ -144,6 +144,8 @@ class CoupledSparseEstimator(Estimator):
             setattr(self, "_" + name, dst)
         self._F, self._I, self._WF = F, I, WF
         self._st, self._wk = st, carve_work(WF, max(self._Pb.shape[0], 1))
+        # by radar index, then False for −1 (unbiased): whether its plots need their slant range
+        self._has_gain = np.array(["range_gain" in model.names for model in self._models] + [False])
         # read-only views of each radar's block of ς̂ and P_ς, by radar index (bias_views)
         self._bias_views = [(self._bh[b], self._Pb[b, b]) for b in map(self._block, range(len(self._models)))]
         for v in self._bias_views:
@@ -248,11 +250,14 @@ class CoupledSparseEstimator(Estimator):
             try:
                 slots[k] = self._slot(aircraft[k])
                 radars[k] = self._radar_codes[radar[k]] if radar[k] in self._radar_codes else self._radar_index(radar[k])
-                if radars[k] >= 0 and not np.isfinite(rho[k]) and "range_gain" in self._models[radars[k]].names:
-                    raise ValueError(f"measurement of {aircraft[k]!r} at t={time[k]}: radar {radar[k]!r} has a range "
-                                     "gain, which needs the plot's slant range (PlaneMeasurement.rho)")
-            except (KeyError, ValueError) as exc:
+            except KeyError as exc:
                 return self._applied(time, aircraft, radar, z, C, R, rho, k, exc)
+        no_rho = self._has_gain[radars] & ~np.isfinite(rho)  # radar −1 (unbiased): the last entry, False
+        if no_rho.any():
+            k = int(np.argmax(no_rho))
+            return self._applied(time, aircraft, radar, z, C, R, rho, k, ValueError(
+                f"measurement of {aircraft[k]!r} at t={time[k]}: radar {radar[k]!r} has a range gain, which needs "
+                "the plot's slant range (PlaneMeasurement.rho)"))
         out = np.zeros((n, 7))
         code, k, latest = K.update_rows(self._F, self._I, self._WF, slots, radars, np.asarray(time, float), z, C, R,
                                         rho, out)
