@@ -137,14 +137,20 @@ def state_bytes(name: str, n: int, p0: np.ndarray, ids: list, first_turn: tuple 
 def windows(step, i: int, per_window: int, repeat: int, budget: float) -> tuple[int, int, float, list[float]]:
     """Time ``repeat`` windows of at most ``per_window`` plots or ``budget`` s (at least 10 plots) each.
 
-    ``step(i)`` processes plots from index i and returns how many. Returns the next index, the plots
-    timed, the median µs per plot over the windows, and each window's µs per plot.
+    ``step(i)`` processes plots from index i and returns how many (0: no plots left, which ends the timing).
+    Returns the next index, the plots timed, the median µs per plot over the windows, and each window's µs
+    per plot.
     """
     rates, total = [], 0
     for _ in range(repeat):
         done, t0 = 0, time.perf_counter()
         while done < per_window and (done < 10 or time.perf_counter() - t0 < budget):
-            done += step(i + done)
+            took = step(i + done)
+            if took == 0:  # out of plots: a window of 1,000-plot batches can overrun its share
+                break
+            done += took
+        if done == 0:
+            break
         rates.append(1e6 * (time.perf_counter() - t0) / done)
         i, total = i + done, total + done
     return i, total, float(np.median(rates)), rates

@@ -1,10 +1,12 @@
 """The compiled measurement update, removal and read of the sparse coupled filter (package docstring).
 
 A plot z of aircraft i by radar j (−1: unbiased) is applied in named steps: predict aircraft i to the
-plot's time, form the innovation ν = z − C_x x̄ − C_s ς̂_j and its covariance Λ from the conditional
-(1)–(2) of the package docstring, add the plot's rank-2 term to S, sv, add Hᵀ R⁻¹ H and Hᵀ R⁻¹ z to the
-information blocks, and downdate the bias marginal P_ς −= K_b Λ⁻¹ K_bᵀ, ς̂ += K_b Λ⁻¹ ν. Every kernel
-returns a status code (``OK`` or one of the ``ERR_*`` of :mod:`._layout`) instead of producing NaN.
+plot's time, linearise the plot's model (C_x, C_s of radar j's m_j components, R_eff, d: module
+``_measurement``), form the innovation ν = z − ẑ, ẑ = C_x x̄ + C_s ς̂_j + d, and its covariance Λ from the
+conditional (1)–(2) of the package docstring, add the plot's rank-2 term to S, sv, add Hᵀ R_eff⁻¹ H and
+Hᵀ R_eff⁻¹ (z − d) to the information blocks, and downdate the bias marginal P_ς −= K_b Λ⁻¹ K_bᵀ,
+ς̂ += K_b Λ⁻¹ ν. Every kernel returns a status code (``OK`` or one of the ``ERR_*`` of :mod:`._layout`)
+instead of producing NaN.
 """
 
 from __future__ import annotations

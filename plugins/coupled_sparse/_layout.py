@@ -5,10 +5,11 @@ Radar j's bias block ς_j (its sensor model's m_j = 2 to 4 components) is entrie
 gain and time offset in the block (−1: none). For aircraft slot ``s`` with ``nk[s]`` observing radars
 ``rk[s, :nk[s]]`` (``nk[s] = −1``: a free slot): ``Yxx[s]`` = Y_ii (4×4), ``Yxb[s]`` = Y_ib, the blocks of
 those radars side by side in that order (radar c's m columns after the m's of radars 0 … c−1; the bias
-positions of the columns are :func:`~._linalg.bias_index`), ``ex[s]`` = η_i and ``tx[s]`` the aircraft's epoch. Global: ``Ybb``, ``eb`` (bias information, including what removed aircraft
-taught), the Schur complement ``S`` = Y_bb − Σ_i Y_bi Y_ii⁻¹ Y_ib and ``sv`` = η_b − Σ_i Y_bi Y_ii⁻¹ η_i kept
-incrementally, and the bias marginal ``Pb`` = S⁻¹, ``bh`` = S⁻¹ sv kept by rank-2 updates and reset from S
-every ``refresh_every`` updates.
+positions of the columns are :func:`~._linalg.bias_index`), ``ex[s]`` = η_i and ``tx[s]`` the aircraft's
+epoch. Global: ``Ybb``, ``eb`` (bias information, including what removed aircraft taught), the Schur
+complement ``S`` = Y_bb − Σ_i Y_bi Y_ii⁻¹ Y_ib and ``sv`` = η_b − Σ_i Y_bi Y_ii⁻¹ η_i kept incrementally, and
+the bias marginal ``Pb`` = S⁻¹, ``bh`` = S⁻¹ sv kept by rank-2 updates and reset from S every
+``refresh_every`` updates.
 
 Every array is a view into one float buffer ``F`` and one int buffer ``I`` whose first three entries are
 the dimensions (capacity, radar columns, bias entries), so the compiled update takes a few arguments;

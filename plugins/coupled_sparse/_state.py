@@ -26,8 +26,8 @@ MAX_COUNT = 1 << 53  # update counters (the kernels multiply rebuild_factor by t
 def checked_state(state: object, radars: list[str], widths: list[int], refresh_every: int,
                   rebuild_factor: int) -> dict:
     """The fields of ``state`` (``CoupledSparseEstimator.state_dict``), checked for an estimator with
-    ``radars`` (their sensor models' ``widths`` of bias entries) and these options: arrays as owned float64/int64 copies, ``aircraft`` {key: slot}, ``free``
-    slots, ``bias_time``. Raises :class:`~radartracker.api.InputError` naming the first fault."""
+    ``radars`` (their sensor models' ``widths`` of bias entries) and these options: arrays as owned
+    float64/int64 copies, ``aircraft`` {key: slot}, ``free`` slots, ``bias_time``. Raises :class:`~radartracker.api.InputError` naming the first fault."""
     c = StateCheck("coupled-sparse", state, FIELDS)
     c.names("radars", radars)
     m = len(radars)
