@@ -2,7 +2,7 @@
 
     python benchmarks/bench_scaling.py [--aircraft 10 20 100 500 2000] [--radars 3 10 28] [--budget 1.0]
                                     [--repeat 3] [--rt-aircraft 2000] [--rt-radars 28] [--rt-duration 3600]
-                                    [--out FILE]
+                                    [--components] [--scaling-only] [--out FILE]
 
 1. *Scaling.* The seed's linearised model (as ``radartracker.simulation.linsim``): m radars on a 100 km ring,
    n aircraft inside it, every radar seeing every aircraft once per turn (periods 4–12 s), so each
@@ -12,7 +12,9 @@
    also as ``update_many`` batches of 1,000: ``--repeat`` consecutive windows of ``--budget`` s (or
    their share of the plots), median reported. ``coupled`` runs where its dense covariance fits in
    ``--max-dense-gib``. Memory = what ``tracemalloc`` traces while a new estimator is built, given
-   every aircraft and (sparse) the first turn: its arrays, capacity included.
+   every aircraft and (sparse) the first turn: its arrays, capacity included. With ``--components`` every
+   radar's bias has the sensor error model's four components (range and azimuth offsets, range gain,
+   time offset: 4m bias entries, each plot given its slant range), the issue-30 cost check.
 2. *Real time.* A region of 28 radars on a jittered 7×4 grid (≈200 km apart, range 250 km, periods
    4–12 s, Pd 0.9, constant biases) and traffic of ≈2,000 airborne aircraft (straight flights of
    20–90 min, 200–250 m/s, starting and ending all hour long) for one hour. Plots are generated here in
@@ -43,10 +45,12 @@ import sys
 import time
 import tracemalloc
 
+import attrs
 import numpy as np
 
 from radartracker.estimation.motion import MotionModel
 from radartracker.estimation.base import EstimatorConfig, PlaneMeasurement
+from radartracker.estimation.sensor import BiasComponent
 from radartracker.registry import make_estimator
 from radartracker.pipeline.config import RunConfig
 
@@ -81,7 +85,8 @@ def sweep_times(p_of_t, rxy: np.ndarray, period: float, phase: float, t_scan: np
 
 # --- 1. scaling ----------------------------------------------------------------------------------
 def ring_plots(n: int, m: int, n_plots: int, seed: int):
-    """Every radar sees every aircraft: the first ``n_plots`` plots in time order."""
+    """Every radar sees every aircraft: the first ``n_plots`` plots in time order (t, aircraft, radar, z, C,
+    R, the radar ids, the aircraft's start positions, each plot's slant range)."""
     rng = np.random.default_rng(seed)
     ang = rng.uniform(0, 2 * np.pi, m)
     rxy = 100e3 * np.column_stack([np.sin(ang), np.cos(ang)])
@@ -99,17 +104,27 @@ def ring_plots(n: int, m: int, n_plots: int, seed: int):
     keep = np.argsort(t, kind="stable")
     keep = keep[t[keep] >= 0][:n_plots]
     t, a, src = t[keep], a[keep], src[keep]
-    z, C, R = plane_plots(t, a, src, p0[a] + v[a] * t[:, None], rxy, bias, rng)
+    p = p0[a] + v[a] * t[:, None]
+    z, C, R = plane_plots(t, a, src, p, rxy, bias, rng)
     ids = np.array([f"R{j:02d}" for j in range(m)], object)
-    return t, a, ids[src], z, C, R, list(ids), p0
+    return t, a, ids[src], z, C, R, list(ids), p0, np.linalg.norm(p - rxy[src], axis=1)
 
 
-def state_bytes(name: str, n: int, p0: np.ndarray, ids: list, first_turn: tuple | None) -> int:
+def scaling_config(ids: list[str], components: bool) -> EstimatorConfig:
+    """q = 1; with ``components`` every radar also has a range gain (prior σ 10⁻³) and a time offset (0.5 s)."""
+    config = EstimatorConfig(motion=MotionModel(1.0))
+    if not components:
+        return config
+    extra = (BiasComponent("range_gain", 1e-3), BiasComponent("time_offset", 0.5))
+    return attrs.evolve(config, sensors={r: config.sensor(r).with_components(*extra) for r in ids})
+
+
+def state_bytes(name: str, n: int, p0: np.ndarray, ids: list, first_turn: tuple | None, components: bool) -> int:
     """Bytes that ``tracemalloc`` traces while a new ``name`` estimator is built with ``n`` aircraft and fed
     ``first_turn`` (the arguments of one ``update_many``, or None)."""
     tracemalloc.start()
     try:
-        est = make_estimator(name, EstimatorConfig(motion=MotionModel(1.0)), ids)
+        est = make_estimator(name, scaling_config(ids, components), ids)
         for i in range(n):
             est.add_aircraft(i, 0.0, np.array([*p0[i], 0.0, 0.0]), P0)
         if first_turn is not None:
@@ -122,39 +137,46 @@ def state_bytes(name: str, n: int, p0: np.ndarray, ids: list, first_turn: tuple 
 def windows(step, i: int, per_window: int, repeat: int, budget: float) -> tuple[int, int, float, list[float]]:
     """Time ``repeat`` windows of at most ``per_window`` plots or ``budget`` s (at least 10 plots) each.
 
-    ``step(i)`` processes plots from index i and returns how many. Returns the next index, the plots
-    timed, the median µs per plot over the windows, and each window's µs per plot.
+    ``step(i)`` processes plots from index i and returns how many (0: no plots left, which ends the timing).
+    Returns the next index, the plots timed, the median µs per plot over the windows, and each window's µs
+    per plot.
     """
     rates, total = [], 0
     for _ in range(repeat):
         done, t0 = 0, time.perf_counter()
         while done < per_window and (done < 10 or time.perf_counter() - t0 < budget):
-            done += step(i + done)
+            took = step(i + done)
+            if took == 0:  # out of plots: a window of 1,000-plot batches can overrun its share
+                break
+            done += took
+        if done == 0:
+            break
         rates.append(1e6 * (time.perf_counter() - t0) / done)
         i, total = i + done, total + done
     return i, total, float(np.median(rates)), rates
 
 
-def time_scaling(name: str, n: int, m: int, budget: float, repeat: int, seed: int = 0) -> dict:
+def time_scaling(name: str, n: int, m: int, budget: float, repeat: int, seed: int = 0,
+                 components: bool = False) -> dict:
     sparse = name == "coupled-sparse"
     turn = int(n * m * 1.05) + 10  # plots in one turn of every radar
     n_plots = (2 * turn + 40_000) if sparse else 200 + int(2e5 / (n + m))
-    t, a, radar, z, C, R, ids, p0 = ring_plots(n, m, n_plots, seed)
-    est = make_estimator(name, EstimatorConfig(motion=MotionModel(1.0)), ids)
+    t, a, radar, z, C, R, ids, p0, rho = ring_plots(n, m, n_plots, seed)
+    est = make_estimator(name, scaling_config(ids, components), ids)
     for i in range(n):
         est.add_aircraft(i, 0.0, np.array([*p0[i], 0.0, 0.0]), P0)
     i0 = i_turn = min(turn, len(t) // 2) if sparse else 0
     if sparse:  # one full turn so that every aircraft carries its m bias blocks
-        est.update_many(t[:i0], a[:i0], radar[:i0], z[:i0], C[:i0], R[:i0])
-    out = {"bench": "scaling", "estimator": name, "aircraft": n, "radars": m}
+        est.update_many(t[:i0], a[:i0], radar[:i0], z[:i0], C[:i0], R[:i0], rho[:i0])
+    out = {"bench": "scaling", "estimator": name, "aircraft": n, "radars": m, "components": 4 if components else 2}
 
     def one(i: int) -> int:
-        est.update(PlaneMeasurement(t[i], a[i], radar[i], z[i], C[i], R[i]))
+        est.update(PlaneMeasurement(t[i], a[i], radar[i], z[i], C[i], R[i], rho[i]))
         return 1
 
     def batch(i: int) -> int:
         j = min(i + 1000, len(t))
-        est.update_many(t[i:j], a[i:j], radar[i:j], z[i:j], C[i:j], R[i:j])
+        est.update_many(t[i:j], a[i:j], radar[i:j], z[i:j], C[i:j], R[i:j], rho[i:j])
         return j - i
 
     rest = len(t) - i0
@@ -167,8 +189,9 @@ def time_scaling(name: str, n: int, m: int, budget: float, repeat: int, seed: in
         for r in range(reps):
             est.aircraft(r % n)
         out["us_per_aircraft_read"] = 1e6 * (time.perf_counter() - t0) / reps
-    first = (t[:i_turn], a[:i_turn], radar[:i_turn], z[:i_turn], C[:i_turn], R[:i_turn]) if sparse else None
-    out["state_mib"] = state_bytes(name, n, p0, ids, first) / 2**20
+    first = (t[:i_turn], a[:i_turn], radar[:i_turn], z[:i_turn], C[:i_turn], R[:i_turn], rho[:i_turn]) if sparse \
+        else None
+    out["state_mib"] = state_bytes(name, n, p0, ids, first, components) / 2**20
     return out
 
 
@@ -323,6 +346,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--rt-aircraft", type=int, default=2000)
     ap.add_argument("--rt-radars", type=int, default=28)
     ap.add_argument("--rt-duration", type=float, default=3600.0)
+    ap.add_argument("--scaling-only", action="store_true", help="part 1 only (no real-time, conversion, replay)")
+    ap.add_argument("--components", action="store_true",
+                    help="scaling with every radar's four bias components (range gain and time offset too)")
     ap.add_argument("--out", help="also append the JSON lines to this file")
     args = ap.parse_args(argv)
     rows = []
@@ -342,9 +368,12 @@ def main(argv: list[str] | None = None) -> None:
 
     for m in args.radars:
         for n in args.aircraft:
-            emit(time_scaling("coupled-sparse", n, m, args.budget, args.repeat))
-            if 8 * (4 * n + 2 * m) ** 2 / 2**30 <= args.max_dense_gib:
-                emit(time_scaling("coupled", n, m, args.budget, args.repeat))
+            emit(time_scaling("coupled-sparse", n, m, args.budget, args.repeat, components=args.components))
+            if 8 * (4 * n + (4 if args.components else 2) * m) ** 2 / 2**30 <= args.max_dense_gib:
+                emit(time_scaling("coupled", n, m, args.budget, args.repeat, components=args.components))
+    if args.scaling_only:
+        print_tables(rows)
+        return
     if args.rt_duration > 0:
         emit(time_realtime(args.rt_aircraft, args.rt_radars, args.rt_duration))
         emit(time_conversion(args.rt_radars))
@@ -355,8 +384,9 @@ def main(argv: list[str] | None = None) -> None:
 
 def print_tables(rows: list[dict]) -> None:
     sc = [r for r in rows if r["bench"] == "scaling"]
+    comps = sorted({r.get("components", 2) for r in sc})
     print("\nTime per plot (µs, median of the timing windows) and estimator storage (MiB); every radar sees "
-          "every aircraft")
+          f"every aircraft; bias components per radar: {', '.join(map(str, comps))}")
     print(f"{'m':>3} {'n':>5} | {'coupled':>10} {'MiB':>8} | {'sparse update':>13} {'batch':>7} {'MiB':>6} "
           f"{'read':>6} | {'batch / batch(n=20)':>19}")
     for m in sorted({r['radars'] for r in sc}):

@@ -1,10 +1,12 @@
 """The compiled measurement update, removal and read of the sparse coupled filter (package docstring).
 
 A plot z of aircraft i by radar j (−1: unbiased) is applied in named steps: predict aircraft i to the
-plot's time, form the innovation ν = z − C_x x̄ − C_s ς̂_j and its covariance Λ from the conditional
-(1)–(2) of the package docstring, add the plot's rank-2 term to S, sv, add Hᵀ R⁻¹ H and Hᵀ R⁻¹ z to the
-information blocks, and downdate the bias marginal P_ς −= K_b Λ⁻¹ K_bᵀ, ς̂ += K_b Λ⁻¹ ν. Every kernel
-returns a status code (``OK`` or one of the ``ERR_*`` of :mod:`._layout`) instead of producing NaN.
+plot's time, linearise the plot's model (C_x, C_s of radar j's m_j components, R_eff, d: module
+``_measurement``), form the innovation ν = z − ẑ, ẑ = C_x x̄ + C_s ς̂_j + d, and its covariance Λ from the
+conditional (1)–(2) of the package docstring, add the plot's rank-2 term to S, sv, add Hᵀ R_eff⁻¹ H and
+Hᵀ R_eff⁻¹ (z − d) to the information blocks, and downdate the bias marginal P_ς −= K_b Λ⁻¹ K_bᵀ,
+ς̂ += K_b Λ⁻¹ ν. Every kernel returns a status code (``OK`` or one of the ``ERR_*`` of :mod:`._layout`)
+instead of producing NaN.
 """
 
 from __future__ import annotations
@@ -16,21 +18,22 @@ from radartracker.api import kernel
 from ._layout import (C_ALIVE, C_REBUILD_FACTOR, C_REFRESH_EVERY, C_SINCE_REBUILD, C_SINCE_REFRESH, ERR_LAMBDA,
                       ERR_NONFINITE, ERR_R, ERR_REBUILD, ERR_S, ERR_YII, OK, carve, carve_work)
 from ._linalg import add_contribution, bias_index, chol, conditional, inverse_factor
+from ._measurement import linearise, project
 from ._predict import predict
 from ._refresh import rebuild, refresh
 
 
 @kernel
-def update_rows(F, I, WF, slots, radars, times, z, C, R, out):
-    """:func:`update_one` of rows 0, 1, … in order (aircraft slot, radar index −1 for unbiased, time, z, C_s,
-    R), each row's ν, Λ and NIS into ``out[k]`` ([0:2], [2:6], [6]); returns (status code, the row it
-    stopped at: the number of rows when every one was applied, the latest time applied or NaN)."""
-    mm = I[1]
-    st, wk = carve(F, I), carve_work(WF, 2 * mm)
+def update_rows(F, I, WF, slots, radars, times, z, C, R, rho, out):
+    """:func:`update_one` of rows 0, 1, … in order (aircraft slot, radar index −1 for unbiased, time, z, C,
+    R, slant range ρ), each row's ν, Λ and NIS into ``out[k]`` ([0:2], [2:6], [6]); returns (status code, the
+    row it stopped at: the number of rows when every one was applied, the latest time applied or NaN)."""
+    nb = I[2]
+    st, wk = carve(F, I), carve_work(WF, max(nb, 1))
     io = wk[8]
     latest = np.nan
     for k in range(len(slots)):
-        code = update_one(st, wk, slots[k], radars[k], times[k], z[k], C[k], R[k])
+        code = update_one(st, wk, slots[k], radars[k], times[k], z[k], C[k], R[k], rho[k])
         if code == OK or code == ERR_LAMBDA or code == ERR_S or code == ERR_REBUILD:  # applied or predicted
             if not times[k] <= latest:
                 latest = times[k]
@@ -42,13 +45,14 @@ def update_rows(F, I, WF, slots, radars, times, z, C, R, out):
 
 
 @kernel
-def update_one(st, wk, s, j, t, z, C, R):
-    """Predict aircraft slot s to t and correct it with plot z (C_s = C, noise R) of radar j (−1: unbiased).
-    ν, Λ and the NIS go to ``io`` = wk[8] ([0:2], [2:6], [6]); returns the status code."""
-    Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr, idx = st
+def update_one(st, wk, s, j, t, z, C, R, rho):
+    """Predict aircraft slot s to t and correct it with plot z (base Jacobian C = ∂p/∂(ρ, θ), noise R, slant
+    range ρ) of radar j (−1: unbiased), linearised by :func:`~._measurement.linearise`. ν, Λ and the NIS go
+    to ``io`` = wk[8] ([0:2], [2:6], [6]); returns the status code."""
+    Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr, rt, idx = st
     f4, V, G, W, v4, Kb, LS, LSi, io = wk
     dt = t - tx[s]
-    if not _finite(dt, z, C, R):
+    if not _finite(dt, z, C, R) or (j >= 0 and rt[j, 2] >= 0 and not np.isfinite(rho)):
         return ERR_NONFINITE
     Rs, Lr = f4[12], f4[8]
     for a in range(2):
@@ -56,22 +60,27 @@ def update_one(st, wk, s, j, t, z, C, R):
             Rs[a, b] = 0.5 * (R[a, b] + R[b, a])
     if not chol(Rs, Lr, 2):
         return ERR_R
-    cj = _radar_column(nk, rk, Yxb, s, j)
-    nK = 2 * max(nk[s], 0)
-    bias_index(rk, s, nK // 2, idx)
+    cj = _radar_column(nk, rk, rt, Yxb, s, j)
+    nK = bias_index(rk, rt, s, max(nk[s], 0), idx)
     if dt != 0.0:
         code = predict(Yxx, Yxb, ex, Ybb, eb, s, nK, idx, dt, io[7], f4, V, G, W, v4)
         if code != OK:
             return code
     tx[s] = t
-    L, Li, mx = f4[7], f4[5], v4[3]
+    L, Li, mx, ze = f4[7], f4[5], v4[3], v4[4]
     if not conditional(Yxx, Yxb, ex, s, nK, L, V, v4[2], G, mx):
         return ERR_YII
-    zh0, zh1 = _predicted_measurement(mx, G, bh, idx, nK, C, j)
-    _bias_gain(Pb, G, idx, nK, C, j, Kb)
     inverse_factor(L, f4[3], Li)
+    Cx, Cs, M, CG = f4[13], f4[14], f4[15], W[2:4]
+    w = linearise(G, mx, Li, bh, Pb, idx, nK, rt, j, C, rho, z, Cx, Cs, Rs, ze)
+    if not chol(Rs, Lr, 2):
+        return ERR_R
+    project(Cx, G, Li, nK, CG, M)
+    o = rt[j, 0] if j >= 0 else 0
+    zh0, zh1 = _predicted_measurement(mx, G, bh, idx, nK, Cx, Cs, o, w, z, ze)
+    _bias_gain(Pb, CG, idx, nK, Cs, o, w, Kb)
     Lam, Ll = f4[10], f4[11]
-    _innovation_covariance(Li, G, Kb, idx, nK, Rs, C, j, Lam)
+    _innovation_covariance(M, CG, Kb, idx, nK, Rs, Cs, o, w, Lam)
     if not chol(Lam, Ll, 2):
         return ERR_LAMBDA
     nu0, nu1 = z[0] - zh0, z[1] - zh1
@@ -79,9 +88,9 @@ def update_one(st, wk, s, j, t, z, C, R):
     w1 = (nu1 - Ll[1, 0] * w0) / Ll[1, 1]
     io[0], io[1] = nu0, nu1
     io[2], io[3], io[4], io[5] = Lam[0, 0], Lam[0, 1], Lam[1, 0], Lam[1, 1]
-    if not _schur_update(S, sv, Li, Rs, mx, G, C, z, cj, nK, idx, W, Lam, f4[6]):
+    if not _schur_update(S, sv, M, Rs, mx, Cx, CG, Cs, ze, cj, w, nK, idx, W, Lam, f4[6]):
         return ERR_R
-    _information_update(Yxx[s], Yxb[s], ex[s], Ybb, eb, j, cj, z, C, Lr, f4[9], f4[4])
+    _information_update(Yxx[s], Yxb[s], ex[s], Ybb, eb, o, w, cj, ze, Cx, Cs, Lr, f4[9], f4[4], f4[3])
     _bias_downdate(Pb, bh, Kb, Ll, w0, w1)
     io[6] = w0 * w0 + w1 * w1
     return _maintain(st, wk)
@@ -100,39 +109,45 @@ def _finite(dt, z, C, R):
 
 
 @kernel
-def _radar_column(nk, rk, Yxb, s, j):
-    """The column c of radar j among aircraft s's bias columns, given it (zero Y_ib) if new; −1 for j = −1.
-    The caller guarantees rk[s, :nk[s]] distinct radars, so a new one fits in the row."""
+def _radar_column(nk, rk, rt, Yxb, s, j):
+    """The first of radar j's columns among aircraft s's bias columns, given them (zero Y_ib) if new; −1 for
+    j = −1. The caller guarantees rk[s, :nk[s]] distinct radars, so a new one fits in the row."""
     if j < 0:
         return -1
     k = nk[s]
+    col = 0
     for c in range(k):
         if rk[s, c] == j:
-            return c
+            return col
+        col += rt[rk[s, c], 1]
     rk[s, k] = j
     for r in range(4):
-        Yxb[s, r, 2 * k] = 0.0
-        Yxb[s, r, 2 * k + 1] = 0.0
+        for e in range(rt[j, 1]):
+            Yxb[s, r, col + e] = 0.0
     nk[s] = k + 1
-    return k
+    return col
 
 
 @kernel
-def _predicted_measurement(mx, G, bh, idx, nK, C, j):
-    """ẑ = C_x x̄ + C_s ς̂_j with x̄ = m − G ς̂_K."""
-    zh0, zh1 = mx[0, 0], mx[1, 0]
-    for c in range(nK):
-        zh0 -= G[0, c] * bh[idx[c]]
-        zh1 -= G[1, c] * bh[idx[c]]
-    if j >= 0:
-        zh0 += C[0, 0] * bh[2 * j] + C[0, 1] * bh[2 * j + 1]
-        zh1 += C[1, 0] * bh[2 * j] + C[1, 1] * bh[2 * j + 1]
+def _predicted_measurement(mx, G, bh, idx, nK, Cx, Cs, o, w, z, ze):
+    """ẑ = C_x x̄ + C_s ς̂_j + d with x̄ = m − G ς̂_K and d = z − ze (radar j's w entries from o)."""
+    zh0, zh1 = z[0] - ze[0, 0], z[1] - ze[1, 0]
+    for r in range(4):
+        xr = mx[r, 0]
+        for c in range(nK):
+            xr -= G[r, c] * bh[idx[c]]
+        zh0 += Cx[0, r] * xr
+        zh1 += Cx[1, r] * xr
+    for e in range(w):
+        zh0 += Cs[0, e] * bh[o + e]
+        zh1 += Cs[1, e] * bh[o + e]
     return zh0, zh1
 
 
 @kernel
-def _bias_gain(Pb, G, idx, nK, C, j, Kb):
-    """Kbᵀ = Cov(ς, h) = −Pb[:, K] G[:2]ᵀ + Pb[:, j] Cᵀ (h = C_x χ + C ς_j), one row of Kb per column.
+def _bias_gain(Pb, CG, idx, nK, Cs, o, w, Kb):
+    """Kbᵀ = Cov(ς, h) = −Pb[:, K] (C_x G)ᵀ + Pb[:, J] C_sᵀ (h = H ξ, J radar j's w entries from o), one row
+    of Kb per column.
 
     Pb is exactly symmetric (refresh writes both halves, the downdate's (p, r) and (r, p) terms are the same
     products), so its column c is its row c: contiguous loops over p."""
@@ -143,58 +158,60 @@ def _bias_gain(Pb, G, idx, nK, C, j, Kb):
         K1[p] = 0.0
     for c in range(nK):
         row = Pb[idx[c]]
-        g0, g1 = G[0, c], G[1, c]
+        g0, g1 = CG[0, c], CG[1, c]
         for p in range(nb):
             K0[p] -= row[p] * g0
             K1[p] -= row[p] * g1
-    if j >= 0:
-        r0, r1 = Pb[2 * j], Pb[2 * j + 1]
-        c00, c01, c10, c11 = C[0, 0], C[0, 1], C[1, 0], C[1, 1]
+    for e in range(w):
+        row = Pb[o + e]
+        c0, c1 = Cs[0, e], Cs[1, e]
         for p in range(nb):
-            K0[p] += r0[p] * c00 + r1[p] * c01
-            K1[p] += r0[p] * c10 + r1[p] * c11
+            K0[p] += row[p] * c0
+            K1[p] += row[p] * c1
 
 
 @kernel
-def _innovation_covariance(Li, G, Kb, idx, nK, Rs, C, j, Lam):
-    """Λ = C_x Cov(χ, h) + C_s Cov(ς_j, h) + R with Cov(χ, h) = Σ[:, :2] − G Kb[K] (χ = m − Gς_K + e,
-    Σ = L⁻ᵀL⁻¹ from Li = L⁻¹), exactly symmetric."""
+def _innovation_covariance(M, CG, Kb, idx, nK, Rs, Cs, o, w, Lam):
+    """Λ = C_x Cov(χ, h) + C_s Cov(ς_j, h) + R_eff with Cov(χ, h) = Σ C_xᵀ − G Kb[K] (χ = m − Gς_K + e,
+    C_x Σ C_xᵀ = MᵀM), exactly symmetric."""
     for a in range(2):
         for b in range(2):
             acc = 0.0
             for r in range(4):
-                acc += Li[r, a] * Li[r, b]
+                acc += M[r, a] * M[r, b]
             for c in range(nK):
-                acc -= G[a, c] * Kb[b, idx[c]]
+                acc -= CG[a, c] * Kb[b, idx[c]]
+            for e in range(w):
+                acc += Cs[a, e] * Kb[b, o + e]
             Lam[a, b] = acc + Rs[a, b]
-    if j >= 0:
-        for a in range(2):
-            for b in range(2):
-                Lam[a, b] += C[a, 0] * Kb[b, 2 * j] + C[a, 1] * Kb[b, 2 * j + 1]
     l01 = 0.5 * (Lam[0, 1] + Lam[1, 0])
     Lam[0, 1] = l01
     Lam[1, 0] = l01
 
 
 @kernel
-def _schur_update(S, sv, Li, Rs, mx, G, C, z, cj, nK, idx, W, Om, Lo):
-    """S += H_bᵀ Ω⁻¹ H_b, sv += H_bᵀ Ω⁻¹ (z − C_x m) with H_b = C_s E_j − C_x G, Ω = R + C_x Σ C_xᵀ: the plot
-    with χ_i eliminated through its conditional (a PSD rank-2 term). False if Ω is not positive definite.
-    W, Om, Lo: scratch."""
+def _schur_update(S, sv, M, Rs, mx, Cx, CG, Cs, ze, cj, w, nK, idx, W, Om, Lo):
+    """S += H_bᵀ Ω⁻¹ H_b, sv += H_bᵀ Ω⁻¹ (ze − C_x m) with H_b = C_s E_j − C_x G, Ω = R_eff + C_x Σ C_xᵀ: the
+    plot with χ_i eliminated through its conditional (a PSD rank-2 term; radar j's w columns from cj).
+    False if Ω is not positive definite. W[:2], Om, Lo: scratch (W[2:4] holds CG)."""
     for a in range(2):
         for b in range(2):
             Om[a, b] = Rs[a, b]
             for r in range(4):
-                Om[a, b] += Li[r, a] * Li[r, b]
+                Om[a, b] += M[r, a] * M[r, b]
     if not chol(Om, Lo, 2):
         return False
-    o0 = (z[0] - mx[0, 0]) / Lo[0, 0]
-    o1 = (z[1] - mx[1, 0] - Lo[1, 0] * o0) / Lo[1, 1]
+    r0, r1 = ze[0, 0], ze[1, 0]
+    for r in range(4):
+        r0 -= Cx[0, r] * mx[r, 0]
+        r1 -= Cx[1, r] * mx[r, 0]
+    o0 = r0 / Lo[0, 0]
+    o1 = (r1 - Lo[1, 0] * o0) / Lo[1, 1]
     for c in range(nK):  # W[:2] = L_Ω⁻¹ H_b
-        h0, h1 = -G[0, c], -G[1, c]
-        if c // 2 == cj:
-            h0 += C[0, c % 2]
-            h1 += C[1, c % 2]
+        h0, h1 = -CG[0, c], -CG[1, c]
+        if cj <= c < cj + w:
+            h0 += Cs[0, c - cj]
+            h1 += Cs[1, c - cj]
         f0 = h0 / Lo[0, 0]
         W[0, c] = f0
         W[1, c] = (h1 - Lo[1, 0] * f0) / Lo[1, 1]
@@ -209,37 +226,42 @@ def _schur_update(S, sv, Li, Rs, mx, G, C, z, cj, nK, idx, W, Om, Lo):
 
 
 @kernel
-def _information_update(Y, Yb, e, Ybb, eb, j, cj, z, C, Lr, Ri, RC):
-    """Y += Hᵀ R⁻¹ H, η += Hᵀ R⁻¹ z with H = [C_x at the aircraft, C_s at radar j] (R⁻¹ from R's factor
-    Lr): the aircraft's Y_ii, η_i, its column cj of Y_ib, and Y_jj, η_j. Ri, RC: scratch."""
+def _information_update(Y, Yb, e, Ybb, eb, o, w, cj, ze, Cx, Cs, Lr, Ri, RC, RCs):
+    """Y += Hᵀ R_eff⁻¹ H, η += Hᵀ R_eff⁻¹ ze with H = [C_x at the aircraft, C_s at radar j] (R_eff⁻¹ from its
+    factor Lr): the aircraft's Y_ii, η_i, its columns cj … cj + w − 1 of Y_ib, and radar j's w entries from o
+    of Y_bb, η_b. Ri, RC, RCs: scratch."""
     i00 = 1.0 / Lr[0, 0]
     i11 = 1.0 / Lr[1, 1]
     i10 = -Lr[1, 0] * i00 * i11
     Ri[0, 0] = i00 * i00 + i10 * i10
     Ri[0, 1] = Ri[1, 0] = i10 * i11
     Ri[1, 1] = i11 * i11
-    rz0 = Ri[0, 0] * z[0] + Ri[0, 1] * z[1]
-    rz1 = Ri[1, 0] * z[0] + Ri[1, 1] * z[1]
-    for a in range(2):
-        for b in range(2):
-            Y[a, b] += Ri[a, b]
-    e[0] += rz0
-    e[1] += rz1
-    if j < 0:
+    rz0 = Ri[0, 0] * ze[0, 0] + Ri[0, 1] * ze[1, 0]
+    rz1 = Ri[1, 0] * ze[0, 0] + Ri[1, 1] * ze[1, 0]
+    _gram_update(Cx, Cx, Ri, RC, 4, Y, 0, True)  # C_xᵀ R⁻¹ C_x
+    for a in range(4):
+        e[a] += Cx[0, a] * rz0 + Cx[1, a] * rz1
+    if w == 0:
         return
-    for a in range(2):  # RC = R⁻¹ C
-        for b in range(2):
-            RC[a, b] = Ri[a, 0] * C[0, b] + Ri[a, 1] * C[1, b]
+    _gram_update(Cs, Cx, Ri, RCs, w, Yb, cj, False)  # C_xᵀ R⁻¹ C_s
+    _gram_update(Cs, Cs, Ri, RCs, w, Ybb[o:o + w], o, True)  # C_sᵀ R⁻¹ C_s
+    for a in range(w):
+        eb[o + a] += Cs[0, a] * rz0 + Cs[1, a] * rz1
+
+
+@kernel
+def _gram_update(B, A, Ri, RB, nc, out, col, symmetric):
+    """out[a, col + b] += (Aᵀ R⁻¹ B)[a, b] for the rows a of ``out`` and b < nc (RB = R⁻¹ B: scratch); when
+    ``symmetric`` (A = B, out square from ``col``) the lower triangle is computed and mirrored."""
     for a in range(2):
-        for b in range(2):
-            Yb[a, 2 * cj + b] += RC[a, b]
-    for a in range(2):
-        for b in range(a + 1):
-            d = C[0, a] * RC[0, b] + C[1, a] * RC[1, b]  # Cᵀ R⁻¹ C
-            Ybb[2 * j + a, 2 * j + b] += d
-            if a != b:
-                Ybb[2 * j + b, 2 * j + a] += d
-        eb[2 * j + a] += C[0, a] * rz0 + C[1, a] * rz1  # Cᵀ R⁻¹ z
+        for b in range(nc):
+            RB[a, b] = Ri[a, 0] * B[0, b] + Ri[a, 1] * B[1, b]
+    for a in range(out.shape[0]):
+        for b in range(a + 1 if symmetric else nc):
+            d = A[0, a] * RB[0, b] + A[1, a] * RB[1, b]
+            out[a, col + b] += d
+            if symmetric and b != a:
+                out[b, col + a] += d
 
 
 @kernel
@@ -280,14 +302,14 @@ def _maintain(st, wk):
 def marginalise(st, wk, s):
     """Remove aircraft slot s: Y_bb −= Y_bi Y_ii⁻¹ Y_ib, η_b −= Y_bi Y_ii⁻¹ η_i (S unchanged), slot freed.
     Returns OK, or ERR_YII (nothing changed) if its Y_ii is not positive definite."""
-    Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr, idx = st
+    Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr, rt, idx = st
     f4, V, G, W, v4, Kb, LS, LSi, io = wk
     k = nk[s]
     if k > 0:
-        bias_index(rk, s, k, idx)
-        if not conditional(Yxx, Yxb, ex, s, 2 * k, f4[0], V, v4[0], G, v4[1]):
+        nK = bias_index(rk, rt, s, k, idx)
+        if not conditional(Yxx, Yxb, ex, s, nK, f4[0], V, v4[0], G, v4[1]):
             return ERR_YII
-        add_contribution(Ybb, eb, idx, V, v4[0], 2 * k, -1.0)
+        add_contribution(Ybb, eb, idx, V, v4[0], nK, -1.0)
     nk[s] = -1
     ctr[C_ALIVE] -= 1
     return OK
@@ -296,10 +318,9 @@ def marginalise(st, wk, s):
 @kernel
 def read_aircraft(st, wk, s, out_x, out_P):
     """χ̂_i = m − G ς̂_K and P_i = Y_ii⁻¹ + G Pb[K, K] Gᵀ (no dense matrix formed); False if Y_ii ⋡ 0."""
-    Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr, idx = st
+    Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr, rt, idx = st
     f4, V, G, W, v4, Kb, LS, LSi, io = wk
-    nK = 2 * max(nk[s], 0)
-    bias_index(rk, s, nK // 2, idx)
+    nK = bias_index(rk, rt, s, max(nk[s], 0), idx)
     L, Li = f4[0], f4[1]
     if not conditional(Yxx, Yxb, ex, s, nK, L, V, v4[0], G, v4[1]):
         return False

@@ -93,11 +93,16 @@ def gram(X, out):
 
 
 @kernel
-def bias_index(rk, s, nk, idx):
-    """idx[:2k] = positions in the bias vector of aircraft s's radars, in their storage order."""
+def bias_index(rk, rt, s, nk, idx):
+    """idx[:nK] = positions in the bias vector of aircraft s's columns: the blocks of its nk radars
+    rk[s, :nk] side by side (radar j's rt[j, 1] entries from rt[j, 0]); returns nK."""
+    n = 0
     for c in range(nk):
-        idx[2 * c] = 2 * rk[s, c]
-        idx[2 * c + 1] = 2 * rk[s, c] + 1
+        j = rk[s, c]
+        for e in range(rt[j, 1]):
+            idx[n] = rt[j, 0] + e
+            n += 1
+    return n
 
 
 @kernel

@@ -20,7 +20,7 @@ def rebuild(st, wk):
     """S and sv from the blocks, from scratch, on the storage ``st`` (:func:`~._layout.carve`) with the
     scratch ``wk`` (:func:`~._layout.carve_work`); False (S, sv untouched) if an aircraft's Y_ii is not
     positive definite."""
-    Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr, idx = st
+    Yxx, Yxb, ex, tx, Ybb, eb, S, sv, Pb, bh, nk, rk, ctr, rt, idx = st
     f4, V, G, W, v4, Kb, LS, S_new, io = wk
     sv_new = Kb[0]
     nb = Ybb.shape[0]
@@ -32,10 +32,10 @@ def rebuild(st, wk):
         k = nk[s]
         if k <= 0:  # free slot (−1) or no radar yet: no term
             continue
-        bias_index(rk, s, k, idx)
-        if not conditional(Yxx, Yxb, ex, s, 2 * k, f4[0], V, v4[0], G, v4[1]):
+        nK = bias_index(rk, rt, s, k, idx)
+        if not conditional(Yxx, Yxb, ex, s, nK, f4[0], V, v4[0], G, v4[1]):
             return False
-        add_contribution(S_new, sv_new, idx, V, v4[0], 2 * k, -1.0)
+        add_contribution(S_new, sv_new, idx, V, v4[0], nK, -1.0)
     for a in range(nb):
         sv[a] = sv_new[a]
         for b in range(nb):

@@ -23,17 +23,18 @@ MAX_SLOTS = 1 << 24  # aircraft slots a state may claim (the storage grows by do
 MAX_COUNT = 1 << 53  # update counters (the kernels multiply rebuild_factor by the aircraft count: no overflow)
 
 
-def checked_state(state: object, radars: list[str], refresh_every: int, rebuild_factor: int) -> dict:
+def checked_state(state: object, radars: list[str], widths: list[int], refresh_every: int,
+                  rebuild_factor: int) -> dict:
     """The fields of ``state`` (``CoupledSparseEstimator.state_dict``), checked for an estimator with
-    ``radars`` and these options: arrays as owned float64/int64 copies, ``aircraft`` {key: slot}, ``free``
-    slots, ``bias_time``. Raises :class:`~radartracker.api.InputError` naming the first fault."""
+    ``radars`` (their sensor models' ``widths`` of bias entries) and these options: arrays as owned
+    float64/int64 copies, ``aircraft`` {key: slot}, ``free`` slots, ``bias_time``. Raises :class:`~radartracker.api.InputError` naming the first fault."""
     c = StateCheck("coupled-sparse", state, FIELDS)
     c.names("radars", radars)
     m = len(radars)
-    mm, nb = max(m, 1), 2 * m
+    mm, nb = max(m, 1), sum(widths)
     cap = c.integer("the capacity (length of tx)", len(c.array("tx", (None,))), 0, MAX_SLOTS)
     out = {name: c.array(name, shape) for name, shape in (
-        ("Yxx", (cap, 4, 4)), ("Yxb", (cap, 4, 2 * mm)), ("ex", (cap, 4)), ("tx", (cap,)), ("Ybb", (nb, nb)),
+        ("Yxx", (cap, 4, 4)), ("Yxb", (cap, 4, max(nb, 1))), ("ex", (cap, 4)), ("tx", (cap,)), ("Ybb", (nb, nb)),
         ("eb", (nb,)), ("S", (nb, nb)), ("sv", (nb,)), ("Pb", (nb, nb)), ("bh", (nb,)))}
     out["nk"], out["rk"], out["ctr"] = (c.array(n, shape, "i") for n, shape in (("nk", (cap,)), ("rk", (cap, mm)),
                                                                              ("ctr", (5,))))

@@ -218,7 +218,7 @@ def test_time_offset_of_hovering_traffic_is_unobservable_and_stays_at_its_prior(
         assert {c.component: c.status for c in bound[r]}["range_offset"] == "observable"
 
 
-@pytest.mark.parametrize("name", ["blom", "decoupled", "coupled-sparse"])
+@pytest.mark.parametrize("name", ["blom", "decoupled"])
 def test_estimators_without_the_components_refuse_them(name):
     with pytest.raises(ConfigurationError, match=rf"estimator '{name}' does not support bias component 'range_gain' "
                                                   r"\(radar 'A'\)"):

@@ -37,12 +37,12 @@ def test_the_issue_case_before_and_after():
     assert after.position_rmse_m <= 1.05 * before.position_rmse_m
 
 
-def _monte_carlo(runs: int, duration: float | None) -> dict[tuple[str, str], np.ndarray]:
+def _monte_carlo(runs: int, duration: float | None, estimator: str) -> dict[tuple[str, str], np.ndarray]:
     """(error, σ, √CRLB) of every component over ``runs`` seeds of ``demo`` with the issue's case."""
     out: dict[tuple[str, str], list] = {}
     for seed in range(1, runs + 1):
         data = with_sensor_errors(build_scenario("demo", seed=seed, duration=duration), CASE).run()
-        res = register(data, _full(data, EstimatorConfig(motion=MotionModel(0.0))))
+        res = register(data, _full(data, EstimatorConfig(motion=MotionModel(0.0))), estimator)
         for c in res.components:  # the truth: the simulator's values at the end of the run
             if c.component in ("range_offset", "azimuth_offset"):
                 want = data.truth_biases[c.radar][0 if c.component == "range_offset" else 1]
@@ -52,9 +52,10 @@ def _monte_carlo(runs: int, duration: float | None) -> dict[tuple[str, str], np.
     return {k: np.array(v) for k, v in out.items()}
 
 
-def test_short_monte_carlo_every_component_at_the_bound():
+@pytest.mark.parametrize("estimator", ["coupled", "coupled-sparse"])
+def test_short_monte_carlo_every_component_at_the_bound(estimator):
     """6 runs: the pooled (e/√CRLB)² and NEES (e/σ)² over 12 components inside their two-sided 95 % χ² bands."""
-    mc = _monte_carlo(6, None)
+    mc = _monte_carlo(6, None, estimator)
     e, sd, crlb = (np.concatenate([v[:, i] for v in mc.values()]) for i in range(3))
     lo, hi = chi2.ppf([0.025, 0.975], len(e)) / len(e)
     assert lo < np.mean((e / crlb) ** 2) < hi
@@ -62,14 +63,15 @@ def test_short_monte_carlo_every_component_at_the_bound():
 
 
 @pytest.mark.slow
-def test_monte_carlo_200_runs_each_component_at_the_bound():
+@pytest.mark.parametrize("estimator", ["coupled", "coupled-sparse"])
+def test_monte_carlo_200_runs_each_component_at_the_bound(estimator):
     """200 runs, 12 components. Pooled: (e/√CRLB)² and (e/σ)² inside their 95 % χ² bands (2,400 dof). Per
     component, at a family-wise 5 %: RMSE ≤ 1.133 √CRLB and NEES in [0.737, 1.311] (Bonferroni over 12).
 
     Why not the issue's "RMSE ≤ 1.1 √CRLB" per component: with 200 runs an estimator exactly at the bound
     exceeds 1.1 on a given component with probability 2.3 %, on one of 12 with 24 %; 1.133 is the family-wise
     5 % point, (χ²_200(1 − 0.05/12)/200)^½."""
-    mc = _monte_carlo(200, None)
+    mc = _monte_carlo(200, None, estimator)
     e, sd, crlb = (np.concatenate([v[:, i] for v in mc.values()]) for i in range(3))
     lo, hi = chi2.ppf([0.025, 0.975], len(e)) / len(e)
     assert lo < np.mean((e / crlb) ** 2) < hi and lo < np.mean((e / sd) ** 2) < hi
@@ -81,6 +83,7 @@ def test_monte_carlo_200_runs_each_component_at_the_bound():
         print(key, f"RMSE {rmse:.4g}  sqrt(CRLB) {bound:.4g}  ratio {rmse / bound:.3f}  NEES {nees:.3f}")
         assert rmse <= ratio_max * bound, key
         assert nees_lo < nees < nees_hi, key
+
 
 def test_a_lone_radar_without_adsb_keeps_its_unobservable_components_at_the_prior():
     """R1 alone, no ADS-B: its range gain and time offset carry no information; they are reported unobservable
