@@ -19,7 +19,7 @@ from radartracker_plugins.coupled_sparse._layout import C_SINCE_REFRESH
 from radartracker_plugins.coupled_sparse._linalg import transition
 from radartracker_plugins.coupled_sparse._refresh import refresh
 
-P0 = np.diag([1e4**2, 1e4**2, 300.0**2, 300.0**2])
+from tests.plugins.lifetimes import P0, drive
 
 
 def assert_same_joint(a: tuple, b: tuple, tol: float) -> None:
@@ -37,45 +37,22 @@ def assert_same_cov(Pa: np.ndarray, Pb: np.ndarray, tol: float) -> None:
 
 
 def _drive(ests: list[Estimator], sc, rng: np.random.Generator, lifetime: float, batch: int,
-           coverage: float = 1.0) -> list[tuple]:
+           coverage: float = 1.0) -> list[list[tuple]]:
     """Feed every estimator the same plots; an aircraft's track is deleted (marginalised) and restarted
     under a new key every ``lifetime`` s; joints are compared after each deletion. Each radar sees each
     aircraft with probability ``coverage`` (so aircraft carry different subsets of bias blocks)."""
     sees = {(k, r): rng.random() < coverage for k in sc.initial for r in sc.radar_ids}
-    gen: dict[str, tuple[str, float]] = {}
-    snapshots = []
-    pending: list[PlaneMeasurement] = []
 
-    def flush():
-        if not pending:
-            return
+    def update(ests: list[Estimator], pending: list[PlaneMeasurement]) -> None:
         cols = [m.time for m in pending], [m.aircraft for m in pending], [m.radar for m in pending]
         arrays = [np.array([getattr(m, f) for m in pending]) for f in ("z", "C", "R")]
         nis = [e.update_many(*cols, *arrays).nis for e in ests]
         assert np.allclose(nis[0], nis[1], rtol=1e-8, atol=1e-12)
-        pending.clear()
 
-    for m in sc.measurements:
-        if m.radar is not None and not sees[m.aircraft, m.radar]:
-            continue
-        key, start = gen.get(m.aircraft, (None, 0.0))
-        if key is None or m.time - start > lifetime:
-            flush()
-            if key is not None:
-                for e in ests:
-                    e.remove_aircraft(key)
-                snapshots.append([e.joint() for e in ests])
-            key = f"{m.aircraft}@{m.time:.1f}"
-            gen[m.aircraft] = (key, m.time)
-            prior = m.z if m.radar is None else m.z + rng.normal(0, 300, 2)
-            for e in ests:
-                e.add_aircraft(key, m.time, np.array([*prior, 0.0, 0.0]), P0)
-        pending.append(PlaneMeasurement(m.time, key, m.radar, m.z, m.C, m.R))
-        if len(pending) >= batch:
-            flush()
-    flush()
-    snapshots.append([e.joint() for e in ests])
-    return snapshots
+    plots = [PlaneMeasurement(m.time, m.aircraft, m.radar, m.z, m.C, m.R) for m in sc.measurements
+             if m.radar is None or sees[m.aircraft, m.radar]]
+    return drive(ests, plots, lifetime, batch, update,
+                 lambda m: m.z if m.radar is None else m.z + rng.normal(0, 300, 2))
 
 
 @settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -22,7 +22,8 @@ from radartracker.registry import make_estimator
 from radartracker.simulation.linsim import make_linear_scenario
 from radartracker_plugins.coupled_sparse import CoupledSparseEstimator
 
-P0 = np.diag([1e4**2, 1e4**2, 300.0**2, 300.0**2])
+from tests.plugins.lifetimes import P0, drive
+
 EXTRA = {"gain": (BiasComponent("range_gain", 1e-3),), "time": (BiasComponent("time_offset", 0.5),),
          "both": (BiasComponent("range_gain", 1e-3), BiasComponent("time_offset", 0.5))}
 
@@ -48,39 +49,18 @@ def _plots(sc) -> list[PlaneMeasurement]:
     return out
 
 
-def _drive(ests: list[Estimator], sc, lifetime: float, batch: int) -> list[tuple]:
+def _drive(ests: list[Estimator], sc, lifetime: float, batch: int) -> list[list[tuple]]:
     """The same plots to every estimator (``update_many`` batches of ``batch``); an aircraft's track is
     removed and restarted under a new key every ``lifetime`` s. The joints after each removal and at the end."""
-    gen: dict = {}
-    joints, pending = [], []
 
-    def flush() -> None:
-        if pending:
-            cols = ([m.time for m in pending], [m.aircraft for m in pending], [m.radar for m in pending],
-                    *(np.array([getattr(m, f) for m in pending]) for f in ("z", "C", "R")))
-            nis = [e.update_many(*cols, [m.rho for m in pending]).nis if isinstance(e, CoupledSparseEstimator)
-                   else np.array([e.update(m).nis for m in pending]) for e in ests]
-            np.testing.assert_allclose(nis[1], nis[0], rtol=1e-7, atol=1e-10)
-            pending.clear()
+    def update(ests: list[Estimator], pending: list[PlaneMeasurement]) -> None:
+        cols = ([m.time for m in pending], [m.aircraft for m in pending], [m.radar for m in pending],
+                *(np.array([getattr(m, f) for m in pending]) for f in ("z", "C", "R")))
+        nis = [e.update_many(*cols, [m.rho for m in pending]).nis if isinstance(e, CoupledSparseEstimator)
+               else np.array([e.update(m).nis for m in pending]) for e in ests]
+        np.testing.assert_allclose(nis[1], nis[0], rtol=1e-7, atol=1e-10)
 
-    for m in _plots(sc):
-        key, start = gen.get(m.aircraft, (None, 0.0))
-        if key is None or m.time - start > lifetime:
-            flush()
-            if key is not None:
-                for e in ests:
-                    e.remove_aircraft(key)
-                joints.append([e.joint() for e in ests])
-            key = f"{m.aircraft}@{m.time:.1f}"
-            gen[m.aircraft] = (key, m.time)
-            for e in ests:
-                e.add_aircraft(key, m.time, np.array([*m.z, 0.0, 0.0]), P0)
-        pending.append(attrs.evolve(m, aircraft=key))
-        if len(pending) >= batch:
-            flush()
-    flush()
-    joints.append([e.joint() for e in ests])
-    return joints
+    return drive(ests, _plots(sc), lifetime, batch, update, lambda m: m.z)
 
 
 def _largest_difference(a: tuple, b: tuple) -> tuple[float, float]:
