@@ -5,7 +5,6 @@ which the assessment never sees."""
 
 from __future__ import annotations
 
-import json
 import math
 
 import attrs
@@ -96,24 +95,6 @@ def test_an_unknown_reconstructor_is_refused_before_the_replay(recording, tmp_pa
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "unknown reconstructor 'nope'" in err[0]
     assert not (tmp_path / "out").exists()
-
-
-def test_on_a_local_cluster_the_reconstruction_gives_the_same_reference(recording, tmp_path):
-    """``assess --workers 2``: the flights reconstructed on the slices' LocalCluster give the figures of
-    ``assess`` in this process, on the same folder (the same computation, other
-    processes)."""
-    data, _, _ = recording
-    write_scenario(tmp_path / "rec", data)
-    runs = {}
-    for name, extra in (("one", []), ("dask", ["--workers", "2"])):
-        assert main(["--quiet", "assess", str(tmp_path / "rec"), "--out", str(tmp_path / name), *extra]) == 0
-        runs[name] = json.loads((tmp_path / name / "assessment.json").read_text())
-    one, dask = runs["one"], runs["dask"]
-    assert one["reference"] == dask["reference"] == "adsb+reconstruction" and dask["reference_left_out"] == {}
-    for radar, r in one["radars"].items():
-        for name in ("pd", "range_bias_vs_reference_m", "range_sigma_m", "azimuth_sigma_deg"):
-            got, want = dask["radars"][radar]["figures"][name], r["figures"][name]
-            assert got["n"] == want["n"] and got["value"] == pytest.approx(want["value"], rel=1e-9, abs=1e-12)
 
 
 def test_plots_without_an_address_are_grouped_by_the_system_tracks(recording, assessed):

@@ -75,12 +75,15 @@ def test_slice_boundaries_lose_or_double_nothing(planted):
 
 
 def test_dask_command_gives_the_one_process_figures(tmp_path: Path):
-    """``assess --slice-s 60 --workers 2`` (a LocalCluster) against ``assess``: assessment.json field by field."""
+    """``assess --slice-s 60 --workers 2`` (a LocalCluster) against ``assess``: assessment.json field by field. The
+    truth is taken away, so the reference's flights are reconstructed too, on the same cluster as the slices."""
     assert main(["--quiet", "simulate", str(tmp_path / "s"), "--scenario", "tracking", "--duration", "240"]) == 0
+    (tmp_path / "s" / "truth.csv").unlink()
     assert main(["--quiet", "assess", str(tmp_path / "s"), "--out", str(tmp_path / "one")]) == 0
     assert main(["--quiet", "assess", str(tmp_path / "s"), "--out", str(tmp_path / "dask"), "--slice-s", "60",
                  "--workers", "2"]) == 0
     one, dask = (json.loads((tmp_path / d / "assessment.json").read_text()) for d in ("one", "dask"))
+    assert one["reference"] == dask["reference"] and one["reference"].endswith("reconstruction")
     assert_same_figures(one, dask)
 
 
