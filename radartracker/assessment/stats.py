@@ -65,19 +65,18 @@ def missing(method: str) -> Estimate:
 
 
 def proportion(k: int, n: int) -> Estimate:
-    """k successes in n trials: Wilson's interval, or Clopper–Pearson's when k or n − k is 5 or less
-    (where Wilson's coverage falls below its level); both by ``scipy.stats.binomtest``."""
+    """k successes in n trials with :func:`proportions`' interval: Wilson's, or Clopper–Pearson's when k or n − k
+    is 5 or less (where Wilson's coverage falls below its level)."""
     if n <= 0:
         return missing("wilson")
-    exact = min(k, n - k) <= 5
-    ci = stats.binomtest(k, n).proportion_ci(LEVEL, method="exact" if exact else "wilson")
-    return Estimate(k / n, float(ci.low), float(ci.high), n, "clopper-pearson" if exact else "wilson")
+    p, low, high = (float(v[0]) for v in proportions(np.array([k]), np.array([n])))
+    return Estimate(p, low, high, n, "clopper-pearson" if min(k, n - k) <= 5 else "wilson")
 
 
 def proportions(k: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """k/n with :func:`proportion`'s interval for many bins at once (n > 0): Wilson's closed form, or
-    Clopper–Pearson's [B(α/2; k, n−k+1), B(1−α/2; k+1, n−k)] (0 at k = 0, 1 at k = n) where k or n − k is 5
-    or less — the values ``scipy.stats.binomtest`` gives, at the cost of one vectorised call, not one per bin."""
+    """k/n with its 95 % interval for many bins at once (n > 0): Wilson's closed form
+    (p + z²/2n ± z √(p(1−p)/n + z²/4n²)) / (1 + z²/n), or Clopper–Pearson's [B(α/2; k, n−k+1), B(1−α/2; k+1, n−k)]
+    (0 at k = 0, 1 at k = n) where k or n − k is 5 or less — the values ``scipy.stats.binomtest`` gives."""
     k, n = np.asarray(k, float), np.asarray(n, float)
     p, a = k / n, 1 - LEVEL
     centre, half = p + _Z**2 / (2 * n), _Z * np.sqrt(p * (1 - p) / n + _Z**2 / (4 * n * n))
