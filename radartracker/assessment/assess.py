@@ -39,7 +39,7 @@ from radartracker.assessment.system import REPLAY_LATENCY, assess_system
 from radartracker.assessment.systracks import SystemTrackConfig, read_system_tracks, within
 from radartracker.assessment.tally import RadarTally
 from radartracker.cluster import dask_client
-from radartracker.io.tables import ScenarioData
+from radartracker.io.tables import PlotTable, ScenarioData
 from radartracker.pipeline.config import RunConfig
 from radartracker.pipeline.result import RunResult, strict
 from radartracker.pipeline.run import run
@@ -156,8 +156,8 @@ def assess(data: ScenarioData, profile: Profile, config: AssessmentConfig | None
                                config.slices, progress=progress, client=client)
     codes = reference_codes(reference, tallies)
     observability = result.observability["radars"]
-    radars = [assess_radar(radar, tallies.get(radar.id, RadarTally()), out_of_order(data.plots.time[
-        data.plots.radar == radar.id]), result.final_biases[radar.id], observability.get(radar.id, {}), codes,
+    radars = [assess_radar(radar, tallies.get(radar.id, RadarTally()), time_stamps(data.plots, radar.id),
+                           result.final_biases[radar.id], observability.get(radar.id, {}), codes,
                            reference.kind, config.radar)
               for radar in data.radars]
     if recorded is None:
@@ -167,6 +167,13 @@ def assess(data: ScenarioData, profile: Profile, config: AssessmentConfig | None
                                recorded.no_latency)
     return Assessment(data.name, reference.kind, profile, radars, system.figures, result, system.source,
                       system.not_assessable, reference.left_out)
+
+
+def time_stamps(plots: PlotTable, radar: str) -> tuple[int, np.ndarray]:
+    """The plots of ``radar`` out of time order in the file, and each one's lateness (delivery − time stamp, s;
+    NaN where the recording does not say when it was delivered)."""
+    mine = plots.radar == radar
+    return out_of_order(plots.time[mine]), plots.received[mine] - plots.time[mine]
 
 
 def out_of_order(t: np.ndarray) -> int:

@@ -51,7 +51,7 @@ INDICATORS: dict[str, tuple[str, str]] = {
     "mode_s_correctness": ("Mode S address correctness", "share"),
     "out_of_order_share": ("plots out of time order", "share"),
     "timestamp_jitter_s": ("time stamp − antenna time, σ", "s"),
-    "timestamp_lateness_s": ("time-stamp lateness", "s"),
+    "timestamp_lateness_s": ("time-stamp lateness (delivery − time stamp), 95th percentile", "s"),
     "position_rmse_m": ("system tracks: horizontal position RMS error", "m"),
     "probability_of_update": ("system tracks: probability of update", "share"),
     "breaks_per_flight_hour": ("system tracks: breaks per flight hour", "1/h"),

@@ -33,7 +33,10 @@ estimator's biases):
   the σ of the offsets of the plots used for the random errors from the time their antenna pointed at
   their azimuth (:func:`radartracker.assessment.matching.antenna_offsets`; with an exact clock it is
   σ_θ T/2π; its mean is taken up by the antenna phase t_N, so a constant time-stamp bias does not show
-  here). Lateness needs arrival times, which no scenario format carries: not assessable.
+  here); the lateness, delivery − time stamp (``PlotTable.received − time``, over all the radar's plots): its
+  95th percentile with the order-statistic interval. Only a recording that says when each plot was delivered
+  (a pcap capture) has it; elsewhere not assessable. A plot delivered before its time stamp makes it
+  negative: the recorder's clock or the radar's time stamping is wrong.
 """
 
 from __future__ import annotations
@@ -52,7 +55,7 @@ from radartracker.assessment.tally import RadarTally
 from radartracker.domain import BiasState, Radar
 
 FT = 0.3048
-NOT_ASSESSABLE_LATENESS = "the recording carries no arrival times"
+NOT_ASSESSABLE_LATENESS = "the recording does not say when its plots were delivered (only a pcap capture does)"
 #: the fitted components' figures, and their units' scale from the fit's (m, rad, 1, s)
 FIT_FIGURES = {"range_offset": ("range_bias_vs_reference_m", 1.0), "azimuth_offset": ("azimuth_bias_vs_reference_deg",
                math.degrees(1.0)), "range_gain": ("range_gain_ppm", 1e6), "time_offset": ("time_offset_ms", 1e3)}
@@ -93,15 +96,16 @@ class RadarAssessment:
     ellipse: ErrorEllipse | None = None
 
 
-def assess_radar(radar: Radar, tally: RadarTally, out_of_order: int, bias: BiasState, observability: dict,
-                 codes: dict[str, str], reference_kind: str, config: RadarConfig) -> RadarAssessment:
+def assess_radar(radar: Radar, tally: RadarTally, stamps: tuple[int, np.ndarray], bias: BiasState,
+                 observability: dict, codes: dict[str, str], reference_kind: str,
+                 config: RadarConfig) -> RadarAssessment:
     """The figures of the module docstring for ``radar`` from its sums over the recording (``tally``, every
-    slice's merged: :mod:`radartracker.assessment.tally`) and its count of plots ``out_of_order`` in the file;
-    ``observability``: the coupling graph's report of the radar (:meth:`CouplingGraph.report`: ``status``, the
+    slice's merged: :mod:`radartracker.assessment.tally`) and its time stamps (``stamps``: the count of its
+    plots out of order in the file and each plot's lateness, s, NaN where not known); ``observability``: the coupling graph's report of the radar (:meth:`CouplingGraph.report`: ``status``, the
     estimator's ``measurements``); ``codes``: each reference aircraft's Mode 3/A code."""
     kind = "ssr" if tally.carries.any() else "psr"
     figures: dict[str, Estimate] = {}
-    missing: dict[str, str] = {"timestamp_lateness_s": NOT_ASSESSABLE_LATENESS}
+    missing: dict[str, str] = {}
     _errors(tally, bias, int(observability.get("measurements", 0)), figures)
     components, fit = _sensor_errors(radar.id, tally, figures, missing)
     ellipse = None if fit is None else error_ellipse(radar, tally.sensor, fit, tally.sample)
@@ -122,12 +126,23 @@ def assess_radar(radar: Radar, tally: RadarTally, out_of_order: int, bias: BiasS
     figures |= reach
     missing |= unreached
     _codes(tally, codes, figures, missing)
-    figures["out_of_order_share"] = stats.proportion(out_of_order, tally.plots)
-    figures["timestamp_jitter_s"] = stats.sigma(tally.offsets)
+    _time_stamps(tally, *stamps, figures, missing)
     return RadarAssessment(radar.id, kind, figures, missing, observability.get("status", "unobserved"),
                            pd_bins(crossings, config), tally.error_arrays(),
                            {k: expected[k] for k in ("x", "y", "range_m", "detected")}, components, diagram,
                            counts, ellipse)
+
+
+def _time_stamps(tally: RadarTally, out_of_order: int, lateness: np.ndarray, figures: dict[str, Estimate],
+                 missing: dict[str, str]) -> None:
+    """Ordering, jitter and lateness (module docstring) into ``figures``, or why not into ``missing``."""
+    figures["out_of_order_share"] = stats.proportion(out_of_order, tally.plots)
+    figures["timestamp_jitter_s"] = stats.sigma(tally.offsets)
+    known = lateness[np.isfinite(lateness)]
+    if len(known):
+        figures["timestamp_lateness_s"] = stats.quantile(known, 0.95)
+    else:
+        missing["timestamp_lateness_s"] = NOT_ASSESSABLE_LATENESS
 
 
 def _errors(tally: RadarTally, bias: BiasState, measured: int, figures: dict[str, Estimate]) -> None:

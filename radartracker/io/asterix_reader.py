@@ -4,7 +4,8 @@ updates; the records are decoded by :mod:`radartracker.io.asterix`.
 
 Time: ASTERIX times are seconds of the UTC day. Reading adds ``day_start`` (seconds since 1970 of
 the first day's midnight; from the first packet's time stamp for pcap) and a day each time the time
-of day wraps back by more than half a day: t = D₀ + k · 86400 + tod (:class:`Clock`).
+of day wraps back by more than half a day: t = D₀ + k · 86400 + tod (:class:`Clock`). A pcap packet's
+capture time is when its plots were delivered (``PlotTable.received``; NaN in a raw or FINAL file).
 
 Sites: CAT048 carries no radar site. The sites come from a sidecar ``<file>.radars.csv`` (the
 scenario ``radars.csv`` columns plus ``sac`` and ``sic``), which
@@ -137,7 +138,7 @@ def _read_reports(path: Path, day_start: float, bad: Counter | None,
     # bytes of the file: the blocks, then the framing between them (FINAL, pcap) once all are read; the bar
     # shows on stderr once reading takes 2 s (off with --quiet): decoding is pure Python
     with progress_bar(total=path.stat().st_size, desc=f"read {path.name}", unit="B", unit_scale=True) as bar:
-        for clock, where, block, _ in clocked_blocks(path, bad, day_start):
+        for clock, where, block, stamp in clocked_blocks(path, bad, day_start):
             bar.update(len(block))
             try:
                 cat, recs = decode_block(block, where)
@@ -147,7 +148,7 @@ def _read_reports(path: Path, day_start: float, bad: Counter | None,
                 skipped["asterix_undecodable_blocks"] += 1
                 continue
             if cat == 48:
-                plots += _plots(recs, clock, seen, skipped)
+                plots += _plots(recs, clock, stamp, seen, skipped)
             elif cat == 21:
                 adsb += _adsb(recs, clock, seen, skipped)
             else:
@@ -156,12 +157,14 @@ def _read_reports(path: Path, day_start: float, bad: Counter | None,
     return plots, adsb
 
 
-def _plots(recs: list, clock: Clock, seen: set[tuple], skipped: Counter) -> list[dict]:
-    """The CAT048 records of one block that decode and were not read before."""
+def _plots(recs: list, clock: Clock, stamp: float | None, seen: set[tuple], skipped: Counter) -> list[dict]:
+    """The CAT048 records of one block that decode and were not read before (a record delivered twice is
+    one plot, delivered when first seen); ``received``: the block's capture time (NaN without one)."""
     out = []
     for p in decoded_records(48, recs, decode_cat048, skipped):
         p["time"] = clock(p["tod"])
         if _first(p, seen, skipped, "asterix_cat048_duplicate_records"):
+            p["received"] = math.nan if stamp is None else stamp
             out.append(p)
     return out
 
@@ -215,7 +218,8 @@ def _scenario(name: str, plots: list[dict], adsb: list[dict], site_list: list[Ra
             "time": [p["time"] for p in plots], "radar": [ids[(p["sac"], p["sic"])] for p in plots],
             "range_m": [p["range_m"] for p in plots], "azimuth_rad": [p["azimuth_rad"] for p in plots],
             "altitude_m": [p["altitude_m"] for p in plots], "mode_s": [p["mode_s"] for p in plots],
-            "mode_3a": [p["mode_3a"] for p in plots], "target": [None] * len(plots)}),
+            "mode_3a": [p["mode_3a"] for p in plots], "target": [None] * len(plots),
+            "received": [p["received"] for p in plots]}),
         adsb=AdsbTable.from_columns(**{
             "time": [a["time"] for a in adsb], "icao24": [a["icao24"] for a in adsb],
             "lat": [a["lat"] for a in adsb], "lon": [a["lon"] for a in adsb],

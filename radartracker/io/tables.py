@@ -78,7 +78,12 @@ def _obj(values: Iterable[Any]) -> np.ndarray:
 
 @attrs.define
 class PlotTable:
-    """Radar plots as columns (SI units; ``altitude_m`` NaN and codes ``None`` where absent)."""
+    """Radar plots as columns (SI units; ``altitude_m`` NaN and codes ``None`` where absent).
+
+    ``received``: when each plot was delivered (s, the clock of ``time``), NaN where the recording does not
+    say; a pcap capture says (its packets' time stamps), the scenario formats do not. The assessment's
+    time-stamp lateness is ``received − time``.
+    """
 
     time: np.ndarray
     radar: np.ndarray
@@ -88,14 +93,19 @@ class PlotTable:
     mode_s: np.ndarray
     mode_3a: np.ndarray
     target: np.ndarray
+    received: np.ndarray = attrs.field(
+        default=attrs.Factory(lambda self: np.full(len(self.time), np.nan), takes_self=True))
 
     @classmethod
     def from_columns(cls, **cols: Iterable[Any]) -> PlotTable:
+        """The table of the named columns; ``received`` is optional (NaN: not known)."""
+        time = np.asarray(cols["time"], float)
         return cls(
-            time=np.asarray(cols["time"], float), radar=_obj(cols["radar"]),
+            time=time, radar=_obj(cols["radar"]),
             range_m=np.asarray(cols["range_m"], float), azimuth_rad=np.asarray(cols["azimuth_rad"], float),
             altitude_m=np.asarray(cols["altitude_m"], float), mode_s=_obj(cols["mode_s"]),
             mode_3a=_obj(cols["mode_3a"]), target=_obj(cols["target"]),
+            received=np.asarray(cols["received"], float) if "received" in cols else np.full(len(time), np.nan),
         )
 
     def __len__(self) -> int:
