@@ -2,9 +2,12 @@
 against a scenario's truth, with the replay's track metrics (:func:`radartracker.pipeline.evaluate.
 track_metrics`: continuity, swaps, breaks, false tracks — CLEAR MOT assignment on a 2 s grid).
 
-Each track number's published updates (I070 time, I105 position, I185 velocity) form its history;
-a TSE record ends it. Positions are read from I105 (WGS-84) and projected onto a plane centred on the
-radars' mean position, where the truth is projected too: a capture's I100 plane positions are in the
+Each track's published updates (I070 time, I105 position, I185 velocity) form its history; a track is a
+sender's track number from its first update to a TSE record or a gap of more than
+:attr:`~radartracker.assessment.systracks.SystemTrackConfig.max_gap_s` (trackers reuse numbers:
+:func:`~radartracker.assessment.systracks.split_tracks`, as the assessment reads CAT062). Positions are
+read from I105 (WGS-84) and projected onto a plane centred on the radars' mean position, where the truth
+is projected too: a capture's I100 plane positions are in the
 sending system's own plane, which the capture does not name (scoring I100 as if it were ours gave
 1 675 m RMSE and 8 false tracks on a replay whose plane was centred elsewhere, issue 33), so a capture
 whose updates lack I105 is refused. I185 is taken as it is, in the sender's axes: between two
@@ -18,28 +21,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from radartracker.assessment.systracks import SystemTrackConfig, split_tracks
 from radartracker.errors import InputError
 from radartracker.geometry.plane import SystemPlane
 from radartracker.io.tables import ScenarioData
-from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, track_metrics
+from radartracker.pipeline.evaluate import TruthPaths, track_metrics
 from radartracker.pipeline.result import GRACE_S
-
-
-def cat062_histories(records: list[dict]) -> dict[int, TrackHistory]:
-    """Track number → history of its published updates (the last record wins at equal times)."""
-    per: dict[int, list[dict]] = {}
-    for r in records:
-        per.setdefault(r["track_number"], []).append(r)
-    out = {}
-    for n, recs in per.items():
-        live = sorted({r["time"]: r for r in recs if not r["ended"]}.items())
-        if not live:
-            continue
-        t = np.array([k for k, _ in live], float)
-        states = np.array([[r["x_m"], r["y_m"], r["vx_mps"], r["vy_mps"]] for _, r in live], float)
-        end = max((r["time"] for r in recs if r["ended"]), default=float(t[-1]))
-        out[n] = TrackHistory(t, states, float(t[0]), float(end))
-    return out
 
 
 def placed(records: list[dict], plane: SystemPlane) -> list[dict]:
@@ -73,7 +60,7 @@ def score_cat062(records: list[dict], data: ScenarioData, step_s: float = 2.0) -
         if t.max() - t.min() > GRACE_S:
             observed[str(tg)], first[str(tg)] = (float(t.min()) + GRACE_S, float(t.max())), float(t.min())
     grid = np.arange(data.truth.time.min(), data.truth.time.max(), step_s)
-    metrics = track_metrics(cat062_histories(records), TruthPaths.from_table(data.truth, plane), observed, grid,
-                            first_seen=first)
+    histories, _ = split_tracks(records, SystemTrackConfig().max_gap_s)
+    metrics = track_metrics(histories, TruthPaths.from_table(data.truth, plane), observed, grid, first_seen=first)
     metrics.pop("gospa", None)
     return metrics | {"positions": "I105 (WGS-84)"}

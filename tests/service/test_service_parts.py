@@ -128,34 +128,68 @@ def test_asterix_import_day_start(tmp_path, capsys):
         main(["asterix-import", str(tmp_path / "r.ast"), "--out", str(tmp_path / "x"), "--day-start", "tomorrow"])
 
 
-def test_cat062_scoring_is_the_replays_evaluation_of_the_same_states():
-    """Records carrying a replay's reported states (positions as WGS-84) score as the replay evaluates itself."""
+@pytest.fixture(scope="module")
+def replayed_records():
+    """A replay of 15 minutes of traffic over 4 radars (its plane centred on the radars' mean position, as the
+    service's) and its reported states as CAT062 records would carry them (positions as WGS-84), numbered by
+    track id."""
     import attrs
     import numpy as np
 
     from radartracker.pipeline.config import RunConfig
     from radartracker.pipeline.run import run
-    from radartracker.service.score import score_cat062
-    from radartracker.simulation.scenarios import build_scenario
+    from radartracker.simulation.traffic import traffic_scenario
 
-    data = build_scenario("tracking", seed=3, duration=120).run()
-    # the service's plane: centred on the radars' mean position
+    data = traffic_scenario(seed=2, duration=900.0, aircraft=30, radars=4).run()  # aircraft come and go
     data = attrs.evolve(data, reference=(float(np.mean([r.lat for r in data.radars])),
                                          float(np.mean([r.lon for r in data.radars]))))
     res = run(data, RunConfig(association="manager"), progress=False)
     ev = res.events
     lat, lon = res.plane.to_geodetic(ev.state[:, 0], ev.state[:, 1])
-    records = [{"track_number": int(ev.track[i]), "time": float(ev.time[i]), "x_m": ev.state[i, 0],
-                "y_m": ev.state[i, 1], "vx_mps": ev.state[i, 2], "vy_mps": ev.state[i, 3],
+    records = [{"sac": 0, "sic": 100, "track_number": int(ev.track[i]), "time": float(ev.time[i]),
+                "x_m": ev.state[i, 0], "y_m": ev.state[i, 1], "vx_mps": ev.state[i, 2], "vy_mps": ev.state[i, 3],
                 "lat": float(lat[i]), "lon": float(lon[i]), "ended": ev.kind[i] == "deleted"}
                for i in range(len(ev.time)) if ev.kind[i] in ("confirmed", "updated", "deleted")]
-    expected = res.evaluation["tracking"]
-    got = score_cat062(records, data)
+    return data, res, records
+
+
+def _scores_as_replay(got: dict, expected: dict) -> None:
     assert got["positions"] == "I105 (WGS-84)"
     assert expected["confirmed_tracks"] > 0
     for key in ("continuity_min", "swaps", "breaks", "false_tracks", "confirmed_tracks", "position_rmse_m"):
         # positions go through WGS-84 and back (I105): micrometres
         assert got[key] == pytest.approx(expected[key], rel=1e-6), key
+
+
+def test_cat062_scoring_is_the_replays_evaluation_of_the_same_states(replayed_records):
+    """Records carrying a replay's reported states (positions as WGS-84) score as the replay evaluates itself."""
+    from radartracker.service.score import score_cat062
+
+    data, res, records = replayed_records
+    _scores_as_replay(score_cat062(records, data), res.evaluation["tracking"])
+
+
+def test_cat062_scoring_with_reused_track_numbers(replayed_records):
+    """The same records numbered as a tracker with a pool of numbers does it (a deleted track's number goes back
+    to the pool, a new track takes the lowest free one): one number names several tracks over the capture, and
+    the score is still the replay's own evaluation (a number is a track only until its TSE record)."""
+    from radartracker.service.score import score_cat062
+
+    data, res, records = replayed_records
+    number, free, renumbered = {}, [], []
+    for r in records:
+        if r["track_number"] not in number:
+            number[r["track_number"]] = min(free) if free else len(number) + 1
+            free = [n for n in free if n != number[r["track_number"]]]
+        renumbered.append(r | {"track_number": number[r["track_number"]]})
+        if r["ended"]:
+            free.append(number[r["track_number"]])
+    named = {}  # number → the tracks with updates under it
+    for r, new in zip(records, renumbered):
+        if not r["ended"]:
+            named.setdefault(new["track_number"], set()).add(r["track_number"])
+    assert max(len(v) for v in named.values()) >= 2  # a number named two confirmed tracks
+    _scores_as_replay(score_cat062(renumbered, data), res.evaluation["tracking"])
 
 
 @pytest.mark.parametrize("reference", ["centroid", "away"])
