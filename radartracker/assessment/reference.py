@@ -181,7 +181,8 @@ class Reference:
         track indicators of :func:`radartracker.pipeline.evaluate.track_metrics`."""
         out = {}
         for key, tr in self.tracks.items():
-            t = np.append(np.arange(tr.times[0], tr.times[-1], step_s), tr.times[-1])
+            grid = np.arange(tr.times[0], tr.times[-1], step_s)  # may end on the last time, or a hair before it
+            t = np.append(grid[grid < tr.times[-1] - 0.5 * step_s], tr.times[-1])
             x, y, _ = tr.trajectory.position(t)
             p = np.stack([x, y], axis=-1)
             out[key] = (t, p, np.gradient(p, t, axis=0) if len(t) > 1 else np.zeros_like(p))

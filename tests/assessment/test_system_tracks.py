@@ -210,3 +210,25 @@ def test_order_statistic_and_zero_share_intervals():
     z = stats.share_of_units(np.zeros(12), np.full(12, 100.0))
     assert (z.value, z.low) == (0.0, 0.0) and z.high == pytest.approx(1 - 0.025 ** (1 / 12))
     assert z.high == pytest.approx(sps.beta.ppf(0.975, 1, 12))
+
+
+def test_reference_paths_have_no_repeated_time(demo_data):
+    """The reference's paths on a 1 s grid end at the reference's last time: with times 1.4 … 4.4 s numpy's
+    arange(1.4, 4.4, 1) already ends on 4.4, and appending the last time again made a zero step whose velocity
+    was 0/0. Every time distinct, every velocity finite, the last step between 0.5 and 1.5 s."""
+    import attrs
+    import warnings
+
+    from radartracker.assessment.reference import build_reference
+    from radartracker.io.tables import TruthTable
+
+    tr = demo_data.truth
+    k = np.flatnonzero(tr.target == tr.target[0])[:7]
+    truth = TruthTable(time=1.4 + 0.5 * np.arange(7), target=tr.target[k], lat=tr.lat[k], lon=tr.lon[k],
+                       altitude_m=tr.altitude_m[k])
+    assert np.arange(1.4, 4.4, 1.0)[-1] == 4.4  # the case
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        (t, _, v), = build_reference(attrs.evolve(demo_data, truth=truth)).paths().paths.values()
+    assert t[0] == 1.4 and t[-1] == 4.4 and np.all(np.diff(t) > 0.5 - 1e-9) and np.all(np.diff(t) < 1.5)
+    assert np.all(np.isfinite(v))
