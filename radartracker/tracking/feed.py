@@ -72,14 +72,29 @@ class EstimatorFeed:
         self.failed = failed
         self.pending: list[Operation] = []
         self.on_nis: Callable[[np.ndarray], None] | None = None  # given each update_many's NIS values
+        # each radar's state and (ς̂, P_ς) since the last flush (the estimator and the coupling graph change only
+        # there), and its prior covariance (the estimator's config does not change)
+        self._states: dict[str, BiasState] = {}
         self._biases: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self._priors: dict[str, np.ndarray] = {}
 
     def state(self, radar: str) -> BiasState:
         """``radar``'s bias estimate as the manager uses and reports it: the estimator's, with the components
         the data do not inform (the radar isolated in the coupling graph, or a variance still near the prior's)
         held at their prior (:func:`~radartracker.estimation.observability.held_at_prior`)."""
-        est = self.estimator
-        return held_at_prior(est.bias(radar), est.config.sensor(radar).prior(), self.coupling.isolated(radar))
+        state = self._states.get(radar)
+        if state is None:
+            est = self.estimator
+            prior = self._priors.get(radar)
+            if prior is None:
+                prior = self._priors[radar] = est.config.sensor(radar).prior()
+            state = self._states[radar] = held_at_prior(est.bias(radar), prior, self.coupling.isolated(radar))
+        return state
+
+    def forget(self) -> None:
+        """Read the estimator and the coupling graph again at the next :meth:`state` (after a flush, or once
+        their state was loaded from a snapshot)."""
+        self._states, self._biases = {}, {}
 
     def bias(self, radar: str | None) -> tuple[np.ndarray, np.ndarray]:
         """(ς̂, P_ς) of ``radar`` (:meth:`state`) as at the frame's start (zeros for an unbiased source,
@@ -98,7 +113,7 @@ class EstimatorFeed:
     def flush(self) -> None:
         """Apply the queued operations in order, each run of measurements in one ``update_many``."""
         ops, self.pending = self.pending, []
-        self._biases = {}
+        self.forget()
         name = f"estimator {self.estimator.name!r}"
         for kind, group in itertools.groupby(ops, type):
             if kind is Measure:

@@ -261,6 +261,7 @@ def load_document(mgr: Any, doc: Any) -> None:
     _need(isinstance(doc["estimator"], bytes) and isinstance(doc["coupling"], bytes), "estimator, coupling: bytes")
     mgr.estimator.load_state_dict(decode(doc["estimator"]))
     mgr.coupling.load_state_dict(decode(doc["coupling"]))
+    mgr.feed.forget()
     live = {t.id for t in tracks if t.status != "tentative"}
     _need(set(mgr.estimator.aircraft_keys) == live, "estimator: its aircraft are not the confirmed tracks")
     mgr.counts.update(counts)
