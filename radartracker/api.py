@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from radartracker.estimation.measurement import convert_plots, fill_altitudes, plot_keys
     from radartracker.estimation.motion import MotionModel
     from radartracker.estimation.screening import bias_correct_into, position_d2
-    from radartracker.estimation.sensor import BiasComponent, SensorModel
+    from radartracker.estimation.sensor import BiasComponent, EXTRA_PRIOR_SD, SensorModel
     from radartracker.estimation.state import StateCheck
     from radartracker.geometry.kinematics import propagate
     from radartracker.geometry.plane import RadarFrame, SystemPlane
@@ -57,7 +57,7 @@ _EXPORTS = {
     "radartracker.estimation.measurement": ("convert_plots", "fill_altitudes", "plot_keys"),
     "radartracker.estimation.motion": ("MotionModel",),
     "radartracker.estimation.screening": ("bias_correct_into", "position_d2"),
-    "radartracker.estimation.sensor": ("BiasComponent", "SensorModel"),
+    "radartracker.estimation.sensor": ("BiasComponent", "EXTRA_PRIOR_SD", "SensorModel"),
     "radartracker.estimation.state": ("StateCheck",),
     "radartracker.geometry.kinematics": ("propagate",),
     "radartracker.geometry.plane": ("RadarFrame", "SystemPlane"),

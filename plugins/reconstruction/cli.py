@@ -55,6 +55,9 @@ def register_reconstruct(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--estimate-biases", action="store_true",
                    help="estimate the radar biases jointly with every flight's trajectory (the default for a "
                         "scenario folder without --truth-biases or --biases; for .new4 input with --radars on request)")
+    p.add_argument("--components", default="", metavar="NAME,...",
+                   help="with the joint estimate: bias components beyond the range and azimuth offsets, of every "
+                        "radar (range_gain, time_offset; scenario input only: a range gain needs the slant ranges)")
     p.add_argument("--keep-biases", action="store_true",
                    help="scenario input: reconstruct the plots as they are, radar biases left in "
                         "(the behaviour before the joint estimate became the default)")
@@ -117,6 +120,20 @@ def _check_grid(tracks, grid: float) -> None:
                                  f"get {points:.3g} track points (at most {MAX_GRID_POINTS:,}); choose a larger grid")
 
 
+def _components(args: argparse.Namespace) -> tuple[str, ...]:
+    """The extra bias components ``--components`` names (a ConfigurationError for an unknown one, or where no
+    joint estimate is made, or for .new4 input, whose plots carry no slant range)."""
+    names = tuple(n.strip() for n in args.components.split(",") if n.strip())
+    if unknown := [n for n in names if n not in ("range_gain", "time_offset")]:
+        raise ConfigurationError(f"--components: unknown {unknown[0]!r}; known: range_gain, time_offset")
+    if names and not (len(args.inputs) == 1 and args.inputs[0].is_dir()):
+        raise ConfigurationError("--components: scenario input only (.new4 plots carry no slant range)")
+    if names and not _estimate_biases(args):
+        raise ConfigurationError("--components: only with the joint estimate of the biases (not with --truth-biases, "
+                                 "--biases or --keep-biases)")
+    return names
+
+
 def _select(tracks, flights: str | None):
     """The tracks named by ``--flights ID,...`` (all when None); an unknown ID is an error."""
     if not flights:
@@ -159,7 +176,7 @@ def _results(tracks, cfg, ex, args: argparse.Namespace, summary: dict, notes: li
                      "estimated; the plots are reconstructed as they are (give --biases to remove known ones)")
         summary["biases_removed"] = "none: no aircraft seen by two radars"
         return run_many(tracks, cfg, ex, args.batch_plots, not args.quiet)
-    results, joint = estimate_jointly(tracks, cfg, ex, args.batch_plots, not args.quiet, radars)
+    results, joint = estimate_jointly(tracks, cfg, ex, args.batch_plots, not args.quiet, radars, _components(args))
     summary["biases_removed"] = "estimated jointly"
     summary["joint_biases"] = joint
     return results
@@ -177,6 +194,7 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
     _check_options(args)
     if sum(map(bool, (args.truth_biases, args.biases, args.estimate_biases, args.keep_biases))) > 1:
         raise ConfigurationError("give at most one of --truth-biases, --biases, --estimate-biases, --keep-biases")
+    _components(args)  # refused before any work
     try:
         cfg = ReconstructionConfig(max_u=args.max_u, max_w=args.max_w, loss=args.loss, hypotheses=args.hypotheses,
                                    grid_dt=args.grid, shooting=not args.no_shooting,

@@ -5,7 +5,11 @@ The coupled idea applied to reconstruction: one criterion over all flights f and
     J(tracks, ς) = Σ_f Σ_{i ∈ f} ½ (z_i − C_i ς_{j(i)} − p_f(t_i))ᵀ R_i⁻¹ (…) + Σ_j ½ ς_jᵀ Σ₀⁻¹ ς_j
 
 (a weak prior Σ₀ = diag(:data:`PRIOR_SD`²) keeps a radar that shares no aircraft with others
-bounded), minimised in rounds of two steps:
+bounded), minimised in rounds of two steps. With more components (``components``: a range gain, a time
+offset; :func:`joint_model`) C_i ς_j becomes B_i ς_j, B_i = [c_ρ, c_θ, ρ_i c_ρ, −v(t_i)]
+(:meth:`radartracker.api.SensorModel.jacobians`), the velocity v(t_i) the flight's reconstruction of the round
+before (a Gauss–Newton linearisation, as the filters take their predicted velocity), their priors
+:data:`radartracker.api.EXTRA_PRIOR_SD`:
 
 1. every flight reconstructed with the current biases removed (the full hypothesis search first,
    then least-squares refits of the selected hypothesis, :func:`~.hypotheses.refit`);
@@ -13,7 +17,7 @@ bounded), minimised in rounds of two steps:
    (:func:`bias_step`; alternating exact block minima instead — GLS of the biases given the
    tracks — crept: 4 rounds reached 33 of 80 m of a range bias on the ``manoeuvres`` scenario);
 
-until no bias moves by more than 0.5 m / 0.001°, or :data:`MAX_ROUNDS` rounds; then a final full
+until no bias moves by more than :data:`TOL` (0.5 m, 0.001°, 1 ppm, 1 ms), or :data:`MAX_ROUNDS` rounds; then a final full
 search with the last biases. A bias direction that the geometry cannot tell from a shift of every
 track (e.g. one radar only) is held by the prior alone — and there it wanders: on the ``demo`` scenario
 seen by its radar R1 alone the estimate went to 106 m, −0.13° (truth 120 m, +0.15°; sd 12 m, 0.47°) and
@@ -30,17 +34,42 @@ from concurrent.futures import Executor
 import attrs
 import numpy as np
 
+from radartracker.api import EXTRA_PRIOR_SD, BiasComponent, SensorModel
 from radartracker_plugins.reconstruction.biases import BiasEstimate, debias
 from radartracker_plugins.reconstruction.config import ReconstructionConfig
 from radartracker_plugins.reconstruction.engine import Failure, batches, run_many
 from radartracker_plugins.reconstruction.fit import ControlObjective
 from radartracker_plugins.reconstruction.hypotheses import Reconstruction, refit
+from radartracker_plugins.reconstruction.integrate import sample
 from radartracker_plugins.reconstruction.objects import PlotTrack
 from radartracker_plugins.reconstruction.weight import TrackWeight
 
 PRIOR_SD = np.array([1000.0, math.radians(1.0)])  # m, rad: weak, far wider than real radar biases
 MAX_ROUNDS = 4
-TOL = np.array([0.5, math.radians(0.001)])
+#: the change of each component below which the rounds stop (SI units: m, rad, 1, s)
+TOL = {"range_offset": 0.5, "azimuth_offset": math.radians(0.001), "range_gain": 1e-6, "time_offset": 1e-3}
+#: a component's figure in the summary: (key, scale from SI, decimals)
+SUMMARY = {"range_offset": ("range_bias_m", 1.0, 2), "azimuth_offset": ("azimuth_bias_deg", math.degrees(1.0), 5),
+           "range_gain": ("range_gain_ppm", 1e6, 2), "time_offset": ("time_offset_ms", 1e3, 2)}
+
+
+def joint_model(components: Collection[str] = ()) -> SensorModel:
+    """The sensor model the joint mode estimates for every radar: the range and azimuth offsets with the weak
+    :data:`PRIOR_SD`, and ``components`` (``range_gain``, ``time_offset``) with
+    :data:`radartracker.api.EXTRA_PRIOR_SD`."""
+    return SensorModel.default(*PRIOR_SD).with_components(*(BiasComponent(n, EXTRA_PRIOR_SD[n]) for n in components))
+
+
+def velocities(rec: Reconstruction) -> np.ndarray:
+    """The reconstructed plane velocity (n × 2, m/s) at each of the flight's plot times: v (sin φ, cos φ)."""
+    s = sample(rec.control, rec.plots.t)
+    return np.column_stack([s[:, 3] * np.sin(s[:, 2]), s[:, 3] * np.cos(s[:, 2])])
+
+
+def corrected(pt: PlotTrack, biases: dict[str, BiasEstimate], rec: Reconstruction | None) -> PlotTrack:
+    """``pt`` with ``biases`` removed, a time offset's column at the velocities of ``rec`` (its reconstruction)."""
+    moving = rec is not None and any("time_offset" in b.model.names for b in biases.values())
+    return debias(pt, biases, velocities(rec) if moving else None)
 
 
 def shared_radars(tracks: list[PlotTrack]) -> set[str]:
@@ -72,31 +101,19 @@ def bias_step(tracks: list[PlotTrack], recs: dict[str, Reconstruction], biases: 
     """
     seen = {str(r) for pt in tracks for r in pt.radar}
     radars = sorted(r for r in seen if estimated is None or r in estimated)
-    col = {r: 2 * i for i, r in enumerate(radars)}
-    m = 2 * len(radars)
-    prior = np.kron(np.eye(len(radars)), np.diag(1.0 / PRIOR_SD**2))
+    models = {r: biases[r].model for r in radars}
+    col = dict(zip(radars, np.cumsum([0] + [models[r].size for r in radars]).tolist()))
+    m = sum(model.size for model in models.values())
+    prior = np.zeros((m, m))
+    for r in radars:
+        prior[col[r]:col[r] + models[r].size, col[r]:col[r] + models[r].size] = np.linalg.inv(models[r].prior())
     s0 = np.concatenate([biases[r].value for r in radars])
     A, b = prior.copy(), -prior @ s0
     for pt in tracks:
         rec = recs.get(pt.key)
         if rec is None:
             continue
-        fixed = rec.plots  # the plots as fitted, current biases removed
-        t0 = float(fixed.t[0])
-        rel = attrs.evolve(fixed, t=fixed.t - t0)
-        ct = rec.control.shifted(-t0)
-        obj = ControlObjective(TrackWeight(rel, cfg.loss, cfg.loss_c), rel.t, 0.0, ct.t_end, len(ct), cfg)
-        theta = obj.pack((ct.initial.x, ct.initial.y, ct.initial.phi, ct.initial.v), ct.u, ct.w,
-                         np.array([s.t_start for s in ct] + [ct.t_end]))
-        r = obj.residuals(theta)[:-1]
-        J = obj.jacobian(theta)[:-1]
-        G = np.zeros((len(r), m))
-        LC = -np.einsum("nij,njk->nik", obj.weight.Linv, pt.C)  # ∂r/∂ς of each plot (2×2)
-        for radar in {str(r) for r in set(pt.radar)} & set(col):
-            sel = np.flatnonzero(pt.radar == radar)
-            c = col[radar]
-            for j in range(2):
-                G[2 * sel + j, c:c + 2] = LC[sel, j, :]
+        r, J, G = _flight_terms(pt, rec, models, col, m, cfg)
         U, sv, _ = np.linalg.svd(J, full_matrices=False)
         U = U[:, sv > sv[0] * 1e-10]
         Gp = G - U @ (U.T @ G)
@@ -104,8 +121,35 @@ def bias_step(tracks: list[PlotTrack], recs: dict[str, Reconstruction], biases: 
         b -= Gp.T @ r
     cov = np.linalg.inv(A)
     step = cov @ b
-    return {r: BiasEstimate(biases[r].value + step[col[r]:col[r] + 2], cov[col[r]:col[r] + 2, col[r]:col[r] + 2])
+    return {r: BiasEstimate(biases[r].value + step[col[r]:col[r] + models[r].size],
+                            cov[col[r]:col[r] + models[r].size, col[r]:col[r] + models[r].size], models[r])
             for r in radars}
+
+
+def _flight_terms(pt: PlotTrack, rec: Reconstruction, models: dict[str, SensorModel], col: dict[str, int], m: int,
+                  cfg: ReconstructionConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(r_f, J_θ, G_f) of one flight (:func:`bias_step`): its whitened residuals at its fit, their Jacobian in the
+    track's parameters and in the biases of ``models`` (columns ``col``), G = −L⁻¹ B."""
+    fixed = rec.plots  # the plots as fitted, current biases removed
+    t0 = float(fixed.t[0])
+    rel = attrs.evolve(fixed, t=fixed.t - t0)
+    ct = rec.control.shifted(-t0)
+    obj = ControlObjective(TrackWeight(rel, cfg.loss, cfg.loss_c), rel.t, 0.0, ct.t_end, len(ct), cfg)
+    theta = obj.pack((ct.initial.x, ct.initial.y, ct.initial.phi, ct.initial.v), ct.u, ct.w,
+                     np.array([s.t_start for s in ct] + [ct.t_end]))
+    r = obj.residuals(theta)[:-1]
+    J = obj.jacobian(theta)[:-1]
+    G = np.zeros((len(r), m))
+    moving = any("time_offset" in model.names for model in models.values())
+    v = velocities(rec) if moving else None
+    for radar in {str(x) for x in set(pt.radar)} & set(col):
+        sel = np.flatnonzero(pt.radar == radar)
+        model = models[radar]
+        B = model.jacobians(pt.C[sel], pt.rho[sel], None if v is None else v[sel])
+        LB = -np.einsum("nij,njk->nik", obj.weight.Linv[sel], B)  # ∂r/∂ς of each plot (2 × m_j)
+        for j in range(2):
+            G[2 * sel + j, col[radar]:col[radar] + model.size] = LB[:, j, :]
+    return r, J, G
 
 
 def _refit_batch(pairs: list[tuple[Reconstruction, PlotTrack]], cfg: ReconstructionConfig) -> list[Reconstruction]:
@@ -113,25 +157,30 @@ def _refit_batch(pairs: list[tuple[Reconstruction, PlotTrack]], cfg: Reconstruct
 
 
 def joint_rounds(tracks: list[PlotTrack], recs: dict[str, Reconstruction], cfg: ReconstructionConfig,
-                 ex: Executor | None = None, batch_plots: int = 500, radars: Collection[str] | None = None
-                 ) -> tuple[dict[str, Reconstruction], dict[str, BiasEstimate], int, float]:
+                 ex: Executor | None = None, batch_plots: int = 500, radars: Collection[str] | None = None,
+                 components: Collection[str] = ()) -> tuple[dict[str, Reconstruction], dict[str, BiasEstimate], int, float]:
     """Rounds of (bias step, refits) from ``recs`` (each flight's fit at zero biases) until no bias moves by
     more than :data:`TOL` or :data:`MAX_ROUNDS`: (refitted recs, biases with covariance, rounds, the last
-    change in units of TOL). The biases are those of the last :func:`bias_step`, with its covariance; only
-    those of ``radars`` (all when None) are estimated, the others stay zero."""
-    biases = {radar: BiasEstimate(np.zeros(2)) for radar in {r for pt in tracks for r in pt.radar}}
+    change in units of TOL). The biases are those of the last :func:`bias_step`, with its covariance, in the
+    components of :func:`joint_model` (``components``); only those of ``radars`` (all when None) are
+    estimated, the others stay zero."""
+    model = joint_model(components)
+    tol = np.array([TOL[n] for n in model.names])
+    biases = {radar: BiasEstimate(np.zeros(model.size), model=model) if radars is None or radar in radars
+              else BiasEstimate(np.zeros(2)) for radar in {r for pt in tracks for r in pt.radar}}
     if radars is not None and not set(radars) & set(biases):
         return recs, biases, 0, 0.0
     by_key = {pt.key: pt for pt in tracks}
     rounds, change = 0, np.inf
     for rounds in range(1, MAX_ROUNDS + 1):
         new = bias_step(tracks, recs, biases, cfg, radars)
-        change = max(float(np.max(np.abs(new[r].value - biases[r].value) / TOL)) for r in new)
+        change = max(float(np.max(np.abs(new[r].value - biases[r].value) / tol)) for r in new)
         biases.update(new)
         if change <= 1.0:
             break
-        corrected = {k: debias(by_key[k], {r: e.value for r, e in biases.items()}) for k in recs}
-        work = batches([corrected[k] for k in recs], batch_plots)
+        fixed = {k: corrected(by_key[k], {r: BiasEstimate(e.value, model=e.model) for r, e in biases.items()},
+                              recs[k]) for k in recs}
+        work = batches([fixed[k] for k in recs], batch_plots)
         pairs = [[(recs[pt.key], pt) for pt in batch] for batch in work]
         if ex is None:
             done = [_refit_batch(p, cfg) for p in pairs]
@@ -142,10 +191,11 @@ def joint_rounds(tracks: list[PlotTrack], recs: dict[str, Reconstruction], cfg: 
 
 
 def estimate_jointly(tracks: list[PlotTrack], cfg: ReconstructionConfig, ex: Executor | None, batch_plots: int = 500,
-                     progress: bool = False, radars: Collection[str] | None = None
+                     progress: bool = False, radars: Collection[str] | None = None, components: Collection[str] = ()
                      ) -> tuple[Iterator[Reconstruction | Failure], dict]:
     """(results of the final search, a summary: biases with sd per radar, rounds, whether converged, and the
-    radars whose biases were not estimated). Only the biases of ``radars`` (all when None) are estimated."""
+    radars whose biases were not estimated). Only the biases of ``radars`` (all when None) are estimated, in
+    the components of :func:`joint_model` (``components``)."""
     recs: dict[str, Reconstruction] = {}
     failed: list[Failure] = []
     for res in run_many(tracks, cfg, ex, batch_plots, progress):
@@ -153,20 +203,29 @@ def estimate_jointly(tracks: list[PlotTrack], cfg: ReconstructionConfig, ex: Exe
             failed.append(res)
         else:
             recs[res.key] = res
-    recs, biases, rounds, change = joint_rounds(tracks, recs, cfg, ex, batch_plots, radars)
+    recs, biases, rounds, change = joint_rounds(tracks, recs, cfg, ex, batch_plots, radars, components)
     held = sorted(str(r) for r in biases if radars is not None and r not in radars)
     for r in held:
         del biases[r]
     summary = {"rounds": rounds, "converged": bool(change <= 1.0), "not_estimated": held,
-               "biases": {r: {"range_bias_m": round(float(e.value[0]), 2),
-                              "azimuth_bias_deg": round(math.degrees(float(e.value[1])), 5),
-                              "sd_range_m": round(float(np.sqrt(e.cov[0, 0])), 2),
-                              "sd_azimuth_deg": round(math.degrees(float(np.sqrt(e.cov[1, 1]))), 5)}
-                          for r, e in sorted(biases.items())}}
-    final = [debias(pt, {r: e.value for r, e in biases.items()}) for pt in tracks if pt.key in recs]
+               "biases": {r: _summary(e) for r, e in sorted(biases.items())}}
+    values = {r: BiasEstimate(e.value, model=e.model) for r, e in biases.items()}
+    final = [corrected(pt, values, recs[pt.key]) for pt in tracks if pt.key in recs]
 
     def results() -> Iterator[Reconstruction | Failure]:
         yield from failed
         yield from run_many(final, cfg, ex, batch_plots, progress)
 
     return results(), summary
+
+
+def _summary(e: BiasEstimate) -> dict[str, float]:
+    """A radar's estimate for the summary: each component and its sd in the units of :data:`SUMMARY`
+    (``range_bias_m``, ``sd_range_m``, …, ``range_gain_ppm``, ``sd_range_gain_ppm``, ``time_offset_ms``, …)."""
+    values, sds = {}, {}
+    for k, name in enumerate(e.model.names):
+        key, scale, digits = SUMMARY[name]
+        values[key] = round(float(e.value[k]) * scale, digits)
+        sd_key = {"range_bias_m": "sd_range_m", "azimuth_bias_deg": "sd_azimuth_deg"}.get(key, f"sd_{key}")
+        sds[sd_key] = round(float(np.sqrt(e.cov[k, k])) * scale, digits)
+    return values | sds

@@ -149,7 +149,8 @@ class PlotTrack(Sequence):
 
     ``z`` (n, 2) plane positions, ``h`` heights (NaN where unknown), ``radar`` ids, and per plot
     the plane noise covariance ``R`` (n, 2, 2) = D W Dᵀ and bias Jacobian ``C`` (n, 2, 2) = D
-    (seed 000 eq. 1.11), so that a known radar bias ς can be removed as z − C ς.
+    (seed 000 eq. 1.11), so that a known radar bias ς can be removed as z − C ς; ``rho`` the measured slant
+    range (m; NaN where not known), which a range gain's column ρ c_ρ needs.
     """
 
     key: str
@@ -159,10 +160,12 @@ class PlotTrack(Sequence):
     radar: np.ndarray = attrs.field(converter=lambda a: np.asarray(a, dtype=object))
     R: np.ndarray = attrs.field(converter=lambda a: np.asarray(a, float))
     C: np.ndarray = attrs.field(converter=lambda a: np.asarray(a, float))
+    rho: np.ndarray = attrs.field(converter=lambda a: np.asarray(a, float),
+                                  default=attrs.Factory(lambda self: np.full(len(self.t), np.nan), takes_self=True))
 
     def __attrs_post_init__(self) -> None:
         n = len(self.t)
-        shapes = {"z": (n, 2), "h": (n,), "radar": (n,), "R": (n, 2, 2), "C": (n, 2, 2)}
+        shapes = {"z": (n, 2), "h": (n,), "radar": (n,), "R": (n, 2, 2), "C": (n, 2, 2), "rho": (n,)}
         for name, shape in shapes.items():
             if getattr(self, name).shape != shape:
                 raise ValueError(f"{name}: expected shape {shape}, got {getattr(self, name).shape}")

@@ -58,12 +58,15 @@ def bias_flights(duration: float) -> dict[str, KinematicTrajectory]:
                                            ("b00003", 20e3, 15e3, 220, 200, 1.0), ("b00004", -15e3, 20e3, 120, 170, -2.0))}
 
 
-def biased_scenario(seed: int, duration: float = 200.0) -> tuple[ScenarioData, dict[str, KinematicTrajectory]]:
+def biased_scenario(seed: int, duration: float = 200.0, sensor: dict[str, dict[str, float]] | None = None
+                    ) -> tuple[ScenarioData, dict[str, KinematicTrajectory]]:
     """(scenario, trajectory per aircraft key): :func:`bias_flights` past radars R0, R1 at (−45, −25) and
-    (35, 40) km (σ 70 m / 0.08°, periods 4 and 5 s) with the biases :data:`BIASES`; no ADS-B."""
+    (35, 40) km (σ 70 m / 0.08°, periods 4 and 5 s) with the biases :data:`BIASES` and ``sensor``'s further
+    errors (radar id → ``range_gain``, ``time_offset_s``); no ADS-B."""
     plane = SystemPlane(*REFERENCE)
     radars = radars_around(plane, [(-45.0, -25.0), (35.0, 40.0)], [4.0, 5.0])
-    sims = [SimRadar(r, *BIASES[r.id], phase_rad=float(np.random.default_rng([seed, j]).uniform(0, 2 * np.pi)))
+    sims = [SimRadar(r, *BIASES[r.id], phase_rad=float(np.random.default_rng([seed, j]).uniform(0, 2 * np.pi)),
+                     **(sensor or {}).get(r.id, {}))
             for j, r in enumerate(radars)]
     flights = bias_flights(duration)
     aircraft = [SimAircraft(Aircraft(key), traj) for key, traj in flights.items()]

@@ -48,7 +48,8 @@ def scenario_tracks(data: ScenarioData, min_plots: int = 10, keys: np.ndarray | 
             skipped[f"aircraft with < {min_plots} plots"] += len(idx)
             continue
         h = plots.altitude_m[idx]
-        tracks.append(PlotTrack(str(key), m.time[idx], m.z[idx], h, m.radar[idx], m.R[idx], m.C[idx]))
+        tracks.append(PlotTrack(str(key), m.time[idx], m.z[idx], h, m.radar[idx], m.R[idx], m.C[idx],
+                                plots.range_m[idx]))
     return tracks, plane, +skipped
 
 

@@ -120,16 +120,25 @@ class SensorModel:
     def jacobian(self, C: np.ndarray, rho: float, velocity: np.ndarray | None) -> np.ndarray:
         """B = ∂z/∂ς (2 × m) of a plot with base Jacobian ``C`` = ∂p/∂(ρ, θ), slant range ``rho`` (needed by a
         range gain) and aircraft plane ``velocity`` (needed by a time offset)."""
-        B = np.empty((2, self.size))
+        v = None if velocity is None else np.asarray(velocity, float)[None]
+        return self.jacobians(np.asarray(C, float)[None], np.array([rho], float), v)[0]
+
+    def jacobians(self, C: np.ndarray, rho: np.ndarray, velocity: np.ndarray | None) -> np.ndarray:
+        """B (n × 2 × m) of n plots (module docstring): base Jacobians ``C`` (n × 2 × 2), slant ranges ``rho``
+        (n; needed by a range gain) and the aircraft's plane velocities ``velocity`` (n × 2; needed by a time
+        offset)."""
+        B = np.empty((len(C), 2, self.size))
         for k, name in enumerate(self.names):
             if name == "range_offset":
-                B[:, k] = C[:, 0]
+                B[:, :, k] = C[:, :, 0]
             elif name == "azimuth_offset":
-                B[:, k] = C[:, 1]
+                B[:, :, k] = C[:, :, 1]
             elif name == "range_gain":
-                if not np.isfinite(rho):
+                if not np.all(np.isfinite(rho)):
                     raise ValueError("a range gain needs the plot's slant range (PlaneMeasurement.rho)")
-                B[:, k] = rho * C[:, 0]
+                B[:, :, k] = rho[:, None] * C[:, :, 0]
             else:
-                B[:, k] = -np.asarray(velocity, float)
+                if velocity is None or not np.all(np.isfinite(velocity)):
+                    raise ValueError("a time offset needs the aircraft's velocity at the plot")
+                B[:, :, k] = -velocity
         return B

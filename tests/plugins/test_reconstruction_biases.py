@@ -101,3 +101,33 @@ def test_joint_estimate_recovers_the_biases(scenario, tmp_path):
         got = s["joint_biases"]["biases"][radar]
         assert abs(got["range_bias_m"] - dr) < 25.0
         assert abs(got["azimuth_bias_deg"] - math.degrees(da)) < 0.03
+
+
+def test_components_on_the_command_line(tmp_path, capsys):
+    """``--components range_gain,time_offset``: every estimated radar's summary carries the four components with
+    their sd; refused (exit 2, one line) with an unknown name, without the joint estimate, or for .new4 input."""
+    from radartracker_plugins.reconstruction.sim import biased_scenario
+
+    data, _ = biased_scenario(3, 200.0, {"R0": {"range_gain": 3e-4, "time_offset_s": 0.1}})
+    folder = tmp_path / "scenario"
+    write_scenario(folder, data)
+    out = tmp_path / "out"
+    assert main(["reconstruct", str(folder), "--out", str(out), "--components", "range_gain,time_offset", *FAST]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["biases_removed"] == "estimated jointly"
+    for radar in ("R0", "R1"):
+        got = s["joint_biases"]["biases"][radar]
+        assert set(got) == {"range_bias_m", "azimuth_bias_deg", "range_gain_ppm", "time_offset_ms", "sd_range_m",
+                            "sd_azimuth_deg", "sd_range_gain_ppm", "sd_time_offset_ms"}
+        assert all(math.isfinite(v) for v in got.values())
+    r0 = s["joint_biases"]["biases"]["R0"]
+    assert abs(r0["range_gain_ppm"] - 300.0) < 3 * r0["sd_range_gain_ppm"]
+    new4 = tmp_path / "a.new4"
+    new4.write_text("")
+    capsys.readouterr()
+    for inputs, extra, why in (([folder], ["--components", "range_drift"], "unknown 'range_drift'"),
+                               ([folder], ["--components", "time_offset", "--keep-biases"], "only with the joint"),
+                               ([new4], ["--components", "range_gain"], "scenario input only")):
+        assert main(["reconstruct", *map(str, inputs), "--out", str(tmp_path / "x"), *extra, *FAST]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and why in err[0] and "--components" in err[0]
