@@ -34,7 +34,7 @@ from concurrent.futures import Executor
 import attrs
 import numpy as np
 
-from radartracker.api import EXTRA_PRIOR_SD, BiasComponent, SensorModel
+from radartracker.api import EXTRA_PRIOR_SD, BiasComponent, ComponentBound, SensorModel
 from radartracker_plugins.reconstruction.biases import BiasEstimate, debias
 from radartracker_plugins.reconstruction.config import ReconstructionConfig
 from radartracker_plugins.reconstruction.engine import Failure, batches, run_many
@@ -208,7 +208,8 @@ def estimate_jointly(tracks: list[PlotTrack], cfg: ReconstructionConfig, ex: Exe
     for r in held:
         del biases[r]
     summary = {"rounds": rounds, "converged": bool(change <= 1.0), "not_estimated": held,
-               "biases": {r: _summary(e) for r, e in sorted(biases.items())}}
+               "biases": {r: _summary(e) for r, e in sorted(biases.items())},
+               "observability": {r: _observability(r, e) for r, e in sorted(biases.items())}}
     values = {r: BiasEstimate(e.value, model=e.model) for r, e in biases.items()}
     final = [corrected(pt, values, recs[pt.key]) for pt in tracks if pt.key in recs]
 
@@ -229,3 +230,10 @@ def _summary(e: BiasEstimate) -> dict[str, float]:
         sd_key = {"range_bias_m": "sd_range_m", "azimuth_bias_deg": "sd_azimuth_deg"}.get(key, f"sd_{key}")
         sds[sd_key] = round(float(np.sqrt(e.cov[k, k])) * scale, digits)
     return values | sds
+
+
+def _observability(radar: str, e: BiasEstimate) -> dict[str, str]:
+    """Each component's status (:class:`radartracker.api.ComponentBound`): its σ, from the joint problem's
+    information with the prior (its Cramér–Rao bound), against the prior's σ."""
+    return {c.name: ComponentBound(radar, c.name, float(np.sqrt(e.cov[k, k])), c.prior_sd).status
+            for k, c in enumerate(e.model.components)}

@@ -122,6 +122,13 @@ def test_components_on_the_command_line(tmp_path, capsys):
         assert all(math.isfinite(v) for v in got.values())
     r0 = s["joint_biases"]["biases"]["R0"]
     assert abs(r0["range_gain_ppm"] - 300.0) < 3 * r0["sd_range_gain_ppm"]
+    seen = s["joint_biases"]["observability"]
+    for radar, got in s["joint_biases"]["biases"].items():  # the status from each σ against its prior's
+        prior = {"range_gain_ppm": 1e3, "time_offset_ms": 500.0}
+        for key, name in (("range_gain_ppm", "range_gain"), ("time_offset_ms", "time_offset")):
+            ratio = (got[f"sd_{key}"] / prior[key]) ** 2
+            assert seen[radar][name] == ("unobservable" if ratio >= 0.9 else "weak" if ratio >= 0.1 else "observable")
+        assert seen[radar]["azimuth_offset"] == "observable"
     new4 = tmp_path / "a.new4"
     new4.write_text("")
     capsys.readouterr()
