@@ -140,6 +140,7 @@ def read_truth(path: Table, skip: Skipper) -> TruthTable:
     rows = open_rows(as_source(path), "truth")
     cols: dict[str, list] = {k: [] for k in TRUTH_COLUMNS}
     seen: set = set()
+    at: dict[tuple[str, float], int] = {}  # (target, time) → the line of its position
     for line, row in rows:
         rec = (rows.number(row, line, "time"), rows.text(row, "target"),
                rows.number(row, line, "lat", check=_range(-90, 90)),
@@ -148,6 +149,9 @@ def read_truth(path: Table, skip: Skipper) -> TruthTable:
             skip.count(rows.name, "duplicate_row", f"{rows.name} line {line}")
             continue
         seen.add(key)
+        if (first := at.setdefault((rec[1], rec[0]), line)) != line:  # one aircraft in two places at once
+            raise FormatError(rows.name, line, "time", f"target {rec[1]!r} already has another position at "
+                              f"{rec[0]!r} s (line {first})")
         for k, v in zip(TRUTH_COLUMNS, rec):
             cols[k].append(v)
     return TruthTable.from_columns(**cols)

@@ -79,6 +79,19 @@ def test_duplicate_rows_are_used_once_and_counted(folder):
         np.testing.assert_array_equal(a.time, b.time)
 
 
+def test_a_target_in_two_places_at_once_is_an_error_naming_both_lines(folder):
+    """Two truth rows of one target at one time with different positions (not an exact duplicate) would make its
+    velocity there 0/0 in every evaluation: one error naming the file, the line, the field and the first line."""
+    lines = _lines(folder / "truth.csv")
+    header = lines[0].split(",")
+    fields = lines[3].split(",")
+    fields[header.index("lat")] = str(float(fields[header.index("lat")]) + 0.01)
+    _write(folder / "truth.csv", lines[:4] + [",".join(fields)] + lines[4:])
+    with pytest.raises(FormatError, match=r"truth.csv line 5, field .time.: target .\w+. already has another "
+                                          r"position at [0-9.]+ s \(line 4\)"):
+        read_scenario(folder)
+
+
 def test_byte_order_mark_is_accepted_everywhere(folder):
     clean = read_scenario(folder)
     for name in FILES:
