@@ -45,7 +45,8 @@ def main() -> None:
     ids, p = sac_sic_of(data), data.plots
     rank = {r.id: k for k, r in enumerate(data.radars)}
     blocks = [next(datablocks(CAT048, [cat048_record(p.time[i], *ids[p.radar[i]], p.range_m[i], p.azimuth_rad[i],
-                                                     p.altitude_m[i], p.mode_s[i], p.mode_3a[i])])) for i in range(len(p))]
+                                                     p.altitude_m[i], p.mode_s[i], p.mode_3a[i])]))
+              for i in range(len(p))]
     base = np.array([0.3 + 0.4 * rank[r] for r in p.radar])
     held = total = 0
     for seed in progress_bar(range(1, args.runs + 1), desc="runs"):
@@ -60,8 +61,9 @@ def main() -> None:
             true = 0.3 + 0.4 * rank[r.id] + SCALE * math.log(20.0)
             held += e.low <= true <= e.high
             total += 1
+    band = binom.ppf([0.005, 0.995], total, 0.95)
     print(f"lateness p95: {held} of {total} intervals held the true value ({100 * held / total:.1f} %); "
-          f"binomial 99 % band of a 95 % interval: {binom.ppf(0.005, total, 0.95):.0f}-{binom.ppf(0.995, total, 0.95):.0f}")
+          f"binomial 99 % band of a 95 % interval: {band[0]:.0f}-{band[1]:.0f}")
 
 
 if __name__ == "__main__":

@@ -17,7 +17,8 @@ before (a Gauss–Newton linearisation, as the filters take their predicted velo
    (:func:`bias_step`; alternating exact block minima instead — GLS of the biases given the
    tracks — crept: 4 rounds reached 33 of 80 m of a range bias on the ``manoeuvres`` scenario);
 
-until no bias moves by more than :data:`TOL` (0.5 m, 0.001°, 1 ppm, 1 ms), or :data:`MAX_ROUNDS` rounds; then a final full
+until no bias moves by more than :data:`TOL` (0.5 m, 0.001°, 1 ppm, 1 ms), or :data:`MAX_ROUNDS` rounds; then a
+final full
 search with the last biases. A bias direction that the geometry cannot tell from a shift of every
 track (e.g. one radar only) is held by the prior alone — and there it wanders: on the ``demo`` scenario
 seen by its radar R1 alone the estimate went to 106 m, −0.13° (truth 120 m, +0.15°; sd 12 m, 0.47°) and
@@ -158,7 +159,8 @@ def _refit_batch(pairs: list[tuple[Reconstruction, PlotTrack]], cfg: Reconstruct
 
 def joint_rounds(tracks: list[PlotTrack], recs: dict[str, Reconstruction], cfg: ReconstructionConfig,
                  ex: Executor | None = None, batch_plots: int = 500, radars: Collection[str] | None = None,
-                 components: Collection[str] = ()) -> tuple[dict[str, Reconstruction], dict[str, BiasEstimate], int, float]:
+                 components: Collection[str] = ()
+                 ) -> tuple[dict[str, Reconstruction], dict[str, BiasEstimate], int, float]:
     """Rounds of (bias step, refits) from ``recs`` (each flight's fit at zero biases) until no bias moves by
     more than :data:`TOL` or :data:`MAX_ROUNDS`: (refitted recs, biases with covariance, rounds, the last
     change in units of TOL). The biases are those of the last :func:`bias_step`, with its covariance, in the

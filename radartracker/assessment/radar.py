@@ -101,7 +101,8 @@ def assess_radar(radar: Radar, tally: RadarTally, stamps: tuple[int, np.ndarray]
                  config: RadarConfig) -> RadarAssessment:
     """The figures of the module docstring for ``radar`` from its sums over the recording (``tally``, every
     slice's merged: :mod:`radartracker.assessment.tally`) and its time stamps (``stamps``: the count of its
-    plots out of order in the file and each plot's lateness, s, NaN where not known); ``observability``: the coupling graph's report of the radar (:meth:`CouplingGraph.report`: ``status``, the
+    plots out of order in the file and each plot's lateness, s, NaN where not known);
+    ``observability``: the coupling graph's report of the radar (:meth:`CouplingGraph.report`: ``status``, the
     estimator's ``measurements``); ``codes``: each reference aircraft's Mode 3/A code."""
     kind = "ssr" if tally.carries.any() else "psr"
     figures: dict[str, Estimate] = {}

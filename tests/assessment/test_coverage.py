@@ -58,8 +58,8 @@ def assess_radars(data, slice_s: float = 3600.0):
     reference = build_reference(data)
     biases = {r.id: (0.0, 0.0) for r in data.radars}
     tallies = tally_radars(data, reference, biases, MatchConfig(), 300.0, SliceConfig(slice_s), progress=False)
-    return {r.id: assess_radar(r, tallies[r.id], (0, np.zeros(0)), BiasState(r.id, 0.0, np.zeros(2), np.eye(2)), {}, {}, "truth",
-                               RadarConfig()) for r in data.radars}
+    return {r.id: assess_radar(r, tallies[r.id], (0, np.zeros(0)), BiasState(r.id, 0.0, np.zeros(2), np.eye(2)), {}, {},
+                               "truth", RadarConfig()) for r in data.radars}
 
 
 @pytest.fixture(scope="module")
