@@ -16,7 +16,7 @@ import logging
 import sys
 from pathlib import Path
 
-from radartracker.api import ConfigurationError, InputError, atomic_open
+from radartracker.api import EXTRA_PRIOR_SD, ConfigurationError, InputError, atomic_open
 
 MAX_GRID_POINTS = 1_000_000  # geometric-track points per flight: --grid finer than span/10⁶ is a typo
 # option: (low, high) — finite, inclusive; beyond them a value is a typo, not a setting (exit 2, one line)
@@ -81,7 +81,7 @@ def _load(inputs: list[Path], sigma: float, min_plots: int, radars_csv: Path | N
     for p in inputs:
         if not p.exists():
             raise ConfigurationError(f"{p}: no such file or folder")
-    if len(inputs) == 1 and inputs[0].is_dir():
+    if _scenario_input(inputs):
         if radars_csv:
             raise ConfigurationError("--radars: only for .new4 input (a scenario folder has its radars.csv)")
         data = read_scenario(inputs[0])
@@ -124,9 +124,9 @@ def _components(args: argparse.Namespace) -> tuple[str, ...]:
     """The extra bias components ``--components`` names (a ConfigurationError for an unknown one, or where no
     joint estimate is made, or for .new4 input, whose plots carry no slant range)."""
     names = tuple(n.strip() for n in args.components.split(",") if n.strip())
-    if unknown := [n for n in names if n not in ("range_gain", "time_offset")]:
-        raise ConfigurationError(f"--components: unknown {unknown[0]!r}; known: range_gain, time_offset")
-    if names and not (len(args.inputs) == 1 and args.inputs[0].is_dir()):
+    if unknown := [n for n in names if n not in EXTRA_PRIOR_SD]:
+        raise ConfigurationError(f"--components: unknown {unknown[0]!r}; known: {', '.join(EXTRA_PRIOR_SD)}")
+    if names and not _scenario_input(args.inputs):
         raise ConfigurationError("--components: scenario input only (.new4 plots carry no slant range)")
     if names and not _estimate_biases(args):
         raise ConfigurationError("--components: only with the joint estimate of the biases (not with --truth-biases, "
@@ -156,8 +156,12 @@ def _estimate_biases(args: argparse.Namespace) -> bool:
     without radar geometry."""
     if args.estimate_biases:
         return True
-    scenario = len(args.inputs) == 1 and args.inputs[0].is_dir()
-    return scenario and not (args.truth_biases or args.biases or args.keep_biases)
+    return _scenario_input(args.inputs) and not (args.truth_biases or args.biases or args.keep_biases)
+
+
+def _scenario_input(inputs: list[Path]) -> bool:
+    """Whether the input is one scenario folder (radar plots with their geometry), not ``.new4`` files."""
+    return len(inputs) == 1 and inputs[0].is_dir()
 
 
 def _results(tracks, cfg, ex, args: argparse.Namespace, summary: dict, notes: list[str]):

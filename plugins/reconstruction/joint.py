@@ -29,7 +29,7 @@ the truth RMSE rose from 295 m (biases left in) to 511 m. So the CLI estimates o
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Iterator
+from collections.abc import Collection, Iterable, Iterator
 from concurrent.futures import Executor
 
 import attrs
@@ -49,9 +49,11 @@ PRIOR_SD = np.array([1000.0, math.radians(1.0)])  # m, rad: weak, far wider than
 MAX_ROUNDS = 4
 #: the change of each component below which the rounds stop (SI units: m, rad, 1, s)
 TOL = {"range_offset": 0.5, "azimuth_offset": math.radians(0.001), "range_gain": 1e-6, "time_offset": 1e-3}
-#: a component's figure in the summary: (key, scale from SI, decimals)
-SUMMARY = {"range_offset": ("range_bias_m", 1.0, 2), "azimuth_offset": ("azimuth_bias_deg", math.degrees(1.0), 5),
-           "range_gain": ("range_gain_ppm", 1e6, 2), "time_offset": ("time_offset_ms", 1e3, 2)}
+#: a component's figures in the summary: (key of its value, key of its sd, scale from SI, decimals)
+SUMMARY = {"range_offset": ("range_bias_m", "sd_range_m", 1.0, 2),
+           "azimuth_offset": ("azimuth_bias_deg", "sd_azimuth_deg", math.degrees(1.0), 5),
+           "range_gain": ("range_gain_ppm", "sd_range_gain_ppm", 1e6, 2),
+           "time_offset": ("time_offset_ms", "sd_time_offset_ms", 1e3, 2)}
 
 
 def joint_model(components: Collection[str] = ()) -> SensorModel:
@@ -61,16 +63,20 @@ def joint_model(components: Collection[str] = ()) -> SensorModel:
     return SensorModel.default(*PRIOR_SD).with_components(*(BiasComponent(n, EXTRA_PRIOR_SD[n]) for n in components))
 
 
-def velocities(rec: Reconstruction) -> np.ndarray:
-    """The reconstructed plane velocity (n × 2, m/s) at each of the flight's plot times: v (sin φ, cos φ)."""
+def velocities(rec: Reconstruction, models: Iterable[SensorModel]) -> np.ndarray | None:
+    """The reconstructed plane velocity (n × 2, m/s) at each of the flight's plot times, v (sin φ, cos φ), where
+    one of ``models`` has a time offset (whose column −v needs it); else None."""
+    if not any("time_offset" in model.names for model in models):
+        return None
     s = sample(rec.control, rec.plots.t)
     return np.column_stack([s[:, 3] * np.sin(s[:, 2]), s[:, 3] * np.cos(s[:, 2])])
 
 
-def corrected(pt: PlotTrack, biases: dict[str, BiasEstimate], rec: Reconstruction | None) -> PlotTrack:
-    """``pt`` with ``biases`` removed, a time offset's column at the velocities of ``rec`` (its reconstruction)."""
-    moving = rec is not None and any("time_offset" in b.model.names for b in biases.values())
-    return debias(pt, biases, velocities(rec) if moving else None)
+def corrected(pt: PlotTrack, biases: dict[str, BiasEstimate], rec: Reconstruction) -> PlotTrack:
+    """``pt`` with the values of ``biases`` removed, a time offset's column at the velocities of ``rec`` (its
+    reconstruction); their covariance is not added to R: the rounds estimate that error jointly."""
+    values = {r: BiasEstimate(e.value, model=e.model) for r, e in biases.items()}
+    return debias(pt, values, velocities(rec, (e.model for e in biases.values())))
 
 
 def shared_radars(tracks: list[PlotTrack]) -> set[str]:
@@ -103,18 +109,19 @@ def bias_step(tracks: list[PlotTrack], recs: dict[str, Reconstruction], biases: 
     seen = {str(r) for pt in tracks for r in pt.radar}
     radars = sorted(r for r in seen if estimated is None or r in estimated)
     models = {r: biases[r].model for r in radars}
-    col = dict(zip(radars, np.cumsum([0] + [models[r].size for r in radars]).tolist()))
-    m = sum(model.size for model in models.values())
+    ends = np.cumsum([model.size for model in models.values()]).tolist()
+    cols = {r: slice(end - models[r].size, end) for r, end in zip(radars, ends)}  # each radar's entries of ς
+    m = ends[-1] if ends else 0
     prior = np.zeros((m, m))
-    for r in radars:
-        prior[col[r]:col[r] + models[r].size, col[r]:col[r] + models[r].size] = np.linalg.inv(models[r].prior())
+    for r, c in cols.items():
+        prior[c, c] = np.linalg.inv(models[r].prior())
     s0 = np.concatenate([biases[r].value for r in radars])
     A, b = prior.copy(), -prior @ s0
     for pt in tracks:
         rec = recs.get(pt.key)
         if rec is None:
             continue
-        r, J, G = _flight_terms(pt, rec, models, col, m, cfg)
+        r, J, G = _flight_terms(pt, rec, models, cols, m, cfg)
         U, sv, _ = np.linalg.svd(J, full_matrices=False)
         U = U[:, sv > sv[0] * 1e-10]
         Gp = G - U @ (U.T @ G)
@@ -122,15 +129,13 @@ def bias_step(tracks: list[PlotTrack], recs: dict[str, Reconstruction], biases: 
         b -= Gp.T @ r
     cov = np.linalg.inv(A)
     step = cov @ b
-    return {r: BiasEstimate(biases[r].value + step[col[r]:col[r] + models[r].size],
-                            cov[col[r]:col[r] + models[r].size, col[r]:col[r] + models[r].size], models[r])
-            for r in radars}
+    return {r: BiasEstimate(biases[r].value + step[c], cov[c, c], models[r]) for r, c in cols.items()}
 
 
-def _flight_terms(pt: PlotTrack, rec: Reconstruction, models: dict[str, SensorModel], col: dict[str, int], m: int,
+def _flight_terms(pt: PlotTrack, rec: Reconstruction, models: dict[str, SensorModel], cols: dict[str, slice], m: int,
                   cfg: ReconstructionConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(r_f, J_θ, G_f) of one flight (:func:`bias_step`): its whitened residuals at its fit, their Jacobian in the
-    track's parameters and in the biases of ``models`` (columns ``col``), G = −L⁻¹ B."""
+    track's parameters and in the biases of ``models`` (columns ``cols``), G = −L⁻¹ B."""
     fixed = rec.plots  # the plots as fitted, current biases removed
     t0 = float(fixed.t[0])
     rel = attrs.evolve(fixed, t=fixed.t - t0)
@@ -141,15 +146,13 @@ def _flight_terms(pt: PlotTrack, rec: Reconstruction, models: dict[str, SensorMo
     r = obj.residuals(theta)[:-1]
     J = obj.jacobian(theta)[:-1]
     G = np.zeros((len(r), m))
-    moving = any("time_offset" in model.names for model in models.values())
-    v = velocities(rec) if moving else None
-    for radar in {str(x) for x in set(pt.radar)} & set(col):
+    v = velocities(rec, models.values())
+    for radar in {str(x) for x in set(pt.radar)} & set(cols):
         sel = np.flatnonzero(pt.radar == radar)
-        model = models[radar]
-        B = model.jacobians(pt.C[sel], pt.rho[sel], None if v is None else v[sel])
+        B = models[radar].jacobians(pt.C[sel], pt.rho[sel], None if v is None else v[sel])
         LB = -np.einsum("nij,njk->nik", obj.weight.Linv[sel], B)  # ∂r/∂ς of each plot (2 × m_j)
         for j in range(2):
-            G[2 * sel + j, col[radar]:col[radar] + model.size] = LB[:, j, :]
+            G[2 * sel + j, cols[radar]] = LB[:, j, :]
     return r, J, G
 
 
@@ -180,8 +183,7 @@ def joint_rounds(tracks: list[PlotTrack], recs: dict[str, Reconstruction], cfg: 
         biases.update(new)
         if change <= 1.0:
             break
-        fixed = {k: corrected(by_key[k], {r: BiasEstimate(e.value, model=e.model) for r, e in biases.items()},
-                              recs[k]) for k in recs}
+        fixed = {k: corrected(by_key[k], biases, recs[k]) for k in recs}
         work = batches([fixed[k] for k in recs], batch_plots)
         pairs = [[(recs[pt.key], pt) for pt in batch] for batch in work]
         if ex is None:
@@ -212,8 +214,7 @@ def estimate_jointly(tracks: list[PlotTrack], cfg: ReconstructionConfig, ex: Exe
     summary = {"rounds": rounds, "converged": bool(change <= 1.0), "not_estimated": held,
                "biases": {r: _summary(e) for r, e in sorted(biases.items())},
                "observability": {r: _observability(r, e) for r, e in sorted(biases.items())}}
-    values = {r: BiasEstimate(e.value, model=e.model) for r, e in biases.items()}
-    final = [corrected(pt, values, recs[pt.key]) for pt in tracks if pt.key in recs]
+    final = [corrected(pt, biases, recs[pt.key]) for pt in tracks if pt.key in recs]
 
     def results() -> Iterator[Reconstruction | Failure]:
         yield from failed
@@ -227,9 +228,8 @@ def _summary(e: BiasEstimate) -> dict[str, float]:
     (``range_bias_m``, ``sd_range_m``, …, ``range_gain_ppm``, ``sd_range_gain_ppm``, ``time_offset_ms``, …)."""
     values, sds = {}, {}
     for k, name in enumerate(e.model.names):
-        key, scale, digits = SUMMARY[name]
+        key, sd_key, scale, digits = SUMMARY[name]
         values[key] = round(float(e.value[k]) * scale, digits)
-        sd_key = {"range_bias_m": "sd_range_m", "azimuth_bias_deg": "sd_azimuth_deg"}.get(key, f"sd_{key}")
         sds[sd_key] = round(float(np.sqrt(e.cov[k, k])) * scale, digits)
     return values | sds
 

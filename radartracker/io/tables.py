@@ -98,14 +98,13 @@ class PlotTable:
 
     @classmethod
     def from_columns(cls, **cols: Iterable[Any]) -> PlotTable:
-        """The table of the named columns; ``received`` is optional (NaN: not known)."""
-        time = np.asarray(cols["time"], float)
+        """The table of the named columns; ``received`` is optional (the field's default: not known)."""
         return cls(
-            time=time, radar=_obj(cols["radar"]),
+            time=np.asarray(cols["time"], float), radar=_obj(cols["radar"]),
             range_m=np.asarray(cols["range_m"], float), azimuth_rad=np.asarray(cols["azimuth_rad"], float),
             altitude_m=np.asarray(cols["altitude_m"], float), mode_s=_obj(cols["mode_s"]),
             mode_3a=_obj(cols["mode_3a"]), target=_obj(cols["target"]),
-            received=np.asarray(cols["received"], float) if "received" in cols else np.full(len(time), np.nan),
+            **({"received": np.asarray(cols["received"], float)} if "received" in cols else {}),
         )
 
     def __len__(self) -> int:

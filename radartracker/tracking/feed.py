@@ -72,10 +72,9 @@ class EstimatorFeed:
         self.failed = failed
         self.pending: list[Operation] = []
         self.on_nis: Callable[[np.ndarray], None] | None = None  # given each update_many's NIS values
-        # each radar's state and (ς̂, P_ς) since the last flush (the estimator and the coupling graph change only
-        # there), and its prior covariance (the estimator's config does not change)
+        # each radar's state since the last flush (the estimator and the coupling graph change only there), and
+        # its prior covariance (the estimator's config does not change)
         self._states: dict[str, BiasState] = {}
-        self._biases: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self._priors: dict[str, np.ndarray] = {}
 
     def state(self, radar: str) -> BiasState:
@@ -94,18 +93,15 @@ class EstimatorFeed:
     def forget(self) -> None:
         """Read the estimator and the coupling graph again at the next :meth:`state` (after a flush, or once
         their state was loaded from a snapshot)."""
-        self._states, self._biases = {}, {}
+        self._states = {}
 
     def bias(self, radar: str | None) -> tuple[np.ndarray, np.ndarray]:
         """(ς̂, P_ς) of ``radar`` (:meth:`state`) as at the frame's start (zeros for an unbiased source,
         ``None``)."""
         if radar is None:
             return _ZERO2, _ZERO22
-        b = self._biases.get(radar)
-        if b is None:
-            state = self.state(radar)
-            b = self._biases[radar] = (np.asarray(state.bias, float), np.asarray(state.cov, float))
-        return b
+        state = self.state(radar)
+        return np.asarray(state.bias, float), np.asarray(state.cov, float)
 
     def add(self, op: Operation) -> None:
         self.pending.append(op)
@@ -113,7 +109,13 @@ class EstimatorFeed:
     def flush(self) -> None:
         """Apply the queued operations in order, each run of measurements in one ``update_many``."""
         ops, self.pending = self.pending, []
-        self.forget()
+        try:
+            self._apply(ops)
+        finally:  # the estimator and the coupling graph have changed
+            self.forget()
+
+    def _apply(self, ops: list[Operation]) -> None:
+        """``ops`` in order (:meth:`flush`)."""
         name = f"estimator {self.estimator.name!r}"
         for kind, group in itertools.groupby(ops, type):
             if kind is Measure:
