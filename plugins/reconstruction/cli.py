@@ -16,7 +16,7 @@ import logging
 import sys
 from pathlib import Path
 
-from radartracker.api import EXTRA_PRIOR_SD, ConfigurationError, InputError, atomic_open
+from radartracker.api import ConfigurationError, InputError, atomic_open
 
 MAX_GRID_POINTS = 1_000_000  # geometric-track points per flight: --grid finer than span/10⁶ is a typo
 # option: (low, high) — finite, inclusive; beyond them a value is a typo, not a setting (exit 2, one line)
@@ -123,6 +123,8 @@ def _check_grid(tracks, grid: float) -> None:
 def _components(args: argparse.Namespace) -> tuple[str, ...]:
     """The extra bias components ``--components`` names (a ConfigurationError for an unknown one, or where no
     joint estimate is made, or for .new4 input, whose plots carry no slant range)."""
+    from radartracker.api import EXTRA_PRIOR_SD  # here: `reconstruct --help` imports no numerics
+
     names = tuple(n.strip() for n in args.components.split(",") if n.strip())
     if unknown := [n for n in names if n not in EXTRA_PRIOR_SD]:
         raise ConfigurationError(f"--components: unknown {unknown[0]!r}; known: {', '.join(EXTRA_PRIOR_SD)}")
