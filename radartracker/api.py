@@ -23,7 +23,7 @@ if TYPE_CHECKING:
     from radartracker.compiled import kernel
     from radartracker.domain import Aircraft, AdsbReport, BiasState, Plot, Radar, nacp_sigma_m
     from radartracker.estimation.base import (AircraftEstimate, Estimator, EstimatorConfig, Innovation,
-                                              PlaneMeasurement, validated_prior)
+                                              PlaneMeasurement, require_new_radar, validated_prior)
     from radartracker.estimation.bound import ComponentBound
     from radartracker.estimation.kalman import SingularInnovation, correct, gain, nis, symmetrize
     from radartracker.estimation.measurement import convert_plots, fill_altitudes, plot_keys
@@ -53,7 +53,7 @@ _EXPORTS = {
     "radartracker.compiled": ("kernel",),
     "radartracker.domain": ("Aircraft", "AdsbReport", "BiasState", "Plot", "Radar", "nacp_sigma_m"),
     "radartracker.estimation.base": ("AircraftEstimate", "Estimator", "EstimatorConfig", "Innovation",
-                                     "PlaneMeasurement", "validated_prior"),
+                                     "PlaneMeasurement", "require_new_radar", "validated_prior"),
     "radartracker.estimation.bound": ("ComponentBound",),
     "radartracker.estimation.kalman": ("SingularInnovation", "correct", "gain", "nis", "symmetrize"),
     "radartracker.estimation.measurement": ("convert_plots", "fill_altitudes", "plot_keys"),

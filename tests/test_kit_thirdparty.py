@@ -23,7 +23,7 @@ PLUGIN = '''
 import attrs
 import numpy as np
 from radartracker.api import (AircraftEstimate, BiasState, Estimator, Innovation, MotionConfig, MotionModel,
-                              TrackFilter, correct, nis, validated_prior)
+                              TrackFilter, correct, nis, require_new_radar, validated_prior)
 
 BUILT = []  # the options of every estimator built: the test reads what reached the plugin
 FILTERS = []  # the config of every track filter built
@@ -48,14 +48,11 @@ class Forgetting(Estimator):
         self._x, self._s = {}, {}
 
     def add_radar(self, radar):
-        if radar in self._s:
-            raise ValueError(f"radar {radar!r} already added")
+        require_new_radar(radar, self._s)
         self._s[radar] = [float("nan"), np.zeros(2), self.config.bias_prior()]
 
     def add_aircraft(self, key, time, state, cov):
-        if key in self._x:
-            raise ValueError(f"aircraft {key!r} already estimated")
-        self._x[key] = [float(time), *validated_prior(key, state, cov)]
+        self._x[key] = [float(time), *validated_prior(key, state, cov, self._x)]
 
     def remove_aircraft(self, key):
         del self._x[key]

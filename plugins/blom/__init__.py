@@ -38,7 +38,8 @@ from collections.abc import Hashable
 
 import numpy as np
 
-from radartracker.api import AircraftEstimate, BiasState, Estimator, Innovation, PlaneMeasurement, StateCheck, correct
+from radartracker.api import (AircraftEstimate, BiasState, Estimator, Innovation, PlaneMeasurement, StateCheck, correct,
+                              require_new_radar, validated_prior)
 
 _ADSB = None  # source key of unbiased measurements
 
@@ -57,8 +58,7 @@ class BlomEstimator(Estimator):
         self._bias_time: float | None = None
 
     def add_radar(self, radar: str) -> None:
-        if radar in self._rad:
-            raise ValueError(f"radar {radar!r} already added")
+        require_new_radar(radar, self._rad)
         self.config.require_two_components(self.name, radar)
         k = self._s.size
         self._rad[radar] = k
@@ -69,9 +69,7 @@ class BlomEstimator(Estimator):
         self._Ps = P
 
     def add_aircraft(self, key: Hashable, time: float, state: np.ndarray, cov: np.ndarray) -> None:
-        if key in self._x:
-            raise ValueError(f"aircraft {key!r} already estimated")
-        self._x[key] = [float(time), np.array(state, float), np.array(cov, float), {}]
+        self._x[key] = [float(time), *validated_prior(key, state, cov, self._x), {}]
 
     def remove_aircraft(self, key: Hashable) -> None:
         del self._x[key]

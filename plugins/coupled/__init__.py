@@ -32,7 +32,7 @@ from collections.abc import Hashable
 import numpy as np
 
 from radartracker.api import (AircraftEstimate, BiasState, Estimator, Innovation, PlaneMeasurement, SensorModel,
-                              SingularInnovation, StateCheck, validated_prior)
+                              SingularInnovation, StateCheck, require_new_radar, validated_prior)
 
 
 class CoupledEstimator(Estimator):
@@ -63,8 +63,7 @@ class CoupledEstimator(Estimator):
         return start
 
     def add_radar(self, radar: str) -> None:
-        if radar in self._rad:
-            raise ValueError(f"radar {radar!r} already added")
+        require_new_radar(radar, self._rad)
         model = self.config.sensor(radar)
         k = self._alloc(model.size)
         self._P[k:k + model.size, k:k + model.size] = model.prior()
@@ -72,9 +71,7 @@ class CoupledEstimator(Estimator):
         self._models[radar] = model
 
     def add_aircraft(self, key: Hashable, time: float, state: np.ndarray, cov: np.ndarray) -> None:
-        if key in self._ac:
-            raise ValueError(f"aircraft {key!r} already estimated")
-        state, cov = validated_prior(key, state, cov)
+        state, cov = validated_prior(key, state, cov, self._ac)
         k = self._free.pop() if self._free else self._alloc(4)
         self._x[k:k + 4] = state
         self._P[k:k + 4, :] = 0.0

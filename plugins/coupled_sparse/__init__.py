@@ -67,7 +67,8 @@ import attrs
 import numpy as np
 
 from radartracker.api import (AircraftEstimate, BiasState, ConfigurationError, Estimator, EstimatorConfig, Innovation,
-                              MotionModel, PlaneMeasurement, SensorModel, SingularInnovation, validated_prior)
+                              MotionModel, PlaneMeasurement, SensorModel, SingularInnovation, require_new_radar,
+                              validated_prior)
 
 from . import _kernels as K
 from ._layout import (C_ALIVE, C_REBUILD_FACTOR, C_REFRESH_EVERY, ERR_LAMBDA, ERR_NONFINITE, ERR_R, ERR_REBUILD,
@@ -178,8 +179,7 @@ class CoupledSparseEstimator(Estimator):
     def add_radar(self, radar: str) -> None:
         """Radar ``radar`` with its sensor model (``EstimatorConfig.sensor``): its block of the bias vector,
         after the other radars', starts at its prior information P₀⁻¹ (every prior σ must be positive)."""
-        if radar in self._rad:
-            raise ValueError(f"radar {radar!r} already added")
+        require_new_radar(radar, self._rad)
         model = self.config.sensor(radar)
         if any(c.prior_sd <= 0.0 for c in model.components):
             raise ConfigurationError(f"coupled-sparse: radar {radar!r} has a bias component with prior σ 0 (the "
@@ -197,9 +197,7 @@ class CoupledSparseEstimator(Estimator):
         self._radar_codes[radar] = j
 
     def add_aircraft(self, key: Hashable, time: float, state: np.ndarray, cov: np.ndarray) -> None:
-        if key in self._ac:
-            raise ValueError(f"aircraft {key!r} already estimated")
-        state, cov = validated_prior(key, state, cov)
+        state, cov = validated_prior(key, state, cov, self._ac)
         L = np.zeros((4, 4))
         if not chol(cov, L, 4):
             raise SingularInformation(f"aircraft {key!r}: prior covariance is not positive definite "

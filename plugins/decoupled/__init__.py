@@ -18,7 +18,7 @@ from collections.abc import Hashable
 import numpy as np
 
 from radartracker.api import (AircraftEstimate, BiasState, Estimator, Innovation, PlaneMeasurement, StateCheck, correct,
-                              validated_prior)
+                              require_new_radar, validated_prior)
 
 
 class DecoupledEstimator(Estimator):
@@ -32,15 +32,12 @@ class DecoupledEstimator(Estimator):
         self._s: dict[str, list] = {}  # radar -> [time, bias, cov]
 
     def add_radar(self, radar: str) -> None:
-        if radar in self._s:
-            raise ValueError(f"radar {radar!r} already added")
+        require_new_radar(radar, self._s)
         self.config.require_two_components(self.name, radar)
         self._s[radar] = [None, np.zeros(2), self.config.bias_prior()]
 
     def add_aircraft(self, key: Hashable, time: float, state: np.ndarray, cov: np.ndarray) -> None:
-        if key in self._x:
-            raise ValueError(f"aircraft {key!r} already estimated")
-        self._x[key] = [float(time), *validated_prior(key, state, cov)]
+        self._x[key] = [float(time), *validated_prior(key, state, cov, self._x)]
 
     def remove_aircraft(self, key: Hashable) -> None:
         del self._x[key]

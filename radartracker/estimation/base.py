@@ -15,7 +15,7 @@ measurement of it arrives.
 from __future__ import annotations
 
 import abc
-from collections.abc import Hashable, Sequence
+from collections.abc import Container, Hashable, Sequence
 from typing import ClassVar, NamedTuple
 
 import attrs
@@ -222,9 +222,19 @@ class Estimator(abc.ABC):
         A, Q = self.config.motion.transition(time - est.time)
         return AircraftEstimate(time, A @ est.state, A @ est.cov @ A.T + Q)
 
-def validated_prior(key: Hashable, state: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """An aircraft prior as float arrays, checked (finite 4-vector, 4×4) and symmetrised."""
-    state, cov = np.asarray(state, float), np.asarray(cov, float)
+def require_new_radar(radar: str, added: Container[str]) -> None:
+    """:meth:`Estimator.add_radar`'s contract: ValueError if ``radar`` is among the radars ``added`` already."""
+    if radar in added:
+        raise ValueError(f"radar {radar!r} already added")
+
+
+def validated_prior(key: Hashable, state: np.ndarray, cov: np.ndarray,
+                    estimated: Container[Hashable] = ()) -> tuple[np.ndarray, np.ndarray]:
+    """An aircraft prior for :meth:`Estimator.add_aircraft` as float arrays, checked (``key`` not among the
+    aircraft ``estimated`` already; a finite 4-vector and 4×4), copied and symmetrised."""
+    if key in estimated:
+        raise ValueError(f"aircraft {key!r} already estimated")
+    state, cov = np.array(state, float), np.asarray(cov, float)  # the state a copy, the covariance made anew below
     if state.shape != (4,) or cov.shape != (4, 4) or not (np.isfinite(state).all() and np.isfinite(cov).all()):
         raise ValueError(f"aircraft {key!r}: prior must be a finite 4-vector and 4×4 covariance")
     return state, 0.5 * (cov + cov.T)

@@ -118,6 +118,17 @@ def _started(make: Callable[[], Estimator], stream: _Stream, radars: Iterable[st
     return est
 
 
+def _half_run(make: Callable[[], Estimator], config: EstimatorConfig, seed: int) -> tuple[Estimator, list]:
+    """An estimator started on a two-aircraft mixed stream (``seed``) and updated with its first half; the
+    measurements of the second half (for the checks that copy an estimator midway and go on)."""
+    stream = _mixed_stream(np.random.default_rng(seed), config, 12, ["a1", "a2"])
+    est = _started(make, stream, _RADARS)
+    half = len(stream.measurements) // 2
+    for m in stream.measurements[:half]:
+        est.update(m)
+    return est, stream.measurements[half:]
+
+
 def _reads(est: Estimator) -> list[np.ndarray]:
     """Everything an estimator reports, as arrays (for bit-for-bit comparisons)."""
     out: list[np.ndarray] = []
@@ -236,11 +247,7 @@ def _chi2_verdict(owner: str, check: str, sums: dict[str, list]) -> None:
 
 def _check_reads(make: Callable[[], Estimator], config: EstimatorConfig, owner: str) -> None:
     check = "reads"
-    stream = _mixed_stream(np.random.default_rng(22), config, 12, ["a1", "a2"])
-    est = _started(make, stream, _RADARS)
-    half = len(stream.measurements) // 2
-    for m in stream.measurements[:half]:
-        est.update(m)
+    est, rest = _half_run(make, config, 22)
     twin = copy.deepcopy(est)
     for _ in range(2):  # read everything twice, and scribble on what comes back
         got = _reads(est)
@@ -253,7 +260,7 @@ def _check_reads(make: Callable[[], Estimator], config: EstimatorConfig, owner: 
             arr[...] = np.nan
     if not identical(_reads(est), _reads(twin)):
         raise fail(owner, check, "reads changed the state or returned views of it (aircraft/bias arrays must be copies)")
-    for m in stream.measurements[half:]:
+    for m in rest:
         ia, ib = est.update(m), twin.update(m)
         if not identical([ia.nu, ia.S, np.array([ia.nis])], [ib.nu, ib.S, np.array([ib.nis])]):
             raise fail(owner, check, f"after reads, the update at t={m.time} differs from an untouched copy's")
@@ -319,11 +326,7 @@ def _check_update_many(make: Callable[[], Estimator], config: EstimatorConfig, o
 
 def _check_snapshot(make: Callable[[], Estimator], config: EstimatorConfig, owner: str) -> None:
     check = "snapshot"
-    stream = _mixed_stream(np.random.default_rng(25), config, 12, ["a1", "a2"])
-    est = _started(make, stream, _RADARS)
-    half = len(stream.measurements) // 2
-    for m in stream.measurements[:half]:
-        est.update(m)
+    est, rest = _half_run(make, config, 25)
     copies = {"copy.deepcopy": copy.deepcopy(est)}
     if callable(getattr(est, "state_dict", None)):
         fresh = make()
@@ -331,7 +334,7 @@ def _check_snapshot(make: Callable[[], Estimator], config: EstimatorConfig, owne
             fresh.add_radar(r)
         fresh.load_state_dict(copy.deepcopy(est.state_dict()))
         copies["state_dict/load_state_dict"] = fresh
-    for m in stream.measurements[half:]:
+    for m in rest:
         ref = est.update(m)
         for how, other in copies.items():
             inn = other.update(m)
