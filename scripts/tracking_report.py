@@ -40,6 +40,7 @@ from tracking_stonesoup import load_tracks, plots_digest, save_tracks, stonesoup
 
 from radartracker.registry import make_manager
 from radartracker.io.tables import ScenarioData  # noqa: E402
+from radartracker.pipeline.consistency import effective_count, mean_chi2_band  # noqa: E402
 from radartracker.pipeline.evaluate import TrackHistory, TruthPaths, detection_gaps, track_metrics  # noqa: E402
 from radartracker.pipeline.stream import scenario_stream  # noqa: E402
 from radartracker.simulation.scenarios import build_scenario  # noqa: E402
@@ -89,7 +90,7 @@ def run_manager(data: ScenarioData, config: ManagerConfig) -> tuple[dict[int, Tr
     err = [(abs(b.bias[0] - data.truth_biases[rid][0]), abs(math.degrees(b.bias[1] - data.truth_biases[rid][1])) * 1e3)
            for rid, b in mgr.biases().items()] if data.truth_biases else [(math.nan, math.nan)]
     return out, {"bias_err_range_m": max(e[0] for e in err), "bias_err_azimuth_mdeg": max(e[1] for e in err),
-                 "track_nis": mgr.innovations()["mean_nis"]}, wall
+                 "track_nis": mgr.innovations()["mean_nis"], "track_nis_count": mgr.innovations()["count"]}, wall
 
 
 def evaluate(data: ScenarioData, tracks: dict[int, TrackHistory]) -> dict:
@@ -110,12 +111,13 @@ def evaluate(data: ScenarioData, tracks: dict[int, TrackHistory]) -> dict:
     first = {tg: lo - GRACE_S for tg, (lo, _) in observed.items()}
     m = track_metrics(tracks, paths, observed, grid, C_M, sensed=sensed, first_seen=first, gaps=gaps)
     q = m["indicators"]
-    err, turning, high, nees4, nees2, dh, sdh, n_est = [], [], [], [], [], [], [], 0
+    err, turning, high, nees4, nees2, dh, sdh, n_est, of_track = [], [], [], [], [], [], [], 0, []
     for tg, v in m["per_target"].items():
         if v["right_track"] < 0:
             continue
         h = tracks[v["right_track"]]
         nees4 += _nees(h, v["right_track"], paths.state_at(tg, h.times), slice(0, 4))
+        of_track += [v["right_track"]] * (len(nees4) - len(of_track))
         nees2 += _nees(h, v["right_track"], paths.state_at(tg, h.times), slice(0, 2))
         n_est += len(h.times)
         _height_errors(data, tg, v["right_track"], h, dh, sdh)
@@ -146,6 +148,7 @@ def evaluate(data: ScenarioData, tracks: dict[int, TrackHistory]) -> dict:
             "multiple_pct_flights": 100.0 * q["flights_with_multiple_share"],
             "pu_pct": 100.0 * q["probability_of_update"], "init_delay_p95_s": q["initiation_delay_p95_s"],
             "nees": float(np.mean(nees4)) if nees4 else float("nan"),
+            "nees_band_95": mean_chi2_band(4, effective_count(np.array(nees4), np.array(of_track, int))),
             "nees_position": float(np.mean(nees2)) if nees2 else float("nan"),
             **_height_summary(np.array(dh), np.array(sdh), n_est),
             **_split(e, np.array(turning, bool))}
@@ -290,6 +293,7 @@ def done_when(rows: list[dict], default: str) -> None:
                    r["multiple_pct_time"] <= 0.5 and r["multiple_pct_flights"] <= 2.0),
                   ("no false confirmed track", str(r["false_confirmed"]), r["false_confirmed"] == 0),
                   ("no swap", str(r["swaps"]), r["swaps"] == 0)]
+        checks += _consistency_checks(r)
         if peer is not None:
             checks.append(("RMSE below Stone Soup GNN's", f"{r['rmse_m']:.1f} vs {peer['rmse_m']:.1f} m",
                            r["rmse_m"] < peer["rmse_m"]))
@@ -301,6 +305,21 @@ def done_when(rows: list[dict], default: str) -> None:
                            f"{r['height_rmse_m']:.0f} m, NEES {r['height_nees']:.2f}", more <= 25.0))
         for what, value, ok in checks:
             print(f"done-when {r['set']} ({default}): {what}: {value}: {'yes' if ok else 'NO'}")
+
+
+def _consistency_checks(r: dict) -> list[tuple[str, str, bool]]:
+    """Mean NEES inside the 95 % band of its effective count of values, the track filters' mean NIS inside the
+    band of its count (white if the filters are consistent)."""
+    out = []
+    band = r.get("nees_band_95")
+    if band is not None:
+        out.append(("mean NEES inside its 95 % band (correlated values)", f"{r['nees']:.2f} in [{band[0]:.2f}, "
+                    f"{band[1]:.2f}]", band[0] <= r["nees"] <= band[1]))
+    if r.get("track_nis_count"):
+        lo, hi = mean_chi2_band(2, r["track_nis_count"])
+        out.append(("track filters' mean NIS inside its 95 % band", f"{r['track_nis']:.2f} in [{lo:.3f}, {hi:.3f}] "
+                    f"({r['track_nis_count']} values)", lo <= r["track_nis"] <= hi))
+    return out
 
 
 if __name__ == "__main__":

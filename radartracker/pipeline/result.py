@@ -5,12 +5,12 @@ accounting, final biases with their errors and z-scores against ``truth_biases.c
 errors against ``truth.csv`` (RMSE, NEES) and the track metrics (continuity, breaks, swaps, false
 tracks, GOSPA; :func:`radartracker.pipeline.evaluate.track_metrics`), and a consistency check:
 
-* mean NEES of the track estimates against the truth (4 degrees of freedom: expected 4);
-* mean NIS of the estimator's innovations (2 degrees of freedom: expected 2; labelled path).
+* mean NEES of the track estimates against the truth (4 degrees of freedom: expected 4), with the 95 % band
+  of a mean of that many values correlated as they are (:mod:`radartracker.pipeline.consistency`);
+* mean NIS of the estimator's innovations (2 degrees of freedom: expected 2; labelled path) and of the track
+  filters' (with the band of independent values: a consistent filter's innovations are white).
 
-Consecutive estimates of one aircraft are strongly correlated, so a χ² bound on the mean would be
-far too tight; a mean more than :data:`CONSISTENCY_FACTOR` times off its expectation (either way)
-gives a warning in the log and in ``summary.json`` (once: :meth:`RunResult.summary_table` shows the values,
+A mean more than :data:`CONSISTENCY_FACTOR` times off its expectation (either way) gives a warning in the log and in ``summary.json`` (once: :meth:`RunResult.summary_table` shows the values,
 not the warnings again), saying what it means and what to change (:func:`consistency_warning`).
 """
 
@@ -31,6 +31,7 @@ from radartracker.estimation.coupling import CouplingGraph
 from radartracker.geometry.plane import SystemPlane
 from radartracker.io.tables import ScenarioData, label_spans
 from radartracker.pipeline.config import RunConfig
+from radartracker.pipeline.consistency import effective_count, mean_chi2_band
 from radartracker.pipeline.evaluate import (GridSpec, TrackHistory, TruthPaths, detection_gaps, nees, state_errors,
                                             track_metrics)
 from radartracker.pipeline.outputs import bias_table, event_tables
@@ -42,19 +43,6 @@ if TYPE_CHECKING:  # pandas is imported by pyarrow's to_pandas, when a DataFrame
 
 log = logging.getLogger(__name__)
 CONSISTENCY_FACTOR = 2.0
-
-
-def mean_chi2_band(dof: int, n: int, level: float = 0.95) -> list[float] | None:
-    """Where the mean of ``n`` independent χ² values of ``dof`` degrees of freedom falls with probability
-    ``level``: [χ²_{n·dof}((1 − level)/2), χ²_{n·dof}((1 + level)/2)] / n (Bar-Shalom, Li & Kirubarajan
-    §5.4); ``None`` without values. A filter's values are correlated in time, so a mean outside the band
-    says more than one inside it."""
-    if n <= 0:
-        return None
-    from scipy.stats import chi2
-
-    lo, hi = chi2.ppf([(1 - level) / 2, (1 + level) / 2], dof * n) / n
-    return [float(lo), float(hi)]
 
 
 # what each mean is of, and whose innovations or errors it weighs
@@ -231,14 +219,16 @@ class RunResult:
         if self._assessment is None:
             return None
         tracking, err, ok = self._assessment
-        e, cov = err[ok], self.tracks.cov[ok]
+        e, cov, track = err[ok], self.tracks.cov[ok], self.tracks.track[ok]
         finite = np.isfinite(cov).all(axis=(1, 2))
+        values = nees(e[finite], cov[finite])  # in time order within each track (events are)
         truth = {
             "estimates_compared": int(ok.sum()),
             "position_rmse_m": float(np.sqrt(np.mean(np.sum(e[:, :2] ** 2, axis=1)))) if len(e) else math.nan,
             "velocity_rmse_mps": float(np.sqrt(np.mean(np.sum(e[:, 2:] ** 2, axis=1)))) if len(e) else math.nan,
-            "mean_nees": float(np.mean(nees(e[finite], cov[finite]))) if finite.any() else math.nan,
+            "mean_nees": float(np.mean(values)) if finite.any() else math.nan,
             "nees_compared": int(finite.sum()),
+            "nees_effective_count": effective_count(values, track[finite]),
         }
         return {"truth": truth, "tracking": tracking}
 
@@ -253,7 +243,7 @@ class RunResult:
         """Mean NEES and NIS against their expectations, with warnings when far off (module docstring)."""
         ev = self.evaluation
         out = {"mean_nees": ev["truth"]["mean_nees"] if ev else math.nan, "expected_nees": 4.0,
-               "nees_band_95": mean_chi2_band(4, ev["truth"]["nees_compared"] if ev else 0),
+               "nees_band_95": mean_chi2_band(4, ev["truth"]["nees_effective_count"] if ev else 0),
                "mean_nis": self.mean_nis, "expected_nis": 2.0,
                "mean_track_nis": self.track_nis["mean_nis"], "expected_track_nis": 2.0,
                "track_nis_band_95": mean_chi2_band(2, self.track_nis["count"]),
