@@ -16,6 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+MAX_LAG = 1000  # estimates of one track: a correlation longer than this (an hour of updates) is cut there
 
 def mean_chi2_band(dof: float, n: float, level: float = 0.95) -> list[float] | None:
     """Where the mean of ``n`` independent χ² values of ``dof`` degrees of freedom falls with probability
@@ -33,8 +34,9 @@ def effective_count(values: np.ndarray, series: Sequence | np.ndarray) -> float:
     """How many independent values the correlated ``values`` are worth for their mean: N/τ, with
     τ = 1 + 2 Σₖ ρₖ. ``series`` names the series of each value (a track); within a series the values are
     in time order. ρₖ = Σ dₜ dₜ₊ₖ / Σ dₜ² over the pairs k apart in one series (d: the values less their
-    mean), summed in pairs Γₘ = ρ₂ₘ + ρ₂ₘ₊₁ while Γₘ > 0 (Geyer 1992: beyond that the estimates are noise).
-    N where the values do not vary; never more than N nor less than 1."""
+    mean), summed in pairs Γₘ = ρ₂ₘ + ρ₂ₘ₊₁ while Γₘ > 0 (Geyer 1992: beyond that the estimates are noise),
+    up to lag :data:`MAX_LAG` (the work is N per lag). N where the values do not vary; never more than N nor
+    less than 1."""
     v = np.asarray(values, float)
     n = len(v)
     if n < 2:
@@ -45,13 +47,13 @@ def effective_count(values: np.ndarray, series: Sequence | np.ndarray) -> float:
     if total == 0.0:
         return float(n)
     tau, m = -1.0, 0  # τ = −1 + 2 Σₘ Γₘ (ρ₀ = 1 is in Γ₀)
-    while 2 * m < n:
+    while 2 * m < min(n, MAX_LAG):
         pair = (_lagged(d, s, 2 * m) + _lagged(d, s, 2 * m + 1)) / total
         if pair <= 0.0:
             break
         tau += 2.0 * pair
         m += 1
-    return float(min(max(n / max(tau, 1.0), 1.0), n))
+    return float(max(n / max(tau, 1.0), 1.0))
 
 
 def _lagged(d: np.ndarray, s: np.ndarray, k: int) -> float:

@@ -10,8 +10,9 @@ tracks, GOSPA; :func:`radartracker.pipeline.evaluate.track_metrics`), and a cons
 * mean NIS of the estimator's innovations (2 degrees of freedom: expected 2; labelled path) and of the track
   filters' (with the band of independent values: a consistent filter's innovations are white).
 
-A mean more than :data:`CONSISTENCY_FACTOR` times off its expectation (either way) gives a warning in the log and in ``summary.json`` (once: :meth:`RunResult.summary_table` shows the values,
-not the warnings again), saying what it means and what to change (:func:`consistency_warning`).
+A mean more than :data:`CONSISTENCY_FACTOR` times off its expectation (either way) gives a warning in the log
+and in ``summary.json`` (once: :meth:`RunResult.summary_table` shows the values, not the warnings again), saying
+what it means and what to change (:func:`consistency_warning`).
 """
 
 from __future__ import annotations

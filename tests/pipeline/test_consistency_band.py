@@ -69,3 +69,12 @@ def test_edge_cases() -> None:
     assert mean_chi2_band(4, 0) is None
     lo, hi = mean_chi2_band(4, 2.5)
     assert lo < 4.0 < hi
+
+
+def test_a_trend_is_cut_at_the_largest_lag() -> None:
+    """One long series that never decorrelates (a trend) ends at MAX_LAG lags, in bounded work."""
+    from radartracker.pipeline.consistency import MAX_LAG
+
+    values = np.linspace(0.0, 8.0, 50_000)
+    count = effective_count(values, np.zeros(len(values), int))
+    assert 1.0 <= count <= len(values) / MAX_LAG
