@@ -116,8 +116,9 @@ def evaluate(data: ScenarioData, tracks: dict[int, TrackHistory]) -> dict:
         if v["right_track"] < 0:
             continue
         h = tracks[v["right_track"]]
-        nees4 += _nees(h, v["right_track"], paths.state_at(tg, h.times), slice(0, 4))
-        of_track += [v["right_track"]] * (len(nees4) - len(of_track))
+        values = _nees(h, v["right_track"], paths.state_at(tg, h.times), slice(0, 4))
+        nees4 += values
+        of_track += [v["right_track"]] * len(values)  # each value's track: the series of effective_count
         nees2 += _nees(h, v["right_track"], paths.state_at(tg, h.times), slice(0, 2))
         n_est += len(h.times)
         _height_errors(data, tg, v["right_track"], h, dh, sdh)

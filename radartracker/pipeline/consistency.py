@@ -41,8 +41,9 @@ def effective_count(values: np.ndarray, series: Sequence | np.ndarray) -> float:
     n = len(v)
     if n < 2:
         return float(n)
-    order = np.argsort(np.asarray(series), kind="stable")  # each series together, its values in their order
-    d, s = v[order] - v.mean(), np.asarray(series)[order]
+    series = np.asarray(series)
+    order = np.argsort(series, kind="stable")  # each series together, its values in their order
+    d, s = v[order] - v.mean(), series[order]
     total = float(d @ d)
     if total == 0.0:
         return float(n)
