@@ -49,36 +49,47 @@ class Admission:
         self.keys_limit = 10_000  # the size at which the keys at or before the horizon are forgotten
         self.held: list[tuple[tuple, object]] = []  # (key, input) of a run that may step the clock
 
-    def admit(self, item: object, horizon: float) -> list[tuple[float, object]]:
+    def admit(self, item: object, horizon: float) -> tuple[tuple[float, object], ...]:
         """The inputs admitted by ``item``'s arrival, with their times: itself, or none (held or counted), or
         the inputs held with it when it completes a clock step."""
         key = self._key(item)
         if key is None:
-            return []
-        t, kind = key[2], INPUT_KINDS[key[0]]
+            return ()
+        t = key[2]
         if t <= horizon:
-            return self.reject(f"{kind}_late", item)
+            return self.reject(f"{INPUT_KINDS[key[0]]}_late", item)
         if key in self.keys or (self.held and any(key == k for k, _ in self.held)):
-            return self.reject(f"{kind}_duplicate", item)
-        run, steps = self.clock.run_length, self.clock.steps
-        if self.clock.admit(t):
-            if self.clock.steps > steps:  # a clock step: the run held so far is admitted with this input
-                admitted, self.held = [*self.held, (key, item)], []
-            else:
-                if self.held:  # an input at the stream's time: the run held ahead of it broke
-                    self.drop_held()
-                admitted = [(key, item)]
+            return self.reject(f"{INPUT_KINDS[key[0]]}_duplicate", item)
+        clock = self.clock
+        run, steps = clock.run_length, clock.steps
+        if not clock.admit(t):
+            return self._ahead(key, item, run)
+        if clock.steps > steps:  # a clock step: the run held so far is admitted with this input
+            admitted, self.held = [*self.held, (key, item)], []
             for k, _ in admitted:
                 self.keys[k] = k[2]
-            return [(k[2], it) for k, it in admitted]
-        if self.clock.run_length == run + 1:  # it joined the run of inputs ahead of the clock
+            self.forget(horizon)
+            return tuple((k[2], it) for k, it in admitted)
+        if self.held:  # an input at the stream's time: the run held ahead of it broke
+            self.drop_held()
+        keys = self.keys
+        keys[key] = t
+        if len(keys) > self.keys_limit:
+            self.forget(horizon)
+        return ((t, item),)
+
+    def _ahead(self, key: tuple, item: object, run: int) -> tuple:
+        """``item`` (``key``) is ahead of the stream clock, whose run of inputs ahead was ``run`` long before
+        it: held if it joined that run or started a new one (the old run broke), else counted ``*_time_jump``."""
+        t, length = key[2], self.clock.run_length
+        if length == run + 1:  # it joined the run of inputs ahead of the clock
             self.held.append((key, item))
-        elif self.clock.run_length == 1 and math.isfinite(t):  # it started a new run: the old one broke
+        elif length == 1 and math.isfinite(t):  # it started a new run: the old one broke
             self.drop_held()
             self.held.append((key, item))
         else:
-            self.reject(f"{kind}_time_jump", item)
-        return []
+            self.reject(f"{INPUT_KINDS[key[0]]}_time_jump", item)
+        return ()
 
     def drop_held(self) -> None:
         """Count the held inputs ``*_time_jump`` (their run broke, or the stream ended)."""
@@ -107,11 +118,12 @@ class Admission:
         self.reject("invalid_input", item)
         return None
 
-    def reject(self, reason: str, item: object) -> list:
+    def reject(self, reason: str, item: object) -> tuple:
+        """Count ``item`` under ``reason`` (the first five of each reason logged); nothing admitted."""
         if self.counts[reason] < 5:
             log.warning("rejected (%s): %r", reason, item)
         self.counts[reason] += 1
-        return []
+        return ()
 
     def forget(self, horizon: float) -> None:
         """Forget the keys at or before ``horizon`` (such an input is late anyway) once they pass the limit,
@@ -218,6 +230,11 @@ class ReorderWindow:
             t = item.time
         self.horizon = t
         return t, item
+
+    def due(self, until: float) -> bool:
+        """Whether an input waits at or before ``until`` (:meth:`release` would yield one)."""
+        queue, heap = self.queue, self.heap
+        return bool(queue and queue[0].time <= until or heap and heap[0][0] <= until)
 
     def release(self, until: float) -> Iterator[tuple[float, object]]:
         """The inputs at or before ``until``, in order, with their times."""

@@ -100,13 +100,15 @@ class TrackManager:
     # --- public API ------------------------------------------------------------------------------
     def process(self, item: Input) -> list[TrackEvent]:
         """Admit one plot, ADS-B report or unbiased position; return the events it caused (possibly none yet)."""
-        window = self.window
+        window, capacity = self.window, self.config.reorder_capacity
         for t, admitted in self.admission.admit(item, window.horizon):
             newest = window.newest
             window.push(admitted, t)
-            if len(window) > self.config.reorder_capacity:
+            if len(window) > capacity:
                 self._overfull(newest is None or t > newest)
-            self._release(window.until)
+            until = window.until
+            if window.due(until):
+                self._release(until)
         return self.events.take()
 
     def process_many(self, items: Iterable[Input]) -> list[TrackEvent]:
@@ -222,7 +224,6 @@ class TrackManager:
             self.gathered.append(item)
             if len(self.gathered) >= cap:
                 self._run_frame(self.frame)
-        self.admission.forget(self.window.horizon)
 
     def _run_frame(self, number: int) -> None:
         """One frame: convert, associate, refine heights, apply in time order, find misses, delete, feed the
