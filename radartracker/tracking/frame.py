@@ -39,7 +39,7 @@ from radartracker.tracking.track import Track
 _TIME, _RANGE, _AZIMUTH, _ALTITUDE = (attrgetter(f) for f in ("time", "range_m", "azimuth_rad", "altitude_m"))
 _LAT, _LON, _NACP = attrgetter("lat"), attrgetter("lon"), attrgetter("nacp")
 Input = Plot | AdsbReport | PlaneMeasurement
-_ROW = methodcaller("estimate_row")
+_ROW_BYTES = methodcaller("estimate_bytes")
 
 
 class FrameMeasurements(NamedTuple):
@@ -168,8 +168,8 @@ class Prediction:
         self.tracks = tracks
         self.time = time
         n = len(tracks)
-        rows = list(map(_ROW, tracks))  # each track's (t₀, x, y, vx, vy), as floats
-        table = np.fromiter(itertools.chain.from_iterable(rows), float, 5 * n).reshape(n, 5)
+        # each track's (t₀, x, y, vx, vy): five float64 each, joined (one object a track, not six)
+        table = np.frombuffer(b"".join(map(_ROW_BYTES, tracks)), float).reshape(n, 5)
         # p + v max(t − t₀, 0): the straight line, never backwards
         self.position = table[:, 1:3] + table[:, 3:] * np.maximum(time - table[:, 0], 0.0)[:, None]
         self.by_mode_s = {tr.mode_s: i for i, tr in enumerate(tracks) if tr.mode_s}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import struct
 from collections import deque
 from typing import NamedTuple
 
@@ -18,6 +19,7 @@ from radartracker.tracking.height import HeightFilter
 TRACK_STATUSES = ("tentative", "confirmed", "coasting", "deleted")
 NO_COVARIANCE = np.full(16, np.nan).tobytes()  # the bytes of an unknown 4×4 covariance: 16 NaNs
 MODE_C_SD, ADSB_ALTITUDE_SD = math.sqrt(MODE_C_VAR), math.sqrt(ADSB_ALTITUDE_VAR)  # a reported altitude's σ (m)
+_ROW = struct.Struct("=5d")  # (t, x, y, vx, vy) as 5 native float64
 
 
 class Pending(NamedTuple):
@@ -81,9 +83,10 @@ class Track:
         return (self._estimate or self._read())[:3]
 
     def _read(self) -> tuple:
-        """(t, χ, P, (t, x, y, vx, vy)) of the filter, kept until :meth:`changed`."""
+        """(t, χ, P, (t, x, y, vx, vy), the bytes of that row) of the filter, kept until :meth:`changed`."""
         t, x, P = self.filter.estimate()
-        e = self._estimate = (t, x, P, (t, *x.tolist()))
+        row = (t, *x.tolist())
+        e = self._estimate = (t, x, P, row, _ROW.pack(*row))
         return e
 
     @property
@@ -95,13 +98,17 @@ class Track:
         """(t, x, y, vx, vy) of the estimate, as floats."""
         return (self._estimate or self._read())[3]
 
+    def estimate_bytes(self) -> bytes:
+        """:meth:`estimate_row` as the bytes of 5 float64 (a frame joins every track's into one array)."""
+        return (self._estimate or self._read())[4]
+
     def changed(self) -> None:
         """The filter changed: :meth:`estimate` reads it again."""
         self._estimate = None
 
     def covariance_bytes(self, time: float) -> bytes:
         """The bytes of the estimate's covariance P (16 float64) if the estimate is at ``time``, else 16 NaNs."""
-        t, _, P, _ = self._estimate or self._read()
+        t, _, P, _, _ = self._estimate or self._read()
         return P.tobytes() if t == time else NO_COVARIANCE
 
     def state_at(self, time: float) -> tuple[float, float, float, float]:
