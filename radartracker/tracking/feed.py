@@ -75,6 +75,7 @@ class EstimatorFeed:
         # each radar's state since the last flush (the estimator and the coupling graph change only there), and
         # its prior covariance (the estimator's config does not change)
         self._states: dict[str, BiasState] = {}
+        self._arrays: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # each radar's (ς̂, P_ς) of its state, as arrays
         self._priors: dict[str, np.ndarray] = {}
 
     def state(self, radar: str) -> BiasState:
@@ -93,15 +94,18 @@ class EstimatorFeed:
     def forget(self) -> None:
         """Read the estimator and the coupling graph again at the next :meth:`state` (after a flush, or once
         their state was loaded from a snapshot)."""
-        self._states = {}
+        self._states, self._arrays = {}, {}
 
     def bias(self, radar: str | None) -> tuple[np.ndarray, np.ndarray]:
         """(ς̂, P_ς) of ``radar`` (:meth:`state`) as at the frame's start (zeros for an unbiased source,
-        ``None``)."""
+        ``None``), made arrays once per radar between flushes: every measurement of a frame reads one."""
         if radar is None:
             return _ZERO2, _ZERO22
-        state = self.state(radar)
-        return np.asarray(state.bias, float), np.asarray(state.cov, float)
+        got = self._arrays.get(radar)
+        if got is None:
+            state = self.state(radar)
+            got = self._arrays[radar] = (np.asarray(state.bias, float), np.asarray(state.cov, float))
+        return got
 
     def add(self, op: Operation) -> None:
         self.pending.append(op)
