@@ -66,17 +66,13 @@ class Admission:
             return self._ahead(key, item, run)
         if clock.steps > steps:  # a clock step: the run held so far is admitted with this input
             admitted, self.held = [*self.held, (key, item)], []
-            for k, _ in admitted:
-                self.keys[k] = k[2]
-            self.forget(horizon)
-            return tuple((k[2], it) for k, it in admitted)
-        if self.held:  # an input at the stream's time: the run held ahead of it broke
+        else:  # an input at the stream's time: a run held ahead of it broke
             self.drop_held()
-        keys = self.keys
-        keys[key] = t
-        if len(keys) > self.keys_limit:
-            self.forget(horizon)
-        return ((t, item),)
+            admitted = [(key, item)]
+        for k, _ in admitted:
+            self.keys[k] = k[2]
+        self.forget(horizon)
+        return tuple((k[2], it) for k, it in admitted)
 
     def _ahead(self, key: tuple, item: object, run: int) -> tuple:
         """``item`` (``key``) is ahead of the stream clock, whose run of inputs ahead was ``run`` long before

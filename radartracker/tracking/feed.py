@@ -75,7 +75,6 @@ class EstimatorFeed:
         # each radar's state since the last flush (the estimator and the coupling graph change only there), and
         # its prior covariance (the estimator's config does not change)
         self._states: dict[str, BiasState] = {}
-        self._arrays: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # each radar's (ς̂, P_ς) of its state, as arrays
         self._priors: dict[str, np.ndarray] = {}
 
     def state(self, radar: str) -> BiasState:
@@ -94,18 +93,15 @@ class EstimatorFeed:
     def forget(self) -> None:
         """Read the estimator and the coupling graph again at the next :meth:`state` (after a flush, or once
         their state was loaded from a snapshot)."""
-        self._states, self._arrays = {}, {}
+        self._states = {}
 
     def bias(self, radar: str | None) -> tuple[np.ndarray, np.ndarray]:
         """(ς̂, P_ς) of ``radar`` (:meth:`state`) as at the frame's start (zeros for an unbiased source,
-        ``None``), made arrays once per radar between flushes: every measurement of a frame reads one."""
+        ``None``)."""
         if radar is None:
             return _ZERO2, _ZERO22
-        got = self._arrays.get(radar)
-        if got is None:
-            state = self.state(radar)
-            got = self._arrays[radar] = (np.asarray(state.bias, float), np.asarray(state.cov, float))
-        return got
+        state = self.state(radar)
+        return np.asarray(state.bias, float), np.asarray(state.cov, float)
 
     def add(self, op: Operation) -> None:
         self.pending.append(op)

@@ -94,12 +94,9 @@ class Track:
         """The time of the estimate."""
         return (self._estimate or self._read())[0]
 
-    def estimate_row(self) -> tuple[float, float, float, float, float]:
-        """(t, x, y, vx, vy) of the estimate, as floats."""
-        return (self._estimate or self._read())[3]
-
     def estimate_bytes(self) -> bytes:
-        """:meth:`estimate_row` as the bytes of 5 float64 (a frame joins every track's into one array)."""
+        """(t, x, y, vx, vy) of the estimate as the bytes of five float64 (a frame joins every track's into one
+        array)."""
         return (self._estimate or self._read())[4]
 
     def changed(self) -> None:
